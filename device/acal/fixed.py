@@ -1,0 +1,90 @@
+# Fixed-point formats of the device core: the one place where they are defined.
+#
+# Notation: "Qn g" means an int whose least significant bit is 2**-n g.
+# Small ints: 32-bit MicroPython ports keep |int| < 2**30 unboxed; past that an int is a
+# heap-allocated long.  The per-sample path (rest detector, apply) stays inside 2**30 for every
+# in-range input (tests/test_ranges.py proves it at the worst case).  The optimiser does not:
+# it needs ~52-bit products, which stay unboxed on 64-bit ports (< 2**62) and are longs on 32-bit
+# boards; README "Integer ranges" gives the account of what that costs.
+try:
+    from micropython import const
+except ImportError:  # CPython without Blinka
+    def const(x):
+        return x
+
+# --- samples ------------------------------------------------------------------------------
+# SAMPLE: Q10 g (1 LSB = 0.977 mg).  The LIS3DH at +-2 g in high-resolution mode gives 1 mg/digit,
+# so one digit is one LSB to within 2.4 %, a scale error the calibration removes anyway.
+# Range: |sample| <= SAMPLE_MAX (+-16 g, the LIS3DH's largest full scale).
+SAMPLE_Q = const(10)
+SAMPLE_ONE_G = const(1024)
+SAMPLE_MAX = const(16383)
+
+# --- segments -----------------------------------------------------------------------------
+# Segment sums: sum of <= SEGMENT_MAX_SAMPLES samples, so |sum| <= 16383 * 65535 < 2**30.
+SEGMENT_MAX_SAMPLES = const(65535)
+
+# --- points (rest means) --------------------------------------------------------------------
+# POINT: Q16 g (1 LSB = 15.3 ug).  A segment mean is floor(sum * 2**6 / n), computed without
+# leaving 2**30 (rest.py).  Range: |point| <= 16 g -> 2**20.
+POINT_Q = const(16)
+POINT_ONE_G = const(65536)
+POINT_FROM_SAMPLE_SHIFT = const(6)  # POINT_Q - SAMPLE_Q
+
+# --- optimiser ----------------------------------------------------------------------------
+# PARAM: every parameter in Q26: scales and misalignments dimensionless (1.0 = 2**26), offsets
+# in g (1 g = 2**26).  Points enter as u = (v << 10) + o, in Q26 g.
+PARAM_Q = const(26)
+PARAM_ONE = const(67108864)  # 2**26
+POINT_TO_PARAM_SHIFT = const(10)  # PARAM_Q - POINT_Q
+# Gradient step h = 2**-17 (7.6e-6; the paper recommends 1e-5 for 32-bit fixed point) in every
+# parameter, a power of two so that dividing by h is a shift.
+H_SHIFT = const(17)
+H_PARAM = const(512)  # 2**(PARAM_Q - H_SHIFT)
+# Residual r = |a|^2 - 1 g^2: |a|^2 is Q52 g^2, r is kept in Q30 g^2 (shift 22).
+R_SHIFT = const(22)
+# Objective term r^2: Q60 g^4 -> Q40 g^4 (shift 20).  1 LSB of the objective = 2**-40 g^4.
+F_SHIFT = const(20)
+OBJ_Q = const(40)
+# Update: p -= alpha * (f(p+h e_i) - f(p)) / h / N, where f is the *sum* over the N points and the
+# division by N makes it the paper's objective averaged over the points (the scaling under which
+# the paper's learning rates converge; README "Learning-rate scaling").  In integers:
+#   dp[LSB of Q26] = alpha * df[LSB of Q40] * 2**(PARAM_Q + H_SHIFT - OBJ_Q) / N
+#                  = alpha_tenths * df * 8 // (10 * N)
+UPDATE_MUL = const(8)  # 2**(PARAM_Q + H_SHIFT - OBJ_Q)
+ALPHA_DEN = const(10)  # learning rates are given in tenths: 0.3 -> 3
+# Learning rates of the paper (alpha_s, alpha_m, alpha_o) for the square-root-free objective.
+ALPHA_SCALE = const(3)
+ALPHA_MISALIGN = const(8)
+ALPHA_OFFSET = const(2)
+
+# Divergence guard: a parameter outside these bounds, or a corrected point with a component
+# beyond A_LIMIT, means the fit has left the region where the model and the ranges hold.
+K_DIAG_MIN = const(33554432)   # 0.5
+K_DIAG_MAX = const(134217728)  # 2.0
+K_OFF_MAX = const(33554432)    # |misalignment| <= 0.5
+O_MAX = const(33554432)        # |offset| <= 0.5 g
+A_LIMIT = const(268435456)     # 4 g in Q26
+
+# --- apply (per sample) -----------------------------------------------------------------------
+# Calibrated sample = K (v + o) in SAMPLE units, with K in Q14 and o in Q14 g:
+#   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 18 (Q10 g).
+# At +-2 g: |u| <= 2**15 + 2**13, |k14| <= 2**15  ->  every product and sum < 2**30.
+APPLY_Q = const(14)
+APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
+APPLY_PARAM_SHIFT = const(12)       # PARAM_Q - APPLY_Q
+APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
+
+# Parameter order (paper eq. 6).
+KXX = const(0)
+KYY = const(1)
+KZZ = const(2)
+KXY = const(3)
+KXZ = const(4)
+KYZ = const(5)
+OX = const(6)
+OY = const(7)
+OZ = const(8)
+N_PARAMS = const(9)
+PARAM_NAMES = ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")
+

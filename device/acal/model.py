@@ -1,0 +1,98 @@
+# The 9-parameter error model (Farago 2024, eqs. 1-9): a = K (v + o), K lower-triangular.
+#   a_x = kxx (v_x + o_x)
+#   a_y = kxy (v_x + o_x) + kyy (v_y + o_y)
+#   a_z = kxz (v_x + o_x) + kyz (v_y + o_y) + kzz (v_z + o_z)
+# Parameters are a list of 9 ints in Q26 (fixed.py), in the order of eq. 6.
+from acal.fixed import (PARAM_ONE, PARAM_Q, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
+                        APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT)
+
+_ONE_G2_Q52 = 1 << (2 * PARAM_Q)
+
+
+def identity(p):
+    """Set p (list of 9 ints) to p0 = [1 1 1 0 0 0 0 0 0], the ideal sensor."""
+    for i in range(N_PARAMS):
+        p[i] = PARAM_ONE if i < 3 else 0
+
+
+def load_points(pts, n, u):
+    """Points (Q16 g, flat x y z list) -> u (Q26 g), the form the objective reads."""
+    for i in range(3 * n):
+        u[i] = pts[i] << POINT_TO_PARAM_SHIFT
+
+
+def objective(p, u, n):
+    """Sum over the n points of (|a|^2 - 1 g^2)^2, the paper's eq. 12 without the square root.
+
+    u: points in Q26 g (load_points).  Returns Q40 g^4.  Intermediates: products k*u < 2**55,
+    |a|^2 < 2**60 while the parameters stay inside the optimiser's bounds."""
+    kxx = p[0]
+    kyy = p[1]
+    kzz = p[2]
+    kxy = p[3]
+    kxz = p[4]
+    kyz = p[5]
+    ox = p[6]
+    oy = p[7]
+    oz = p[8]
+    one = _ONE_G2_Q52
+    q = PARAM_Q  # locals: module globals cost a lookup each in the loop
+    rs = R_SHIFT
+    fs = F_SHIFT
+    total = 0
+    i = 0
+    end = 3 * n
+    while i < end:
+        ux = u[i] + ox
+        uy = u[i + 1] + oy
+        uz = u[i + 2] + oz
+        ax = (kxx * ux) >> q
+        ay = (kxy * ux + kyy * uy) >> q
+        az = (kxz * ux + kyz * uy + kzz * uz) >> q
+        r = (ax * ax + ay * ay + az * az - one) >> rs
+        total += (r * r) >> fs
+        i += 3
+    return total
+
+
+class Calibration:
+    """A calibration applied to raw samples, per sample and without allocating.
+
+    set(p) takes Q26 parameters and keeps them in Q14 (APPLY_Q): the products of the per-sample
+    path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g."""
+
+    def __init__(self):
+        self.k = [0] * N_PARAMS
+        self.x = 0
+        self.y = 0
+        self.z = 0
+        p = [0] * N_PARAMS
+        identity(p)
+        self.set(p)
+
+    def set(self, p):
+        half = 1 << (APPLY_PARAM_SHIFT - 1)
+        for i in range(N_PARAMS):
+            self.k[i] = (p[i] + half) >> APPLY_PARAM_SHIFT
+
+    def apply(self, x, y, z):
+        """Correct one sample; the result is in self.x, self.y, self.z (Q10 g)."""
+        k = self.k
+        ux = (x << APPLY_FROM_SAMPLE_SHIFT) + k[6]
+        uy = (y << APPLY_FROM_SAMPLE_SHIFT) + k[7]
+        uz = (z << APPLY_FROM_SAMPLE_SHIFT) + k[8]
+        half = 1 << (APPLY_OUT_SHIFT - 1)
+        self.x = (k[0] * ux + half) >> APPLY_OUT_SHIFT
+        self.y = (k[3] * ux + k[1] * uy + half) >> APPLY_OUT_SHIFT
+        self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> APPLY_OUT_SHIFT
+
+    def apply_samples(self, buf, start, n):
+        """Correct n interleaved samples x y z ... of an int array in place, from sample `start`."""
+        i = 3 * start
+        end = 3 * (start + n)
+        while i < end:
+            self.apply(buf[i], buf[i + 1], buf[i + 2])
+            buf[i] = self.x
+            buf[i + 1] = self.y
+            buf[i + 2] = self.z
+            i += 3

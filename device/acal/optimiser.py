@@ -1,0 +1,97 @@
+# The optimiser of Farago 2024 (section II-C, eqs. 12-16) in fixed point.
+#
+#   g_i = (f(p + h e_i) - f(p)) / h            forward difference, eq. 13, h = 2**-17
+#   p  <- p - alpha o g / N                    eq. 14 with the vectorised rate of eq. 16
+#
+# f is the square-root-free objective summed over the N points (model.objective); dividing the
+# gradient by N makes the step that of the objective averaged over the points, the scaling under
+# which the paper's rates alpha_s = 0.3, alpha_m = 0.8, alpha_o = 0.2 converge (with the plain sum
+# the scale step is N times too large and diverges; README "Learning-rate scaling").
+# Formats: fixed.py.  Failure is reported, never returned as parameters: see the status codes.
+from acal.fixed import (H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE, ALPHA_MISALIGN,
+                        ALPHA_OFFSET, K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
+from acal import model
+
+OK = 0
+DIVERGED = 1     # a parameter left its bounds (fixed.py), or the objective ended above its start
+TOO_FEW = 2      # fewer points than parameters
+STATUS_NAMES = ("ok", "diverged", "too few points")
+
+MIN_POINTS = N_PARAMS
+DEFAULT_ITERATIONS = 50
+
+
+class Optimiser:
+    """Integer gradient descent on the 9 model parameters.
+
+    Buffers for up to max_points points are allocated once; `run` allocates nothing on a 64-bit
+    port.  After run(): p holds the parameters (Q26), status a code above, iterations the number
+    done, objective the final objective and objective_start the one at p0 (Q40 g^4, summed)."""
+
+    def __init__(self, max_points=18, alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET)):
+        self.max_points = max_points
+        self.u = [0] * (3 * max_points)
+        self.p = [0] * N_PARAMS
+        self.df = [0] * N_PARAMS
+        self.alpha = [0] * N_PARAMS
+        self.set_rates(alphas[0], alphas[1], alphas[2])
+        self.status = OK
+        self.iterations = 0
+        self.objective = 0
+        self.objective_start = 0
+
+    def set_rates(self, alpha_s, alpha_m, alpha_o):
+        """Learning rates in tenths (0.3 -> 3), per group: scale, misalignment, offset."""
+        for i in range(N_PARAMS):
+            self.alpha[i] = alpha_s if i < 3 else (alpha_m if i < 6 else alpha_o)
+
+    def _in_bounds(self):
+        p = self.p
+        for i in range(3):
+            if not K_DIAG_MIN <= p[i] <= K_DIAG_MAX:
+                return False
+        for i in range(3, 6):
+            if not -K_OFF_MAX <= p[i] <= K_OFF_MAX:
+                return False
+        for i in range(6, 9):
+            if not -O_MAX <= p[i] <= O_MAX:
+                return False
+        return True
+
+    def run(self, pts, n, iterations=DEFAULT_ITERATIONS):
+        """Fit the model to n points (flat x y z list, Q16 g) from p0; return the status."""
+        self.iterations = 0
+        if n < MIN_POINTS:
+            self.status = TOO_FEW
+            return TOO_FEW
+        if n > self.max_points:
+            raise ValueError("more points than the optimiser was sized for")
+        u = self.u
+        p = self.p
+        df = self.df
+        alpha = self.alpha
+        objective = model.objective
+        model.load_points(pts, n, u)
+        model.identity(p)
+        den = ALPHA_DEN * n
+        mul = UPDATE_MUL
+        h = H_PARAM
+        f0 = objective(p, u, n)
+        self.objective_start = f0
+        self.status = OK
+        for it in range(iterations):
+            for i in range(N_PARAMS):
+                p[i] += h
+                df[i] = objective(p, u, n) - f0
+                p[i] -= h
+            for i in range(N_PARAMS):
+                p[i] -= (alpha[i] * mul * df[i]) // den
+            self.iterations = it + 1
+            if not self._in_bounds():
+                self.status = DIVERGED
+                return DIVERGED
+            f0 = objective(p, u, n)
+        self.objective = f0
+        if f0 > self.objective_start:
+            self.status = DIVERGED
+        return self.status

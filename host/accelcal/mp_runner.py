@@ -1,0 +1,66 @@
+# Drives the device pipeline from a line protocol.  The same file runs inside CPython (imported)
+# and inside the real MicroPython interpreter (as a script), so both runtimes execute the very
+# same device code on the very same integers.  MicroPython-compatible: no f-strings with
+# expressions beyond str(), no host imports.
+#
+# Input lines (integers, space separated):
+#   C rate seconds threshold axis min_count max_count differ policy iterations
+#   G name                 start a group (a device): a fresh pipeline
+#   P x y z                a rest point, Q16 g, offered to the bins
+#   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
+#   E                      end of group: calibrate and report
+# Output lines:
+#   G name
+#   R x y z subset         every rest mean (Q16 g) and the subset that kept it (-1: not kept)
+#   K c0 ... c8            points per subset
+#   F status iterations objective_start objective p0 ... p8
+import sys
+
+from acal.pipeline import Pipeline
+
+
+def run(lines, emit):
+    cfg = None
+    pipe = None
+    buf = None
+    for line in lines:
+        f = line.split()
+        if not f:
+            continue
+        tag = f[0]
+        if tag == "B":
+            n = int(f[1])
+            if buf is None or len(buf) < 3 * n:
+                buf = [0] * (3 * n)
+            for i in range(3 * n):
+                buf[i] = int(f[2 + i])
+            pipe.add_samples(buf, 0, n)
+        elif tag == "P":
+            pipe.offer(int(f[1]), int(f[2]), int(f[3]))
+        elif tag == "G":
+            emit("G " + f[1])
+
+            def on_rest(x, y, z, s):
+                emit("R %d %d %d %d" % (x, y, z, s))
+
+            pipe = Pipeline(cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7],
+                            cfg[8], on_rest)
+        elif tag == "E":
+            emit("K " + " ".join([str(c) for c in pipe.bins.counts]))
+            status = pipe.calibrate()
+            o = pipe.optimiser
+            emit("F %d %d %d %d " % (status, o.iterations, o.objective_start, o.objective)
+                 + " ".join([str(v) for v in o.p]))
+        elif tag == "C":
+            cfg = [int(v) for v in f[1:]]
+        else:
+            raise ValueError("unknown line: " + tag)
+
+
+def main():
+    with open(sys.argv[1]) as fh:
+        run(fh, print)
+
+
+if __name__ == "__main__":
+    main()
