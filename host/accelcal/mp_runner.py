@@ -8,11 +8,13 @@
 #   G name                 start a group (a device): a fresh pipeline
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
+#   X                      a gap in the samples: the open segment is dropped
 #   E                      end of group: calibrate and report
 # Output lines:
 #   G name
 #   R x y z subset         every rest mean (Q16 g) and the subset that kept it (-1: not kept)
 #   K c0 ... c8            points per subset
+#   S x y z                every point the bins hold at the end (Q16 g)
 #   F status iterations objective_start objective p0 ... p8
 import sys
 
@@ -35,6 +37,8 @@ def run(lines, emit):
             for i in range(3 * n):
                 buf[i] = int(f[2 + i])
             pipe.add_samples(buf, 0, n)
+        elif tag == "X":
+            pipe.rest.reset()
         elif tag == "P":
             pipe.offer(int(f[1]), int(f[2]), int(f[3]))
         elif tag == "G":
@@ -47,6 +51,10 @@ def run(lines, emit):
                             cfg[8], on_rest)
         elif tag == "E":
             emit("K " + " ".join([str(c) for c in pipe.bins.counts]))
+            for s in range(9):
+                for k in range(pipe.bins.counts[s]):
+                    x, y, z = pipe.bins.point(s, k)
+                    emit("S %d %d %d" % (x, y, z))
             status = pipe.calibrate()
             o = pipe.optimiser
             emit("F %d %d %d %d " % (status, o.iterations, o.objective_start, o.objective)

