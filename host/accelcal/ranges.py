@@ -1,0 +1,51 @@
+"""Range tracing: run device code under CPython on ints that record every value they produce.
+
+TracedInt behaves as an int; each arithmetic result is again a TracedInt and is checked against
+the small-int limit of 32-bit MicroPython ports (|v| < 2**30).  Used by the tests (worst-case
+ranges of the per-sample path) and the bench (how many optimiser values become longs on a
+32-bit board)."""
+from __future__ import annotations
+
+SMALL_INT_LIMIT = 1 << 30
+
+
+class Tracer:
+    def __init__(self):
+        self.max_abs = 0
+        self.ops = 0
+        self.big = 0
+
+    def see(self, v: int) -> None:
+        self.ops += 1
+        a = -v if v < 0 else v
+        if a > self.max_abs:
+            self.max_abs = a
+        if a >= SMALL_INT_LIMIT:
+            self.big += 1
+
+
+def traced(tracer: Tracer):
+    """A TracedInt class bound to one tracer."""
+
+    class TracedInt(int):
+        def _wrap(self, v):
+            if isinstance(v, bool) or not isinstance(v, int):
+                return v
+            tracer.see(int(v))
+            return TracedInt(v)
+
+    def binop(name):
+        base = getattr(int, name)
+
+        def f(self, other):
+            r = base(int(self), int(other) if isinstance(other, int) else other)
+            return self._wrap(r) if r is not NotImplemented else r
+        return f
+
+    for n in ("__add__", "__radd__", "__sub__", "__rsub__", "__mul__", "__rmul__",
+              "__floordiv__", "__rfloordiv__", "__mod__", "__rmod__", "__lshift__",
+              "__rlshift__", "__rshift__", "__rrshift__", "__and__", "__rand__", "__or__", "__ror__"):
+        setattr(TracedInt, n, binop(n))
+    TracedInt.__neg__ = lambda self: self._wrap(-int(self))
+    TracedInt.__abs__ = lambda self: self._wrap(abs(int(self)))
+    return TracedInt
