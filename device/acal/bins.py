@@ -3,7 +3,8 @@
 # Each axis is split into [-1.25, -0.75], [-0.25, 0.25], [0.75, 1.25] g, giving nine subsets
 # C_ij (i = x, y, z; j = n, 0, p), subset index 3*i + j.  Each subset holds between min_count
 # and max_count points; a rest mean is kept only if it differs enough from every point already
-# held (max-norm distance >= `differ`, no square root).  A point that lies in several subsets
+# held (max-norm distance >= `differ`, no square root).  Means with a component beyond 1.25 g or a
+# magnitude outside [0.5, 1.5] g are not gravity and are never kept.  A point that lies in several subsets
 # (e.g. (1, 0, 0) is in C_xp, C_y0 and C_z0) goes to the one of them holding fewest points.
 #
 # Two policies once a subset is full:
@@ -23,6 +24,11 @@ _LO_OUT = (3 * POINT_ONE_G) // 4  # 0.75 g
 _HI_OUT = (5 * POINT_ONE_G) // 4  # 1.25 g
 _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
+# A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
+# not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
+# after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.
+_MAG2_MIN = (POINT_ONE_G >> 5) * (POINT_ONE_G >> 5)      # (0.5 g)^2 in Q24
+_MAG2_MAX = 9 * (POINT_ONE_G >> 5) * (POINT_ONE_G >> 5)  # (1.5 g)^2
 
 
 def subset_of(c, axis):
@@ -122,6 +128,11 @@ class Bins:
     def offer(self, x, y, z):
         """Offer a rest mean (Q16 g). Returns the subset index it was kept in, or -1."""
         self.offered += 1
+        if not (-_HI_OUT <= x <= _HI_OUT and -_HI_OUT <= y <= _HI_OUT and -_HI_OUT <= z <= _HI_OUT):
+            return -1
+        mag2 = (x >> 4) * (x >> 4) + (y >> 4) * (y >> 4) + (z >> 4) * (z >> 4)
+        if mag2 < _MAG2_MIN or mag2 > _MAG2_MAX:
+            return -1
         m = self.max_count
         best = -1
         for axis in range(3):

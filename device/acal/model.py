@@ -4,7 +4,8 @@
 #   a_z = kxz (v_x + o_x) + kyz (v_y + o_y) + kzz (v_z + o_z)
 # Parameters are a list of 9 ints in Q26 (fixed.py), in the order of eq. 6.
 from acal.fixed import (PARAM_ONE, PARAM_Q, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
-                        APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT)
+                        APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
+                        K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
 
 _ONE_G2_Q52 = 1 << (2 * PARAM_Q)
 
@@ -13,6 +14,20 @@ def identity(p):
     """Set p (list of 9 ints) to p0 = [1 1 1 0 0 0 0 0 0], the ideal sensor."""
     for i in range(N_PARAMS):
         p[i] = PARAM_ONE if i < 3 else 0
+
+
+def in_bounds(p):
+    """True when the parameters lie inside the bounds of fixed.py."""
+    for i in range(3):
+        if not K_DIAG_MIN <= p[i] <= K_DIAG_MAX:
+            return False
+    for i in range(3, 6):
+        if not -K_OFF_MAX <= p[i] <= K_OFF_MAX:
+            return False
+    for i in range(6, 9):
+        if not -O_MAX <= p[i] <= O_MAX:
+            return False
+    return True
 
 
 def load_points(pts, n, u):
@@ -71,6 +86,9 @@ class Calibration:
         self.set(p)
 
     def set(self, p):
+        """Take Q26 parameters; ValueError outside the bounds (the range proof needs them)."""
+        if not in_bounds(p):
+            raise ValueError("parameters outside the calibration bounds")
         half = 1 << (APPLY_PARAM_SHIFT - 1)
         for i in range(N_PARAMS):
             self.k[i] = (p[i] + half) >> APPLY_PARAM_SHIFT

@@ -9,7 +9,7 @@
 # the scale step is N times too large and diverges; README "Learning-rate scaling").
 # Formats: fixed.py.  Failure is reported, never returned as parameters: see the status codes.
 from acal.fixed import (H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE, ALPHA_MISALIGN,
-                        ALPHA_OFFSET, K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
+                        ALPHA_OFFSET)
 from acal import model
 
 OK = 0
@@ -45,19 +45,6 @@ class Optimiser:
         for i in range(N_PARAMS):
             self.alpha[i] = alpha_s if i < 3 else (alpha_m if i < 6 else alpha_o)
 
-    def _in_bounds(self):
-        p = self.p
-        for i in range(3):
-            if not K_DIAG_MIN <= p[i] <= K_DIAG_MAX:
-                return False
-        for i in range(3, 6):
-            if not -K_OFF_MAX <= p[i] <= K_OFF_MAX:
-                return False
-        for i in range(6, 9):
-            if not -O_MAX <= p[i] <= O_MAX:
-                return False
-        return True
-
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS):
         """Fit the model to n points (flat x y z list, Q16 g) from p0; return the status."""
         self.iterations = 0
@@ -87,7 +74,7 @@ class Optimiser:
             for i in range(N_PARAMS):
                 p[i] -= (alpha[i] * mul * df[i]) // den
             self.iterations = it + 1
-            if not self._in_bounds():
+            if not model.in_bounds(p):
                 self.status = DIVERGED
                 return DIVERGED
             f0 = objective(p, u, n)

@@ -3,22 +3,23 @@
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.bins import Bins, CENTRE, DEFAULT_DIFFER, N_SUBSETS
 from acal.optimiser import Optimiser, DEFAULT_ITERATIONS
-from acal.fixed import N_PARAMS
+from acal.fixed import N_PARAMS, ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 
 
 class Pipeline:
     """rate_hz, seconds, threshold (Q10 g), axis: rest detection; min_count, max_count,
-    differ (Q16 g), policy: bins; iterations: optimiser.
+    differ (Q16 g), policy: bins; iterations and alphas (learning rates in tenths): optimiser.
 
     on_rest, if given, is called as on_rest(x, y, z, subset) for every rest mean (Q16 g), with
     the subset it was kept in or -1 (the app logs these; the host collects them)."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
-                 iterations=DEFAULT_ITERATIONS, on_rest=None):
+                 iterations=DEFAULT_ITERATIONS, on_rest=None,
+                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET)):
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
         self.bins = Bins(min_count, max_count, differ, policy)
-        self.optimiser = Optimiser(N_SUBSETS * max_count)
+        self.optimiser = Optimiser(N_SUBSETS * max_count, alphas)
         self.iterations = iterations
         self.points = [0] * (3 * N_SUBSETS * max_count)
         self.on_rest = on_rest

@@ -96,7 +96,11 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray) -> np.ndarray:
     """Calibrate samples with the device's own per-sample code (model.Calibration)."""
     cal = Calibration()
-    cal.set(p_int)
+    try:
+        cal.set(p_int)
+    except ValueError:
+        raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
+                         "|misalignment| <= 0.125, |offset| <= 0.25 g)") from None
     buf = g_to_sample(xyz_g).ravel().tolist()
     cal.apply_samples(buf, 0, len(buf) // 3)
     return sample_to_g(np.array(buf, dtype=np.int64).reshape(-1, 3))

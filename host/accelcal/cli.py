@@ -27,6 +27,17 @@ def _positive_int(s):
     return v
 
 
+def _rates(s):
+    try:
+        vals = [float(v) for v in s.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError("three numbers, e.g. 0.3,0.8,0.2") from None
+    tenths = [round(v * 10) for v in vals]
+    if len(vals) != 3 or any(abs(v * 10 - t) > 1e-9 or t < 0 for v, t in zip(vals, tenths)):
+        raise argparse.ArgumentTypeError("three non-negative multiples of 0.1, e.g. 0.3,0.8,0.2")
+    return tuple(tenths)
+
+
 def _add_pipeline_args(p):
     g = p.add_argument_group("device pipeline")
     g.add_argument("--seconds", type=_positive_int, default=5, help="rest segment length, s (default 5)")
@@ -40,6 +51,9 @@ def _add_pipeline_args(p):
                    help="point selection once a subset is full: centre (replace by better-placed points) "
                         "or first (first come, as printed in the paper)")
     g.add_argument("--iterations", type=_positive_int, default=50, help="optimiser iterations M (default 50)")
+    g.add_argument("--rates", type=_rates, default=(3, 8, 2), metavar="S,M,O",
+                   help="learning rates for scale, misalignment, offset, multiples of 0.1 "
+                        "(default 0.3,0.8,0.2, the paper's)")
 
 
 def _config(args):
@@ -48,7 +62,7 @@ def _config(args):
         raise InputError("--max-count must be >= --min-count")
     return Config(seconds=args.seconds, threshold_g=args.threshold, axis="xyz".index(args.axis),
                   min_count=args.min_count, max_count=args.max_count, differ_g=args.differ,
-                  policy=args.select, iterations=args.iterations)
+                  policy=args.select, iterations=args.iterations, rates_tenths=args.rates)
 
 
 def cmd_calibrate(args) -> int:

@@ -4,7 +4,7 @@
 # expressions beyond str(), no host imports.
 #
 # Input lines (integers, space separated):
-#   C rate seconds threshold axis min_count max_count differ policy iterations
+#   C rate seconds threshold axis min_count max_count differ policy iterations a_s a_m a_o
 #   G name                 start a group (a device): a fresh pipeline
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
@@ -48,7 +48,7 @@ def run(lines, emit):
                 emit("R %d %d %d %d" % (x, y, z, s))
 
             pipe = Pipeline(cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7],
-                            cfg[8], on_rest)
+                            cfg[8], on_rest, (cfg[9], cfg[10], cfg[11]))
         elif tag == "E":
             emit("K " + " ".join([str(c) for c in pipe.bins.counts]))
             for s in range(9):

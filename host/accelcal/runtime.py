@@ -35,13 +35,15 @@ class Config:
     differ_g: float = 0.1
     policy: str = "centre"
     iterations: int = optimiser.DEFAULT_ITERATIONS
+    rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
 
     def line(self) -> str:
         pol = {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy]
         thr = int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
         dif = int(round(self.differ_g * fixed.POINT_ONE_G))
         return (f"C {self.rate_hz} {self.seconds} {thr} {self.axis} {self.min_count} "
-                f"{self.max_count} {dif} {pol} {self.iterations}")
+                f"{self.max_count} {dif} {pol} {self.iterations} "
+                + " ".join(map(str, self.rates_tenths)))
 
 
 @dataclass
