@@ -4,7 +4,7 @@
 # Small ints: 32-bit MicroPython ports keep |int| < 2**30 unboxed; past that an int is a
 # heap-allocated long.  The per-sample path (rest detector, apply) stays inside 2**30 for every
 # in-range input (tests/test_ranges.py proves it at the worst case).  The optimiser does not:
-# it needs ~52-bit products, which stay unboxed on 64-bit ports (< 2**62) and are longs on 32-bit
+# it needs ~50-bit products, which stay unboxed on 64-bit ports (< 2**62) and are longs on 32-bit
 # boards; README "Integer ranges" gives the account of what that costs.
 try:
     from micropython import const
@@ -32,26 +32,30 @@ POINT_ONE_G = const(65536)
 POINT_FROM_SAMPLE_SHIFT = const(6)  # POINT_Q - SAMPLE_Q
 
 # --- optimiser ----------------------------------------------------------------------------
-# PARAM: every parameter in Q26: scales and misalignments dimensionless (1.0 = 2**26), offsets
-# in g (1 g = 2**26).  Points enter as u = (v << 10) + o, in Q26 g.
-PARAM_Q = const(26)
-PARAM_ONE = const(67108864)  # 2**26
-POINT_TO_PARAM_SHIFT = const(10)  # PARAM_Q - POINT_Q
+# PARAM: every parameter in Q24: scales and misalignments dimensionless (1.0 = 2**24), offsets
+# in g (1 g = 2**24).  Points enter as u = (v << 8) + o, in Q24 g.
+PARAM_Q = const(24)
+PARAM_ONE = const(16777216)  # 2**24
+POINT_TO_PARAM_SHIFT = const(8)  # PARAM_Q - POINT_Q
+# Corrected point a = K u: the Q48 product is kept in Q28 g (shift 20), so the change that a
+# gradient step h makes in a (h * |u| ~ 2**11 LSB at 1 g) is resolved to ~0.05 %.
+A_Q = const(28)
+A_SHIFT = const(20)  # 2 * PARAM_Q - A_Q
 # Gradient step h = 2**-17 (7.6e-6; the paper recommends 1e-5 for 32-bit fixed point) in every
 # parameter, a power of two so that dividing by h is a shift.
 H_SHIFT = const(17)
-H_PARAM = const(512)  # 2**(PARAM_Q - H_SHIFT)
-# Residual r = |a|^2 - 1 g^2: |a|^2 is Q52 g^2, r is kept in Q30 g^2 (shift 22).
-R_SHIFT = const(22)
+H_PARAM = const(128)  # 2**(PARAM_Q - H_SHIFT)
+# Residual r = |a|^2 - 1 g^2: |a|^2 is Q56 g^2, r is kept in Q30 g^2 (shift 26).
+R_SHIFT = const(26)
 # Objective term r^2: Q60 g^4 -> Q40 g^4 (shift 20).  1 LSB of the objective = 2**-40 g^4.
 F_SHIFT = const(20)
 OBJ_Q = const(40)
 # Update: p -= alpha * (f(p+h e_i) - f(p)) / h / N, where f is the *sum* over the N points and the
 # division by N makes it the paper's objective averaged over the points (the scaling under which
 # the paper's learning rates converge; README "Learning-rate scaling").  In integers:
-#   dp[LSB of Q26] = alpha * df[LSB of Q40] * 2**(PARAM_Q + H_SHIFT - OBJ_Q) / N
-#                  = alpha_tenths * df * 8 // (10 * N)
-UPDATE_MUL = const(8)  # 2**(PARAM_Q + H_SHIFT - OBJ_Q)
+#   dp[LSB of Q24] = alpha * df[LSB of Q40] * 2**(PARAM_Q + H_SHIFT - OBJ_Q) / N
+#                  = alpha_tenths * df * 2 // (10 * N)
+UPDATE_MUL = const(2)  # 2**(PARAM_Q + H_SHIFT - OBJ_Q)
 ALPHA_DEN = const(10)  # learning rates are given in tenths: 0.3 -> 3
 # Learning rates of the paper (alpha_s, alpha_m, alpha_o) for the square-root-free objective.
 ALPHA_SCALE = const(3)
@@ -61,10 +65,10 @@ ALPHA_OFFSET = const(2)
 # Parameter bounds.  A fit that leaves them has diverged (optimiser); a calibration inside them
 # keeps the per-sample apply below 2**30 at +-2 g (model.Calibration).  They hold every real
 # LIS3DH (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
-K_DIAG_MIN = const(50331648)   # 0.75
-K_DIAG_MAX = const(83886080)   # 1.25
-K_OFF_MAX = const(8388608)     # |misalignment| <= 0.125
-O_MAX = const(16777216)        # |offset| <= 0.25 g
+K_DIAG_MIN = const(12582912)   # 0.75
+K_DIAG_MAX = const(20971520)   # 1.25
+K_OFF_MAX = const(2097152)     # |misalignment| <= 0.125
+O_MAX = const(4194304)         # |offset| <= 0.25 g
 
 # --- apply (per sample) -----------------------------------------------------------------------
 # Calibrated sample = K (v + o) in SAMPLE units, with K in Q14 and o in Q14 g:
@@ -74,7 +78,7 @@ O_MAX = const(16777216)        # |offset| <= 0.25 g
 # so every product and sum is <= 9.3e8 < 2**30 (tests/test_ranges.py runs the worst case).
 APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
-APPLY_PARAM_SHIFT = const(12)       # PARAM_Q - APPLY_Q
+APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
 APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
 
 # Parameter order (paper eq. 6).

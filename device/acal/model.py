@@ -2,12 +2,12 @@
 #   a_x = kxx (v_x + o_x)
 #   a_y = kxy (v_x + o_x) + kyy (v_y + o_y)
 #   a_z = kxz (v_x + o_x) + kyz (v_y + o_y) + kzz (v_z + o_z)
-# Parameters are a list of 9 ints in Q26 (fixed.py), in the order of eq. 6.
-from acal.fixed import (PARAM_ONE, PARAM_Q, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
+# Parameters are a list of 9 ints in Q24 (fixed.py), in the order of eq. 6.
+from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
                         APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
 
-_ONE_G2_Q52 = 1 << (2 * PARAM_Q)
+_ONE_G2_Q56 = 1 << (2 * A_Q)
 
 
 def identity(p):
@@ -31,7 +31,7 @@ def in_bounds(p):
 
 
 def load_points(pts, n, u):
-    """Points (Q16 g, flat x y z list) -> u (Q26 g), the form the objective reads."""
+    """Points (Q16 g, flat x y z list) -> u (Q24 g), the form the objective reads."""
     for i in range(3 * n):
         u[i] = pts[i] << POINT_TO_PARAM_SHIFT
 
@@ -39,8 +39,9 @@ def load_points(pts, n, u):
 def objective(p, u, n):
     """Sum over the n points of (|a|^2 - 1 g^2)^2, the paper's eq. 12 without the square root.
 
-    u: points in Q26 g (load_points).  Returns Q40 g^4.  Intermediates: products k*u < 2**55,
-    |a|^2 < 2**60 while the parameters stay inside the optimiser's bounds."""
+    u: points in Q24 g (load_points).  Returns Q40 g^4.  Intermediates: products k*u < 2**51,
+    a in Q28, |a|^2 < 2**61 and r**2 < 2**62 for rest means of a sensor inside the paper's
+    error ranges (tests/test_ranges.py)."""
     kxx = p[0]
     kyy = p[1]
     kzz = p[2]
@@ -50,8 +51,8 @@ def objective(p, u, n):
     ox = p[6]
     oy = p[7]
     oz = p[8]
-    one = _ONE_G2_Q52
-    q = PARAM_Q  # locals: module globals cost a lookup each in the loop
+    one = _ONE_G2_Q56
+    q = A_SHIFT  # locals: module globals cost a lookup each in the loop
     rs = R_SHIFT
     fs = F_SHIFT
     total = 0
@@ -73,7 +74,7 @@ def objective(p, u, n):
 class Calibration:
     """A calibration applied to raw samples, per sample and without allocating.
 
-    set(p) takes Q26 parameters and keeps them in Q14 (APPLY_Q): the products of the per-sample
+    set(p) takes Q24 parameters and keeps them in Q14 (APPLY_Q): the products of the per-sample
     path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g."""
 
     def __init__(self):
@@ -86,7 +87,7 @@ class Calibration:
         self.set(p)
 
     def set(self, p):
-        """Take Q26 parameters; ValueError outside the bounds (the range proof needs them)."""
+        """Take Q24 parameters; ValueError outside the bounds (the range proof needs them)."""
         if not in_bounds(p):
             raise ValueError("parameters outside the calibration bounds")
         half = 1 << (APPLY_PARAM_SHIFT - 1)

@@ -25,7 +25,7 @@ class Optimiser:
     """Integer gradient descent on the 9 model parameters.
 
     Buffers for up to max_points points are allocated once; `run` allocates nothing on a 64-bit
-    port.  After run(): p holds the parameters (Q26), status a code above, iterations the number
+    port.  After run(): p holds the parameters (Q24), status a code above, iterations the number
     done, objective the final objective and objective_start the one at p0 (Q40 g^4, summed)."""
 
     def __init__(self, max_points=18, alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET)):

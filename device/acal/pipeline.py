@@ -50,7 +50,7 @@ class Pipeline:
 
     def calibrate(self):
         """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
-        The parameters are in self.optimiser.p (Q26)."""
+        The parameters are in self.optimiser.p (Q24)."""
         n = self.bins.gather(self.points)
         return self.optimiser.run(self.points, n, self.iterations)
 
