@@ -62,13 +62,19 @@ ALPHA_SCALE = const(3)
 ALPHA_MISALIGN = const(8)
 ALPHA_OFFSET = const(2)
 
-# Parameter bounds.  A fit that leaves them has diverged (optimiser); a calibration inside them
-# keeps the per-sample apply below 2**30 at +-2 g (model.Calibration).  They hold every real
-# LIS3DH (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
+# Calibration bounds.  A result must lie inside them; a calibration inside them keeps the
+# per-sample apply below 2**30 at +-2 g (model.Calibration).  They hold every real LIS3DH
+# (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
 K_DIAG_MIN = const(12582912)   # 0.75
 K_DIAG_MAX = const(20971520)   # 1.25
 K_OFF_MAX = const(2097152)     # |misalignment| <= 0.125
 O_MAX = const(4194304)         # |offset| <= 0.25 g
+# Fit region, wider: the first steps may overshoot (alpha_m = 0.8 against large initial
+# residuals) and come back.  Leaving this region means the fit diverged.
+FIT_K_DIAG_MIN = const(8388608)  # 0.5
+FIT_K_DIAG_MAX = const(33554432) # 2.0
+FIT_K_OFF_MAX = const(8388608)   # 0.5
+FIT_O_MAX = const(8388608)       # 0.5 g
 
 # --- apply (per sample) -----------------------------------------------------------------------
 # Calibrated sample = K (v + o) in SAMPLE units, with K in Q14 and o in Q14 g:

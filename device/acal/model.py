@@ -5,7 +5,8 @@
 # Parameters are a list of 9 ints in Q24 (fixed.py), in the order of eq. 6.
 from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
                         APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
-                        K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
+                        K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX, FIT_K_DIAG_MIN,
+                        FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX)
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 
@@ -16,18 +17,27 @@ def identity(p):
         p[i] = PARAM_ONE if i < 3 else 0
 
 
-def in_bounds(p):
-    """True when the parameters lie inside the bounds of fixed.py."""
+def _within(p, kmin, kmax, kofs, omax):
     for i in range(3):
-        if not K_DIAG_MIN <= p[i] <= K_DIAG_MAX:
+        if not kmin <= p[i] <= kmax:
             return False
     for i in range(3, 6):
-        if not -K_OFF_MAX <= p[i] <= K_OFF_MAX:
+        if not -kofs <= p[i] <= kofs:
             return False
     for i in range(6, 9):
-        if not -O_MAX <= p[i] <= O_MAX:
+        if not -omax <= p[i] <= omax:
             return False
     return True
+
+
+def in_bounds(p):
+    """True when the parameters lie inside the calibration bounds (fixed.py)."""
+    return _within(p, K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX)
+
+
+def in_fit_region(p):
+    """True while a fit has not diverged (the wider region of fixed.py)."""
+    return _within(p, FIT_K_DIAG_MIN, FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX)
 
 
 def load_points(pts, n, u):
@@ -41,7 +51,7 @@ def objective(p, u, n):
 
     u: points in Q24 g (load_points).  Returns Q40 g^4.  Intermediates: products k*u < 2**51,
     a in Q28, |a|^2 < 2**61 and r**2 < 2**62 for rest means of a sensor inside the paper's
-    error ranges (tests/test_ranges.py)."""
+    error ranges (tests/test_ranges.py); far outside, Python ints stay exact, only larger."""
     kxx = p[0]
     kyy = p[1]
     kzz = p[2]

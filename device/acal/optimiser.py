@@ -13,9 +13,10 @@ from acal.fixed import (H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE, A
 from acal import model
 
 OK = 0
-DIVERGED = 1     # a parameter left its bounds (fixed.py), or the objective ended above its start
-TOO_FEW = 2      # fewer points than parameters
-STATUS_NAMES = ("ok", "diverged", "too few points")
+DIVERGED = 1        # a parameter left the fit region, or the objective ended above its start
+TOO_FEW = 2         # fewer points than parameters
+OUT_OF_BOUNDS = 3   # converged outside the calibration bounds (fixed.py): not a sensor we trust
+STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds")
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50
@@ -74,11 +75,13 @@ class Optimiser:
             for i in range(N_PARAMS):
                 p[i] -= (alpha[i] * mul * df[i]) // den
             self.iterations = it + 1
-            if not model.in_bounds(p):
+            if not model.in_fit_region(p):
                 self.status = DIVERGED
                 return DIVERGED
             f0 = objective(p, u, n)
         self.objective = f0
         if f0 > self.objective_start:
             self.status = DIVERGED
+        elif not model.in_bounds(p):
+            self.status = OUT_OF_BOUNDS
         return self.status

@@ -4,7 +4,8 @@
              the role MATLAB's fminunc plays in Farago 2024 Table 3.
 * linauto  - Gietzelt et al. 2013, "LinAutoCalibration": a linear sphere fit for the centre, then
              a linear fit of the per-axis radii.  Model a = (v - c) / s: it cannot represent
-             misalignment (kxy = kxz = kyz = 0 always).
+             misalignment (kxy = kxz = kyz = 0 always), and its first step assumes equal radii,
+             so unequal scales bias the centre slightly (exact only for equal scales).
 * float_device - the device's algorithm (forward-difference gradient descent, same h, rates,
              scaling and iterations) in float64: the yardstick the integer optimiser must track.
 

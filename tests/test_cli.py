@@ -1,0 +1,153 @@
+"""The command line as a user meets it: outputs, --by, --save/apply, and bad input -> exit 2 with
+one line on stderr, never a traceback."""
+import json
+
+import numpy as np
+import pytest
+
+from accelcal import simulate
+from conftest import run_cli
+
+
+@pytest.fixture
+def points_csv(tmp_path):
+    out = tmp_path / "pts.csv"
+    r = run_cli("simulate", "paper", "--scenarios", 3, "--points", 200, "--seed", 4, "-o", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def one_error_line(r):
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    return lines[0]
+
+
+def test_calibrate_by_device_json_recovers_truth(points_csv):
+    truth = json.loads(points_csv.with_suffix(".truth.json").read_text())["params"]
+    r = run_cli("calibrate", points_csv, "--by", "device", "--json")
+    assert r.returncode == 0, r.stderr
+    recs = [json.loads(line) for line in r.stdout.splitlines()]
+    assert [x["device"] for x in recs] == ["s0000", "s0001", "s0002"]
+    for rec in recs:
+        for key in ("model", "params", "params_int", "iterations", "points", "error_before_mg", "error_after_mg"):
+            assert key in rec
+        assert rec["points"] == 18 and rec["iterations"] == 50
+        t = truth[rec["device"]]
+        assert max(abs(rec["params"][k] - t[k]) for k in ("kxx", "kyy", "kzz", "ox", "oy", "oz")) < 3e-3
+        assert rec["error_after_mg"] < rec["error_before_mg"] / 10
+        assert rec["params_int"]["kxx"] == round(rec["params"]["kxx"] * 2 ** 24)
+
+
+def test_runtimes_agree_through_the_cli(points_csv):
+    a = run_cli("calibrate", points_csv, "--by", "device", "--json")
+    b = run_cli("calibrate", points_csv, "--by", "device", "--json", "--runtime", "micropython")
+    pa = [json.loads(x)["params_int"] for x in a.stdout.splitlines()]
+    pb = [json.loads(x)["params_int"] for x in b.stdout.splitlines()]
+    assert pa == pb and len(pa) == 3
+
+
+@pytest.mark.parametrize("method", ["lsq", "linauto"])
+def test_reference_methods(points_csv, method):
+    r = run_cli("calibrate", points_csv, "--by", "device", "--method", method, "--json")
+    assert r.returncode == 0, r.stderr
+    recs = [json.loads(x) for x in r.stdout.splitlines()]
+    assert all(x["method"] == method and x["status"] == "calibrated" for x in recs)
+    if method == "linauto":
+        assert all(x["params"]["kxy"] == 0 for x in recs)
+
+
+def test_recording_save_and_apply(tmp_path, rng):
+    # A recording: 5 s rest segments at many orientations with motion between, 25 Hz.
+    p = simulate.random_params(rng)
+    rate, rows, t = 25, [], 0.0
+    dirs = simulate.unit_points(rng, 150)
+    for d in dirs:
+        v = simulate.uncorrect(p, d[None, :])[0]
+        seg = v + rng.normal(scale=0.002, size=(5 * rate, 3))
+        move = rng.normal(scale=0.3, size=(5 * rate, 3)) + v
+        for s in np.concatenate([seg, move]):
+            rows.append((t, *s))
+            t += 1 / rate
+    rec = tmp_path / "rec.csv"
+    np.savetxt(rec, np.array(rows), delimiter=",", header="t,x,y,z", comments="", fmt="%.6f")
+    params = tmp_path / "params.json"
+    r = run_cli("calibrate", rec, "--save", params, "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["rest_points"] >= 140 and out["error_after_mg"] < 3
+    saved = json.loads(params.read_text())
+    assert saved["params_int"] == out["params_int"] and saved["model"] == "base"
+    cal = tmp_path / "cal.csv"
+    r = run_cli("apply", params, rec, "-o", cal)
+    assert r.returncode == 0, r.stderr
+    a = np.loadtxt(cal, delimiter=",", skiprows=1)
+    assert a.shape == (len(rows), 4)
+    still = np.concatenate([np.arange(i * 10 * rate, i * 10 * rate + 5 * rate) for i in range(150)])
+    before = np.abs(np.linalg.norm(np.array(rows)[still, 1:], axis=1) - 1).mean()
+    after = np.abs(np.linalg.norm(a[still, 1:], axis=1) - 1).mean()
+    assert after < before / 5
+
+
+def write(tmp_path, text, name="bad.csv"):
+    f = tmp_path / name
+    f.write_text(text)
+    return f
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("x,y,z\n0.1,abc,1\n", "non-numeric value 'abc' in column y"),
+    ("x,y,z\n0.1,,1\n", "missing value in column y"),
+    ("x,y,z\n0.1,nan,1\n", "nan in column y"),
+    ("x,y,z\n0.1,0.2\n", "expected 3 values"),
+    ("a,b,c\n1,2,3\n", "header needs columns x,y,z"),
+    ("", "empty file"),
+    ("x,y,z\n", "no data rows"),
+])
+def test_bad_files(tmp_path, text, needle):
+    line = one_error_line(run_cli("calibrate", write(tmp_path, text)))
+    assert needle in line
+
+
+def test_missing_file(tmp_path):
+    assert "cannot open" in one_error_line(run_cli("calibrate", tmp_path / "nope.csv"))
+
+
+def test_too_few_points_says_how_many_each_bin_got(tmp_path):
+    f = write(tmp_path, "x,y,z\n1,0,0\n-1,0,0\n0,1,0\n0,-1,0\n0,0,1\n")
+    line = one_error_line(run_cli("calibrate", f))
+    assert "bins did not fill" in line and "xn=1" in line and "need >= 2 each" in line and "5 points" in line
+
+
+def test_one_hemisphere_does_not_fill(tmp_path, rng):
+    a = simulate.unit_points(rng, 500)
+    a[:, 2] = np.abs(a[:, 2])
+    f = tmp_path / "hemi.csv"
+    np.savetxt(f, a, delimiter=",", header="x,y,z", comments="", fmt="%.6f")
+    line = one_error_line(run_cli("calibrate", f))
+    assert "zn=0" in line
+
+
+def test_diverging_fit(points_csv):
+    r = run_cli("calibrate", points_csv, "--by", "device", "--rates", "3,8,2")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 3 and all("diverged" in x and "no parameters" in x for x in lines)
+    assert "Traceback" not in r.stderr
+
+
+def test_bad_options(points_csv, tmp_path):
+    r = run_cli("calibrate", points_csv, "--rates", "0.35,0.8,0.2")
+    assert r.returncode == 2 and "multiples of 0.1" in r.stderr
+    assert "unknown model" in one_error_line(run_cli("calibrate", points_csv, "--model", "base+warp"))
+    assert "no column" in one_error_line(run_cli("calibrate", points_csv, "--by", "serial"))
+    bad = write(tmp_path, "{}", "p.json")
+    assert "params_int" in one_error_line(run_cli("apply", bad, points_csv, "-o", tmp_path / "o.csv"))
+
+
+def test_help_for_every_command():
+    for cmd in (["--help"], ["calibrate", "--help"], ["apply", "--help"], ["simulate", "paper", "--help"],
+                ["paper", "table2", "--help"], ["bench", "--help"]):
+        r = run_cli(*cmd)
+        assert r.returncode == 0 and "usage:" in r.stdout
