@@ -23,14 +23,14 @@ $(STAMP_MPY):
 	touch $@
 
 demo: setup
-	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.demo
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.demo
 
 test: setup
-	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
 
 bench: setup
-	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
-	ACCELCAL_MICROPYTHON=$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
 # .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
 build: setup

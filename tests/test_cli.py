@@ -90,6 +90,18 @@ def test_recording_save_and_apply(tmp_path, rng):
     assert after < before / 5
 
 
+def test_save_by_device_then_apply_one(points_csv, tmp_path):
+    params = tmp_path / "all.json"
+    assert run_cli("calibrate", points_csv, "--by", "device", "--save", params).returncode == 0
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,x,y,z\n0,0.1,0.2,0.97\n0.01,0.1,0.2,0.97\n")
+    line = one_error_line(run_cli("apply", params, rec, "-o", tmp_path / "o.csv"))
+    assert "holds 3 devices" in line and "s0001" in line
+    r = run_cli("apply", params, rec, "-o", tmp_path / "o.csv", "--device", "s0001")
+    assert r.returncode == 0, r.stderr
+    assert "no device 'zz'" in one_error_line(run_cli("apply", params, rec, "-o", tmp_path / "o.csv", "--device", "zz"))
+
+
 def write(tmp_path, text, name="bad.csv"):
     f = tmp_path / name
     f.write_text(text)

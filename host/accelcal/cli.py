@@ -103,7 +103,7 @@ def _print_record(r, by):
 def cmd_apply(args) -> int:
     from accelcal.calibrate import apply_to_samples
     from accelcal.io import load_params, read_table, write_csv
-    p_int = load_params(args.params)
+    p_int = load_params(args.params, args.device)
     table = read_table(args.input)
     if table.kind != "recording":
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp])")
@@ -183,6 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True, help="output CSV")
+    p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
     p.set_defaults(func=cmd_apply)
 
     p = sub.add_parser("simulate", help="simulate data with known truth")

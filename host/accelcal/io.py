@@ -138,13 +138,25 @@ def save_params(path: str, record: dict) -> None:
     Path(path).write_text(json.dumps(record, indent=2) + "\n")
 
 
-def load_params(path: str) -> list[int]:
+def load_params(path: str, device: str | None = None) -> list[int]:
+    """Integer parameters from a saved file; `device` picks one from a `calibrate --by` file."""
     try:
         rec = json.loads(Path(path).read_text())
     except OSError as e:
         raise InputError(f"{path}: cannot open ({e.strerror})") from None
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno})") from None
+    if isinstance(rec, dict) and "devices" in rec:
+        by = rec.get("by", "device")
+        names = [str(d.get(by)) for d in rec["devices"]]
+        if device is None:
+            raise InputError(f"{path} holds {len(names)} devices; choose one with --device "
+                             f"({', '.join(names[:5])}{', ...' if len(names) > 5 else ''})")
+        if device not in names:
+            raise InputError(f"{path}: no {by} {device!r}")
+        rec = rec["devices"][names.index(device)]
+    elif device is not None:
+        raise InputError(f"{path} holds one calibration; --device applies to calibrate --by files")
     try:
         pi = rec["params_int"]
         return [int(pi[n]) for n in fixed.PARAM_NAMES]
