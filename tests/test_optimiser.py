@@ -1,8 +1,7 @@
 """The integer optimiser against float64: the same algorithm, the optimum, and failure reports."""
 import numpy as np
-import pytest
 
-from acal import fixed, optimiser
+from acal import optimiser
 from acal.bins import Bins
 from acal.optimiser import Optimiser
 from accelcal import methods, simulate

@@ -1,6 +1,5 @@
 """CPython and the real MicroPython interpreter run the same device modules to the same integers."""
 import numpy as np
-import pytest
 
 from accelcal import runtime, simulate
 
