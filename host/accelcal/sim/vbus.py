@@ -1,0 +1,87 @@
+# Fake I2C buses in front of simulated devices, MicroPython-compatible.
+#
+#   I2C       - the machine.I2C API the device driver uses (readfrom_mem_into, writeto_mem, ...)
+#   BusioI2C  - the busio.I2C API CircuitPython drivers use (try_lock, writeto, readfrom_into,
+#               writeto_then_readfrom), so the real adafruit_lis3dh runs on the simulated chip.
+#
+# Fault injection: with fault_per_mille > 0, that share of transactions fails with OSError(EIO)
+# before reaching the device (like a NACK in the address phase), so a retry is side-effect free.
+# Faults come from a seeded LCG: a run is reproducible.
+EIO = 5
+ENODEV = 19
+
+
+class _Bus:
+    def __init__(self, devices, fault_per_mille=0, seed=1):
+        self.devices = devices  # {address: device with read(reg, buf, start, end) / write(...)}
+        self.fault_per_mille = fault_per_mille
+        self.state = seed & 0x7FFFFFFF or 1
+        self.transactions = 0
+        self.faults = 0
+
+    def _device(self, addr):
+        self.transactions += 1
+        dev = self.devices.get(addr)
+        if dev is None:
+            raise OSError(ENODEV)
+        if self.fault_per_mille:
+            self.state = (self.state * 1103515245 + 12345) & 0x7FFFFFFF
+            if (self.state >> 8) % 1000 < self.fault_per_mille:
+                self.faults += 1
+                raise OSError(EIO)
+        return dev
+
+    def scan(self):
+        return sorted(self.devices)
+
+
+class I2C(_Bus):
+    """machine.I2C, the calls a register-based driver makes."""
+
+    def readfrom_mem_into(self, addr, memaddr, buf, addrsize=8):
+        self._device(addr).read(memaddr, buf, 0, len(buf))
+
+    def readfrom_mem(self, addr, memaddr, nbytes, addrsize=8):
+        buf = bytearray(nbytes)
+        self.readfrom_mem_into(addr, memaddr, buf)
+        return bytes(buf)
+
+    def writeto_mem(self, addr, memaddr, buf, addrsize=8):
+        self._device(addr).write(memaddr, buf, 0, len(buf))
+
+
+class BusioI2C(_Bus):
+    """busio.I2C: a write of one byte sets the register pointer; reads continue from it."""
+
+    def __init__(self, devices, fault_per_mille=0, seed=1):
+        _Bus.__init__(self, devices, fault_per_mille, seed)
+        self.pointer = {}
+        self.locked = False
+
+    def try_lock(self):
+        if self.locked:
+            return False
+        self.locked = True
+        return True
+
+    def unlock(self):
+        self.locked = False
+
+    def writeto(self, addr, buf, start=0, end=None):
+        dev = self._device(addr)
+        end = len(buf) if end is None else end
+        if end - start <= 0:
+            return  # the address probe
+        self.pointer[addr] = buf[start]
+        if end - start > 1:
+            dev.write(buf[start], buf, start + 1, end)
+
+    def readfrom_into(self, addr, buf, start=0, end=None):
+        dev = self._device(addr)
+        end = len(buf) if end is None else end
+        dev.read(self.pointer.get(addr, 0), buf, start, end)
+
+    def writeto_then_readfrom(self, addr, out_buf, in_buf, out_start=0, out_end=None,
+                              in_start=0, in_end=None):
+        self.writeto(addr, out_buf, out_start, out_end)
+        self.readfrom_into(addr, in_buf, in_start, in_end)
