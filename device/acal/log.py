@@ -1,0 +1,210 @@
+# Logs on flash: an append-only file of self-checking records, readable after a power cut at any
+# byte.  The host decodes pulled logs with this same module.
+#
+# Record:  0xA5 | type u8 | length u8 | payload (length bytes) | CRC-32 of type..payload, u32 LE
+# A reader scans for 0xA5, checks the length fits and the CRC matches, and otherwise skips one byte
+# (reporting what it skipped): a torn record is dropped, the records after it are found again.
+#
+# Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
+#   BOOT     <IHHBHBBBBBHB  boot, version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
+#                          fifo, min_count, max_count, differ (Q16 g), iterations
+#   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC,
+#                          relative to the chip's reference), subset kept in (-1: none),
+#                          rest segments merged into this record since the last one
+#   CAL      <IHBBBII9i     sample index, calibration number, status, iterations, points,
+#                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
+#   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
+#                          bus retries, rest segments, rest records written, rest records
+#                          skipped to keep the flash budget
+#   SAMPLES  <IB + n*<hhh   raw capture: first sample index, n, then n samples (Q10 g)
+#   GAP      <II            raw capture: sample index, samples lost there
+import struct
+
+SYNC = 0xA5
+BOOT = 1
+REST = 2
+CAL = 3
+COUNTERS = 4
+SAMPLES = 5
+GAP = 6
+TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
+              GAP: "gap"}
+FORMATS = {BOOT: "<IHHBHBBBBBHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+           GAP: "<II"}
+SAMPLES_HEAD = "<IB"
+MAX_PAYLOAD = 255
+SAMPLES_PER_RECORD = 41  # (255 - 5) // 6
+OVERHEAD = 7             # sync, type, length, CRC
+
+try:
+    from binascii import crc32
+except ImportError:  # a port without binascii.crc32: the same CRC-32 (IEEE), bitwise
+    def crc32(data, crc=0):
+        crc = crc ^ 0xFFFFFFFF
+        for b in data:
+            crc ^= b
+            for _ in range(8):
+                crc = (crc >> 1) ^ (0xEDB88320 if crc & 1 else 0)
+        return crc ^ 0xFFFFFFFF
+
+
+PAD = MAX_PAYLOAD + OVERHEAD  # zero bytes written after a torn tail: more than a record can need
+
+
+def _ends_clean(path, size):
+    # True when the file's last bytes are one whole record (or the file is empty).
+    if size == 0:
+        return True
+    n = size if size < PAD else PAD
+    with open(path, "rb") as f:
+        f.seek(size - n)
+        tail = f.read(n)
+    for s in range(n - OVERHEAD + 1):
+        if tail[s] == SYNC and s + OVERHEAD + tail[s + 2] == n:
+            if crc32(tail[s + 1:n - 4]) == struct.unpack_from("<I", tail, n - 4)[0]:
+                return True
+    return False
+
+
+class Log:
+    """Appends records to a file.  budget: bytes the file may reach (None: no limit); records
+    that would pass it are refused (write returns False) and counted in `refused`.
+
+    Opening a log whose last record was torn by a power cut first appends PAD zero bytes:
+    otherwise the first bytes written now could complete the torn record's missing tail and
+    the new record they belonged to would be lost.  The reader reports the pad as dropped."""
+
+    def __init__(self, path, budget=None):
+        self.path = path
+        self.budget = budget
+        self.buf = bytearray(MAX_PAYLOAD + OVERHEAD)
+        self.mv = memoryview(self.buf)
+        try:
+            import os
+            size = os.stat(path)[6]
+        except OSError:
+            size = 0
+        self.padded = not _ends_clean(path, size)
+        self.f = open(path, "ab")
+        self.size = size
+        if self.padded:
+            self.f.write(bytes(PAD))
+            self.f.flush()
+            self.size += PAD
+        self.refused = 0
+
+    def room(self, n_payload):
+        return self.budget is None or self.size + n_payload + OVERHEAD <= self.budget
+
+    def write_payload(self, rtype, n):
+        """Write a record whose payload is already in buf[3:3+n]."""
+        if not self.room(n):
+            self.refused += 1
+            return False
+        b = self.buf
+        b[0] = SYNC
+        b[1] = rtype
+        b[2] = n
+        c = crc32(self.mv[1:3 + n])
+        struct.pack_into("<I", b, 3 + n, c)
+        self.f.write(self.mv[0:n + OVERHEAD])
+        self.f.flush()
+        self.size += n + OVERHEAD
+        return True
+
+    def write(self, rtype, *values):
+        """Pack values with the type's format and write the record."""
+        fmt = FORMATS[rtype]
+        struct.pack_into(fmt, self.buf, 3, *values)
+        return self.write_payload(rtype, struct.calcsize(fmt))
+
+    def close(self):
+        self.f.close()
+
+
+def encode(rtype, payload):
+    """One record as bytes (host side and tests)."""
+    n = len(payload)
+    body = bytes([rtype, n]) + bytes(payload)
+    return bytes([SYNC]) + body + struct.pack("<I", crc32(body))
+
+
+def scan(data):
+    """Records in data: returns (records, dropped) where records is a list of
+    (offset, type, payload bytes) and dropped a list of (offset, length) of bytes skipped."""
+    records = []
+    dropped = []
+    i = 0
+    n = len(data)
+    bad_start = -1
+    while i < n:
+        ok = False
+        if data[i] == SYNC and i + 3 <= n:
+            ln = data[i + 2]
+            end = i + 3 + ln + 4
+            if end <= n:
+                body = data[i + 1:i + 3 + ln]
+                if crc32(body) == struct.unpack_from("<I", data, i + 3 + ln)[0]:
+                    ok = True
+        if ok:
+            if bad_start >= 0:
+                dropped.append((bad_start, i - bad_start))
+                bad_start = -1
+            records.append((i, data[i + 1], bytes(data[i + 3:i + 3 + ln])))
+            i = end
+        else:
+            if bad_start < 0:
+                bad_start = i
+            i += 1
+    if bad_start >= 0:
+        dropped.append((bad_start, n - bad_start))
+    return records, dropped
+
+
+def unpack(rtype, payload):
+    """A record's payload as a tuple of ints (SAMPLES: head, then a flat x y z ... tuple)."""
+    if rtype == SAMPLES:
+        first, count = struct.unpack_from(SAMPLES_HEAD, payload, 0)
+        return first, count, struct.unpack_from("<%dh" % (3 * count), payload, 5)
+    return struct.unpack(FORMATS[rtype], payload)
+
+
+class CalStore:
+    """The current calibration, stored so that a power cut never loses the last good one: two
+    slots (files), each one CAL-format record with a sequence number; a save writes the slot
+    that does not hold the newest valid record, a load takes the newest valid one."""
+
+    def __init__(self, path_a, path_b):
+        self.paths = (path_a, path_b)
+
+    def _read(self, path):
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except OSError:
+            return None
+        recs, _ = scan(data)
+        if len(recs) != 1 or recs[0][1] != CAL or recs[0][0] != 0:
+            return None
+        return unpack(CAL, recs[0][2])
+
+    def load(self):
+        """(slot, record tuple) of the newest valid calibration, or (-1, None)."""
+        best = -1
+        rec = None
+        for s in range(2):
+            r = self._read(self.paths[s])
+            if r is not None and (rec is None or r[1] > rec[1]):
+                best = s
+                rec = r
+        return best, rec
+
+    def save(self, values):
+        """values: a CAL record's fields; values[1] (the calibration number) orders the slots."""
+        slot, _ = self.load()
+        target = 1 if slot == 0 else 0
+        payload = bytearray(struct.calcsize(FORMATS[CAL]))
+        struct.pack_into(FORMATS[CAL], payload, 0, *values)
+        with open(self.paths[target], "wb") as f:
+            f.write(encode(CAL, payload))
+        return target
