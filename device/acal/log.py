@@ -6,8 +6,8 @@
 # (reporting what it skipped): a torn record is dropped, the records after it are found again.
 #
 # Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
-#   BOOT     <IHHBHBBBBBHB  boot, version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
-#                          fifo, min_count, max_count, differ (Q16 g), iterations
+#   BOOT     <IHHBHBBBBBHBI boot, version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
+#                          fifo, min_count, max_count, differ (Q16 g), iterations, recal_seconds
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC,
 #                          relative to the chip's reference), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
@@ -16,7 +16,7 @@
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget
-#   SAMPLES  <IB + n*<hhh   raw capture: first sample index, n, then n samples (Q10 g)
+#   SAMPLES  <IBb + n*<hhh  raw capture: first sample index, n, temperature, n samples (Q10 g)
 #   GAP      <II            raw capture: sample index, samples lost there
 import struct
 
@@ -29,11 +29,11 @@ SAMPLES = 5
 GAP = 6
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
               GAP: "gap"}
-FORMATS = {BOOT: "<IHHBHBBBBBHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+FORMATS = {BOOT: "<IHHBHBBBBBHBI", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
            GAP: "<II"}
-SAMPLES_HEAD = "<IB"
+SAMPLES_HEAD = "<IBb"
 MAX_PAYLOAD = 255
-SAMPLES_PER_RECORD = 41  # (255 - 5) // 6
+SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
 OVERHEAD = 7             # sync, type, length, CRC
 
 try:
@@ -162,10 +162,10 @@ def scan(data):
 
 
 def unpack(rtype, payload):
-    """A record's payload as a tuple of ints (SAMPLES: head, then a flat x y z ... tuple)."""
+    """A record's payload as a tuple of ints (SAMPLES: first, n, temp, flat x y z ... tuple)."""
     if rtype == SAMPLES:
-        first, count = struct.unpack_from(SAMPLES_HEAD, payload, 0)
-        return first, count, struct.unpack_from("<%dh" % (3 * count), payload, 5)
+        first, count, temp = struct.unpack_from(SAMPLES_HEAD, payload, 0)
+        return first, count, temp, struct.unpack_from("<%dh" % (3 * count), payload, 6)
     return struct.unpack(FORMATS[rtype], payload)
 
 

@@ -24,6 +24,7 @@ class Pipeline:
         self.points = [0] * (3 * N_SUBSETS * max_count)
         self.on_rest = on_rest
         self.rest_count = 0
+        self.position = 0  # samples of the current add_samples call consumed so far
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g) -> bins; returns the subset it was kept in or -1."""
@@ -40,6 +41,7 @@ class Pipeline:
             used = rest.add_samples(buf, start, n)
             start += used
             n -= used
+            self.position = start
             if rest.ended:
                 rest.ended = False
                 if rest.still:

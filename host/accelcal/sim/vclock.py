@@ -26,3 +26,6 @@ class Clock:
 
     def sleep_ms(self, ms):
         self.sleep_us(ms * 1000)
+
+    def ticks_diff(self, a, b):
+        return a - b  # virtual ticks never wrap

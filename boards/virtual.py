@@ -1,0 +1,26 @@
+# Virtual board: the MicroPython unix port with a simulated LIS3DH (host/accelcal/sim) behind a
+# fake machine.I2C.  `accelcal board virtual` puts the simulator on the path and sets
+# ACCELCAL_STIMULUS (the wearer's signal) and ACCELCAL_BUS_FAULTS (per mille of failed
+# transactions).  Time is virtual: it advances when the app sleeps.
+import os
+
+from vbus import I2C
+from vclock import Clock
+from vlis3dh import SimLIS3DH, Stimulus
+
+RUNTIME = "micropython"
+ARCH = None          # runs the sources; no .mpy needed
+I2C_ADDRESS = 0x18
+TEMP_REF_C = None    # the simulated chip's reference is unknown to the board, as on a real one
+
+clock = Clock()
+chip = SimLIS3DH(Stimulus(os.getenv("ACCELCAL_STIMULUS") or "stimulus.bin"), clock)
+bus = I2C({I2C_ADDRESS: chip}, int(os.getenv("ACCELCAL_BUS_FAULTS") or "0"))
+
+
+def i2c():
+    return bus
+
+
+def exhausted():
+    return chip.exhausted

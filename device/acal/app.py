@@ -1,0 +1,318 @@
+# The logger app: acquisition -> rest detection -> bins -> calibration when the bins fill (and
+# again later, so drift is tracked) -> applying the current calibration; logs on flash.
+#
+# Processor is everything after acquisition and is deterministic in the samples it is fed: the
+# host's `accelcal replay` feeds it a pulled capture and must log the same records.
+# App reads the LIS3DH (output registers by default; see lis3dh.py for why not the FIFO),
+# retries bus errors, counts what is lost, and feeds the Processor in blocks of 41 samples
+# (one capture record each).
+import struct
+
+from acal import log
+from acal.fixed import N_PARAMS, POINT_ONE_G
+from acal.model import Calibration
+from acal.optimiser import OK
+from acal.pipeline import Pipeline
+
+VERSION = 1
+BLOCK = log.SAMPLES_PER_RECORD
+RETRIES = 3
+# A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
+# Q16 g: 8 mg) from the last one logged, or after REST_LOG_SECONDS; the rest segments in between
+# are counted in the next record.  Rest records also get a daily byte allowance so that 14 days
+# fit in the flash budget whatever the wearer does (README "Flash budget").
+REST_LOG_DIFFER = (8 * POINT_ONE_G) // 1000
+REST_LOG_SECONDS = 600
+REST_BUDGET_BYTES = 14 * 60000  # 60 kB a day for 14 days
+REST_BUDGET_DAYS = 14
+COUNTERS_SECONDS = 3600
+
+
+class Processor:
+    """rate_hz, seconds, threshold, axis, min_count, max_count, differ, policy, iterations as
+    Pipeline; recal_seconds: least time between calibrations; logger: a log.Log; capture: a
+    log.Log for the raw samples or None; store: a log.CalStore or None."""
+
+    def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
+                 **pipeline_settings):
+        self.log = logger
+        self.capture = capture
+        self.store = store
+        self.rate_hz = rate_hz
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, **pipeline_settings)
+        self.recal_samples = recal_seconds * rate_hz
+        self.rest_log_samples = REST_LOG_SECONDS * rate_hz
+        self.day_samples = 86400 * rate_hz
+        self.calibration = Calibration()
+        self.params = [0] * N_PARAMS
+        self.index = 0              # samples fed so far (lost ones included)
+        self.batch_start = 0
+        self.temp = 0               # relative degC, set by the feeder
+        self.calibrations = 0
+        self.last_cal_index = -1
+        self.last_logged = [0, 0, 0]
+        self.last_logged_index = -(1 << 29)
+        self.merged = 0
+        self.rest_bytes = 0
+        self.rest_logged = 0
+        self.rest_skipped = 0
+        self.capture_full = False
+        self._rest_size = struct.calcsize(log.FORMATS[log.REST]) + log.OVERHEAD
+        self._cap_mv = None
+        if store is not None:
+            slot, rec = store.load()
+            if rec is not None:
+                self.calibrations = rec[1]
+                for i in range(N_PARAMS):
+                    self.params[i] = rec[7 + i]
+                self.calibration.set(self.params)
+
+    def _on_rest(self, x, y, z, subset):
+        index = self.batch_start + self.pipe.position
+        last = self.last_logged
+        d = REST_LOG_DIFFER
+        near = -d < x - last[0] < d and -d < y - last[1] < d and -d < z - last[2] < d
+        if subset < 0 and near and index - self.last_logged_index < self.rest_log_samples:
+            self.merged += 1
+            return
+        allowance = (REST_BUDGET_BYTES // REST_BUDGET_DAYS) * (1 + index // self.day_samples)
+        if subset < 0 and self.rest_bytes + self._rest_size > allowance:
+            self.rest_skipped += 1
+            self.merged += 1
+            return
+        if self.log.write(log.REST, index, x, y, z, self.temp, subset, self.merged):
+            self.rest_bytes += self._rest_size
+            self.rest_logged += 1
+        self.merged = 0
+        last[0] = x
+        last[1] = y
+        last[2] = z
+        self.last_logged_index = index
+
+    def feed(self, buf, n):
+        """n samples (Q10 g, interleaved) that follow the previous ones without a gap."""
+        if self.capture is not None and not self.capture_full:
+            self._capture(buf, n)
+        self.batch_start = self.index
+        self.pipe.add_samples(buf, 0, n)
+        self.index += n
+        if self.pipe.ready() and (self.last_cal_index < 0 or
+                                  self.index - self.last_cal_index >= self.recal_samples):
+            self.calibrate()
+
+    def gap(self, lost):
+        """lost samples were never read: the open segment is dropped."""
+        if lost <= 0:
+            return
+        if self.capture is not None and not self.capture_full:
+            if not self.capture.write(log.GAP, self.index, lost):
+                self.capture_full = True
+        self.pipe.rest.reset()
+        self.index += lost
+
+    def _capture(self, buf, n):
+        c = self.capture
+        b = c.buf
+        struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
+        j = 9
+        for i in range(3 * n):
+            v = buf[i]
+            b[j] = v & 0xFF
+            b[j + 1] = (v >> 8) & 0xFF
+            j += 2
+        if not c.write_payload(log.SAMPLES, 6 + 6 * n):
+            self.capture_full = True
+
+    def calibrate(self):
+        pipe = self.pipe
+        status = pipe.calibrate()
+        o = pipe.optimiser
+        self.last_cal_index = self.index
+        number = self.calibrations + 1
+        values = (self.index, number, status, o.iterations, pipe.bins.total(),
+                  _sat32(o.objective_start >> 16), _sat32(o.objective >> 16)) + tuple(o.p)
+        self.log.write(log.CAL, *values)
+        if status == OK:
+            self.calibrations = number
+            for i in range(N_PARAMS):
+                self.params[i] = o.p[i]
+            self.calibration.set(self.params)
+            if self.store is not None:
+                self.store.save(values)
+        pipe.bins.clear()
+        return status
+
+
+def _sat32(v):
+    return v if v < 0xFFFFFFFF else 0xFFFFFFFF
+
+
+class RealClock:
+    """A board's own time: time.ticks_us and friends (they wrap; only differences are used)."""
+
+    def __init__(self):
+        import time
+        self.time = time
+
+    def ticks_us(self):
+        return self.time.ticks_us()
+
+    def ticks_diff(self, a, b):
+        return self.time.ticks_diff(a, b)
+
+    def sleep_us(self, us):
+        self.time.sleep_us(us)
+
+
+class App:
+    """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
+    range_g, fifo, capture_bytes, log_budget, plus Processor settings."""
+
+    def __init__(self, board, rate_hz=100, range_g=2, fifo=False, capture_bytes=0,
+                 log_budget=1 << 20, prefix="", **processor_settings):
+        from acal.lis3dh import LIS3DH
+        self.board = board
+        self.clock = getattr(board, "clock", None) or RealClock()
+        self.rate_hz = rate_hz
+        self.period_us = 1000000 // rate_hz
+        self.fifo = fifo
+        self.samples = 0
+        self.lost = 0
+        self.fifo_overruns = 0
+        self.bus_errors = 0
+        self.bus_retries = 0
+        self.buf = [0] * (3 * 32 if fifo else 3 * BLOCK)
+        self.block = [0] * (3 * BLOCK)
+        self.fill = 0
+        self.log = log.Log(prefix + "log.bin", log_budget)
+        cap = log.Log(prefix + "capture.bin", capture_bytes) if capture_bytes else None
+        store = log.CalStore(prefix + "cal_a.bin", prefix + "cal_b.bin")
+        self.proc = Processor(self.log, rate_hz, capture=cap, store=store, **processor_settings)
+        self.sensor = self._retry(lambda: LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g,
+                                                 True, fifo))
+        self.t_last = self.clock.ticks_us()
+        self.acc_us = 0
+        self.expected = 0
+        self.next_counters = COUNTERS_SECONDS * rate_hz
+        p = self.proc.pipe
+        self.log.write(log.BOOT, self._boot_number(), VERSION, rate_hz, p.rest.length // rate_hz,
+                       p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
+                       p.bins.max_count, p.bins.differ, p.iterations,
+                       self.proc.recal_samples // rate_hz)
+
+    def _boot_number(self):
+        recs, _ = log.scan(open(self.log.path, "rb").read()) if self.log.size < 65536 else ([], [])
+        n = 0
+        for _, t, _ in recs:
+            if t == log.BOOT:
+                n += 1
+        return n + 1
+
+    def _retry(self, fn):
+        for attempt in range(RETRIES):
+            try:
+                return fn()
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 < RETRIES:
+                    self.bus_retries += 1
+        return None
+
+    def _elapsed(self):
+        # Samples the chip has produced since it was configured (exact while both clocks agree).
+        now = self.clock.ticks_us()
+        self.acc_us += self.clock.ticks_diff(now, self.t_last)
+        self.t_last = now
+        k = self.acc_us // self.period_us
+        self.acc_us -= k * self.period_us
+        self.expected += k
+
+    def _push(self, x, y, z):
+        b = self.block
+        i = 3 * self.fill
+        b[i] = x
+        b[i + 1] = y
+        b[i + 2] = z
+        self.fill += 1
+        if self.fill == BLOCK:
+            self._flush()
+
+    def _flush(self):
+        if self.fill:
+            t = self._retry(self.sensor.temperature)
+            if t is not None:
+                self.proc.temp = t
+            self.proc.feed(self.block, self.fill)
+            self.fill = 0
+
+    def _account(self, got):
+        # got samples were just read; anything the chip produced before them and we never saw
+        # is lost, and lies before them in the stream.
+        self._elapsed()
+        missing = self.expected - (self.samples + self.lost + got)
+        if missing > 0:
+            self._flush()
+            self.proc.gap(missing)
+            self.lost += missing
+
+    def step(self):
+        """Sleep until data is due, read it, feed it. Returns samples read."""
+        s = self.sensor
+        if self.fifo:
+            self.clock.sleep_us(self.period_us * 25)
+            n = self._retry(s.fifo_level)
+            if not n:
+                return 0
+            if s.overrun:
+                self.fifo_overruns += 1
+            if self._retry(lambda: s.read_fifo(self.buf, 0, n) or True) is None:
+                return 0
+            self._account(n)
+            for i in range(n):
+                self._push(self.buf[3 * i], self.buf[3 * i + 1], self.buf[3 * i + 2])
+            self.samples += n
+        else:
+            self.clock.sleep_us(self.period_us)
+            for attempt in range(RETRIES):  # inline: a bound method per sample would allocate
+                try:
+                    s.read_sample()
+                    break
+                except OSError:
+                    self.bus_errors += 1
+                    if attempt + 1 == RETRIES:
+                        return 0  # lost; _account finds it on the next read
+                    self.bus_retries += 1
+            self._account(1)
+            self._push(s.x, s.y, s.z)
+            self.samples += 1
+            n = 1
+        if self.samples + self.lost >= self.next_counters:
+            self.write_counters()
+            self.next_counters += COUNTERS_SECONDS * self.rate_hz
+        return n
+
+    def write_counters(self):
+        p = self.proc
+        self.log.write(log.COUNTERS, p.index, self.samples, self.lost, self.fifo_overruns,
+                       self.bus_errors, self.bus_retries, p.pipe.rest.segments, p.rest_logged,
+                       p.rest_skipped)
+
+    def run(self, seconds):
+        """Acquire for `seconds` of the board's time, then write counters and flush."""
+        end = self.samples + self.lost + seconds * self.rate_hz
+        done = getattr(self.board, "exhausted", None)  # the virtual board's stimulus can end
+        while self.samples + self.lost < end:
+            self.step()
+            if done is not None and done():
+                break
+        self._flush()
+        self.write_counters()
+
+
+def main(seconds=86400, **settings):
+    """Entry point on a board: `import acal.app; acal.app.main(...)`.  The board file (boards/NAME.py)
+    is deployed as acal_board.py: CircuitPython's built-in `board` module owns that name."""
+    import acal_board
+    app = App(acal_board, **settings)
+    app.run(seconds)
+    return app

@@ -1,0 +1,160 @@
+"""Board logs on the host: decode pulled files (with device/acal/log.py, the board's own codec),
+and replay a raw capture through the current device modules to diff against what the board
+logged - the check a firmware developer runs after changing device code."""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import fixed, log
+from acal.app import Processor
+from accelcal.io import InputError
+
+LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
+FIELDS = {
+    log.BOOT: ("boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
+               "min_count", "max_count", "differ", "iterations", "recal_seconds"),
+    log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
+    log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
+              "objective", *fixed.PARAM_NAMES),
+    log.COUNTERS: ("index", "samples", "lost", "fifo_overruns", "bus_errors", "bus_retries",
+                   "rest_segments", "rest_logged", "rest_skipped"),
+    log.GAP: ("index", "lost"),
+}
+
+
+@dataclass
+class Decoded:
+    path: str
+    records: list[tuple[int, tuple]] = field(default_factory=list)  # (type, values)
+    dropped: list[tuple[int, int]] = field(default_factory=list)
+    size: int = 0
+
+    def of(self, rtype):
+        return [v for t, v in self.records if t == rtype]
+
+    def dicts(self, rtype):
+        return [dict(zip(FIELDS[rtype], v)) for v in self.of(rtype)]
+
+    def dropped_report(self, data: bytes | None = None) -> list[str]:
+        out = []
+        for off, n in self.dropped:
+            what = "power-cut padding" if data is not None and not any(data[off:off + n]) else "damaged or torn bytes"
+            out.append(f"{self.path}: dropped {n} bytes at offset {off} ({what})")
+        return out
+
+
+def decode(path: str | Path) -> Decoded:
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    recs, dropped = log.scan(data)
+    if data and not recs:
+        raise InputError(f"{path}: no valid accelcal log records in {len(data)} bytes "
+                         "(not a log of ours, or destroyed)")
+    out = Decoded(str(path), size=len(data), dropped=dropped)
+    for _, t, payload in recs:
+        if t in FIELDS or t == log.SAMPLES:
+            try:
+                out.records.append((t, log.unpack(t, payload)))
+            except ValueError:
+                out.dropped.append((-1, len(payload)))
+    return out
+
+
+@dataclass
+class Capture:
+    blocks: list  # ("samples", first_index, temp, ndarray (n, 3) int) or ("gap", index, lost)
+    boot: tuple | None
+
+
+def read_capture(dirpath: Path) -> Capture:
+    cap = decode(dirpath / "capture.bin")
+    blocks = []
+    for t, v in cap.records:
+        if t == log.SAMPLES:
+            first, n, temp, xyz = v
+            blocks.append(("samples", first, temp, np.array(xyz, dtype=np.int64).reshape(n, 3)))
+        elif t == log.GAP:
+            blocks.append(("gap", v[0], v[1]))
+    boots = decode(dirpath / "log.bin").of(log.BOOT)
+    return Capture(blocks, boots[-1] if boots else None)
+
+
+def replay(dirpath: str | Path) -> dict:
+    """Re-run a pulled capture through the current device Processor; diff REST and CAL records
+    against the board's log over the span the capture covers."""
+    d = Path(dirpath)
+    for f in ("log.bin", "capture.bin"):
+        if not (d / f).exists():
+            raise InputError(f"{d}: no {f} (pull a board that ran with capture on)")
+    cap = read_capture(d)
+    if cap.boot is None:
+        raise InputError(f"{d}/log.bin: no BOOT record, cannot tell the board's settings")
+    b = dict(zip(FIELDS[log.BOOT], cap.boot))
+    with tempfile.TemporaryDirectory() as tmp:
+        lg = log.Log(str(Path(tmp) / "log.bin"))
+        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                         threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
+                         max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"])
+        end = 0
+        for blk in cap.blocks:
+            if blk[0] == "gap":
+                proc.gap(blk[2])
+            else:
+                _, first, temp, xyz = blk
+                if first != proc.index:
+                    raise InputError(f"{d}/capture.bin: sample {first} follows {proc.index}: "
+                                     "capture records missing")
+                proc.temp = temp
+                proc.feed(xyz.ravel().tolist(), len(xyz))
+            end = proc.index
+        lg.close()
+        mine = decode(Path(tmp) / "log.bin")
+    board = decode(d / "log.bin")
+    out = {"samples_replayed": end}
+    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal")):
+        theirs = [v for v in board.of(rtype) if v[0] <= end]
+        ours = mine.of(rtype)
+        if rtype == log.CAL:  # the number counts calibrations before the capture began too
+            theirs = [v[:1] + v[2:] for v in theirs]
+            ours = [v[:1] + v[2:] for v in ours]
+        diffs = [i for i, (a, c) in enumerate(zip(theirs, ours)) if a != c]
+        out[name] = {"board": len(theirs), "replay": len(ours), "differ": len(diffs),
+                     "first_difference": (diffs[0] if diffs else (min(len(theirs), len(ours))
+                                                                 if len(theirs) != len(ours) else None))}
+    out["identical"] = all(out[k]["differ"] == 0 and out[k]["board"] == out[k]["replay"]
+                           for k in ("rest", "cal"))
+    return out
+
+
+def summary(dirpath: str | Path) -> dict:
+    """What a pulled folder holds, decoded: counters, calibrations, rest points, dropped bytes."""
+    d = Path(dirpath)
+    lg = decode(d / "log.bin")
+    data = (d / "log.bin").read_bytes()
+    cals = lg.dicts(log.CAL)
+    for c in cals:
+        for n in fixed.PARAM_NAMES:
+            c[n] = c[n] / fixed.PARAM_ONE
+        c["status"] = ("ok", "diverged", "too few points", "out of calibration bounds")[c["status"]]
+    rests = lg.dicts(log.REST)
+    for r in rests:
+        for k in "xyz":
+            r[k] = r[k] / fixed.POINT_ONE_G
+        r["subset"] = dbins.SUBSET_NAMES[r["subset"]] if r["subset"] >= 0 else None
+    out = {"log_bytes": lg.size, "boots": len(lg.of(log.BOOT)),
+           "counters": lg.dicts(log.COUNTERS)[-1] if lg.of(log.COUNTERS) else None,
+           "calibrations": cals, "rest_points": rests,
+           "dropped": lg.dropped_report(data)}
+    store = log.CalStore(str(d / "cal_a.bin"), str(d / "cal_b.bin"))
+    slot, rec = store.load()
+    out["stored_calibration"] = None if rec is None else {
+        "slot": "ab"[slot], "number": rec[1],
+        **{n: v / fixed.PARAM_ONE for n, v in zip(fixed.PARAM_NAMES, rec[7:])}}
+    return out
