@@ -257,38 +257,57 @@ class App:
 
     def step(self):
         """Sleep until data is due, read it, feed it. Returns samples read."""
-        s = self.sensor
-        if self.fifo:
-            self.clock.sleep_us(self.period_us * 25)
-            n = self._retry(s.fifo_level)
-            if not n:
-                return 0
-            if s.overrun:
-                self.fifo_overruns += 1
-            if self._retry(lambda: s.read_fifo(self.buf, 0, n) or True) is None:
-                return 0
-            self._account(n)
-            for i in range(n):
-                self._push(self.buf[3 * i], self.buf[3 * i + 1], self.buf[3 * i + 2])
-            self.samples += n
-        else:
-            self.clock.sleep_us(self.period_us)
-            for attempt in range(RETRIES):  # inline: a bound method per sample would allocate
-                try:
-                    s.read_sample()
-                    break
-                except OSError:
-                    self.bus_errors += 1
-                    if attempt + 1 == RETRIES:
-                        return 0  # lost; _account finds it on the next read
-                    self.bus_retries += 1
-            self._account(1)
-            self._push(s.x, s.y, s.z)
-            self.samples += 1
-            n = 1
+        n = self._step_fifo() if self.fifo else self._step_register()
         if self.samples + self.lost >= self.next_counters:
             self.write_counters()
             self.next_counters += COUNTERS_SECONDS * self.rate_hz
+        return n
+
+    # Both readers retry inline and hold no closures: a lambda here would make its captured
+    # variables heap cells, allocated on every call.
+    def _step_register(self):
+        s = self.sensor
+        self.clock.sleep_us(self.period_us)
+        for attempt in range(RETRIES):
+            try:
+                s.read_sample()
+                break
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    return 0  # lost; _account finds it on the next read
+                self.bus_retries += 1
+        self._account(1)
+        self._push(s.x, s.y, s.z)
+        self.samples += 1
+        return 1
+
+    def _step_fifo(self):
+        s = self.sensor
+        buf = self.buf
+        self.clock.sleep_us(self.period_us * 25)  # 25 of the FIFO's 32 levels
+        n = 0
+        over = False
+        for attempt in range(RETRIES):
+            try:
+                n = s.fifo_level()
+                over = s.overrun  # counted once, however many retries
+                if n:
+                    s.read_fifo(buf, 0, n)
+                break
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    return 0
+                self.bus_retries += 1
+        if over:
+            self.fifo_overruns += 1
+        if not n:
+            return 0
+        self._account(n)
+        for i in range(n):
+            self._push(buf[3 * i], buf[3 * i + 1], buf[3 * i + 2])
+        self.samples += n
         return n
 
     def write_counters(self):

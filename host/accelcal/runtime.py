@@ -140,13 +140,14 @@ def micropython_path() -> str:
 
 
 def run_micropython_script(script: str, *args: str, heap: str | None = None,
-                           timeout: float = 600) -> str:
-    """Run a script file under the MicroPython unix port with device/ on its path."""
+                           timeout: float = 600, extra_path: list[str] = ()) -> str:
+    """Run a script file under the MicroPython unix port with device/ (and extra_path) on its
+    path."""
     cmd = [micropython_path()]
     if heap:
         cmd += ["-X", f"heapsize={heap}"]
     cmd += [script, *args]
-    env = dict(os.environ, MICROPYPATH=f"{DEVICE_DIR}:.frozen")
+    env = dict(os.environ, MICROPYPATH=":".join([str(DEVICE_DIR), *extra_path, ".frozen"]))
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     if proc.returncode != 0:
         raise RuntimeError(f"micropython failed ({proc.returncode}): {proc.stdout[-2000:]}"

@@ -1,0 +1,201 @@
+"""The device app on the simulated LIS3DH under CPython: bus faults and FIFO overruns are counted
+and survived, lost samples are counted exactly (against the simulated chip's ground truth), the
+samples fed on are the chip's samples at the right stream positions, and the host replay of the
+capture reproduces the board's log bit for bit.  Under MicroPython, the acquisition path
+allocates nothing per sample (heap locked)."""
+import os
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from accelcal import boardlog, runtime, simulate
+from accelcal.stimulus import write_stimulus
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
+from vbus import I2C  # noqa: E402
+from vclock import Clock  # noqa: E402
+from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
+
+from acal import fixed, log  # noqa: E402
+from acal.app import App  # noqa: E402
+
+RATE = 25
+TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
+
+
+def stimulus(path, rng, n_rest=120, rest_s=8, move_s=4):
+    """Rest at random orientations (1.6 mg noise) between moves whose acceleration changes by
+    tens of mg from one sample to the next (so a sample read at the wrong position shows)."""
+    parts = []
+    for d in simulate.unit_points(rng, n_rest):
+        v = simulate.uncorrect(TRUTH, d[None, :])[0]
+        parts.append(v + rng.normal(scale=0.0016, size=(RATE * rest_s, 3)))
+        parts.append(v + rng.normal(scale=0.3, size=(RATE * move_s, 3)))
+    xyz = np.clip(np.concatenate(parts), -1.9, 1.9)
+    write_stimulus(path, RATE, xyz, 30 + np.linspace(0, 3, len(xyz)))
+    return xyz
+
+
+class StallingClock(Clock):
+    """Every `every`-th sleep the app is also busy for `stall_us` (a flash erase, say)."""
+
+    def __init__(self, every, stall_us):
+        super().__init__()
+        self.calls = 0
+        self.every = every
+        self.stall_us = stall_us
+
+    def sleep_us(self, us):
+        self.calls += 1
+        if self.every and self.calls % self.every == 0:
+            us += self.stall_us
+        super().sleep_us(us)
+
+
+def board(stim_path, faults=0, clock=None):
+    clock = clock or Clock()
+    chip = SimLIS3DH(Stimulus(str(stim_path)), clock)
+    bus = I2C({0x18: chip}, faults)
+    return types.SimpleNamespace(clock=clock, chip=chip, bus=bus, I2C_ADDRESS=0x18,
+                                 i2c=lambda: bus, exhausted=lambda: chip.exhausted)
+
+
+def run_app(tmp_path, b, **settings):
+    os.chdir(tmp_path)
+    app = App(b, rate_hz=RATE, capture_bytes=1 << 24, recal_seconds=600, **settings)
+    app.run(10 ** 6)
+    return app
+
+
+def captured(tmp_path):
+    cap = boardlog.read_capture(tmp_path)
+    idx, xyz = [], []
+    for blk in cap.blocks:
+        if blk[0] == "samples":
+            idx.append(blk[1] + np.arange(len(blk[3])))
+            xyz.append(blk[3])
+    return np.concatenate(idx), np.concatenate(xyz) / 1024.0
+
+
+def compare(idx, got, xyz):
+    """Captured sample i against the stimulus sample the chip converted for it: i + 1 (past the
+    stimulus's end the chip holds its last input)."""
+    return got - xyz[np.minimum(idx + 1, len(xyz) - 1)]
+
+
+@pytest.fixture
+def stim(tmp_path, rng):
+    path = tmp_path / "stim.bin"
+    return path, stimulus(path, rng)
+
+
+def test_bus_faults_are_retried_counted_and_lost_samples_exact(tmp_path, stim):
+    path, xyz = stim
+    b = board(path, faults=150)  # 15 % of transactions fail: ~0.3 % of samples fail 3 times
+    app = run_app(tmp_path, b)
+    assert app.bus_errors == b.bus.faults > 1000
+    assert app.lost > 0
+    assert app.samples + app.lost == b.chip.generated  # every sample is read or counted lost
+    # The samples were fed at their stream positions: sample i is the chip's sample i + 1
+    # of the stimulus (12-bit registers: within 1 mg of rounding, 0.03 % of Q10 conversion).
+    idx, got = captured(tmp_path)
+    assert len(idx) == app.samples and len(np.unique(idx)) == len(idx)
+    assert np.abs(compare(idx, got, xyz)).max() < 0.0016
+    # The counters record says the same.
+    counters = boardlog.decode(tmp_path / "log.bin").dicts(log.COUNTERS)[-1]
+    assert (counters["samples"], counters["lost"], counters["bus_errors"]) == \
+        (app.samples, app.lost, app.bus_errors)
+
+
+def test_fifo_overruns_counted_and_lost_samples_exact(tmp_path, stim):
+    path, xyz = stim
+    clock = StallingClock(every=7, stall_us=3 * 10 ** 6)  # 3 s stall: 75 samples, FIFO holds 32
+    b = board(path, faults=20, clock=clock)
+    app = run_app(tmp_path, b, fifo=True)
+    assert app.fifo_overruns > 0
+    assert app.lost >= b.chip.dropped > 0
+    assert app.samples + app.lost == b.chip.generated
+    idx, got = captured(tmp_path)
+    assert len(idx) == app.samples
+    # The FIFO keeps 10 bits (4 mg steps, truncated toward -inf).
+    err = compare(idx, got, xyz)
+    assert err.max() < 0.001 and err.min() > -0.0051
+
+
+def test_replay_reproduces_the_boards_log(tmp_path, stim):
+    path, _ = stim
+    b = board(path, faults=150, clock=StallingClock(every=500, stall_us=400000))
+    app = run_app(tmp_path, b)
+    assert app.lost > 0 and app.proc.calibrations >= 1
+    cals = boardlog.decode(tmp_path / "log.bin").dicts(log.CAL)
+    ok = [c for c in cals if c["status"] == 0]
+    p = np.array([ok[-1][n] for n in fixed.PARAM_NAMES]) / 2 ** 24
+    assert np.abs(p - TRUTH).max() < 0.01  # the board calibrated itself near the truth
+    r = boardlog.replay(tmp_path)
+    assert r["identical"], r
+    assert r["rest"]["board"] > 30 and r["cal"]["board"] == len(cals)
+
+
+def test_replay_finds_a_changed_device_module(tmp_path, stim, monkeypatch):
+    path, _ = stim
+    run_app(tmp_path, board(path))
+    from acal import optimiser  # a "change" to the device code: one iteration fewer
+    real_run = optimiser.Optimiser.run
+    monkeypatch.setattr(optimiser.Optimiser, "run",
+                        lambda self, pts, n, it, *a, **k: real_run(self, pts, n, it - 1, *a, **k))
+    r = boardlog.replay(tmp_path)
+    assert not r["identical"] and r["cal"]["differ"] >= 1
+
+
+HEAP_SCRIPT = r'''
+import sys, os, micropython
+from vbus import I2C
+from vclock import Clock
+from vlis3dh import SimLIS3DH, Stimulus
+from acal.app import App, BLOCK
+
+class Board:
+    I2C_ADDRESS = 0x18
+    def __init__(self, path):
+        self.clock = Clock()
+        self.chip = SimLIS3DH(Stimulus(path), self.clock)
+        self.bus = I2C({0x18: self.chip})
+    def i2c(self):
+        return self.bus
+
+os.chdir(sys.argv[2])
+app = App(Board(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600)
+
+def work(n):  # the per-sample steps (a block flush, which logs, excluded) with the heap locked
+    locked = 0
+    while locked < n:
+        if app.fill == BLOCK - 1:
+            app.step()
+            continue
+        micropython.heap_lock()
+        app.step()
+        micropython.heap_unlock()
+        locked += 1
+    return locked
+
+try:
+    k = work(5000)
+    print("OK", k, app.samples, app.lost)
+except MemoryError:
+    micropython.heap_unlock()
+    print("ALLOCATED", app.samples)
+'''
+
+
+def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, stim):
+    path, _ = stim
+    script = tmp_path / "heap_app.py"
+    script.write_text(HEAP_SCRIPT)
+    sim = str(ROOT / "host" / "accelcal" / "sim")
+    out = runtime.run_micropython_script(str(script), str(path), str(tmp_path),
+                                         extra_path=[sim]).split()
+    assert out[0] == "OK", out
+    assert int(out[1]) == 5000 and int(out[3]) == 0
