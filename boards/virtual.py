@@ -1,7 +1,8 @@
 # Virtual board: the MicroPython unix port with a simulated LIS3DH (host/accelcal/sim) behind a
 # fake machine.I2C.  `accelcal board virtual` puts the simulator on the path and sets
 # ACCELCAL_STIMULUS (the wearer's signal) and ACCELCAL_BUS_FAULTS (per mille of failed
-# transactions).  Time is virtual: it advances when the app sleeps.
+# transactions) and ACCELCAL_SPEED (0: virtual time runs as fast as the interpreter can; N: N times
+# real time).  Time is virtual: it advances when the app sleeps.
 import os
 
 from vbus import I2C
@@ -13,7 +14,7 @@ ARCH = None          # runs the sources; no .mpy needed
 I2C_ADDRESS = 0x18
 TEMP_REF_C = None    # the simulated chip's reference is unknown to the board, as on a real one
 
-clock = Clock()
+clock = Clock(int(os.getenv("ACCELCAL_SPEED") or "0"))
 chip = SimLIS3DH(Stimulus(os.getenv("ACCELCAL_STIMULUS") or "stimulus.bin"), clock)
 bus = I2C({I2C_ADDRESS: chip}, int(os.getenv("ACCELCAL_BUS_FAULTS") or "0"))
 

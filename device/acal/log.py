@@ -6,17 +6,19 @@
 # (reporting what it skipped): a torn record is dropped, the records after it are found again.
 #
 # Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
-#   BOOT     <IHHBHBBBBBHBI boot, version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
-#                          fifo, min_count, max_count, differ (Q16 g), iterations, recal_seconds
-#   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC,
-#                          relative to the chip's reference), subset kept in (-1: none),
+#   BOOT     <IHHBHBBBBBHBIb log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
+#                          fifo, min_count, max_count, differ (Q16 g), iterations, recal_seconds,
+#                          temperature reference (degC; -128: none, temperatures are relative)
+#   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
+#                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
 #   CAL      <IHBBBII9i     sample index, calibration number, status, iterations, points,
 #                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget
-#   SAMPLES  <IBb + n*<hhh  raw capture: first sample index, n, temperature, n samples (Q10 g)
+#   SAMPLES  <IBb + n*<hhh  raw capture: first sample index, n, temperature (as REST), n samples
+#                          (Q10 g)
 #   GAP      <II            raw capture: sample index, samples lost there
 import struct
 
@@ -29,7 +31,7 @@ SAMPLES = 5
 GAP = 6
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
               GAP: "gap"}
-FORMATS = {BOOT: "<IHHBHBBBBBHBI", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+FORMATS = {BOOT: "<IHHBHBBBBBHBIb", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
            GAP: "<II"}
 SAMPLES_HEAD = "<IBb"
 MAX_PAYLOAD = 255
@@ -74,9 +76,14 @@ class Log:
     otherwise the first bytes written now could complete the torn record's missing tail and
     the new record they belonged to would be lost.  The reader reports the pad as dropped."""
 
-    def __init__(self, path, budget=None):
+    def __init__(self, path, budget=None, flush_every=1):
         self.path = path
         self.budget = budget
+        # Records are flushed (on the unix port: fsync; on littlefs: a commit) every
+        # flush_every records: 1 for the log, more for a raw capture whose last few records a
+        # power cut may take.
+        self.flush_every = flush_every
+        self.unflushed = 0
         self.buf = bytearray(MAX_PAYLOAD + OVERHEAD)
         self.mv = memoryview(self.buf)
         try:
@@ -108,7 +115,10 @@ class Log:
         c = crc32(self.mv[1:3 + n])
         struct.pack_into("<I", b, 3 + n, c)
         self.f.write(self.mv[0:n + OVERHEAD])
-        self.f.flush()
+        self.unflushed += 1
+        if self.unflushed >= self.flush_every:
+            self.f.flush()
+            self.unflushed = 0
         self.size += n + OVERHEAD
         return True
 
@@ -117,6 +127,10 @@ class Log:
         fmt = FORMATS[rtype]
         struct.pack_into(fmt, self.buf, 3, *values)
         return self.write_payload(rtype, struct.calcsize(fmt))
+
+    def flush(self):
+        self.f.flush()
+        self.unflushed = 0
 
     def close(self):
         self.f.close()

@@ -16,8 +16,8 @@ from accelcal.io import InputError
 
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FIELDS = {
-    log.BOOT: ("boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
-               "min_count", "max_count", "differ", "iterations", "recal_seconds"),
+    log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
+               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref"),
     log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
     log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
               "objective", *fixed.PARAM_NAMES),
@@ -117,9 +117,13 @@ def replay(dirpath: str | Path) -> dict:
         lg.close()
         mine = decode(Path(tmp) / "log.bin")
     board = decode(d / "log.bin")
+    # The capture is the last session's (it restarts at each boot): compare the records the
+    # board wrote after its last BOOT record.
+    last_boot = max((i for i, (t, _) in enumerate(board.records) if t == log.BOOT), default=0)
+    session = board.records[last_boot:]
     out = {"samples_replayed": end}
     for rtype, name in ((log.REST, "rest"), (log.CAL, "cal")):
-        theirs = [v for v in board.of(rtype) if v[0] <= end]
+        theirs = [v for t, v in session if t == rtype and v[0] <= end]
         ours = mine.of(rtype)
         if rtype == log.CAL:  # the number counts calibrations before the capture began too
             theirs = [v[:1] + v[2:] for v in theirs]
