@@ -199,3 +199,32 @@ def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, st
                                          extra_path=[sim]).split()
     assert out[0] == "OK", out
     assert int(out[1]) == 5000 and int(out[3]) == 0
+
+
+def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
+    """A wearer who rests 5 s in a new orientation every 5 s for 14 days (every rest segment
+    differs, all of them logged were there no allowance), with hourly counters and calibrations
+    every 6 h: the log stays within 1 MiB and refuses nothing."""
+    from acal.app import Processor, REST_BUDGET_BYTES
+    rate = 1
+    lg = log.Log(str(tmp_path / "log.bin"), 1 << 20)
+    proc = Processor(lg, rate, recal_seconds=6 * 3600)
+    rng = np.random.default_rng(5)
+    dirs = simulate.uncorrect(TRUTH, simulate.unit_points(rng, 4000))
+    q = np.rint(dirs * 1024).astype(int)
+    block = [0] * 15
+    counters = 0
+    for seg in range(14 * 86400 // 5 - 1):  # up to the last sample of day 14
+        x, y, z = q[seg % len(q)] + (seg // len(q))  # a new mean each time round
+        block[0::3], block[1::3], block[2::3] = [x] * 5, [y] * 5, [z] * 5
+        proc.feed(block, 5)
+        if proc.index // 3600 > counters:
+            counters += 1
+            lg.write(log.COUNTERS, proc.index, proc.index, 0, 0, 0, 0, 0, proc.rest_logged,
+                     proc.rest_skipped)
+    lg.close()
+    size = (tmp_path / "log.bin").stat().st_size
+    assert lg.refused == 0 and size <= 1 << 20
+    assert proc.rest_skipped > 100000                    # the allowance did the work
+    assert proc.rest_bytes <= REST_BUDGET_BYTES           # and held over the 14 days
+    assert proc.calibrations >= 14 * 4 - 1

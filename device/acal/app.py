@@ -24,8 +24,9 @@ RETRIES = 3
 # fit in the flash budget whatever the wearer does (README "Flash budget").
 REST_LOG_DIFFER = (8 * POINT_ONE_G) // 1000
 REST_LOG_SECONDS = 600
-REST_BUDGET_BYTES = 14 * 60000  # 60 kB a day for 14 days
+REST_BUDGET_BYTES = 14 * 60000  # 60 kB a day for 14 days, cumulative: a quiet day saves
 REST_BUDGET_DAYS = 14
+REST_RESERVE_BYTES = 4000       # of each day's allowance, kept for points the bins keep
 COUNTERS_SECONDS = 3600
 CAPTURE_FLUSH_RECORDS = 32  # ~8 kB: a flush per record would cost more than the processing
 
@@ -82,7 +83,9 @@ class Processor:
             self.merged += 1
             return
         allowance = (REST_BUDGET_BYTES // REST_BUDGET_DAYS) * (1 + index // self.day_samples)
-        if subset < 0 and self.rest_bytes + self._rest_size > allowance:
+        if subset < 0:
+            allowance -= REST_RESERVE_BYTES
+        if self.rest_bytes + self._rest_size > allowance:
             self.rest_skipped += 1
             self.merged += 1
             return

@@ -52,11 +52,12 @@ class Remote:
         self.port = port
         self.timeout = timeout
 
-    def run(self, *args: str, stream=None) -> str:
+    def run(self, *args: str, stream=None, timeout: float | None = None) -> str:
         cmd = [sys.executable, "-m", "mpremote", "connect", self.port, *args]
+        timeout = timeout or self.timeout
         try:
             if stream is None:
-                p = subprocess.run(cmd, capture_output=True, text=True, timeout=self.timeout)
+                p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
                 out, err = p.stdout, p.stderr
             else:  # pass the board's console output on as it comes (progress of long runs)
                 p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -65,10 +66,11 @@ class Remote:
                     lines.append(line)
                     stream(line.rstrip("\n"))
                 err = p.stderr.read()
-                p.wait(self.timeout)
+                p.wait(timeout)
                 out = "".join(lines)
         except subprocess.TimeoutExpired:
-            raise InputError(f"{self.port}: the board did not answer within {self.timeout:g} s") from None
+            raise InputError(f"{self.port}: no MicroPython REPL answered within {timeout:g} s "
+                             "(not a MicroPython/CircuitPython board, or busy)") from None
         if p.returncode != 0:
             msg = (err.strip() or out.strip()).splitlines()
             last = msg[-1] if msg else f"mpremote exit {p.returncode}"
@@ -78,11 +80,14 @@ class Remote:
             raise InputError(f"{self.port}: {last}")
         return out
 
-    def exec(self, code: str, stream=None) -> str:
-        return self.run("exec", code, stream=stream)
+    def exec(self, code: str, stream=None, timeout: float | None = None) -> str:
+        return self.run("exec", code, stream=stream, timeout=timeout)
 
     def identify(self) -> dict:
-        out = self.exec("import sys, os\n"
+        # Short: a board answers in well under a second (plus boot.py); mpremote itself waits
+        # for ever on a pty that stays silent.
+        probe = float(os.environ.get("ACCELCAL_REPL_TIMEOUT", "20"))
+        out = self.exec(timeout=probe, code="import sys, os\n"
                         "print('ACAL', sys.implementation.name, sys.platform, "
                         "getattr(sys.implementation, '_mpy', 0) & 0xff)\n"
                         "print('FILES', ' '.join(os.listdir()))")
@@ -160,6 +165,9 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
 def acquire(port: str, seconds: int, settings: dict, say=print) -> str:
     """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can)."""
     r = Remote(port, timeout=24 * 3600)
+    ident = r.identify()
+    if "lib" not in ident["files"] or "acal_board.py" not in ident["files"]:
+        raise InputError(f"{port}: accelcal is not deployed there (run `accelcal deploy --port {port}`)")
     args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
     code = (f"import acal.app\napp = acal.app.main({args})\n"
             "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
