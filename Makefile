@@ -1,4 +1,5 @@
-# accelcal: `make demo` runs the main job, `make test` the tests; each sets itself up.
+# accelcal: `make demo` runs the main job (a day of wrist wear on the virtual board), `make test`
+# the tests; each sets itself up.
 PY ?= python3
 VENV := .venv
 VENV_MPY := .venv-mpy

@@ -86,9 +86,9 @@ def read_capture(dirpath: Path) -> Capture:
     return Capture(blocks, boots[-1] if boots else None)
 
 
-def replay(dirpath: str | Path) -> dict:
-    """Re-run a pulled capture through the current device Processor; diff REST and CAL records
-    against the board's log over the span the capture covers."""
+def run_capture(dirpath: str | Path, log_path: str | Path):
+    """Feed a pulled capture through the current device Processor, configured from the board's
+    BOOT record, logging to log_path.  Returns the Processor."""
     d = Path(dirpath)
     for f in ("log.bin", "capture.bin"):
         if not (d / f).exists():
@@ -97,24 +97,31 @@ def replay(dirpath: str | Path) -> dict:
     if cap.boot is None:
         raise InputError(f"{d}/log.bin: no BOOT record, cannot tell the board's settings")
     b = dict(zip(FIELDS[log.BOOT], cap.boot))
+    lg = log.Log(str(log_path))
+    proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                     threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
+                     max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"])
+    for blk in cap.blocks:
+        if blk[0] == "gap":
+            proc.gap(blk[2])
+        else:
+            _, first, temp, xyz = blk
+            if first != proc.index:
+                raise InputError(f"{d}/capture.bin: sample {first} follows {proc.index}: "
+                                 "capture records missing")
+            proc.temp = temp
+            proc.feed(xyz.ravel().tolist(), len(xyz))
+    lg.close()
+    return proc
+
+
+def replay(dirpath: str | Path) -> dict:
+    """Re-run a pulled capture through the current device Processor; diff REST and CAL records
+    against the board's log over the span the capture covers."""
+    d = Path(dirpath)
     with tempfile.TemporaryDirectory() as tmp:
-        lg = log.Log(str(Path(tmp) / "log.bin"))
-        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                         threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
-                         max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"])
-        end = 0
-        for blk in cap.blocks:
-            if blk[0] == "gap":
-                proc.gap(blk[2])
-            else:
-                _, first, temp, xyz = blk
-                if first != proc.index:
-                    raise InputError(f"{d}/capture.bin: sample {first} follows {proc.index}: "
-                                     "capture records missing")
-                proc.temp = temp
-                proc.feed(xyz.ravel().tolist(), len(xyz))
-            end = proc.index
-        lg.close()
+        proc = run_capture(d, Path(tmp) / "log.bin")
+        end = proc.index
         mine = decode(Path(tmp) / "log.bin")
     board = decode(d / "log.bin")
     # The capture is the last session's (it restarts at each boot): compare the records the

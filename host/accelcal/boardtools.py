@@ -90,14 +90,17 @@ class Remote:
         out = self.exec(timeout=probe, code="import sys, os\n"
                         "print('ACAL', sys.implementation.name, sys.platform, "
                         "getattr(sys.implementation, '_mpy', 0) & 0xff)\n"
-                        "print('FILES', ' '.join(os.listdir()))")
-        info = {"implementation": None, "platform": None, "mpy": 0, "files": []}
+                        "print('FILES', ' '.join('%s:%d' % (f, os.stat(f)[6]) for f in os.listdir()))")
+        info = {"implementation": None, "platform": None, "mpy": 0, "files": [], "sizes": {}}
         for line in out.splitlines():
             parts = line.split()
             if parts[:1] == ["ACAL"] and len(parts) >= 4:
                 info.update(implementation=parts[1], platform=parts[2], mpy=int(parts[3]))
             elif parts[:1] == ["FILES"]:
-                info["files"] = parts[1:]
+                for item in parts[1:]:
+                    name, _, size = item.rpartition(":")
+                    info["files"].append(name)
+                    info["sizes"][name] = int(size) if size.isdigit() else 0
         if info["implementation"] not in ("micropython", "circuitpython"):
             raise InputError(f"{self.port}: not a MicroPython/CircuitPython board (it said {out.strip()[:80]!r})")
         return info
@@ -187,6 +190,9 @@ def pull(port: str, outdir: str | Path, say=print) -> dict:
                          f"it holds: {' '.join(ident['files'][:12]) or 'nothing'}")
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
+    total = sum(ident["sizes"].get(f, 0) for f in present)
+    if total > 200000:  # mpremote moves about 60 kB/s
+        say(f"copying {total / 1e6:.1f} MB over mpremote (about {total / 60000:.0f} s)...")
     cmd = []
     for f in present:
         cmd += ["fs", "cp", f":{f}", str(out / f), "+"]

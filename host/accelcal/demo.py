@@ -1,78 +1,93 @@
-"""`make demo`: simulate sensors as in the paper, calibrate each with every method, compare.
+"""`make demo`: a day of wrist wear on the virtual board, through the real mpremote.
 
-Each simulated device gets 300 rest means for calibration (the device's bins pick 18 of them) and
-100 more, never seen by any method, on which the calibration error (Farago Table 3 metric) is
-measured.  The device method runs under CPython and under the real MicroPython interpreter; the
-demo checks that both return the same integers."""
+1. simulate a day of wear (10 Hz) and the LIS3DH that sees it (9-parameter errors, noise);
+2. start the virtual board (MicroPython unix port on a pty, simulated LIS3DH, virtual time);
+3. `accelcal deploy`, `accelcal acquire --hours 24` (capture on), `accelcal pull`;
+4. show the calibration the board computed beside the host's replay of the same samples through
+   the same device modules under CPython (bit for bit), and beside the simulated truth."""
 from __future__ import annotations
 
+import json
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from accelcal import methods, runtime, simulate
-from accelcal.io import params_to_float
+from accelcal import boardlog, methods, vboard, wearer
+from acal.fixed import PARAM_NAMES, PARAM_ONE, POINT_ONE_G
+from acal import log
 
-DEVICES = 20
-NOISE_MG = 2.0
+DAYS = 1
+RATE = 10
+SEED = 4
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    t = time.perf_counter()
+    print(f"$ accelcal {' '.join(args)}", flush=True)
+    p = subprocess.run([sys.executable, "-m", "accelcal.cli", *args], text=True,
+                       stdout=subprocess.PIPE)
+    if p.stdout.strip():
+        print("  " + p.stdout.strip().replace("\n", "\n  "))
+    print(f"  ({time.perf_counter() - t:.0f} s)", flush=True)
+    if p.returncode not in (0, 1):
+        raise SystemExit(f"demo: `accelcal {args[0]}` failed")
+    return p
 
 
 def main() -> int:
-    rng = np.random.default_rng(7)
-    truths, train, test = [], [], []
-    for _ in range(DEVICES):
-        p, v = simulate.paper_scenario(rng, 400, NOISE_MG * 1e-3)
-        truths.append(p)
-        train.append(v[:300])
-        test.append(v[300:])
-    groups = [runtime.Group(f"dev{i:02d}", points=v) for i, v in enumerate(train)]
-    cfg = runtime.Config()
-    print(f"accelcal demo: {DEVICES} simulated sensors (Farago 2024 eqs. 17-20, {NOISE_MG:g} mg noise)")
-    t0 = time.perf_counter()
-    cp = runtime.run(groups, cfg, "cpython")
-    t_cp = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    try:
-        mp = runtime.run(groups, cfg, "micropython")
-    except Exception as e:  # demo goes on without MicroPython, and says so
-        print(f"  MicroPython runtime unavailable: {e}", file=sys.stderr)
-        mp = None
-    t_mp = time.perf_counter() - t0
-    if mp is not None:
-        same = all(a.params_int == b.params_int and a.selected_int == b.selected_int
-                   for a, b in zip(cp, mp))
-        print(f"  device pipeline under CPython {t_cp:.2f} s, under MicroPython {t_mp:.2f} s: "
-              f"integer parameters {'IDENTICAL' if same else 'DIFFER'} on all {DEVICES} devices")
-        if not same:
-            return 1
+    work = Path("demo-out").resolve()
+    work.mkdir(exist_ok=True)
+    for f in ("flash", "pulled"):
+        d = work / f
+        if d.exists():
+            for p in sorted(d.rglob("*"), reverse=True):
+                p.unlink() if p.is_file() else p.rmdir()
+    print(f"accelcal demo: {DAYS} day of wrist wear at {RATE} Hz on the virtual board (in {work})\n")
+    cli("simulate", "wrist", "--days", str(DAYS), "--rate", str(RATE), "--seed", str(SEED),
+        "-o", str(work / "wrist.csv"), "--stimulus", str(work / "wrist.bin"))
+    truth = json.loads((work / "wrist.truth.json").read_text())
+    with vboard.Running(work / "flash", work / "wrist.bin", "--heap", "160k") as board:
+        print(f"virtual board on {board.port} (160 kB heap, like an RP2040)\n")
+        common = ["--port", board.port, "--rate", str(RATE), "--capture-kb", "8192"]
+        cli("deploy", *common)
+        cli("acquire", "--hours", str(24 * DAYS), *common)
+        print("(the capture is ~5.5 MB: mpremote copies it at about 60 kB/s)")
+        cli("pull", "--port", board.port, "-o", str(work / "pulled"))
+    rep = cli("replay", str(work / "pulled"))
 
-    rows = []
-    before = np.mean([methods.calibration_error_mg(None, v) for v in test])
-    for name in ("device", "lsq", "linauto"):
-        after, perr, fit_s = [], [], 0.0
-        for r, p_true, v_test in zip(cp, truths, test):
-            if name == "device":
-                p = params_to_float(r.params_int)
-            else:
-                t0 = time.perf_counter()
-                p = methods.METHODS[name](r.selected_g)
-                fit_s += time.perf_counter() - t0
-            after.append(methods.calibration_error_mg(p, v_test))
-            perr.append(np.abs(p - p_true))
-        perr = np.mean(perr, axis=0)
-        rows.append((name, before, np.mean(after), perr[:3].mean(), perr[3:6].mean(), perr[6:].mean()))
-    print("\nHeld-out calibration error (mean | |a| - 1 g | over 100 unseen rest points per device)"
-          "\nand mean absolute parameter error against the simulated truth, all methods fitted on"
-          "\nthe same 18 points the device bins selected:\n")
-    hdr = f"{'method':<10}{'before mg':>10}{'after mg':>10}{'scale err':>11}{'misalign err':>14}{'offset err g':>14}"
-    print(hdr)
-    print("-" * len(hdr))
-    for n, b, a, s, m, o in rows:
-        print(f"{n:<10}{b:10.2f}{a:10.3f}{s:11.2e}{m:14.2e}{o:14.2e}")
-    print("\nlinauto (Gietzelt 2013) has no misalignment terms, hence its larger error."
-          "\nMore: `accelcal paper table2`, `accelcal bench`, `accelcal --help`.")
-    return 0
+    lg = boardlog.decode(work / "pulled" / "log.bin")
+    cals = [c for c in lg.dicts(log.CAL) if c["status"] == 0]
+    if not cals:
+        print("\nthe board did not calibrate in this day (bins not full): see pulled/summary.json")
+        return 1
+    board_p = np.array([cals[-1][n] for n in PARAM_NAMES]) / PARAM_ONE
+    ours = _replayed_params(work / "pulled")
+    true_p = np.array([truth["params"][n] for n in PARAM_NAMES])
+    rests = np.array([[r["x"], r["y"], r["z"]] for r in lg.dicts(log.REST)]) / POINT_ONE_G
+    print(f"\nCalibration {cals[-1]['number']} (sample {cals[-1]['index']}, "
+          f"{cals[-1]['index'] / RATE / 3600:.1f} h into the wear), board vs host replay vs truth:\n")
+    print(f"{'param':<6}{'board':>11}{'host replay':>13}{'truth':>11}{'board-truth':>13}")
+    for i, n in enumerate(PARAM_NAMES):
+        print(f"{n:<6}{board_p[i]:11.5f}{ours[i]:13.5f}{true_p[i]:11.5f}{board_p[i] - true_p[i]:13.5f}")
+    same = np.array_equal(board_p, ours)
+    print(f"\nboard and host replay: {'IDENTICAL, bit for bit' if same else 'DIFFERENT'}")
+    print(f"calibration error over the board's {len(rests)} logged rest points (mean | |a| - 1 g |): "
+          f"{methods.calibration_error_mg(None, rests):.1f} mg before, "
+          f"{methods.calibration_error_mg(board_p, rests):.1f} mg after "
+          f"(the truth's own: {methods.calibration_error_mg(true_p, rests):.1f} mg)")
+    print("\nMore: `accelcal board virtual`, `accelcal --help`, README 'Boards'.")
+    return 0 if same and rep.returncode == 0 else 1
+
+
+def _replayed_params(d: Path) -> np.ndarray:
+    """The calibration the host's replay of the capture ends with."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = boardlog.run_capture(d, Path(tmp) / "log.bin")
+    return np.array(proc.params) / PARAM_ONE
 
 
 if __name__ == "__main__":
