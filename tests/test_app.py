@@ -228,3 +228,23 @@ def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
     assert proc.rest_skipped > 100000                    # the allowance did the work
     assert proc.rest_bytes <= REST_BUDGET_BYTES           # and held over the 14 days
     assert proc.calibrations >= 14 * 4 - 1
+
+
+def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
+    """The CircuitPython board's bus (busio.I2C through adafruit_bus_device, as
+    boards/feather_rp2040.py wires it) gives the app the same samples, hence the same log."""
+    from vbus import BusioI2C
+    from acal.lis3dh_cp import BusioRegisters
+    path, _ = stim
+    logs = []
+    for name in ("machine", "busio"):
+        d = tmp_path / name
+        d.mkdir()
+        b = board(path)
+        if name == "busio":
+            regs = BusioRegisters(BusioI2C({0x18: b.chip}), 0x18)
+            b.i2c = lambda: regs
+        run_app(d, b)
+        logs.append(boardlog.decode(d / "log.bin"))
+    for rtype in (log.REST, log.CAL):
+        assert logs[0].of(rtype) == logs[1].of(rtype) and len(logs[0].of(rtype)) > 0
