@@ -5,23 +5,19 @@
 # real time).  Time is virtual: it advances when the app sleeps.
 import os
 
-from vbus import I2C
+from simboard import SimBoard
 from vclock import Clock
-from vlis3dh import SimLIS3DH, Stimulus
 
 RUNTIME = "micropython"
 ARCH = None          # runs the sources; no .mpy needed
 I2C_ADDRESS = 0x18
 TEMP_REF_C = None    # the simulated chip's reference is unknown to the board, as on a real one
 
-clock = Clock(int(os.getenv("ACCELCAL_SPEED") or "0"))
-chip = SimLIS3DH(Stimulus(os.getenv("ACCELCAL_STIMULUS") or "stimulus.bin"), clock)
-bus = I2C({I2C_ADDRESS: chip}, int(os.getenv("ACCELCAL_BUS_FAULTS") or "0"))
-
-
-def i2c():
-    return bus
-
-
-def exhausted():
-    return chip.exhausted
+_hw = SimBoard(os.getenv("ACCELCAL_STIMULUS") or "stimulus.bin",
+               int(os.getenv("ACCELCAL_BUS_FAULTS") or "0"),
+               Clock(int(os.getenv("ACCELCAL_SPEED") or "0")))
+clock = _hw.clock
+chip = _hw.chip
+bus = _hw.bus
+i2c = _hw.i2c
+exhausted = _hw.exhausted

@@ -5,7 +5,6 @@ capture reproduces the board's log bit for bit.  Under MicroPython, the acquisit
 allocates nothing per sample (heap locked)."""
 import os
 import sys
-import types
 
 import numpy as np
 import pytest
@@ -15,9 +14,8 @@ from accelcal.stimulus import write_stimulus
 from conftest import ROOT
 
 sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
-from vbus import I2C  # noqa: E402
+from simboard import SimBoard  # noqa: E402
 from vclock import Clock  # noqa: E402
-from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 from acal import fixed, log  # noqa: E402
 from acal.app import App  # noqa: E402
@@ -56,11 +54,7 @@ class StallingClock(Clock):
 
 
 def board(stim_path, faults=0, clock=None):
-    clock = clock or Clock()
-    chip = SimLIS3DH(Stimulus(str(stim_path)), clock)
-    bus = I2C({0x18: chip}, faults)
-    return types.SimpleNamespace(clock=clock, chip=chip, bus=bus, I2C_ADDRESS=0x18,
-                                 i2c=lambda: bus, exhausted=lambda: chip.exhausted)
+    return SimBoard(str(stim_path), faults, clock)
 
 
 def run_app(tmp_path, b, **settings):
@@ -152,22 +146,11 @@ def test_replay_finds_a_changed_device_module(tmp_path, stim, monkeypatch):
 
 HEAP_SCRIPT = r'''
 import sys, os, micropython
-from vbus import I2C
-from vclock import Clock
-from vlis3dh import SimLIS3DH, Stimulus
+from simboard import SimBoard
 from acal.app import App, BLOCK
 
-class Board:
-    I2C_ADDRESS = 0x18
-    def __init__(self, path):
-        self.clock = Clock()
-        self.chip = SimLIS3DH(Stimulus(path), self.clock)
-        self.bus = I2C({0x18: self.chip})
-    def i2c(self):
-        return self.bus
-
 os.chdir(sys.argv[2])
-app = App(Board(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600)
+app = App(SimBoard(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600)
 
 def work(n):  # the per-sample steps (a block flush, which logs, excluded) with the heap locked
     locked = 0

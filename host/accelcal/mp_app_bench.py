@@ -6,24 +6,7 @@ import os
 import sys
 import time
 
-from vbus import I2C
-from vclock import Clock
-from vlis3dh import SimLIS3DH, Stimulus
-
-
-class Board:
-    I2C_ADDRESS = 0x18
-
-    def __init__(self, path):
-        self.clock = Clock()
-        self.chip = SimLIS3DH(Stimulus(path), self.clock)
-        self.bus = I2C({0x18: self.chip})
-
-    def i2c(self):
-        return self.bus
-
-    def exhausted(self):
-        return self.chip.exhausted
+from simboard import SimBoard as Board
 
 
 def sim_only(board, n, period):

@@ -1,0 +1,23 @@
+# The virtual board's hardware in one object: a simulated LIS3DH fed by a stimulus file, on a fake
+# machine.I2C (fault_per_mille of its transactions fail), with a virtual clock.  MicroPython-
+# compatible; boards/virtual.py, the tests and the bench build their boards from it.
+from vbus import I2C
+from vclock import Clock
+from vlis3dh import SimLIS3DH, Stimulus
+
+ADDRESS = 0x18
+
+
+class SimBoard:
+    I2C_ADDRESS = ADDRESS
+
+    def __init__(self, stimulus_path, fault_per_mille=0, clock=None):
+        self.clock = clock if clock is not None else Clock()
+        self.chip = SimLIS3DH(Stimulus(stimulus_path), self.clock)
+        self.bus = I2C({ADDRESS: self.chip}, fault_per_mille)
+
+    def i2c(self):
+        return self.bus
+
+    def exhausted(self):
+        return self.chip.exhausted
