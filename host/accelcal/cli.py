@@ -154,8 +154,8 @@ def cmd_simulate_wrist(args) -> int:
     def progress(done, total):
         print(f"\rsimulated {done / (86400 * args.rate):5.2f} of {args.days:g} days", end="",
               file=sys.stderr, flush=True)
-    truth = wearer.simulate_wrist(out, args.days, args.rate, args.seed, stimulus=args.stimulus,
-                                  range_g=args.range, progress=progress)
+    truth = wearer.simulate_wrist(out, args.days, args.rate, args.seed, effects=args.effect,
+                                  stimulus=args.stimulus, range_g=args.range, progress=progress)
     print(file=sys.stderr)
     h = ", ".join(f"{k} {v:.1f} h" for k, v in truth["hours"].items())
     print(f"wrote {truth['samples']} samples to {out}, truth to {out.with_suffix('.truth.json')}"
@@ -238,6 +238,11 @@ def cmd_replay(args) -> int:
     return 0 if r["identical"] else 1
 
 
+def cmd_diagnose(args) -> int:
+    from accelcal.diagnose import diagnose_main
+    return diagnose_main(args)
+
+
 def cmd_table2(args) -> int:
     from accelcal.paper import table2_main
     return table2_main(args)
@@ -307,6 +312,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=2, help="full scale, g (default 2)")
     q.add_argument("--seed", type=int, default=1)
     q.add_argument("--stimulus", metavar="FILE.bin", help="also write the stimulus for `board virtual`")
+    from accelcal.effects import CATALOGUE
+    q.add_argument("--effect", action="append", default=[], choices=list(CATALOGUE),
+                   help="add a hidden physical effect (repeatable): " + ", ".join(CATALOGUE)
+                   + "; its true values go to the truth JSON")
     q.add_argument("-o", "--output", required=True, help="recording CSV to write")
     q.set_defaults(func=cmd_simulate_wrist)
 
@@ -377,6 +386,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("dir", help="folder written by `accelcal pull`")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("diagnose", help="where the model fails, and which effect is missing",
+                       description="Fits the model on even 2-hour blocks of the rest points and "
+                                   "measures on the odd ones: held-out calibration error beside the "
+                                   "noise floor, residuals against time, temperature, each axis and "
+                                   "|a|, and for every catalogue effect not in the model the held-out "
+                                   "error with it added; names the missing effect, or none.")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
+    p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("paper", help="reproduce the paper's results")
     psub = p.add_subparsers(dest="what", required=True, metavar="WHAT")

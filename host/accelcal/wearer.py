@@ -276,9 +276,14 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
                    effects=(), stimulus: str | Path | None = None, range_g: int = 2,
                    progress=None) -> dict:
     """Write a recording CSV (t,x,y,z,temp) and its truth beside it (NAME.truth.json);
-    with stimulus, also the stimulus file for the virtual board.  Returns the truth."""
+    with stimulus, also the stimulus file for the virtual board.  effects: catalogue names
+    (accelcal.effects), drawn with realistic magnitudes.  Returns the truth."""
+    from accelcal.effects import CATALOGUE, TrueEffect
     rng = np.random.default_rng(seed)
-    sensor = Sensor.lis3dh(rng, rate_hz, effects)
+    sensor = Sensor.lis3dh(rng, rate_hz)
+    # Effects draw from their own stream: the same seed gives the same day with or without them.
+    erng = np.random.default_rng([seed, 1])
+    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng)) for n in effects]
     wearer = Wearer(rng, rate_hz)
     out_csv = Path(out_csv)
     n_days = int(np.ceil(days))

@@ -1,0 +1,296 @@
+"""`accelcal diagnose`: compare the model with measurements, show where it fails, name the missing
+effect.
+
+Rest points come from the device's own rest detector (acal.rest) run over the recording; each
+carries its mean (g), time, mean temperature and the spread of |v| inside it.
+
+Split (why it is fair): the recording is cut into 2-hour blocks; even blocks train, odd blocks
+test.  Both halves span the whole recording's time and temperature range, so an effect that
+depends on either is seen by the fit and tested on it; no rest segment is split between them, and
+postures held across a block edge are the only shared context.
+
+Metric: the paper's Table 3 calibration error, mean | |a| - 1 g | over held-out rest points, in mg.
+Noise floor: what the data implies a perfect model would still show: the radial noise of each
+held-out mean, sqrt(2/pi) sd(|v|) / sqrt(n), averaged.
+
+Naming rule (does not cry wolf on clean data): the candidate with the lowest held-out error is
+named when (1) it lowers the held-out error by at least MIN_IMPROVEMENT_PCT and (2) it lowers it
+in at least MIN_BLOCK_SHARE of the held-out blocks (an effect is systematic; a fit that only
+bends to a few blocks' noise is not).  Thresholds: README "Model discovery", chosen on clean and
+effect recordings of seeds that the tests do not use.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from acal.rest import RestDetector
+from accelcal.effects import CATALOGUE, ModelSpec
+from accelcal.io import InputError, g_to_sample, read_table, sample_rate
+
+BLOCK_S = 2 * 3600
+MIN_IMPROVEMENT_PCT = 10.0
+MIN_BLOCK_SHARE = 0.7
+MIN_TEMP_SPREAD_C = 3.0
+MIN_TIME_SPAN_H = 12.0
+
+
+@dataclass
+class RestPoints:
+    v: np.ndarray          # (N, 3) g
+    t: np.ndarray          # (N,) s, segment middle
+    temp: np.ndarray | None
+    noise: np.ndarray      # (N,) g: sd(|v|) / sqrt(n) inside the segment
+    source: str
+
+    def __len__(self):
+        return len(self.v)
+
+    def take(self, sel):
+        return RestPoints(self.v[sel], self.t[sel], None if self.temp is None else self.temp[sel],
+                          self.noise[sel], self.source)
+
+
+def rest_points(path: str, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
+    table = read_table(path)
+    if table.kind == "points":
+        c = table.columns
+        n = len(table.xyz)
+        return RestPoints(table.xyz, c["t"] if "t" in c else np.arange(n, dtype=float),
+                          c.get("temp"), np.zeros(n), path)
+    t = table.columns["t"]
+    rate = sample_rate(t, path)
+    xyz = table.xyz
+    det = RestDetector(rate, seconds, int(round(threshold_g * 1024)))
+    buf = g_to_sample(xyz).ravel().tolist()
+    n = len(xyz)
+    start, segs = 0, []
+    while start < n:  # the device's detector decides; the host only reads its results
+        used = det.add_samples(buf, start, n - start)
+        start += used
+        if det.ended:
+            det.ended = False
+            if det.still:
+                segs.append((start - det.length, det.mean_x, det.mean_y, det.mean_z))
+    if not segs:
+        raise InputError(f"{path}: no rest segments found")
+    idx = np.array([s[0] for s in segs])
+    means = np.array([s[1:] for s in segs], dtype=np.float64) / 65536.0
+    win = idx[:, None] + np.arange(det.length)[None, :]
+    mag = np.linalg.norm(xyz[win], axis=2)
+    temp = table.columns.get("temp")
+    return RestPoints(means, t[win].mean(axis=1), None if temp is None else temp[win].mean(axis=1),
+                      mag.std(axis=1) / np.sqrt(det.length), path)
+
+
+def usable(p: RestPoints) -> RestPoints:
+    mag = np.linalg.norm(p.v, axis=1)
+    return p.take((mag > 0.5) & (mag < 1.5))  # as the device's bins: not gravity otherwise
+
+
+def check_model(spec: ModelSpec, p: RestPoints) -> None:
+    """Exit-2 reasons for a model the data cannot support."""
+    for n in spec.effects:
+        e = CATALOGUE[n]
+        if e.needs == "temp":
+            if p.temp is None:
+                raise InputError(f"{n} needs a temperature column; {p.source} has none")
+            spread = float(np.ptp(p.temp))
+            if spread < MIN_TEMP_SPREAD_C:
+                raise InputError(f"{n} needs >= {MIN_TEMP_SPREAD_C:g} degC of temperature spread across "
+                                 f"rest points; {p.source} has {spread:.1f} degC")
+        if e.needs == "t":
+            span = float(np.ptp(p.t)) / 3600
+            if span < MIN_TIME_SPAN_H:
+                raise InputError(f"{n} needs rest points spanning >= {MIN_TIME_SPAN_H:g} h; "
+                                 f"{p.source} spans {span:.1f} h")
+
+
+def refs(p: RestPoints) -> dict:
+    return {"T0": float(np.mean(p.temp)) if p.temp is not None else 0.0, "t0": float(p.t.min())}
+
+
+def fit(spec: ModelSpec, p: RestPoints, ref: dict) -> np.ndarray:
+    """Float least squares of | |a| - 1 | over the points for a composed model."""
+    n_eff = len(spec.effects)
+    x0 = np.r_[1, 1, 1, 0, 0, 0, 0, 0, 0, np.zeros(3 * n_eff)]
+    lo = np.r_[[0.5] * 3, [-0.5] * 3, [-0.5] * 3]
+    hi = np.r_[[2.0] * 3, [0.5] * 3, [0.5] * 3]
+    for name in spec.effects:
+        b = CATALOGUE[name].bound
+        lo, hi = np.r_[lo, [-b] * 3], np.r_[hi, [b] * 3]
+    temp = p.temp if p.temp is not None else np.zeros(len(p.t))
+
+    def resid(th):
+        return np.linalg.norm(spec.correct(th, p.v, temp, p.t, ref), axis=1) - 1.0
+    return least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf").x
+
+
+def residuals(spec, theta, p, ref):
+    temp = p.temp if p.temp is not None else np.zeros(len(p.t))
+    a = spec.correct(theta, p.v, temp, p.t, ref)
+    return a, np.linalg.norm(a, axis=1) - 1.0
+
+
+def split(p: RestPoints):
+    block = ((p.t - p.t.min()) // BLOCK_S).astype(int)
+    train = block % 2 == 0
+    return p.take(train), p.take(~train), block[~train]
+
+
+def diagnose(path: str, model: str = "base", plots: str | None = None) -> dict:
+    try:
+        spec = ModelSpec.parse(model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    p = usable(rest_points(path))
+    check_model(spec, p)
+    train, test, test_block = split(p)
+    if len(train) < 30 or len(test) < 30:
+        raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
+                         "need >= 30 each (a longer recording)")
+    ref = refs(train)
+    theta = fit(spec, train, ref)
+    _, r = residuals(spec, theta, test, ref)
+    err = float(np.mean(np.abs(r)) * 1e3)
+    floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
+    where = where_it_fails(spec, theta, test, ref, r)
+    cands = []
+    for name, e in CATALOGUE.items():
+        if name in spec.effects:
+            continue
+        cspec = spec.with_effect(name)
+        try:
+            check_model(cspec, p)
+        except InputError as why:
+            cands.append({"effect": name, "heldout_error_mg": None, "improvement_pct": None,
+                          "blocks_improved_pct": None, "untestable": str(why)})
+            continue
+        th = fit(cspec, train, ref)
+        _, rc = residuals(cspec, th, test, ref)
+        ec = float(np.mean(np.abs(rc)) * 1e3)
+        gain = np.abs(r) - np.abs(rc)
+        blocks = np.unique(test_block)
+        share = float(np.mean([gain[test_block == b].mean() > 0 for b in blocks]))
+        cands.append({"effect": name, "heldout_error_mg": ec, "improvement_pct": 100 * (err - ec) / err,
+                      "blocks_improved_pct": 100 * share,
+                      "params": dict(zip(e.param_names, (th[9 + 3 * len(spec.effects):] * e.scale).round(4).tolist())),
+                      "param_unit": e.report_unit})
+    testable = [c for c in cands if c["heldout_error_mg"] is not None]
+    best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
+    named = None
+    if best and best["improvement_pct"] >= MIN_IMPROVEMENT_PCT and \
+            best["blocks_improved_pct"] >= 100 * MIN_BLOCK_SHARE:
+        named = best["effect"]
+    if named:
+        explanation = (f"{named}: {CATALOGUE[named].explanation} Adding it lowers the held-out error "
+                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg "
+                       f"(noise floor {floor:.2f} mg). Next: accelcal calibrate --model {spec.with_effect(named)}")
+    elif best:
+        explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
+                       f"the held-out error by {best['improvement_pct']:.1f} % in "
+                       f"{best['blocks_improved_pct']:.0f} % of held-out blocks (naming needs >= "
+                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %). Error "
+                       f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
+    else:
+        explanation = "Every catalogue effect is in the model or cannot be tested on this file."
+    out = {"model": str(spec), "input": path, "split": "2-hour blocks: even train, odd held out",
+           "rest_points": {"train": len(train), "heldout": len(test)},
+           "heldout_error_mg": err, "noise_floor_mg": floor, "missing_effect": named,
+           "candidates": cands, "explanation": explanation, "where_it_fails": where,
+           "params": dict(zip(spec.param_names, theta.round(6).tolist())), "reference": ref}
+    if plots:
+        out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor)
+    return out
+
+
+def where_it_fails(spec, theta, test, ref, r) -> dict:
+    """Held-out residuals against each regressor: correlation and the residual's spread across
+    the regressor's quintiles (mg) - a flat line is a model that does not fail there."""
+    a, _ = residuals(spec, theta, test, ref)
+    regs = {"time_h": (test.t - test.t.min()) / 3600, "ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2],
+            "abs_a": np.linalg.norm(test.v, axis=1)}
+    if test.temp is not None:
+        regs["temp_c"] = test.temp
+    out = {}
+    for k, x in regs.items():
+        if np.ptp(x) == 0:
+            continue
+        q = np.quantile(x, [0, .2, .4, .6, .8, 1])
+        binned = [float(np.mean(r[(x >= lo) & (x <= hi)]) * 1e3) for lo, hi in zip(q[:-1], q[1:])]
+        out[k] = {"corr": float(np.corrcoef(x, r)[0, 1]), "quintile_mean_residual_mg": [round(b, 3) for b in binned],
+                  "range_mg": round(max(binned) - min(binned), 3)}
+    return out
+
+
+def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    d.mkdir(parents=True, exist_ok=True)
+    a, _ = residuals(spec, theta, test, ref)
+    panels = [("time (h)", (test.t - test.t.min()) / 3600)]
+    if test.temp is not None:
+        panels.append(("temperature (degC)", test.temp))
+    panels += [(f"a_{c} (g)", a[:, i]) for i, c in enumerate("xyz")]
+    panels.append(("|v| measured (g)", np.linalg.norm(test.v, axis=1)))
+    fig, axs = plt.subplots(2, 3, figsize=(13, 7))
+    for ax, (label, x) in zip(axs.flat, panels):
+        ax.plot(x, r * 1e3, ".", ms=2, alpha=0.4)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_xlabel(label)
+        ax.set_ylabel("|a| - 1 g (mg)")
+    for ax in list(axs.flat)[len(panels):]:
+        ax.axis("off")
+    fig.suptitle(f"held-out residuals, model {spec}: {err:.2f} mg (noise floor {floor:.2f} mg)")
+    fig.tight_layout()
+    f1 = d / "residuals.png"
+    fig.savefig(f1, dpi=90)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    names = [c["effect"] for c in cands if c["heldout_error_mg"] is not None]
+    vals = [c["heldout_error_mg"] for c in cands if c["heldout_error_mg"] is not None]
+    ax.barh([str(spec)] + [f"+{n}" for n in names], [err] + vals)
+    ax.axvline(floor, color="r", ls="--", label="noise floor")
+    ax.set_xlabel("held-out calibration error (mg)")
+    ax.legend()
+    fig.tight_layout()
+    f2 = d / "candidates.png"
+    fig.savefig(f2, dpi=90)
+    plt.close(fig)
+    return [str(f1), str(f2)]
+
+
+def print_report(out: dict) -> None:
+    print(f"{out['input']}: model {out['model']}, {out['rest_points']['train']} training / "
+          f"{out['rest_points']['heldout']} held-out rest points ({out['split']})")
+    print(f"held-out calibration error {out['heldout_error_mg']:.2f} mg, noise floor {out['noise_floor_mg']:.2f} mg")
+    print("where the model fails (held-out residual, mean per quintile of each regressor, mg):")
+    for k, w in out["where_it_fails"].items():
+        print(f"  {k:<8} corr {w['corr']:+.2f}  spread {w['range_mg']:6.2f}  "
+              + " ".join(f"{b:+6.2f}" for b in w["quintile_mean_residual_mg"]))
+    print("candidates:")
+    for c in out["candidates"]:
+        if c["heldout_error_mg"] is None:
+            print(f"  +{c['effect']:<12} not testable: {c['untestable']}")
+        else:
+            print(f"  +{c['effect']:<12} {c['heldout_error_mg']:6.2f} mg  {c['improvement_pct']:+6.1f} %  "
+                  f"better in {c['blocks_improved_pct']:3.0f} % of blocks")
+    print(f"missing effect: {out['missing_effect'] or 'none'}")
+    print(out["explanation"])
+    for f in out.get("plots", []):
+        print(f"plot: {f}")
+
+
+def diagnose_main(args) -> int:
+    out = diagnose(args.input, args.model, args.plots)
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print_report(out)
+    return 0

@@ -1,0 +1,149 @@
+"""Physical effects beyond the paper's 9-parameter model, each declared once.
+
+An effect adds to what the sensor measures, after the 9-parameter errors (v = measured, g):
+
+    temp_offset  v += c (T - T0)             zero-g level moves with temperature (g/degC per axis)
+    temp_scale   v *= 1 + s (T - T0)         sensitivity moves with temperature (1/degC per axis)
+    drift        v += d (t - t0) / 1 day     offset moves with time (g/day per axis)
+    nonlinear    v += q v^2                  quadratic response per axis (1/g)
+
+The same declaration serves the simulator (`measure`: add the effect with true values), the
+fits (`correct`: remove it with fitted values, before the 9-parameter correction) and the reports
+(names, units, bounds, the regressor to plot residuals against, the physics in a sentence).
+T0 and t0 are references taken from the data a model is fitted on (mean temperature, first time),
+stored with the fitted parameters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    symbol: str             # parameter prefix: c -> cx cy cz
+    unit: str               # of the parameters
+    scale: float            # report unit per SI-ish unit (e.g. 1e3: g -> mg)
+    report_unit: str
+    bound: float            # |parameter| <= bound (fit bounds)
+    true_range: tuple       # simulator: |true value| drawn uniformly in this range
+    needs: str | None       # "temp", "t" or None
+    regressor: str          # what residuals are plotted against
+    explanation: str
+
+    @property
+    def param_names(self) -> list[str]:
+        return [f"{self.symbol}{a}" for a in AXES]
+
+    def _driver(self, v, temp, t, ref):
+        if self.needs == "temp":
+            return (temp - ref["T0"])[:, None]
+        if self.needs == "t":
+            return ((t - ref["t0"]) / 86400.0)[:, None]
+        return v
+
+    def measure(self, v, theta, temp, t, ref):
+        """What the sensor reads with the effect added (simulator)."""
+        theta = np.asarray(theta)
+        x = self._driver(v, temp, t, ref)
+        if self.name == "temp_scale":
+            return v * (1 + theta * x)
+        if self.name == "nonlinear":
+            return v + theta * v * v
+        return v + theta * x
+
+    def correct(self, v, theta, temp, t, ref):
+        """Remove the effect from measurements (fits, apply)."""
+        theta = np.asarray(theta)
+        x = self._driver(v, temp, t, ref)
+        if self.name == "temp_scale":
+            return v / (1 + theta * x)
+        if self.name == "nonlinear":  # invert v = w + q w^2 for the root near w = v
+            q = theta
+            with np.errstate(divide="ignore", invalid="ignore"):
+                w = np.where(np.abs(q) > 1e-12, (-1 + np.sqrt(np.maximum(1 + 4 * q * v, 0))) / (2 * q), v)
+            return w
+        return v - theta * x
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        lo, hi = self.true_range
+        return rng.uniform(lo, hi, 3) * rng.choice([-1.0, 1.0], 3)
+
+
+CATALOGUE: dict[str, Effect] = {e.name: e for e in (
+    Effect("temp_offset", "c", "g/degC", 1e3, "mg/degC", 0.005, (0.0004, 0.001), "temp", "temperature",
+           "The zero-g level moves with temperature (LIS3DH: +-0.5 mg/degC typical): thermal "
+           "stress in the package bends the MEMS proof mass's suspension, so rest readings shift "
+           "with the chip's temperature whatever the orientation."),
+    Effect("temp_scale", "s", "1/degC", 1e2, "%/degC", 0.002, (0.0003, 0.0006), "temp", "temperature",
+           "Sensitivity changes with temperature (LIS3DH: 0.01 %/degC typical, more on some parts): "
+           "the spring constant and the capacitive readout's gain drift, so the error grows with "
+           "the size of the reading along each axis and with the temperature change."),
+    Effect("drift", "d", "g/day", 1e3, "mg/day", 0.02, (0.0015, 0.004), "t", "time",
+           "The offset moves with time (ageing of the package and its solder stress, supply "
+           "changes): rest readings shift steadily over days whatever the temperature."),
+    Effect("nonlinear", "q", "1/g", 1e2, "%/g", 0.05, (0.004, 0.01), None, "axis reading",
+           "The response is not linear: each axis reads a little more (or less) than "
+           "proportionally at larger accelerations (LIS3DH: +-0.5 % of full scale), so the error "
+           "depends on the squared reading of that axis, and on which side of zero it is."),
+)}
+
+
+@dataclass
+class ModelSpec:
+    """'base' or 'base+NAME+NAME...'."""
+    effects: tuple[str, ...]
+
+    @staticmethod
+    def parse(spec: str) -> "ModelSpec":
+        parts = [p.strip() for p in spec.split("+")]
+        if not parts or parts[0] != "base":
+            raise ValueError(f"model spec {spec!r} must start with 'base' (e.g. base+temp_offset)")
+        names = parts[1:]
+        for n in names:
+            if n not in CATALOGUE:
+                raise ValueError(f"unknown effect {n!r} in model spec {spec!r}: known effects are "
+                                 f"{', '.join(CATALOGUE)}")
+        if len(set(names)) != len(names):
+            raise ValueError(f"model spec {spec!r} names an effect twice")
+        return ModelSpec(tuple(names))
+
+    def __str__(self):
+        return "+".join(("base",) + self.effects)
+
+    def with_effect(self, name: str) -> "ModelSpec":
+        return ModelSpec(self.effects + (name,))
+
+    @property
+    def param_names(self) -> list[str]:
+        from acal.fixed import PARAM_NAMES
+        return list(PARAM_NAMES) + [p for n in self.effects for p in CATALOGUE[n].param_names]
+
+    def correct(self, theta, v, temp, t, ref):
+        """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect)."""
+        from accelcal.methods import correct as base_correct
+        w = v
+        for k in reversed(range(len(self.effects))):  # undo in the reverse order of measure
+            w = CATALOGUE[self.effects[k]].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref)
+        return base_correct(theta[:9], w)
+
+
+class TrueEffect:
+    """An effect with true values, as the simulated sensor has it (wearer.Sensor.effects)."""
+    REF = {"T0": 25.0, "t0": 0.0}
+
+    def __init__(self, name: str, theta):
+        self.effect = CATALOGUE[name]
+        self.theta = np.asarray(theta, dtype=np.float64)
+
+    def apply(self, v, temp_c, t_s):
+        return self.effect.measure(v, self.theta, temp_c, t_s, self.REF)
+
+    def truth(self) -> dict:
+        e = self.effect
+        return {"effect": e.name, "unit": e.unit, "reference": self.REF,
+                "params": dict(zip(e.param_names, map(float, self.theta)))}
