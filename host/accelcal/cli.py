@@ -69,7 +69,23 @@ def cmd_calibrate(args) -> int:
     from accelcal.calibrate import calibrate_groups
     from accelcal.io import read_table, save_params
     if args.model != "base":
-        raise InputError(f"unknown model {args.model!r}: this version knows only 'base'")
+        from accelcal.diagnose import calibrate_model
+        from accelcal.effects import ModelSpec
+        try:
+            ModelSpec.parse(args.model)
+        except ValueError as e:
+            raise InputError(str(e)) from None
+        if args.method != "lsq" or args.by:
+            raise InputError(f"model {args.model}: composed models are fitted by --method lsq on "
+                             "all rest points (the device optimiser fits base only in this version)")
+        r = calibrate_model(args.input, args.model)
+        print(json.dumps(r) if args.json else
+              f"calibrated {r['model']} by lsq on {r['points']} rest points\n  "
+              + "  ".join(f"{k}={v:+.6g}" for k, v in r["params"].items())
+              + f"\n  calibration error: {r['error_before_mg']:.2f} mg before -> {r['error_after_mg']:.2f} mg after")
+        if args.save:
+            save_params(args.save, r)
+        return 0
     table = read_table(args.input)
     recs = calibrate_groups(table, args.by, _config(args), args.method, args.runtime)
     failed = [r for r in recs if r["status"] != "calibrated"]
@@ -243,6 +259,11 @@ def cmd_diagnose(args) -> int:
     return diagnose_main(args)
 
 
+def cmd_report(args) -> int:
+    from accelcal.diagnose import report_main
+    return report_main(args)
+
+
 def cmd_table2(args) -> int:
     from accelcal.paper import table2_main
     return table2_main(args)
@@ -263,7 +284,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "it selects) and report parameters and calibration error.",
                        epilog=EPILOG_CAL, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="recording or points CSV")
-    p.add_argument("--model", default="base", help="model spec (this version: base, the 9-parameter model)")
+    p.add_argument("--model", default="base",
+                   help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
+                        "(temp_offset, temp_scale, drift, nonlinear; with --method lsq)")
     p.add_argument("--method", choices=["device", "lsq", "linauto"], default="device",
                    help="device: the integer optimiser (default); lsq: float least squares; "
                         "linauto: Gietzelt 2013")
@@ -396,8 +419,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
     p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here")
+    p.add_argument("--history", metavar="FILE", help="append this step (model, held-out error) to FILE "
+                                                     "for `accelcal report`")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("report", help="the model steps of a diagnose --history file",
+                       description="A table of each model step with its held-out error and noise floor, "
+                                   "and with --plot a PNG of the error per step.")
+    p.add_argument("history", help="file written by diagnose --history")
+    p.add_argument("--plot", metavar="PNG")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("paper", help="reproduce the paper's results")
     psub = p.add_subparsers(dest="what", required=True, metavar="WHAT")

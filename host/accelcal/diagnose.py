@@ -289,8 +289,91 @@ def print_report(out: dict) -> None:
 
 def diagnose_main(args) -> int:
     out = diagnose(args.input, args.model, args.plots)
+    if args.history:
+        append_history(args.history, out)
     if args.json:
         print(json.dumps(out))
     else:
         print_report(out)
     return 0
+
+
+def calibrate_model(path: str, model: str) -> dict:
+    """`calibrate --model SPEC --method lsq`: the composed model fitted (float) on every usable
+    rest point of the file; error before/after on the same points."""
+    from accelcal.methods import calibration_error_mg
+    try:
+        spec = ModelSpec.parse(model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    p = usable(rest_points(path))
+    check_model(spec, p)
+    ref = refs(p)
+    theta = fit(spec, p, ref)
+    a, r = residuals(spec, theta, p, ref)
+    return {"model": str(spec), "method": "lsq", "status": "calibrated",
+            "params": dict(zip(spec.param_names, theta.tolist())), "reference": ref,
+            "rest_points": len(p), "points": len(p), "iterations": None,
+            "error_before_mg": calibration_error_mg(None, p.v),
+            "error_after_mg": float(np.mean(np.abs(r)) * 1e3)}
+
+
+def append_history(path: str, out: dict) -> None:
+    rec = {k: out[k] for k in ("model", "input", "heldout_error_mg", "noise_floor_mg", "missing_effect")}
+    with open(path, "a") as fh:
+        fh.write(json.dumps(rec) + "\n")
+
+
+def report_main(args) -> int:
+    """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
+    try:
+        lines = Path(args.history).read_text().splitlines()
+    except OSError as e:
+        raise InputError(f"{args.history}: cannot read ({e.strerror})") from None
+    steps = []
+    for i, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+            steps.append((rec["model"], float(rec["heldout_error_mg"]), float(rec["noise_floor_mg"]),
+                          rec.get("missing_effect"), rec.get("input", "")))
+        except (ValueError, KeyError, TypeError):
+            raise InputError(f"{args.history}:{i}: not a diagnose history line") from None
+    if not steps:
+        raise InputError(f"{args.history}: no steps (run diagnose --history {args.history})")
+    if args.json:
+        print(json.dumps([dict(zip(("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input"), s))
+                          for s in steps]))
+    else:
+        print(f"{'step':<5}{'model':<36}{'held-out mg':>12}{'floor mg':>10}{'change':>9}  named next")
+        prev = None
+        for k, (m, e, f, named, _) in enumerate(steps, 1):
+            ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
+            print(f"{k:<5}{m:<36}{e:12.2f}{f:10.2f}{ch:>9}  {named or '-'}")
+            prev = e
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(max(5, 1.6 * len(steps)), 4))
+        x = np.arange(len(steps))
+        ax.plot(x, [s[1] for s in steps], "o-", label="held-out error")
+        ax.plot(x, [s[2] for s in steps], "r--", label="noise floor")
+        ax.set_xticks(x, [s[0].replace("base+", "+") for s in steps], rotation=20)
+        ax.set_ylabel("calibration error (mg)")
+        ax.set_ylim(bottom=0)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=90)
+        plt.close(fig)
+        print(f"plot: {args.plot}", file=sys.stderr)
+    return 0
+
+
+def heldout_error_of(path: str, model: str, theta, ref: dict) -> float:
+    """The held-out error (mg, same split as diagnose) of given parameters: for the truth."""
+    spec = ModelSpec.parse(model)
+    _, test, _ = split(usable(rest_points(path)))
+    _, r = residuals(spec, np.asarray(theta, dtype=np.float64), test, ref)
+    return float(np.mean(np.abs(r)) * 1e3)
