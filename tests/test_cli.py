@@ -152,7 +152,7 @@ def test_diverging_fit(points_csv):
 def test_bad_options(points_csv, tmp_path):
     r = run_cli("calibrate", points_csv, "--rates", "0.35,0.8,0.2")
     assert r.returncode == 2 and "multiples of 0.1" in r.stderr
-    assert "unknown model" in one_error_line(run_cli("calibrate", points_csv, "--model", "base+warp"))
+    assert "unknown effect 'warp'" in one_error_line(run_cli("calibrate", points_csv, "--model", "base+warp"))
     assert "no column" in one_error_line(run_cli("calibrate", points_csv, "--by", "serial"))
     bad = write(tmp_path, "{}", "p.json")
     assert "params_int" in one_error_line(run_cli("apply", bad, points_csv, "-o", tmp_path / "o.csv"))

@@ -4,7 +4,9 @@
 2. start the virtual board (MicroPython unix port on a pty, simulated LIS3DH, virtual time);
 3. `accelcal deploy`, `accelcal acquire --hours 24` (capture on), `accelcal pull`;
 4. show the calibration the board computed beside the host's replay of the same samples through
-   the same device modules under CPython (bit for bit), and beside the simulated truth."""
+   the same device modules under CPython (bit for bit), and beside the simulated truth;
+5. walk the model-discovery loop on three days with a hidden effect chosen at random: the base
+   fit, diagnose names the effect, add it, the held-out error falls to near the noise floor."""
 from __future__ import annotations
 
 import json
@@ -24,12 +26,12 @@ RATE = 10
 SEED = 4
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
+def cli(*args: str, quiet: bool = False) -> subprocess.CompletedProcess:
     t = time.perf_counter()
     print(f"$ accelcal {' '.join(args)}", flush=True)
     p = subprocess.run([sys.executable, "-m", "accelcal.cli", *args], text=True,
-                       stdout=subprocess.PIPE)
-    if p.stdout.strip():
+                       stdout=subprocess.PIPE, stderr=subprocess.DEVNULL if quiet else None)
+    if p.stdout.strip() and not quiet:
         print("  " + p.stdout.strip().replace("\n", "\n  "))
     print(f"  ({time.perf_counter() - t:.0f} s)", flush=True)
     if p.returncode not in (0, 1):
@@ -78,8 +80,9 @@ def main() -> int:
           f"{methods.calibration_error_mg(None, rests):.1f} mg before, "
           f"{methods.calibration_error_mg(board_p, rests):.1f} mg after "
           f"(the truth's own: {methods.calibration_error_mg(true_p, rests):.1f} mg)")
-    print("\nMore: `accelcal board virtual`, `accelcal --help`, README 'Boards'.")
-    return 0 if same and rep.returncode == 0 else 1
+    found = discovery_loop(work)
+    print("\nMore: `accelcal board virtual`, `accelcal diagnose --help`, `accelcal --help`, README.")
+    return 0 if same and rep.returncode == 0 and found else 1
 
 
 def _replayed_params(d: Path) -> np.ndarray:
@@ -88,6 +91,42 @@ def _replayed_params(d: Path) -> np.ndarray:
     with tempfile.TemporaryDirectory() as tmp:
         proc = boardlog.run_capture(d, Path(tmp) / "log.bin")
     return np.array(proc.params) / PARAM_ONE
+
+
+
+def discovery_loop(work: Path, seed: int | None = None) -> bool:
+    """The model-discovery loop on a 3-day recording with a hidden effect chosen at random."""
+    import random
+    from accelcal.effects import CATALOGUE
+    seed = random.SystemRandom().randrange(1000, 10000) if seed is None else seed
+    hidden = list(CATALOGUE)[seed % len(CATALOGUE)]
+    rec = work / "hidden.csv"
+    hist = work / "steps.jsonl"
+    hist.unlink(missing_ok=True)
+    print(f"\n--- Model discovery: 3 days at 10 Hz with one hidden effect (seed {seed}) ---\n")
+    cli("simulate", "wrist", "--days", "3", "--rate", "10", "--seed", str(seed), "--effect", hidden,
+        "-o", str(rec), quiet=True)
+    out = json.loads(cli("diagnose", str(rec), "--json", "--plots", str(work / "plots"),
+                         "--history", str(hist), quiet=True).stdout)
+    print(f"base model: held-out error {out['heldout_error_mg']:.2f} mg, noise floor "
+          f"{out['noise_floor_mg']:.2f} mg")
+    for c in out["candidates"]:
+        print(f"  +{c['effect']:<12} {c['heldout_error_mg']:6.2f} mg  ({c['improvement_pct']:+.1f} %, "
+              f"better in {c['blocks_improved_pct']:.0f} % of held-out blocks)")
+    named = out["missing_effect"]
+    print(f"diagnose names: {named}\n  {out['explanation']}")
+    if not named:
+        return False
+    model = f"base+{named}"
+    cli("calibrate", str(rec), "--model", model, "--method", "lsq", quiet=True)
+    after = json.loads(cli("diagnose", str(rec), "--model", model, "--json", "--history", str(hist),
+                           quiet=True).stdout)
+    print(f"with {named}: held-out error {after['heldout_error_mg']:.2f} mg "
+          f"(noise floor {after['noise_floor_mg']:.2f} mg); names next: {after['missing_effect'] or 'nothing'}\n")
+    cli("report", str(hist), "--plot", str(work / "steps.png"))
+    print(f"the hidden effect was: {hidden} -> {'FOUND' if named == hidden else 'MISSED'}; "
+          f"plots in {work / 'plots'} and {work / 'steps.png'}")
+    return named == hidden
 
 
 if __name__ == "__main__":

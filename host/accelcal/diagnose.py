@@ -111,6 +111,17 @@ def check_model(spec: ModelSpec, p: RestPoints) -> None:
                                  f"{p.source} spans {span:.1f} h")
 
 
+def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
+    """The model spec and the file's usable rest points, or a one-line reason why not."""
+    try:
+        spec = ModelSpec.parse(model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    p = usable(rest_points(path))
+    check_model(spec, p)
+    return spec, p
+
+
 def refs(p: RestPoints) -> dict:
     return {"T0": float(np.mean(p.temp)) if p.temp is not None else 0.0, "t0": float(p.t.min())}
 
@@ -144,12 +155,7 @@ def split(p: RestPoints):
 
 
 def diagnose(path: str, model: str = "base", plots: str | None = None) -> dict:
-    try:
-        spec = ModelSpec.parse(model)
-    except ValueError as e:
-        raise InputError(str(e)) from None
-    p = usable(rest_points(path))
-    check_model(spec, p)
+    spec, p = prepare(path, model)
     train, test, test_block = split(p)
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
@@ -302,12 +308,7 @@ def calibrate_model(path: str, model: str) -> dict:
     """`calibrate --model SPEC --method lsq`: the composed model fitted (float) on every usable
     rest point of the file; error before/after on the same points."""
     from accelcal.methods import calibration_error_mg
-    try:
-        spec = ModelSpec.parse(model)
-    except ValueError as e:
-        raise InputError(str(e)) from None
-    p = usable(rest_points(path))
-    check_model(spec, p)
+    spec, p = prepare(path, model)
     ref = refs(p)
     theta = fit(spec, p, ref)
     a, r = residuals(spec, theta, p, ref)
