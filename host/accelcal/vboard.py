@@ -81,44 +81,37 @@ class VirtualBoard:
                 self.raw = False
         os.write(self.master_a, data)
 
+    @staticmethod
+    def _read(fd) -> bytes:
+        """What fd has (b"" at its end: a pty whose other side closed reads EIO)."""
+        try:
+            return os.read(fd, 65536)
+        except OSError:
+            return b""
+
     def serve(self, until=lambda: False):
         """Relay until `until()` is true (or forever)."""
         self._spawn()
         while not until():
             r, _, _ = select.select([self.master_a, self.client_master], [], [], 0.2)
             if self.master_a in r:
-                try:
-                    data = os.read(self.master_a, 65536)
-                except OSError:
-                    data = b""
-                if data:
-                    os.write(self.client_master, data)
-                else:
+                data = self._read(self.master_a)
+                if not data:
                     self._reboot()
                     continue
+                os.write(self.client_master, data)
             if self.client_master in r:
-                try:
-                    data = os.read(self.client_master, 65536)
-                except OSError:
-                    data = b""
+                data = self._read(self.client_master)
                 if data:
                     self._from_client(data)
             if self.proc is not None and self.proc.poll() is not None and self.master_a not in r:
-                self._drain_and_reboot()
-
-    def _drain_and_reboot(self):
-        while True:
-            r, _, _ = select.select([self.master_a], [], [], 0.05)
-            if not r:
-                break
-            try:
-                data = os.read(self.master_a, 65536)
-            except OSError:
-                break
-            if not data:
-                break
-            os.write(self.client_master, data)
-        self._reboot()
+                # Exited with output still queued: pass it on, then reboot.
+                while select.select([self.master_a], [], [], 0.05)[0]:
+                    data = self._read(self.master_a)
+                    if not data:
+                        break
+                    os.write(self.client_master, data)
+                self._reboot()
 
     def stop(self):
         if self.proc is not None and self.proc.poll() is None:
