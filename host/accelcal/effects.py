@@ -57,17 +57,33 @@ class Effect:
         return v + theta * x
 
     def correct(self, v, theta, temp, t, ref):
-        """Remove the effect from measurements (fits, apply)."""
+        """Remove the effect from measurements (fits, apply): first order, exactly the form the
+        device applies in integers (device/acal/effects.py)."""
         theta = np.asarray(theta)
         x = self._driver(v, temp, t, ref)
         if self.name == "temp_scale":
-            return v / (1 + theta * x)
-        if self.name == "nonlinear":  # invert v = w + q w^2 for the root near w = v
-            q = theta
-            with np.errstate(divide="ignore", invalid="ignore"):
-                w = np.where(np.abs(q) > 1e-12, (-1 + np.sqrt(np.maximum(1 + 4 * q * v, 0))) / (2 * q), v)
-            return w
+            return v - theta * x * v
+        if self.name == "nonlinear":
+            return v - theta * v * v
         return v - theta * x
+
+    # Device integers (device/acal/effects.py): Q24 per normalised regressor.
+    @property
+    def kind(self) -> int:
+        from acal import effects as deff
+        return {v: k for k, v in deff.NAMES.items()}[self.name]
+
+    @property
+    def int_scale(self) -> float:
+        from acal import effects as deff
+        per = {"temp": 16.0, "t": 2048 * deff.DT_UNIT_S / 86400.0, None: 1.0}[self.needs]
+        return per * (1 << 24)
+
+    def to_int(self, theta) -> list[int]:
+        return [int(round(v * self.int_scale)) for v in theta]
+
+    def from_int(self, p) -> np.ndarray:
+        return np.asarray(p, dtype=np.float64) / self.int_scale
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         lo, hi = self.true_range

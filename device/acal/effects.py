@@ -1,0 +1,95 @@
+# Physical effects beyond the paper's 9 parameters, in integers: their application on the device.
+# host/accelcal/effects.py declares each effect once for the host (names, units, bounds, physics,
+# plots) and converts its parameters to and from the integers here.
+#
+# An effect is removed from a reading v (g) before the 9-parameter correction a = K (w + o):
+#   TEMP_OFFSET  w = v - c dT          dT: degC from the model's reference temperature
+#   TEMP_SCALE   w = v - s dT v        (first order: (s dT)^2 < 1e-4 of the reading)
+#   DRIFT        w = v - d dt          dt: time from the model's reference time
+#   NONLINEAR    w = v - q v^2         per axis, v^2 with its sign lost (a quadratic response)
+# Three parameters per effect (x, y, z), in this order.
+#
+# Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).
+#   Fit (Q24 g readings u, model.objective): every parameter in Q24 per its normalised regressor -
+#   c and s per 16 degC, d per 2048 dt units (131 072 s, 1.52 days), q per g - so that each is of
+#   the size of an offset and takes the offsets' learning rate.
+#     c: (c * dT) >> 4;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;  q: (q * ((u*u) >> 24)) >> 24
+#   Apply (per sample, Q14 g readings, model.Calibration): c and d in Q14 (param >> 10), s and q in
+#   Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and dt < 2**20 units (776 days; both
+#   clamped)
+#   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
+try:
+    from micropython import const
+except ImportError:
+    def const(x):
+        return x
+
+TEMP_OFFSET = const(1)
+TEMP_SCALE = const(2)
+DRIFT = const(3)
+NONLINEAR = const(4)
+NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear"}
+DT_UNIT_S = const(64)
+APPLY_DT_MAX = const(32)          # degC either side of the reference
+APPLY_TIME_MAX = const(1048575)   # dt units
+# |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
+# d 20 mg/day, q 5 %/g.
+BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
+          TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
+          DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
+          NONLINEAR: const(838861)}      # 0.05 * 2**24
+
+
+def correct_u(kind, p, j, u, dT, dt):
+    """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u (list of 3, Q24 g) in
+    place; the fit's form."""
+    if kind == TEMP_OFFSET:
+        for i in range(3):
+            u[i] -= (p[j + i] * dT) >> 4
+    elif kind == TEMP_SCALE:
+        for i in range(3):
+            u[i] -= (((p[j + i] * dT) >> 4) * u[i]) >> 24
+    elif kind == DRIFT:
+        for i in range(3):
+            u[i] -= (p[j + i] * dt) >> 11
+    elif kind == NONLINEAR:
+        for i in range(3):
+            v = u[i]
+            u[i] = v - ((p[j + i] * ((v * v) >> 24)) >> 24)
+
+
+def apply_params(kind, p, j, k, m):
+    """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
+    shift = 10 if kind == TEMP_OFFSET or kind == DRIFT else 6
+    half = 1 << (shift - 1)
+    for i in range(3):
+        k[m + i] = (p[j + i] + half) >> shift
+
+
+def correct_sample(kind, k, m, w, x, y, z, dT, dt):
+    """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
+    accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result)."""
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+    if kind == TEMP_OFFSET:
+        for i in range(3):
+            w[i] -= (k[m + i] * dT) >> 4
+    elif kind == TEMP_SCALE:
+        for i in range(3):
+            w[i] -= (((k[m + i] * dT) >> 4) * w[i]) >> 18
+    elif kind == DRIFT:
+        if dt > APPLY_TIME_MAX:
+            dt = APPLY_TIME_MAX
+        for i in range(3):
+            w[i] -= (k[m + i] * dt) >> 11
+    elif kind == NONLINEAR:
+        s = x
+        for i in range(3):
+            if i == 1:
+                s = y
+            elif i == 2:
+                s = z
+            w[i] -= (k[m + i] * ((s * s) >> 10)) >> 14

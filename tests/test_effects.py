@@ -1,0 +1,95 @@
+"""The effects' integer application (device/acal/effects.py) against the host's float form
+(host/accelcal/effects.py, the same first-order model), bit-identical under MicroPython, and
+inside 2**30 on the per-sample path at the worst case."""
+import itertools
+
+import numpy as np
+import pytest
+
+from acal import effects as deff
+from accelcal import runtime
+from accelcal.effects import CATALOGUE
+from accelcal.ranges import Tracer, traced
+
+DT_UNIT = deff.DT_UNIT_S
+
+
+def inputs(rng, n=400):
+    v = rng.uniform(-2.0, 2.0, (n, 3))
+    dT = rng.integers(-20, 21, n)
+    dt = rng.integers(0, 14 * 86400 // DT_UNIT, n)
+    return v, dT, dt
+
+
+@pytest.mark.parametrize("name", list(CATALOGUE))
+def test_fit_and_apply_forms_match_the_float_model(name, rng):
+    e = CATALOGUE[name]
+    theta = rng.uniform(-e.bound, e.bound, 3)
+    p = e.to_int(theta)
+    v, dT, dt = inputs(rng)
+    ref = {"T0": 0.0, "t0": 0.0}
+    want = e.correct(v, e.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref)
+    k = [0, 0, 0]
+    deff.apply_params(e.kind, p, 0, k, 0)
+    for (x, y, z), a, b, w in zip(v, dT, dt, want):
+        u = [int(round(c * 2 ** 24)) for c in (x, y, z)]
+        deff.correct_u(e.kind, p, 0, u, int(a), int(b))
+        assert np.abs(np.array(u) / 2 ** 24 - w).max() < 2e-7          # Q24: rounding only
+        s = [int(round(c * 1024)) for c in (x, y, z)]
+        acc = [c << 4 for c in s]
+        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], int(a), int(b))
+        # Q14 out, Q10 in (the sample's own rounding, 0.5 mg, is the larger part for q v^2).
+        exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([float(a)]),
+                          np.array([b * float(DT_UNIT)]), ref)[0]
+        assert np.abs(np.array(acc) / 2 ** 14 - exact).max() < 3e-4
+
+
+def test_apply_path_stays_small_at_the_worst_case():
+    tr = Tracer()
+    T = traced(tr)
+    edge = 2097  # 2.048 g in Q10
+    for kind, sign, temp, far in itertools.product(deff.NAMES, (-1, 1), (-100, 100), (0, 10 ** 7)):
+        k = [0, 0, 0]
+        deff.apply_params(kind, [sign * deff.BOUNDS[kind]] * 3, 0, k, 0)
+        for x in (-edge, edge):
+            acc = [T(x << 4)] * 3
+            deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x), T(temp), T(far))
+    assert tr.ops > 100 and tr.max_abs < 2 ** 30, tr.max_abs
+
+
+SCRIPT = r'''
+from acal import effects
+s = 12345
+def rnd(m):
+    global s
+    s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+    return (s >> 8) % (2 * m + 1) - m
+out = []
+for kind in (1, 2, 3, 4):
+    p = [rnd(effects.BOUNDS[kind]) for _ in range(3)]
+    k = [0, 0, 0]
+    effects.apply_params(kind, p, 0, k, 0)
+    for _ in range(200):
+        u = [rnd(1 << 25) for _ in range(3)]
+        dT = rnd(40)
+        dt = rnd(1 << 14) + (1 << 14)
+        effects.correct_u(kind, p, 0, u, dT, dt)
+        x, y, z = rnd(2097), rnd(2097), rnd(2097)
+        w = [x << 4, y << 4, z << 4]
+        effects.correct_sample(kind, k, 0, w, x, y, z, dT, dt)
+        out.append(" ".join(map(str, u + w)))
+print("\n".join(out))
+'''
+
+
+def test_micropython_gives_the_same_integers(tmp_path):
+    f = tmp_path / "eff.py"
+    f.write_text(SCRIPT)
+    ns = {}
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        exec(compile(SCRIPT, "eff", "exec"), ns)
+    mp = runtime.run_micropython_script(str(f))
+    assert mp.split() == buf.getvalue().split() and len(mp.splitlines()) == 800
