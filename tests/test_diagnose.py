@@ -102,6 +102,8 @@ def test_calibrate_composed_model_recovers_the_effect(recordings):
     truth = json.loads(path.with_suffix(".truth.json").read_text())["effects"][0]["params"]
     fitted = np.array([out["params"][k] for k in ("cx", "cy", "cz")])
     assert np.abs(fitted - np.array(list(truth.values()))).max() < 0.0002  # 0.2 mg/degC
+    assert out["params_int"]["cx"] == round(out["params"]["cx"] * 16 * 2 ** 24)  # per 16 degC, Q24
+    assert out["params_int"]["kxx"] == round(out["params"]["kxx"] * 2 ** 24)
 
 
 def test_bad_model_specs_and_data(recordings, tmp_path):

@@ -312,8 +312,13 @@ def calibrate_model(path: str, model: str) -> dict:
     ref = refs(p)
     theta = fit(spec, p, ref)
     a, r = residuals(spec, theta, p, ref)
+    from accelcal.io import params_to_int
+    p_int = params_to_int(theta[:9])
+    for k, n in enumerate(spec.effects):  # the device's integers (device/acal/effects.py)
+        p_int += CATALOGUE[n].to_int(theta[9 + 3 * k: 12 + 3 * k])
     return {"model": str(spec), "method": "lsq", "status": "calibrated",
-            "params": dict(zip(spec.param_names, theta.tolist())), "reference": ref,
+            "params": dict(zip(spec.param_names, theta.tolist())),
+            "params_int": dict(zip(spec.param_names, p_int)), "reference": ref,
             "rest_points": len(p), "points": len(p), "iterations": None,
             "error_before_mg": calibration_error_mg(None, p.v),
             "error_after_mg": float(np.mean(np.abs(r)) * 1e3)}
