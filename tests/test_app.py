@@ -231,3 +231,22 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
         logs.append(boardlog.decode(d / "log.bin"))
     for rtype in (log.REST, log.CAL):
         assert logs[0].of(rtype) == logs[1].of(rtype) and len(logs[0].of(rtype)) > 0
+
+
+def test_setup_retries_bus_faults_and_says_why_when_the_chip_is_absent(tmp_path, stim):
+    from acal.lis3dh import LIS3DHError
+    path, _ = stim
+    b = board(path, faults=150)  # setup (8 transactions) often needs its retries
+    os.chdir(tmp_path)
+    retried = 0
+    for seed in range(1, 40):
+        b.bus.state = seed
+        try:
+            app = App(b, rate_hz=RATE)
+        except LIS3DHError:
+            continue
+        retried += app.bus_errors > 0 and app.sensor is not None
+    assert retried > 0
+    b.bus.devices.clear()  # nothing at 0x18
+    with pytest.raises(LIS3DHError, match="setup failed 3 times"):
+        App(b, rate_hz=RATE)

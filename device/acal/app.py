@@ -185,7 +185,7 @@ class App:
 
     def __init__(self, board, rate_hz=100, range_g=2, fifo=False, capture_bytes=0,
                  log_budget=1 << 20, prefix="", **processor_settings):
-        from acal.lis3dh import LIS3DH
+        from acal.lis3dh import LIS3DH, LIS3DHError
         self.board = board
         self.clock = getattr(board, "clock", None) or RealClock()
         self.rate_hz = rate_hz
@@ -206,8 +206,16 @@ class App:
             cap = log.Log(prefix + "capture.bin", capture_bytes, CAPTURE_FLUSH_RECORDS)
         store = log.CalStore(prefix + "cal_a.bin", prefix + "cal_b.bin")
         self.proc = Processor(self.log, rate_hz, capture=cap, store=store, **processor_settings)
-        self.sensor = self._retry(lambda: LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g,
-                                                 True, fifo))
+        self.sensor = None
+        for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
+            try:
+                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo)
+                break
+            except (OSError, LIS3DHError) as e:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    raise LIS3DHError("LIS3DH setup failed %d times: %s" % (RETRIES, e))
+                self.bus_retries += 1
         self.progress = None        # called after each counters record (main: report)
         self.t_last = self.clock.ticks_us()
         self.acc_us = 0
