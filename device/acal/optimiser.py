@@ -23,18 +23,23 @@ DEFAULT_ITERATIONS = 50
 
 
 class Optimiser:
-    """Integer gradient descent on the 9 model parameters.
+    """Integer gradient descent on the 9 model parameters, plus 3 per effect of `kinds`
+    (acal.effects ids: a composed model; their parameters take the offsets' rate, their
+    regressors being normalised to an offset's size - acal/effects.py).
 
     Buffers for up to max_points points are allocated once; `run` allocates nothing on a 64-bit
     port.  After run(): p holds the parameters (Q24), status a code above, iterations the number
     done, objective the final objective and objective_start the one at p0 (Q40 g^4, summed)."""
 
-    def __init__(self, max_points=18, alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET)):
+    def __init__(self, max_points=18, alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=()):
         self.max_points = max_points
+        self.kinds = tuple(kinds)
+        self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.u = [0] * (3 * max_points)
-        self.p = [0] * N_PARAMS
-        self.df = [0] * N_PARAMS
-        self.alpha = [0] * N_PARAMS
+        self.w = [0, 0, 0]
+        self.p = [0] * self.n_params
+        self.df = [0] * self.n_params
+        self.alpha = [0] * self.n_params
         self.set_rates(alphas[0], alphas[1], alphas[2])
         self.status = OK
         self.iterations = 0
@@ -42,14 +47,22 @@ class Optimiser:
         self.objective_start = 0
 
     def set_rates(self, alpha_s, alpha_m, alpha_o):
-        """Learning rates in tenths (0.3 -> 3), per group: scale, misalignment, offset."""
-        for i in range(N_PARAMS):
+        """Learning rates in tenths (0.3 -> 3), per group: scale, misalignment, offset (and the
+        effects' parameters)."""
+        for i in range(self.n_params):
             self.alpha[i] = alpha_s if i < 3 else (alpha_m if i < 6 else alpha_o)
 
-    def run(self, pts, n, iterations=DEFAULT_ITERATIONS):
-        """Fit the model to n points (flat x y z list, Q16 g) from p0; return the status."""
+    def _f(self, aux, n):
+        if self.kinds:
+            return model.objective_effects(self.p, self.u, aux, n, self.kinds, self.w)
+        return model.objective(self.p, self.u, n)
+
+    def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
+        """Fit the model to n points (flat x y z list, Q16 g; for a composed model aux holds
+        each point's dT and dt, acal/effects.py) from p0; return the status."""
         self.iterations = 0
-        if n < MIN_POINTS:
+        np_ = self.n_params
+        if n < np_:
             self.status = TOO_FEW
             return TOO_FEW
         if n > self.max_points:
@@ -58,30 +71,32 @@ class Optimiser:
         p = self.p
         df = self.df
         alpha = self.alpha
-        objective = model.objective
+        kinds = self.kinds
         model.load_points(pts, n, u)
         model.identity(p)
+        for i in range(N_PARAMS, np_):
+            p[i] = 0
         den = ALPHA_DEN * n
         mul = UPDATE_MUL
         h = H_PARAM
-        f0 = objective(p, u, n)
+        f0 = self._f(aux, n)
         self.objective_start = f0
         self.status = OK
         for it in range(iterations):
-            for i in range(N_PARAMS):
+            for i in range(np_):
                 p[i] += h
-                df[i] = objective(p, u, n) - f0
+                df[i] = self._f(aux, n) - f0
                 p[i] -= h
-            for i in range(N_PARAMS):
+            for i in range(np_):
                 p[i] -= (alpha[i] * mul * df[i]) // den
             self.iterations = it + 1
-            if not model.in_fit_region(p):
+            if not model.in_fit_region(p) or (kinds and not model.effects_within(p, kinds, 4)):
                 self.status = DIVERGED
                 return DIVERGED
-            f0 = objective(p, u, n)
+            f0 = self._f(aux, n)
         self.objective = f0
         if f0 > self.objective_start:
             self.status = DIVERGED
-        elif not model.in_bounds(p):
+        elif not model.in_bounds(p) or (kinds and not model.effects_within(p, kinds, 1)):
             self.status = OUT_OF_BOUNDS
         return self.status
