@@ -45,7 +45,7 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
     r = run_cli("deploy", "--port", port, "--rate", RATE, "--capture-kb", 2048, "--json")
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
-    assert info["board"] == "virtual" and info["platform"] == "linux" and info["modules"] == 10
+    assert info["board"] == "virtual" and info["platform"] == "linux" and info["modules"] == 11
     assert (board.dir / "flash" / "lib" / "acal" / "optimiser.py").exists()
     assert "acal.app.main(rate_hz=10, capture_bytes=2097152)" in (board.dir / "flash" / "main.py").read_text()
 
