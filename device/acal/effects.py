@@ -40,22 +40,22 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           NONLINEAR: const(838861)}      # 0.05 * 2**24
 
 
-def correct_u(kind, p, j, u, dT, dt):
-    """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u (list of 3, Q24 g) in
+def correct_u(kind, p, j, u, dT, dt, at=0):
+    """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
     place; the fit's form."""
     if kind == TEMP_OFFSET:
         for i in range(3):
-            u[i] -= (p[j + i] * dT) >> 4
+            u[at + i] -= (p[j + i] * dT) >> 4
     elif kind == TEMP_SCALE:
         for i in range(3):
-            u[i] -= (((p[j + i] * dT) >> 4) * u[i]) >> 24
+            u[at + i] -= (((p[j + i] * dT) >> 4) * u[at + i]) >> 24
     elif kind == DRIFT:
         for i in range(3):
-            u[i] -= (p[j + i] * dt) >> 11
+            u[at + i] -= (p[j + i] * dt) >> 11
     elif kind == NONLINEAR:
         for i in range(3):
-            v = u[i]
-            u[i] = v - ((p[j + i] * ((v * v) >> 24)) >> 24)
+            v = u[at + i]
+            u[at + i] = v - ((p[j + i] * ((v * v) >> 24)) >> 24)
 
 
 def apply_params(kind, p, j, k, m):

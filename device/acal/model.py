@@ -84,45 +84,22 @@ def objective(p, u, n):
 
 
 def objective_effects(p, u, aux, n, kinds, w):
-    """objective() for a composed model: before the 9-parameter correction, the effects `kinds`
-    (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) are removed from each point, last first
-    (the reverse of the order they act in).  aux: per point dT (degC) and dt (64 s units), flat;
-    w: a scratch list of 3."""
-    kxx = p[0]
-    kyy = p[1]
-    kzz = p[2]
-    kxy = p[3]
-    kxz = p[4]
-    kyz = p[5]
-    ox = p[6]
-    oy = p[7]
-    oz = p[8]
-    one = _ONE_G2_Q56
-    q = A_SHIFT
-    rs = R_SHIFT
-    fs = F_SHIFT
+    """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
+    p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
+    they act in), into w (a list of 3 n ints); the 9-parameter objective then reads w.
+    aux: per point dT (degC) and dt (64 s units), flat."""
     correct = effects.correct_u
     ne = len(kinds)
-    total = 0
+    for i in range(3 * n):
+        w[i] = u[i]
     for i in range(n):
-        w[0] = u[3 * i]
-        w[1] = u[3 * i + 1]
-        w[2] = u[3 * i + 2]
         dT = aux[2 * i]
         dt = aux[2 * i + 1]
         k = ne - 1
         while k >= 0:
-            correct(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt)
+            correct(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, 3 * i)
             k -= 1
-        ux = w[0] + ox
-        uy = w[1] + oy
-        uz = w[2] + oz
-        ax = (kxx * ux) >> q
-        ay = (kxy * ux + kyy * uy) >> q
-        az = (kxz * ux + kyz * uy + kzz * uz) >> q
-        r = (ax * ax + ay * ay + az * az - one) >> rs
-        total += (r * r) >> fs
-    return total
+    return objective(p, w, n)
 
 
 def effects_within(p, kinds, factor):

@@ -36,7 +36,7 @@ class Optimiser:
         self.kinds = tuple(kinds)
         self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.u = [0] * (3 * max_points)
-        self.w = [0, 0, 0]
+        self.w = [0] * (3 * max_points) if self.kinds else None  # points with effects removed
         self.p = [0] * self.n_params
         self.df = [0] * self.n_params
         self.alpha = [0] * self.n_params
