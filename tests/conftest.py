@@ -17,3 +17,35 @@ def run_cli(*args, cwd=None):
     """Run the installed CLI as a user does; returns CompletedProcess."""
     return subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd)
+
+
+# A deterministic int generator for scripts that run under both CPython and MicroPython.
+MP_RANDOM = r'''
+_seed = [12345]
+def rnd(m):
+    """An int in [-m, m], the same sequence on CPython and MicroPython."""
+    _seed[0] = (_seed[0] * 1103515245 + 12345) & 0x7FFFFFFF
+    return (_seed[0] >> 8) % (2 * m + 1) - m
+try:  # the real one (heap_lock); CPython may have Adafruit Blinka's module of that name
+    import micropython
+    if not hasattr(micropython, "heap_lock"):
+        micropython = None
+except ImportError:
+    micropython = None
+'''
+
+
+def run_both(script, tmp_path):
+    """Stdout of the script (MP_RANDOM prepended) under real MicroPython and under CPython."""
+    import contextlib
+    import io
+
+    from accelcal import runtime
+    text = MP_RANDOM + script
+    f = tmp_path / "both.py"
+    f.write_text(text)
+    mp = runtime.run_micropython_script(str(f))
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        exec(compile(text, str(f), "exec"), {"__name__": "both"})
+    return mp, buf.getvalue()

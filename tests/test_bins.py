@@ -69,3 +69,44 @@ def test_centre_is_closer_to_axes_than_first(rng):
         bad = [bins.badness(*b.point(s, k), s) for s in range(9) for k in range(b.counts[s])]
         res[pol] = np.mean(bad)
     assert res[bins.CENTRE] < 0.5 * res[bins.FIRST]
+
+
+def test_composed_bins_keep_the_same_orientation_seen_warmer_or_later():
+    b = Bins(2, 4, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER)
+    assert b.offer(G, 0, 0, 25, 0) >= 0
+    assert b.offer(G, 0, 0, 27, 100) == -1              # 2 degC, 1.8 h: the same point
+    assert b.offer(G, 0, 0, 28, 100) >= 0               # 3 degC warmer: differs
+    assert b.offer(G, 0, 0, 26, 100 + bins.TIME_DIFFER) >= 0  # 12 h after both: differs
+    assert b.total() == 3 and b.temp_span() == 3 and b.time_span() == 100 + bins.TIME_DIFFER
+    plain = Bins(2, 4, differ=G // 10)                  # the paper's model: conditions ignored
+    assert plain.offer(G, 0, 0, 25, 0) >= 0 and plain.offer(G, 0, 0, 40, 10 ** 5) == -1
+    assert plain.temp_span() == 0
+
+
+def test_a_full_composed_subset_takes_points_that_widen_its_spread():
+    b = Bins(1, 2, differ=G // 10, temp_differ=3)
+
+    def only_xp(x, y, z):  # y and z between the bands: these points belong to C_xp alone
+        return int(x * G), int(y * G), int(z * G)
+
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30) == 2 and b.offer(*only_xp(0.8, 0.55, 0.3), 31) == 2
+    assert b.offer(*only_xp(0.8, 0.45, 0.35), 38) == 2  # full; widens 30..31 -> 30..38
+    assert sorted(b.condition(2, k)[0] for k in range(2)) == [30, 38] and b.replaced == 1
+    assert b.offer(*only_xp(0.8, 0.3, 0.5), 34) == -1   # inside the range, no better placed
+    # Slot 0 keeps placement, slot 1 spread: 20 degC widens 30..38 to 20..30 through slot 1.
+    assert b.offer(*only_xp(0.8, 0.5, 0.5), 20) == 2
+    assert [b.condition(2, k)[0] for k in range(2)] == [30, 20] and b.total() == 2
+    assert b.offer(*only_xp(0.8, 0.35, 0.45), 25) == -1  # would narrow: refused
+
+
+def test_composed_bins_are_ready_only_with_the_spread():
+    b = Bins(1, 1, temp_differ=3)
+    for s, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),
+                                   (0, G, 0), (0, 0, -G), (G, G // 10, 0), (0, 0, G)]):
+        b.offer(x, y, z, 30)
+    assert min(b.counts) == 1 and not b.ready()       # every subset held, all at 30 degC
+    b2 = Bins(1, 1, temp_differ=3)
+    for k, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),
+                                   (0, G, 0), (0, 0, -G), (G, G // 10, 0), (0, 0, G)]):
+        b2.offer(x, y, z, 30 + (k == 4) * 4)
+    assert min(b2.counts) == 1 and b2.ready()

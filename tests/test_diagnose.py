@@ -110,7 +110,8 @@ def test_bad_model_specs_and_data(recordings, tmp_path):
     path = recordings["clean31"]
     cases = [
         (("diagnose", path, "--model", "base+warp"), "unknown effect 'warp'"),
-        (("calibrate", path, "--model", "base+temp_offset"), "--method lsq"),
+        (("calibrate", path, "--model", "base+drift", "--method", "linauto"),
+         "composed models are fitted by --method device"),
     ]
     no_temp = tmp_path / "no_temp.csv"
     rec = np.loadtxt(path, delimiter=",", skiprows=1, max_rows=200000)
@@ -122,7 +123,56 @@ def test_bad_model_specs_and_data(recordings, tmp_path):
     cases.append((("diagnose", flat, "--model", "base+temp_offset"),
                   "temp_offset needs >= 3 degC of temperature spread across rest points; "))
     cases.append((("diagnose", flat, "--model", "base+drift"), "drift needs rest points spanning >= 12 h"))
+    # The device's own composed fit checks the same before it runs.
+    cases.append((("calibrate", no_temp, "--model", "base+temp_scale"), "temp_scale needs a temperature column"))
+    cases.append((("calibrate", flat, "--model", "base+temp_offset"), "needs >= 3 degC of temperature spread"))
+    cases.append((("calibrate", no_temp, "--model", "base+drift"), "drift needs rest points spanning >= 12 h"))
     for args, msg in cases:
         r = run_cli(*args)
         assert r.returncode == 2 and r.stderr.count("\n") == 1, (args, r.stderr)
         assert msg in r.stderr, (msg, r.stderr)
+
+
+def calibrate(path, model, *extra):
+    r = run_cli("calibrate", path, "--model", model, "--json", *extra)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+@pytest.mark.parametrize("effect", EFFECTS + ("temp_offset+drift",))
+def test_device_fits_the_composed_model_in_integers(recordings, effect):
+    """The device pipeline itself (bins spread in temperature and time, integer optimiser) fits
+    base+EFFECT: better than its own base fit, and in the range of the float fit on all points
+    (it sees 36 points, lsq all of them: README "Bins for composed models")."""
+    path = recordings["two" if "+" in effect else effect]
+    base = calibrate(path, "base")
+    dev = calibrate(path, f"base+{effect}")
+    lsq = calibrate(path, f"base+{effect}", "--method", "lsq")
+    assert dev["status"] == "calibrated" and dev["points"] == 36 and dev["iterations"] == 200
+    assert list(dev["params_int"]) == list(lsq["params_int"])  # same names, same order
+    assert dev["error_after_mg"] < 0.8 * base["error_after_mg"], (dev, base)
+    assert dev["error_after_mg"] < 3.5 * lsq["error_after_mg"], (dev, lsq)
+
+
+def test_composed_device_fit_is_bit_identical_under_micropython(recordings):
+    cp = calibrate(recordings["temp_offset"], "base+temp_offset")
+    mp = calibrate(recordings["temp_offset"], "base+temp_offset", "--runtime", "micropython")
+    assert cp.pop("runtime") == "cpython" and mp.pop("runtime") == "micropython"
+    assert cp == mp and cp["status"] == "calibrated"
+
+
+def test_applying_the_composed_calibration_leaves_nothing_to_name(recordings, tmp_path):
+    """apply uses the device's per-sample Calibration with the effect: on the calibrated file
+    diagnose finds no effect left (the base-calibrated file still shows temp_offset)."""
+    path = recordings["temp_offset"]
+    saved = tmp_path / "p.json"
+    assert run_cli("calibrate", path, "--model", "base+temp_offset", "--save", saved).returncode == 0
+    out = tmp_path / "calibrated.csv"
+    r = run_cli("apply", saved, path, "-o", out)
+    assert r.returncode == 0, r.stderr
+    after = diagnose(out)
+    assert after["missing_effect"] is None, after["candidates"]
+    notemp = tmp_path / "notemp.csv"
+    notemp.write_text("t,x,y,z\n0,0,0,1\n0.1,0,0,1\n")
+    r = run_cli("apply", saved, notemp, "-o", tmp_path / "x.csv")
+    assert r.returncode == 2 and "needs a temperature column" in r.stderr

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from acal import effects as deff
-from accelcal import runtime
 from accelcal.effects import CATALOGUE
 from accelcal.ranges import Tracer, traced
+from conftest import run_both
 
 DT_UNIT = deff.DT_UNIT_S
 
@@ -59,11 +59,6 @@ def test_apply_path_stays_small_at_the_worst_case():
 
 SCRIPT = r'''
 from acal import effects
-s = 12345
-def rnd(m):
-    global s
-    s = (s * 1103515245 + 12345) & 0x7FFFFFFF
-    return (s >> 8) % (2 * m + 1) - m
 out = []
 for kind in (1, 2, 3, 4):
     p = [rnd(effects.BOUNDS[kind]) for _ in range(3)]
@@ -83,13 +78,5 @@ print("\n".join(out))
 
 
 def test_micropython_gives_the_same_integers(tmp_path):
-    f = tmp_path / "eff.py"
-    f.write_text(SCRIPT)
-    ns = {}
-    import contextlib
-    import io
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        exec(compile(SCRIPT, "eff", "exec"), ns)
-    mp = runtime.run_micropython_script(str(f))
-    assert mp.split() == buf.getvalue().split() and len(mp.splitlines()) == 800
+    mp, host = run_both(SCRIPT, tmp_path)
+    assert mp.split() == host.split() and len(mp.splitlines()) == 800

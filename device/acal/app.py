@@ -9,7 +9,7 @@
 import gc
 import struct
 
-from acal import log
+from acal import effects, log
 from acal.fixed import N_PARAMS, POINT_ONE_G
 from acal.model import Calibration
 from acal.optimiser import OK
@@ -29,29 +29,41 @@ REST_BUDGET_DAYS = 14
 REST_RESERVE_BYTES = 4000       # of each day's allowance, kept for points the bins keep
 COUNTERS_SECONDS = 3600
 CAPTURE_FLUSH_RECORDS = 32  # ~8 kB: a flush per record would cost more than the processing
+COMPOSED_MAX_COUNT = 4      # points per subset for a composed model (bins.py): 36, spread in T, t
 
 
 class Processor:
     """rate_hz, seconds, threshold, axis, min_count, max_count, differ, policy, iterations as
     Pipeline; recal_seconds: least time between calibrations; logger: a log.Log; capture: a
-    log.Log for the raw samples or None; store: a log.CalStore or None."""
+    log.Log for the raw samples or None; store: a log.CalStore or None; model: 'base' (the
+    paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
+
+    A composed model's bins hold COMPOSED_MAX_COUNT points per subset (unless max_count is
+    given) and are kept across calibrations, so their temperature and time spread keeps growing
+    (the paper's model starts afresh after each).  Its time is the board's running time since
+    boot in 64 s units (no clock survives a power cut): a stored composed calibration is resumed
+    at boot as if the board had not been off."""
 
     def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
-                 **pipeline_settings):
+                 model="base", **pipeline_settings):
         self.log = logger
         self.capture = capture
         self.store = store
         self.rate_hz = rate_hz
-        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, **pipeline_settings)
+        self.kinds = effects.parse_model(model)
+        if self.kinds and "max_count" not in pipeline_settings:
+            pipeline_settings["max_count"] = COMPOSED_MAX_COUNT
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, **pipeline_settings)
         self.recal_samples = recal_seconds * rate_hz
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
-        self.calibration = Calibration()
+        self.time_unit_samples = effects.DT_UNIT_S * rate_hz
+        self.calibration = Calibration(self.kinds)
         # The calibrated samples of each block go to on_samples(buf, n) (Q10 g, interleaved),
         # once a calibration exists: the wearable's own use of the data hooks in there.
         self.on_samples = None
         self.calibrated = [0] * (3 * log.SAMPLES_PER_RECORD)
-        self.params = [0] * N_PARAMS
+        self.params = [0] * self.calibration.n_params
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
         self.temp = 0               # relative degC, set by the feeder
@@ -67,12 +79,28 @@ class Processor:
         self._rest_size = struct.calcsize(log.FORMATS[log.REST]) + log.OVERHEAD
         self._cap_mv = None
         if store is not None:
-            slot, rec = store.load()
-            if rec is not None:
-                self.calibrations = rec[1]
-                for i in range(N_PARAMS):
-                    self.params[i] = rec[7 + i]
-                self.calibration.set(self.params)
+            self._resume(store)
+
+    def _resume(self, store):
+        # The stored calibration, if it is of this model (a board flashed with another model
+        # starts afresh).
+        slot, rec = store.load()
+        if rec is None or len(store.effects) != len(self.kinds):
+            return
+        ref_temp = 0
+        ref_time = 0
+        for j in range(len(self.kinds)):
+            e = store.effects[j]
+            if e[1] != self.kinds[j]:
+                return
+            ref_temp = e[2]
+            ref_time = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
+            for i in range(3):
+                self.params[N_PARAMS + 3 * j + i] = e[4 + i]
+        self.calibrations = rec[1]
+        for i in range(N_PARAMS):
+            self.params[i] = rec[7 + i]
+        self.calibration.set(self.params, ref_temp, ref_time)
 
     def _on_rest(self, x, y, z, subset):
         index = self.batch_start + self.pipe.position
@@ -103,7 +131,13 @@ class Processor:
         if self.capture is not None and not self.capture_full:
             self._capture(buf, n)
         self.batch_start = self.index
-        self.pipe.add_samples(buf, 0, n)
+        pipe = self.pipe
+        if self.kinds:  # the block's conditions, for the bins and for applying the calibration
+            pipe.temp = self.temp
+            pipe.time = self.index // self.time_unit_samples
+            self.calibration.temp = pipe.temp
+            self.calibration.time = pipe.time
+        pipe.add_samples(buf, 0, n)
         self.index += n
         if self.on_samples is not None and self.calibrations:
             out = self.calibrated
@@ -145,16 +179,23 @@ class Processor:
         self.last_cal_index = self.index
         number = self.calibrations + 1
         values = (self.index, number, status, o.iterations, pipe.bins.total(),
-                  _sat32(o.objective_start >> 16), _sat32(o.objective >> 16)) + tuple(o.p)
+                  _sat32(o.objective_start >> 16), _sat32(o.objective >> 16)) + tuple(o.p[:N_PARAMS])
         self.log.write(log.CAL, *values)
+        extra = []
+        for j in range(len(self.kinds)):
+            e = N_PARAMS + 3 * j
+            extra.append((self.index, self.kinds[j], pipe.ref_temp, pipe.ref_time,
+                          o.p[e], o.p[e + 1], o.p[e + 2]))
+            self.log.write(log.EFFECT, *extra[j])
         if status == OK:
             self.calibrations = number
-            for i in range(N_PARAMS):
+            for i in range(len(self.params)):
                 self.params[i] = o.p[i]
-            self.calibration.set(self.params)
+            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time)
             if self.store is not None:
-                self.store.save(values)
-        pipe.bins.clear()
+                self.store.save(values, extra)
+        if not self.kinds:
+            pipe.bins.clear()
         return status
 
 
@@ -229,7 +270,8 @@ class App:
         self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
                        p.bins.max_count, p.bins.differ, p.iterations,
-                       self.proc.recal_samples // rate_hz, -128 if ref is None else ref)
+                       self.proc.recal_samples // rate_hz, -128 if ref is None else ref,
+                       effects.model_code(self.proc.kinds))
 
     def _retry(self, fn):
         for attempt in range(RETRIES):

@@ -13,6 +13,21 @@
 #            members (the axis for n/p, the ring's diagonals for 0; see badness) when it is nearer.
 #            The selection keeps improving while rest data flows; README "Point selection".
 # Points are Q16 g ints; storage is preallocated.
+#
+# Composed models (README "Bins for composed models").  An effect's parameters are only seen in
+# points that differ in temperature (temp_offset, temp_scale) or in time (drift).  With
+# temp_differ (degC) or time_differ (64 s units) set, each slot also holds its point's temperature
+# (int degC) and time (int, 64 s units), and:
+#   - a point near a held one in orientation still differs from it when |dT| >= temp_differ or
+#     |dt| >= time_differ (the same point seen warmer, or a day later, tells the effect apart);
+#   - a full subset's slots have two roles: the first half keep well-placed points (the CENTRE
+#     rule: the 9 parameters need them), the second half keep spread (a linear effect term gets
+#     the most leverage from extremes).  A new point replaces the spread slot whose replacement
+#     most widens the subset's spread (its temperature range x time_differ + its time range x
+#     temp_differ: each range per its threshold) by at least a quarter threshold, the worst
+#     placed of equals (time only grows: the newest point widens by replacing any but the
+#     oldest); else, by the CENTRE rule, a placement slot; no replacement narrows the spread.
+#   - ready() also needs all held points together to span temp_differ and time_differ.
 from acal.fixed import POINT_ONE_G
 
 FIRST = 0
@@ -24,6 +39,8 @@ _LO_OUT = (3 * POINT_ONE_G) // 4  # 0.75 g
 _HI_OUT = (5 * POINT_ONE_G) // 4  # 1.25 g
 _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
+TEMP_DIFFER = 3     # degC: what a temperature effect needs (host diagnose: the same 3 degC)
+TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
 # not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
 # after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.
@@ -66,19 +83,25 @@ class Bins:
 
     min_count / max_count: points per subset (paper: 2 and 2 -> 18 points);
     differ: minimum max-norm distance to every held point, Q16 g (default 0.1 g);
-    policy: FIRST or CENTRE.
+    policy: FIRST or CENTRE; temp_differ (degC), time_differ (64 s units): 0, or the spreads a
+    composed model needs (see above).
     """
 
-    def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE):
+    def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
+                 temp_differ=0, time_differ=0):
         if not 1 <= min_count <= max_count:
             raise ValueError("need 1 <= min_count <= max_count")
         self.min_count = min_count
         self.max_count = max_count
         self.differ = differ
         self.policy = policy
+        self.temp_differ = temp_differ
+        self.time_differ = time_differ
         self.counts = [0] * N_SUBSETS
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].
         self.xyz = [0] * (3 * N_SUBSETS * max_count)
+        # Temperature and time of slot k of subset s at cond[2 * (s * max_count + k)] and + 1.
+        self.cond = [0] * (2 * N_SUBSETS * max_count)
         self.offered = 0
         self.kept = 0
         self.replaced = 0
@@ -97,16 +120,67 @@ class Bins:
         return t
 
     def ready(self):
-        """True when every subset holds at least min_count points."""
+        """True when every subset holds at least min_count points (and, for a composed model,
+        the held points span temp_differ and time_differ)."""
         for s in range(N_SUBSETS):
             if self.counts[s] < self.min_count:
                 return False
-        return True
+        return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ
 
-    def _far_from_all(self, x, y, z, skip):
-        # Max-norm distance >= differ from every held point except slot index `skip`.
+    def _span(self, c):
+        # Range of condition c (0 temperature, 1 time) over every held point.
+        lo = hi = 0
+        first = True
+        m = self.max_count
+        for s in range(N_SUBSETS):
+            for k in range(self.counts[s]):
+                v = self.cond[2 * (s * m + k) + c]
+                if first or v < lo:
+                    lo = v
+                if first or v > hi:
+                    hi = v
+                first = False
+        return hi - lo
+
+    def temp_span(self):
+        """Temperature range of the held points (degC; 0 unless temperature is tracked)."""
+        return self._span(0)
+
+    def time_span(self):
+        """Time range of the held points (64 s units; 0 unless time is tracked)."""
+        return self._span(1)
+
+    def _spread(self, s, skip, temp, time):
+        # The spread score of subset s with slot `skip` holding (temp, time) instead.
+        m = self.max_count
+        cond = self.cond
+        t_lo = t_hi = temp
+        u_lo = u_hi = time
+        for k in range(self.counts[s]):
+            if k == skip:
+                continue
+            j = 2 * (s * m + k)
+            v = cond[j]
+            if v < t_lo:
+                t_lo = v
+            elif v > t_hi:
+                t_hi = v
+            v = cond[j + 1]
+            if v < u_lo:
+                u_lo = v
+            elif v > u_hi:
+                u_hi = v
+        return ((t_hi - t_lo) * (self.time_differ or 1) +
+                (u_hi - u_lo) * (self.temp_differ or 1))
+
+    def _far_from_all(self, x, y, z, temp, time, skip):
+        # Max-norm distance >= differ from every held point except slot index `skip`, or far
+        # enough in temperature or time.
         d = self.differ
+        dT = self.temp_differ
+        dt = self.time_differ
         xyz = self.xyz
+        cond = self.cond
         m = self.max_count
         for s in range(N_SUBSETS):
             base = s * m
@@ -116,18 +190,29 @@ class Bins:
                     continue
                 i = 3 * slot
                 if -d < x - xyz[i] < d and -d < y - xyz[i + 1] < d and -d < z - xyz[i + 2] < d:
+                    if dT and not -dT < temp - cond[2 * slot] < dT:
+                        continue
+                    if dt and not -dt < time - cond[2 * slot + 1] < dt:
+                        continue
                     return False
         return True
 
-    def _store(self, slot, x, y, z):
+    def _store(self, slot, x, y, z, temp, time):
         i = 3 * slot
         self.xyz[i] = x
         self.xyz[i + 1] = y
         self.xyz[i + 2] = z
+        self.cond[2 * slot] = temp
+        self.cond[2 * slot + 1] = time
 
-    def offer(self, x, y, z):
-        """Offer a rest mean (Q16 g). Returns the subset index it was kept in, or -1."""
+    def offer(self, x, y, z, temp=0, time=0):
+        """Offer a rest mean (Q16 g) seen at temperature `temp` (int degC) and time `time` (64 s
+        units; both ignored unless tracked). Returns the subset index it was kept in, or -1."""
         self.offered += 1
+        if not self.temp_differ:
+            temp = 0
+        if not self.time_differ:
+            time = 0
         if not (-_HI_OUT <= x <= _HI_OUT and -_HI_OUT <= y <= _HI_OUT and -_HI_OUT <= z <= _HI_OUT):
             return -1
         mag2 = (x >> 4) * (x >> 4) + (y >> 4) * (y >> 4) + (z >> 4) * (z >> 4)
@@ -140,29 +225,47 @@ class Bins:
             if s >= 0 and self.counts[s] < m and (best < 0 or self.counts[s] < self.counts[best]):
                 best = s
         if best >= 0:
-            if not self._far_from_all(x, y, z, -1):
+            if not self._far_from_all(x, y, z, temp, time, -1):
                 return -1
-            self._store(best * m + self.counts[best], x, y, z)
+            self._store(best * m + self.counts[best], x, y, z, temp, time)
             self.counts[best] += 1
             self.kept += 1
             return best
         if self.policy != CENTRE:
             return -1
+        tracked = self.temp_differ or self.time_differ
+        gain = ((self.temp_differ or 1) * (self.time_differ or 1)) >> 2  # a quarter threshold
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
             s = subset_of(c, axis)
             if s < 0:
                 continue
+            now = 0  # the subset's spread as it is: slot 0 "replaced" by itself
+            if tracked:
+                now = self._spread(s, 0, self.cond[2 * s * m], self.cond[2 * s * m + 1])
+            widest = -1
+            widest_spread = now + gain - 1
+            widest_bad = -1
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
+                spread = self._spread(s, k, temp, time) if tracked else 0
+                if spread < now:
+                    continue  # would narrow the spread the effects need
                 i = 3 * (s * m + k)
                 b = badness(self.xyz[i], self.xyz[i + 1], self.xyz[i + 2], s)
-                if b > worst_bad:
+                if tracked and k >= (m >> 1):
+                    # A spread slot: the widest replacement, and of equals the worst placed.
+                    if spread > widest_spread or (spread == widest_spread and b > widest_bad):
+                        widest_spread = spread
+                        widest_bad = b
+                        widest = k
+                elif b > worst_bad:  # a placement slot: CENTRE
                     worst_bad = b
                     worst = k
-            if worst >= 0 and self._far_from_all(x, y, z, s * m + worst):
-                self._store(s * m + worst, x, y, z)
+            k = widest if widest >= 0 else worst
+            if k >= 0 and self._far_from_all(x, y, z, temp, time, s * m + k):
+                self._store(s * m + k, x, y, z, temp, time)
                 self.replaced += 1
                 return s
         return -1
@@ -172,14 +275,24 @@ class Bins:
         i = 3 * (s * self.max_count + k)
         return self.xyz[i], self.xyz[i + 1], self.xyz[i + 2]
 
-    def gather(self, out):
-        """Copy the held points into the flat int list `out` (x y z per point); return count."""
+    def condition(self, s, k):
+        """(temperature, time) of slot k of subset s: degC, 64 s units."""
+        j = 2 * (s * self.max_count + k)
+        return self.cond[j], self.cond[j + 1]
+
+    def gather(self, out, cond=None):
+        """Copy the held points into the flat int list `out` (x y z per point) and, if given,
+        their temperature and time into `cond` (2 per point); return the count."""
         n = 0
         for s in range(N_SUBSETS):
             for k in range(self.counts[s]):
-                i = 3 * (s * self.max_count + k)
+                slot = s * self.max_count + k
+                i = 3 * slot
                 out[3 * n] = self.xyz[i]
                 out[3 * n + 1] = self.xyz[i + 1]
                 out[3 * n + 2] = self.xyz[i + 2]
+                if cond is not None:
+                    cond[2 * n] = self.cond[2 * slot]
+                    cond[2 * n + 1] = self.cond[2 * slot + 1]
                 n += 1
         return n

@@ -15,7 +15,7 @@
 #   the size of an offset and takes the offsets' learning rate.
 #     c: (c * dT) >> 4;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;  q: (q * ((u*u) >> 24)) >> 24
 #   Apply (per sample, Q14 g readings, model.Calibration): c and d in Q14 (param >> 10), s and q in
-#   Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and dt < 2**20 units (776 days; both
+#   Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days; both
 #   clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
 try:
@@ -38,6 +38,40 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
           DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
           NONLINEAR: const(838861)}      # 0.05 * 2**24
+
+
+def parse_model(spec):
+    """'base' or 'base+NAME+...' (NAMES) -> the effect ids in order; ValueError otherwise."""
+    parts = spec.split("+")
+    if parts[0] != "base":
+        raise ValueError("a model is 'base' or 'base+EFFECT+...': " + spec)
+    kinds = []
+    for name in parts[1:]:
+        kind = 0
+        for k in NAMES:
+            if NAMES[k] == name:
+                kind = k
+        if not kind or kind in kinds:
+            raise ValueError("unknown or repeated effect in " + spec + ": " + name)
+        kinds.append(kind)
+    return tuple(kinds)
+
+
+def model_code(kinds):
+    """The effect ids as one int for the log: kinds[i] in bits 4i..4i+3 (up to 4 effects)."""
+    code = 0
+    for i in range(len(kinds)):
+        code |= kinds[i] << (4 * i)
+    return code
+
+
+def model_kinds(code):
+    """model_code's inverse."""
+    kinds = []
+    while code:
+        kinds.append(code & 15)
+        code >>= 4
+    return tuple(kinds)
 
 
 def correct_u(kind, p, j, u, dT, dt, at=0):
@@ -83,6 +117,8 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt):
     elif kind == DRIFT:
         if dt > APPLY_TIME_MAX:
             dt = APPLY_TIME_MAX
+        elif dt < -APPLY_TIME_MAX:
+            dt = -APPLY_TIME_MAX
         for i in range(3):
             w[i] -= (k[m + i] * dt) >> 11
     elif kind == NONLINEAR:

@@ -86,6 +86,10 @@ APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
 APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
 APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
+# A composed model first removes its effects (acal/effects.py) from the reading in Q14; the
+# result is clamped to the range a reading can have, +-2.048 g, so the bound above still holds
+# (a correction that would go beyond full scale is clipped, as the sensor itself clips).
+APPLY_W_MAX = const(33552)          # 2097 << 4
 
 # Parameter order (paper eq. 6).
 KXX = const(0)

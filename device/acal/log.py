@@ -6,14 +6,18 @@
 # (reporting what it skipped): a torn record is dropped, the records after it are found again.
 #
 # Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
-#   BOOT     <IHHBHBBBBBHBIb log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g), axis, range_g,
-#                          fifo, min_count, max_count, differ (Q16 g), iterations, recal_seconds,
-#                          temperature reference (degC; -128: none, temperatures are relative)
+#   BOOT     <IHHBHBBBBBHBIbH log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g), axis,
+#                          range_g, fifo, min_count, max_count, differ (Q16 g), iterations,
+#                          recal_seconds, temperature reference (degC; -128: none, temperatures
+#                          are relative), model (effects.model_code: 0 is the paper's model)
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
 #                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
 #   CAL      <IHBBBII9i     sample index, calibration number, status, iterations, points,
 #                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
+#   EFFECT   <IBbI3i        after a CAL, one per effect of a composed model: sample index (the
+#                          CAL's), effect id (effects.py), reference temperature (degC) and time
+#                          (64 s units of running time), 3 parameters (Q24, effects.py fit form)
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget
@@ -29,10 +33,11 @@ CAL = 3
 COUNTERS = 4
 SAMPLES = 5
 GAP = 6
+EFFECT = 7
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap"}
-FORMATS = {BOOT: "<IHHBHBBBBBHBIb", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II"}
+              GAP: "gap", EFFECT: "effect"}
+FORMATS = {BOOT: "<IHHBHBBBBBHBIbH", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+           GAP: "<II", EFFECT: "<IBbI3i"}
 SAMPLES_HEAD = "<IBb"
 MAX_PAYLOAD = 255
 SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
@@ -185,11 +190,13 @@ def unpack(rtype, payload):
 
 class CalStore:
     """The current calibration, stored so that a power cut never loses the last good one: two
-    slots (files), each one CAL-format record with a sequence number; a save writes the slot
-    that does not hold the newest valid record, a load takes the newest valid one."""
+    slots (files), each one CAL-format record with a sequence number (followed by a composed
+    model's EFFECT records); a save writes the slot that does not hold the newest valid record,
+    a load takes the newest valid one."""
 
     def __init__(self, path_a, path_b):
         self.paths = (path_a, path_b)
+        self.effects = []  # after load(): the newest calibration's EFFECT record tuples
 
     def _read(self, path):
         try:
@@ -197,28 +204,41 @@ class CalStore:
                 data = f.read()
         except OSError:
             return None
-        recs, _ = scan(data)
-        if len(recs) != 1 or recs[0][1] != CAL or recs[0][0] != 0:
+        recs, dropped = scan(data)
+        if not recs or dropped or recs[0][1] != CAL or recs[0][0] != 0:
             return None
-        return unpack(CAL, recs[0][2])
+        for r in recs[1:]:
+            if r[1] != EFFECT:
+                return None
+        return [unpack(r[1], r[2]) for r in recs]
 
     def load(self):
-        """(slot, record tuple) of the newest valid calibration, or (-1, None)."""
+        """(slot, CAL record tuple) of the newest valid calibration, or (-1, None); its EFFECT
+        records in self.effects."""
         best = -1
         rec = None
+        self.effects = []
         for s in range(2):
             r = self._read(self.paths[s])
-            if r is not None and (rec is None or r[1] > rec[1]):
+            if r is not None and (rec is None or r[0][1] > rec[1]):
                 best = s
-                rec = r
+                rec = r[0]
+                self.effects = r[1:]
         return best, rec
 
-    def save(self, values):
-        """values: a CAL record's fields; values[1] (the calibration number) orders the slots."""
+    def save(self, values, effects=()):
+        """values: a CAL record's fields; values[1] (the calibration number) orders the slots.
+        effects: EFFECT records' fields, for a composed model."""
         slot, _ = self.load()
         target = 1 if slot == 0 else 0
-        payload = bytearray(struct.calcsize(FORMATS[CAL]))
-        struct.pack_into(FORMATS[CAL], payload, 0, *values)
         with open(self.paths[target], "wb") as f:
-            f.write(encode(CAL, payload))
+            f.write(_encode_values(CAL, values))
+            for e in effects:
+                f.write(_encode_values(EFFECT, e))
         return target
+
+
+def _encode_values(rtype, values):
+    payload = bytearray(struct.calcsize(FORMATS[rtype]))
+    struct.pack_into(FORMATS[rtype], payload, 0, *values)
+    return encode(rtype, payload)

@@ -6,7 +6,7 @@
 from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
                         APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX, FIT_K_DIAG_MIN,
-                        FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX)
+                        FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
 
@@ -117,35 +117,77 @@ class Calibration:
     """A calibration applied to raw samples, per sample and without allocating.
 
     set(p) takes Q24 parameters and keeps them in Q14 (APPLY_Q): the products of the per-sample
-    path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g."""
+    path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g.
 
-    def __init__(self):
-        self.k = [0] * N_PARAMS
+    kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
+    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC)
+    and `time` (64 s units) current, and the effects are removed with dT = temp - ref_temp and
+    dt = time - ref_time, the references the fit used (set())."""
+
+    def __init__(self, kinds=()):
+        self.kinds = tuple(kinds)
+        self.n_params = N_PARAMS + 3 * len(self.kinds)
+        self.k = [0] * self.n_params
+        self.w = [0, 0, 0]
+        self.temp = 0
+        self.time = 0
+        self.ref_temp = 0
+        self.ref_time = 0
         self.x = 0
         self.y = 0
         self.z = 0
-        p = [0] * N_PARAMS
+        p = [0] * self.n_params
         identity(p)
         self.set(p)
 
-    def set(self, p):
+    def set(self, p, ref_temp=0, ref_time=0):
         """Take Q24 parameters; ValueError outside the bounds (the range proof needs them)."""
-        if not in_bounds(p):
+        if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
         half = 1 << (APPLY_PARAM_SHIFT - 1)
         for i in range(N_PARAMS):
             self.k[i] = (p[i] + half) >> APPLY_PARAM_SHIFT
+        for j in range(len(self.kinds)):
+            effects.apply_params(self.kinds[j], p, N_PARAMS + 3 * j, self.k, N_PARAMS + 3 * j)
+        self.ref_temp = ref_temp
+        self.ref_time = ref_time
 
     def apply(self, x, y, z):
         """Correct one sample; the result is in self.x, self.y, self.z (Q10 g)."""
         k = self.k
-        ux = (x << APPLY_FROM_SAMPLE_SHIFT) + k[6]
-        uy = (y << APPLY_FROM_SAMPLE_SHIFT) + k[7]
-        uz = (z << APPLY_FROM_SAMPLE_SHIFT) + k[8]
+        if self.kinds:
+            w = self.w
+            self._remove_effects(x, y, z)
+            ux = w[0] + k[6]
+            uy = w[1] + k[7]
+            uz = w[2] + k[8]
+        else:
+            ux = (x << APPLY_FROM_SAMPLE_SHIFT) + k[6]
+            uy = (y << APPLY_FROM_SAMPLE_SHIFT) + k[7]
+            uz = (z << APPLY_FROM_SAMPLE_SHIFT) + k[8]
         half = 1 << (APPLY_OUT_SHIFT - 1)
         self.x = (k[0] * ux + half) >> APPLY_OUT_SHIFT
         self.y = (k[3] * ux + k[1] * uy + half) >> APPLY_OUT_SHIFT
         self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> APPLY_OUT_SHIFT
+
+    def _remove_effects(self, x, y, z):
+        # The effects, last first (the reverse of the order they act in), in Q14; clamped to
+        # +-2.048 g (fixed.APPLY_W_MAX), into self.w.
+        w = self.w
+        w[0] = x << APPLY_FROM_SAMPLE_SHIFT
+        w[1] = y << APPLY_FROM_SAMPLE_SHIFT
+        w[2] = z << APPLY_FROM_SAMPLE_SHIFT
+        dT = self.temp - self.ref_temp
+        dt = self.time - self.ref_time
+        j = len(self.kinds) - 1
+        while j >= 0:
+            effects.correct_sample(self.kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)
+            j -= 1
+        for i in range(3):
+            if w[i] > APPLY_W_MAX:
+                w[i] = APPLY_W_MAX
+            elif w[i] < -APPLY_W_MAX:
+                w[i] = -APPLY_W_MAX
 
     def apply_samples(self, buf, start, n):
         """Correct n interleaved samples x y z ... of an int array in place, from sample `start`."""

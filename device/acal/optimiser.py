@@ -20,6 +20,7 @@ STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds")
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50
+COMPOSED_ITERATIONS = 200  # composed models: the effect terms converge more slowly
 
 
 class Optimiser:

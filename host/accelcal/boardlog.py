@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from acal import bins as dbins
+from acal import effects as deff
 from acal import fixed, log
 from acal.app import Processor
 from accelcal.io import InputError
@@ -17,13 +18,14 @@ from accelcal.io import InputError
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FIELDS = {
     log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
-               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref"),
+               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model"),
     log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
     log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
               "objective", *fixed.PARAM_NAMES),
     log.COUNTERS: ("index", "samples", "lost", "fifo_overruns", "bus_errors", "bus_retries",
                    "rest_segments", "rest_logged", "rest_skipped"),
     log.GAP: ("index", "lost"),
+    log.EFFECT: ("index", "effect", "ref_temp", "ref_time", "p0", "p1", "p2"),
 }
 
 
@@ -98,9 +100,11 @@ def run_capture(dirpath: str | Path, log_path: str | Path):
         raise InputError(f"{d}/log.bin: no BOOT record, cannot tell the board's settings")
     b = dict(zip(FIELDS[log.BOOT], cap.boot))
     lg = log.Log(str(log_path))
+    model = "+".join(["base"] + [deff.NAMES[k] for k in deff.model_kinds(b["model"])])
     proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                      threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
-                     max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"])
+                     max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
+                     model=model)
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])
@@ -129,7 +133,7 @@ def replay(dirpath: str | Path) -> dict:
     last_boot = max((i for i, (t, _) in enumerate(board.records) if t == log.BOOT), default=0)
     session = board.records[last_boot:]
     out = {"samples_replayed": end}
-    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal")):
+    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect")):
         theirs = [v for t, v in session if t == rtype and v[0] <= end]
         ours = mine.of(rtype)
         if rtype == log.CAL:  # the number counts calibrations before the capture began too
@@ -140,7 +144,7 @@ def replay(dirpath: str | Path) -> dict:
                      "first_difference": (diffs[0] if diffs else (min(len(theirs), len(ours))
                                                                  if len(theirs) != len(ours) else None))}
     out["identical"] = all(out[k]["differ"] == 0 and out[k]["board"] == out[k]["replay"]
-                           for k in ("rest", "cal"))
+                           for k in ("rest", "cal", "effect"))
     return out
 
 
@@ -149,11 +153,20 @@ def summary(dirpath: str | Path) -> dict:
     d = Path(dirpath)
     lg = decode(d / "log.bin")
     data = (d / "log.bin").read_bytes()
+    from accelcal.effects import CATALOGUE
     cals = lg.dicts(log.CAL)
+    effects = lg.dicts(log.EFFECT)
     for c in cals:
         for n in fixed.PARAM_NAMES:
             c[n] = c[n] / fixed.PARAM_ONE
         c["status"] = ("ok", "diverged", "too few points", "out of calibration bounds")[c["status"]]
+        for e in effects:  # a composed model's EFFECT records follow their CAL, same index
+            if e["index"] == c["index"] and e["effect"] in deff.NAMES:
+                eff = CATALOGUE[deff.NAMES[e["effect"]]]
+                vals = eff.from_int([e["p0"], e["p1"], e["p2"]]) * eff.scale
+                c.setdefault("effects", {})[eff.name] = {
+                    "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
+                    "ref_temp": e["ref_temp"], "ref_time_s": e["ref_time"] * deff.DT_UNIT_S}
     rests = lg.dicts(log.REST)
     for r in rests:
         for k in "xyz":

@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from acal import bins as dbins
+from acal import effects as deff
 from acal import fixed, optimiser
 from acal.model import Calibration
 from accelcal import methods, runtime
+from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import (InputError, Table, g_to_sample, params_record, params_to_float,
                          params_to_int, sample_rate, sample_to_g)
 
@@ -20,9 +22,12 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
         t = table.columns["t"]
         rate = sample_rate(t, table.path)
         gaps = np.flatnonzero(np.diff(t) > 1.5 / rate) + 1
-        return [runtime.Group("recording", samples=table.xyz, gaps=gaps)]
+        return [runtime.Group("recording", samples=table.xyz, gaps=gaps,
+                              temp=table.columns.get("temp"), t=t)]
+    temp = table.columns.get("temp")
+    t = table.columns.get("t")
     if not by:
-        return [runtime.Group("points", points=table.xyz)]
+        return [runtime.Group("points", points=table.xyz, temp=temp, t=t)]
     if by in table.text_columns:
         keys = table.text_columns[by]
     elif by in table.columns:
@@ -34,7 +39,8 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
         if not k or any(c.isspace() for c in k):
             raise InputError(f"{table.path}: {by} value {k!r} must be non-empty without spaces")
         sel = keys == k
-        groups.append(runtime.Group(k, points=table.xyz[sel]))
+        groups.append(runtime.Group(k, points=table.xyz[sel], temp=None if temp is None else temp[sel],
+                                    t=None if t is None else t[sel]))
     return groups
 
 
@@ -42,10 +48,36 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
     return " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts)) + f" (need >= {min_count} each)"
 
 
+def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
+    """Why the held points cannot fit a composed model's effects (the bins' spread rule), or
+    None."""
+    held = np.array([s[3:5] for s in r.selected_int], dtype=np.int64).reshape(-1, 2)
+    span = np.ptp(held, axis=0) if len(held) else np.zeros(2, dtype=np.int64)
+    for n in spec.effects:
+        need = CATALOGUE[n].needs
+        if need == "temp" and span[0] < dbins.TEMP_DIFFER:
+            return (f"{n}: the held points span {span[0]} degC of temperature, the fit needs "
+                    f">= {dbins.TEMP_DIFFER}")
+        if need == "t" and span[1] < dbins.TIME_DIFFER:
+            return (f"{n}: the held points span {span[1] * 64 / 3600:.1f} h, the fit needs "
+                    f">= {dbins.TIME_DIFFER * 64 / 3600:g} h")
+    return None
+
+
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
-                     runtime_name: str) -> list[dict]:
-    """One record per group; failed ones carry status 'failed' and a one-line reason."""
+                     runtime_name: str, spec: ModelSpec | None = None) -> list[dict]:
+    """One record per group; failed ones carry status 'failed' and a one-line reason.
+    spec: a composed model (fitted by the device method only); None is the paper's."""
+    spec = spec or ModelSpec(())
+    if spec.effects and method != "device":
+        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
+    cfg.kinds = spec.kinds
     groups = groups_from_table(table, by)
+    for g in groups:
+        try:
+            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
+        except ValueError as e:
+            raise InputError(str(e)) from None
     if table.kind == "recording":
         cfg.rate_hz = sample_rate(table.columns["t"], table.path)
         if cfg.rate_hz * cfg.seconds > fixed.SEGMENT_MAX_SAMPLES:
@@ -54,7 +86,7 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
     results = runtime.run(groups, cfg, runtime_name)
     out = []
     for g, r in zip(groups, results):
-        rec: dict = {"model": "base", "method": method, "runtime": runtime_name}
+        rec: dict = {"model": str(spec), "method": method, "runtime": runtime_name}
         if by:
             rec[by] = g.name
         rest = r.rest_g
@@ -66,6 +98,11 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
             what = (f"{len(g.samples)} samples gave {len(rest)} rest segments"
                     if g.samples is not None else f"{len(g.points)} points")
             rec.update(status="failed", reason=f"bins did not fill: {fill_report(r, cfg.min_count)}; {what}")
+            out.append(rec)
+            continue
+        why = spread_report(spec, r)
+        if why:
+            rec.update(status="failed", reason=f"bins filled but {why}")
             out.append(rec)
             continue
         if method == "device":
@@ -85,22 +122,55 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
                 out.append(rec)
                 continue
             rec["iterations"] = None
-        p = params_to_float(p_int)
-        rec.update(params_record(p_int, "base", method))
-        rec["status"] = "calibrated"
-        rec["error_after_mg"] = methods.calibration_error_mg(p, rest)
+        if spec.effects:
+            theta = spec.from_int(p_int)
+            ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+            cond = r.rest_conditions  # as the device saw them: int degC, 64 s units
+            a = spec.correct(theta, rest, cond[:, 0].astype(float),
+                             g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref)
+            rec.update(model=str(spec), method=method,
+                       scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                             "g, 1/degC, g/day, 1/g",
+                       params_int=dict(zip(spec.param_names, map(int, p_int))),
+                       params=dict(zip(spec.param_names, theta.tolist())), reference=ref)
+            rec["status"] = "calibrated"
+            rec["error_after_mg"] = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+        else:
+            p = params_to_float(p_int)
+            rec.update(params_record(p_int, "base", method))
+            rec["status"] = "calibrated"
+            rec["error_after_mg"] = methods.calibration_error_mg(p, rest)
         out.append(rec)
     return out
 
 
-def apply_to_samples(p_int: list[int], xyz_g: np.ndarray) -> np.ndarray:
-    """Calibrate samples with the device's own per-sample code (model.Calibration)."""
-    cal = Calibration()
+def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
+                     ref: dict | None = None, source: str = "recording") -> np.ndarray:
+    """Calibrate samples with the device's own per-sample code (model.Calibration).  A composed
+    model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
+    the device sees them as int degC and 64 s units from t0."""
+    spec = ModelSpec.parse(model)
+    cal = Calibration(spec.kinds)
+    ref_temp = int(round(ref["T0"])) if spec.effects else 0
     try:
-        cal.set(p_int)
+        cal.set(p_int, ref_temp, 0)
     except ValueError:
         raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
-                         "|misalignment| <= 0.125, |offset| <= 0.25 g)") from None
+                         "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
+                         "bounds)") from None
     buf = g_to_sample(xyz_g).ravel().tolist()
-    cal.apply_samples(buf, 0, len(buf) // 3)
+    n = len(buf) // 3
+    if not spec.effects:
+        cal.apply_samples(buf, 0, n)
+    else:
+        if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+            raise InputError(f"model {spec} needs a temperature column; {source} has none")
+        cond = np.zeros((n, 2), dtype=np.int64)
+        if temp is not None:
+            cond[:, 0] = np.rint(temp)
+        cond[:, 1] = np.floor((np.asarray(t) - ref["t0"]) / deff.DT_UNIT_S)
+        cuts = np.r_[0, np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1, n]
+        for a, b in zip(cuts[:-1], cuts[1:]):  # runs of equal conditions, as the app's blocks
+            cal.temp, cal.time = int(cond[a, 0]), int(cond[a, 1])
+            cal.apply_samples(buf, int(a), int(b - a))
     return sample_to_g(np.array(buf, dtype=np.int64).reshape(-1, 3))

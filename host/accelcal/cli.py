@@ -44,40 +44,48 @@ def _add_pipeline_args(p):
     g.add_argument("--threshold", type=float, default=0.12, help="max-min rest threshold, g (default 0.12)")
     g.add_argument("--axis", choices="xyz", default="x", help="axis for the rest test (default x)")
     g.add_argument("--min-count", type=_positive_int, default=2, help="points per subset to calibrate (default 2)")
-    g.add_argument("--max-count", type=_positive_int, default=2, help="points kept per subset (default 2)")
+    g.add_argument("--max-count", type=_positive_int, default=None,
+                   help="points kept per subset (default 2; 4 for a composed model)")
     g.add_argument("--differ", type=float, default=0.1,
                    help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
     g.add_argument("--select", choices=["centre", "first"], default="centre",
                    help="point selection once a subset is full: centre (replace by better-placed points) "
                         "or first (first come, as printed in the paper)")
-    g.add_argument("--iterations", type=_positive_int, default=50, help="optimiser iterations M (default 50)")
+    g.add_argument("--iterations", type=_positive_int, default=None,
+                   help="optimiser iterations M (default 50; 200 for a composed model)")
     g.add_argument("--rates", type=_rates, default=(3, 8, 2), metavar="S,M,O",
                    help="learning rates for scale, misalignment, offset, multiples of 0.1 "
                         "(default 0.3,0.8,0.2, the paper's)")
 
 
-def _config(args):
+def _config(args, composed=False):
+    from acal.app import COMPOSED_MAX_COUNT
+    from acal.optimiser import COMPOSED_ITERATIONS, DEFAULT_ITERATIONS
     from accelcal.runtime import Config
-    if args.max_count < args.min_count:
+    iterations = args.iterations or (COMPOSED_ITERATIONS if composed else DEFAULT_ITERATIONS)
+    max_count = args.max_count or (COMPOSED_MAX_COUNT if composed else 2)
+    if max_count < args.min_count:
         raise InputError("--max-count must be >= --min-count")
     return Config(seconds=args.seconds, threshold_g=args.threshold, axis="xyz".index(args.axis),
-                  min_count=args.min_count, max_count=args.max_count, differ_g=args.differ,
-                  policy=args.select, iterations=args.iterations, rates_tenths=args.rates)
+                  min_count=args.min_count, max_count=max_count, differ_g=args.differ,
+                  policy=args.select, iterations=iterations, rates_tenths=args.rates)
 
 
 def cmd_calibrate(args) -> int:
     from accelcal.calibrate import calibrate_groups
+    from accelcal.effects import ModelSpec
     from accelcal.io import read_table, save_params
-    if args.model != "base":
+    try:
+        spec = ModelSpec.parse(args.model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if spec.effects and args.method not in ("device", "lsq"):
+        raise InputError(f"model {spec}: composed models are fitted by --method device (the "
+                         "device's integer optimiser) or lsq (float, on all rest points)")
+    if spec.effects and args.method == "lsq":
         from accelcal.diagnose import calibrate_model
-        from accelcal.effects import ModelSpec
-        try:
-            ModelSpec.parse(args.model)
-        except ValueError as e:
-            raise InputError(str(e)) from None
-        if args.method != "lsq" or args.by:
-            raise InputError(f"model {args.model}: composed models are fitted by --method lsq on "
-                             "all rest points (the device optimiser fits base only in this version)")
+        if args.by:
+            raise InputError(f"model {spec}: --by applies to --method device for composed models")
         r = calibrate_model(args.input, args.model)
         print(json.dumps(r) if args.json else
               f"calibrated {r['model']} by lsq on {r['points']} rest points\n  "
@@ -87,7 +95,8 @@ def cmd_calibrate(args) -> int:
             save_params(args.save, r)
         return 0
     table = read_table(args.input)
-    recs = calibrate_groups(table, args.by, _config(args), args.method, args.runtime)
+    recs = calibrate_groups(table, args.by, _config(args, bool(spec.effects)), args.method,
+                            args.runtime, spec)
     failed = [r for r in recs if r["status"] != "calibrated"]
     for r in recs:
         if args.json:
@@ -110,20 +119,23 @@ def _print_record(r, by):
         print(f"{head}FAILED: {r['reason']}")
         return
     it = f", {r['iterations']} iterations" if r.get("iterations") else ""
-    print(f"{head}calibrated by {r['method']} ({r['runtime']}) on {r['points']} points "
+    print(f"{head}calibrated {r['model']} by {r['method']} ({r['runtime']}) on {r['points']} points "
           f"of {r['rest_points']} rest points{it}")
-    print("  " + "  ".join(f"{k}={v:+.5f}" for k, v in r["params"].items()))
+    print("  " + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
+    if "reference" in r:
+        print(f"  reference: {r['reference']['T0']:g} degC, t = {r['reference']['t0']:g} s")
     print(f"  calibration error: {r['error_before_mg']:.2f} mg before -> {r['error_after_mg']:.2f} mg after")
 
 
 def cmd_apply(args) -> int:
     from accelcal.calibrate import apply_to_samples
     from accelcal.io import load_params, read_table, write_csv
-    p_int = load_params(args.params, args.device)
+    model, p_int, ref = load_params(args.params, args.device)
     table = read_table(args.input)
     if table.kind != "recording":
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp])")
-    a = apply_to_samples(p_int, table.xyz)
+    a = apply_to_samples(p_int, table.xyz, model, table.columns.get("temp"), table.columns["t"],
+                         ref, table.path)
     cols = [table.columns["t"], a[:, 0], a[:, 1], a[:, 2]]
     header = ["t", "x", "y", "z"]
     fmt = ["%.6f", "%.6f", "%.6f", "%.6f"]
@@ -192,6 +204,12 @@ def _app_settings(args) -> dict:
         s["fifo"] = True
     if args.recal_hours is not None:
         s["recal_seconds"] = int(args.recal_hours * 3600)
+    if args.model != "base":
+        from accelcal.effects import ModelSpec
+        try:
+            s["model"] = str(ModelSpec.parse(args.model))
+        except ValueError as e:
+            raise InputError(str(e)) from None
     return s
 
 
@@ -233,6 +251,10 @@ def _print_summary(s, where):
         vals = " ".join(f"{n}={cal[n]:+.4f}" for n in ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"))
         print(f"  calibration {cal['number']} at sample {cal['index']}: {cal['status']}, "
               f"{cal['iterations']} iterations, {cal['points']} points: {vals}")
+        for name, e in cal.get("effects", {}).items():
+            vals = " ".join(f"{n}={v:+.4g}" for n, v in e["params"].items())
+            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, "
+                  f"{e['ref_time_s']} s of running time")
     if s["stored_calibration"]:
         print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
     for d in s["dropped"]:
@@ -246,8 +268,10 @@ def cmd_replay(args) -> int:
         print(json.dumps(r))
     else:
         print(f"replayed {r['samples_replayed']} samples of {args.dir}/capture.bin through the current device modules")
-        for k in ("rest", "cal"):
+        for k in ("rest", "cal", "effect"):
             d = r[k]
+            if k == "effect" and not d["board"] and not d["replay"]:
+                continue  # the paper's model: no effect records
             first = "" if d["first_difference"] is None else f", first difference at record {d['first_difference']}"
             print(f"  {k:4s}: board {d['board']}, replay {d['replay']}, differing {d['differ']}{first}")
         print("identical" if r["identical"] else "DIFFERENT: the device code no longer does what the board did")
@@ -286,7 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="recording or points CSV")
     p.add_argument("--model", default="base",
                    help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
-                        "(temp_offset, temp_scale, drift, nonlinear; with --method lsq)")
+                        "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
+                        "A composed device fit keeps 4 points per subset spread in temperature (>= 3 degC) "
+                        "and time (>= 12 h) and runs 200 iterations")
     p.add_argument("--method", choices=["device", "lsq", "linauto"], default="device",
                    help="device: the integer optimiser (default); lsq: float least squares; "
                         "linauto: Gietzelt 2013")
@@ -371,6 +397,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
         g.add_argument("--fifo", action="store_true", help="read the FIFO (10 bits) instead of the registers")
         g.add_argument("--recal-hours", type=float, help="least time between calibrations (default 6)")
+        g.add_argument("--model", default="base",
+                       help="the model the board fits and applies: base (the paper's) or a composed "
+                            "one such as base+temp_offset (what `accelcal diagnose` named)")
 
     p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "

@@ -36,8 +36,6 @@ from accelcal.io import InputError, g_to_sample, read_table, sample_rate
 BLOCK_S = 2 * 3600
 MIN_IMPROVEMENT_PCT = 10.0
 MIN_BLOCK_SHARE = 0.7
-MIN_TEMP_SPREAD_C = 3.0
-MIN_TIME_SPAN_H = 12.0
 
 
 @dataclass
@@ -95,20 +93,10 @@ def usable(p: RestPoints) -> RestPoints:
 
 def check_model(spec: ModelSpec, p: RestPoints) -> None:
     """Exit-2 reasons for a model the data cannot support."""
-    for n in spec.effects:
-        e = CATALOGUE[n]
-        if e.needs == "temp":
-            if p.temp is None:
-                raise InputError(f"{n} needs a temperature column; {p.source} has none")
-            spread = float(np.ptp(p.temp))
-            if spread < MIN_TEMP_SPREAD_C:
-                raise InputError(f"{n} needs >= {MIN_TEMP_SPREAD_C:g} degC of temperature spread across "
-                                 f"rest points; {p.source} has {spread:.1f} degC")
-        if e.needs == "t":
-            span = float(np.ptp(p.t)) / 3600
-            if span < MIN_TIME_SPAN_H:
-                raise InputError(f"{n} needs rest points spanning >= {MIN_TIME_SPAN_H:g} h; "
-                                 f"{p.source} spans {span:.1f} h")
+    try:
+        spec.check_data(p.temp, p.t, p.source)
+    except ValueError as e:
+        raise InputError(str(e)) from None
 
 
 def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
@@ -123,7 +111,10 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
 
 
 def refs(p: RestPoints) -> dict:
-    return {"T0": float(np.mean(p.temp)) if p.temp is not None else 0.0, "t0": float(p.t.min())}
+    """The effects' reference: mean temperature rounded to a whole degC (the device's resolution:
+    a saved lsq model applies there exactly), first time."""
+    return {"T0": float(np.round(np.mean(p.temp))) if p.temp is not None else 0.0,
+            "t0": float(p.t.min())}
 
 
 def fit(spec: ModelSpec, p: RestPoints, ref: dict) -> np.ndarray:
@@ -312,10 +303,7 @@ def calibrate_model(path: str, model: str) -> dict:
     ref = refs(p)
     theta = fit(spec, p, ref)
     a, r = residuals(spec, theta, p, ref)
-    from accelcal.io import params_to_int
-    p_int = params_to_int(theta[:9])
-    for k, n in enumerate(spec.effects):  # the device's integers (device/acal/effects.py)
-        p_int += CATALOGUE[n].to_int(theta[9 + 3 * k: 12 + 3 * k])
+    p_int = spec.to_int(theta)  # the device's integers (device/acal/effects.py)
     return {"model": str(spec), "method": "lsq", "status": "calibrated",
             "params": dict(zip(spec.param_names, theta.tolist())),
             "params_int": dict(zip(spec.param_names, p_int)), "reference": ref,

@@ -139,6 +139,49 @@ class ModelSpec:
         from acal.fixed import PARAM_NAMES
         return list(PARAM_NAMES) + [p for n in self.effects for p in CATALOGUE[n].param_names]
 
+    @property
+    def kinds(self) -> tuple[int, ...]:
+        """The device's effect ids (acal.effects), in order."""
+        return tuple(CATALOGUE[n].kind for n in self.effects)
+
+    def to_int(self, theta) -> list[int]:
+        """Float parameters (9 + 3 per effect) -> the device's Q24 integers."""
+        from accelcal.io import params_to_int
+        out = params_to_int(theta[:9])
+        for k, n in enumerate(self.effects):
+            out += CATALOGUE[n].to_int(theta[9 + 3 * k: 12 + 3 * k])
+        return out
+
+    def from_int(self, p_int) -> np.ndarray:
+        """The device's integers -> float parameters (g, 1/degC, g/day, 1/g)."""
+        from accelcal.io import params_to_float
+        parts = [params_to_float(p_int[:9])]
+        for k, n in enumerate(self.effects):
+            parts.append(CATALOGUE[n].from_int(p_int[9 + 3 * k: 12 + 3 * k]))
+        return np.concatenate(parts)
+
+    def check_data(self, temp, t, source: str) -> None:
+        """ValueError, one line, when the data cannot support the model: a temperature effect
+        without temperatures or with too little spread, a drift over too short a span.  The
+        thresholds are the device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
+        from acal import bins as dbins
+        need_temp = dbins.TEMP_DIFFER
+        need_h = dbins.TIME_DIFFER * 64 / 3600
+        for n in self.effects:
+            e = CATALOGUE[n]
+            if e.needs == "temp":
+                if temp is None:
+                    raise ValueError(f"{n} needs a temperature column; {source} has none")
+                spread = float(np.ptp(temp)) if len(temp) else 0.0
+                if spread < need_temp:
+                    raise ValueError(f"{n} needs >= {need_temp:g} degC of temperature spread across "
+                                     f"rest points; {source} has {spread:.1f} degC")
+            if e.needs == "t":
+                span = float(np.ptp(t)) / 3600 if t is not None and len(t) else 0.0
+                if span < need_h:
+                    raise ValueError(f"{n} needs rest points spanning >= {need_h:g} h; "
+                                     f"{source} spans {span:.1f} h")
+
     def correct(self, theta, v, temp, t, ref):
         """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect)."""
         from accelcal.methods import correct as base_correct

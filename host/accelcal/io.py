@@ -155,8 +155,9 @@ def save_params(path: str, record: dict) -> None:
     Path(path).write_text(json.dumps(record, indent=2) + "\n")
 
 
-def load_params(path: str, device: str | None = None) -> list[int]:
-    """Integer parameters from a saved file; `device` picks one from a `calibrate --by` file."""
+def load_params(path: str, device: str | None = None) -> tuple[str, list[int], dict]:
+    """(model spec, integer parameters, reference) from a saved file; `device` picks one from a
+    `calibrate --by` file.  The reference (T0 degC, t0 s) is a composed model's; {} for base."""
     try:
         rec = json.loads(Path(path).read_text())
     except OSError as e:
@@ -174,11 +175,22 @@ def load_params(path: str, device: str | None = None) -> list[int]:
         rec = rec["devices"][names.index(device)]
     elif device is not None:
         raise InputError(f"{path} holds one calibration; --device applies to calibrate --by files")
+    from accelcal.effects import ModelSpec
+    try:
+        spec = ModelSpec.parse(str(rec.get("model", "base")))
+    except ValueError as e:
+        raise InputError(f"{path}: {e}") from None
+    names = spec.param_names
     try:
         pi = rec["params_int"]
-        return [int(pi[n]) for n in fixed.PARAM_NAMES]
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{path}: needs params_int with {', '.join(fixed.PARAM_NAMES)}") from None
+        p_int = [int(pi[n]) for n in names]
+        ref = {k: float(v) for k, v in rec["reference"].items()} if spec.effects else {}
+        if spec.effects and not {"T0", "t0"} <= set(ref):
+            raise KeyError("reference")
+    except (KeyError, TypeError, ValueError, AttributeError):
+        extra = " and reference {T0, t0}" if spec.effects else ""
+        raise InputError(f"{path}: needs params_int with {', '.join(names)}{extra}") from None
+    return str(spec), p_int, ref
 
 
 def write_csv(path: str, header: list[str], columns: list[np.ndarray], fmt: list[str]) -> None:

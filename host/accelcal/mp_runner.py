@@ -5,17 +5,21 @@
 #
 # Input lines (integers, space separated):
 #   C rate seconds threshold axis min_count max_count differ policy iterations a_s a_m a_o
+#     [kind ...]           the effects of a composed model (acal.effects ids), if any
 #   G name                 start a group (a device): a fresh pipeline
+#   T temp time            conditions of what follows: degC, 64 s units (composed models)
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
 #   X                      a gap in the samples: the open segment is dropped
 #   E                      end of group: calibrate and report
 # Output lines:
 #   G name
-#   R x y z subset         every rest mean (Q16 g) and the subset that kept it (-1: not kept)
-#   K c0 ... c8            points per subset
-#   S x y z                every point the bins hold at the end (Q16 g)
-#   F status iterations objective_start objective p0 ... p8
+#   R x y z subset temp time   every rest mean (Q16 g), the subset that kept it (-1: not kept)
+#                              and the conditions it was seen at
+#   K c0 ... c8                points per subset
+#   S x y z temp time          every point the bins hold at the end (Q16 g)
+#   Z ref_temp ref_time        the fit's reference conditions (composed models)
+#   F status iterations objective_start objective p0 ... p8 [3 per effect]
 import sys
 
 from acal.pipeline import Pipeline
@@ -39,24 +43,29 @@ def run(lines, emit):
             pipe.add_samples(buf, 0, n)
         elif tag == "X":
             pipe.rest.reset()
+        elif tag == "T":
+            pipe.temp = int(f[1])
+            pipe.time = int(f[2])
         elif tag == "P":
             pipe.offer(int(f[1]), int(f[2]), int(f[3]))
         elif tag == "G":
             emit("G " + f[1])
 
             def on_rest(x, y, z, s):
-                emit("R %d %d %d %d" % (x, y, z, s))
+                emit("R %d %d %d %d %d %d" % (x, y, z, s, pipe.temp, pipe.time))
 
             pipe = Pipeline(cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7],
-                            cfg[8], on_rest, (cfg[9], cfg[10], cfg[11]))
+                            cfg[8], on_rest, (cfg[9], cfg[10], cfg[11]), cfg[12:])
         elif tag == "E":
             emit("K " + " ".join([str(c) for c in pipe.bins.counts]))
             for s in range(9):
                 for k in range(pipe.bins.counts[s]):
                     x, y, z = pipe.bins.point(s, k)
-                    emit("S %d %d %d" % (x, y, z))
+                    temp, time = pipe.bins.condition(s, k)
+                    emit("S %d %d %d %d %d" % (x, y, z, temp, time))
             status = pipe.calibrate()
             o = pipe.optimiser
+            emit("Z %d %d" % (pipe.ref_temp, pipe.ref_time))
             emit("F %d %d %d %d " % (status, o.iterations, o.objective_start, o.objective)
                  + " ".join([str(v) for v in o.p]))
         elif tag == "C":

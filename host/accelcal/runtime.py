@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from acal import bins as dbins
+from acal import effects as deff
 from acal import fixed, optimiser, rest
 from accelcal import mp_runner
 from accelcal.io import InputError, g_to_point, g_to_sample
@@ -36,6 +37,7 @@ class Config:
     policy: str = "centre"
     iterations: int = optimiser.DEFAULT_ITERATIONS
     rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
+    kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
 
     def line(self) -> str:
         pol = {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy]
@@ -43,17 +45,34 @@ class Config:
         dif = int(round(self.differ_g * fixed.POINT_ONE_G))
         return (f"C {self.rate_hz} {self.seconds} {thr} {self.axis} {self.min_count} "
                 f"{self.max_count} {dif} {pol} {self.iterations} "
-                + " ".join(map(str, self.rates_tenths)))
+                + " ".join(map(str, self.rates_tenths + tuple(self.kinds))))
 
 
 @dataclass
 class Group:
     """One device's data: rest points (N x 3, g) or samples (N x 3, g) with gaps (indices
-    where a new contiguous run starts)."""
+    where a new contiguous run starts); for a composed model each point or sample's temperature
+    (degC) and time (s) - the device sees them as ints: degC rounded, 64 s units since the
+    group's first time."""
     name: str
     points: np.ndarray | None = None
     samples: np.ndarray | None = None
     gaps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    temp: np.ndarray | None = None
+    t: np.ndarray | None = None
+
+    @property
+    def t_first(self) -> float:
+        return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
+
+    def conditions(self, n: int) -> np.ndarray:
+        """(n, 2) ints: temperature (degC) and time (64 s units), as the device reads them."""
+        out = np.zeros((n, 2), dtype=np.int64)
+        if self.temp is not None:
+            out[:, 0] = np.rint(self.temp)
+        if self.t is not None:
+            out[:, 1] = np.floor((self.t - self.t_first) / deff.DT_UNIT_S)
+        return out
 
 
 @dataclass
@@ -65,8 +84,10 @@ class DeviceResult:
     objective: int = 0
     params_int: list[int] = field(default_factory=list)
     counts: list[int] = field(default_factory=list)
-    rest_int: list[tuple[int, int, int, int]] = field(default_factory=list)
-    selected_int: list[tuple[int, int, int]] = field(default_factory=list)
+    rest_int: list[tuple[int, ...]] = field(default_factory=list)      # x y z subset temp time
+    selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time
+    ref_temp: int = 0
+    ref_time: int = 0
 
     @property
     def status_name(self) -> str:
@@ -78,23 +99,43 @@ class DeviceResult:
 
     @property
     def selected_g(self) -> np.ndarray:
-        return np.array(self.selected_int, dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+        return np.array([r[:3] for r in self.selected_int], dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+    @property
+    def rest_conditions(self) -> np.ndarray:
+        """(N, 2) ints: each rest mean's temperature (degC) and time (64 s units)."""
+        return np.array([r[4:6] for r in self.rest_int], dtype=np.int64).reshape(-1, 2)
 
 
 def protocol_lines(groups: list[Group], cfg: Config):
     """The integer lines both runtimes read."""
     yield cfg.line()
+    composed = bool(cfg.kinds)
     for g in groups:
         yield f"G {g.name}"
         if g.points is not None:
-            for x, y, z in g_to_point(g.points).tolist():
+            cond = g.conditions(len(g.points)).tolist()
+            last = None
+            for (x, y, z), c in zip(g_to_point(g.points).tolist(), cond):
+                if composed and c != last:
+                    yield f"T {c[0]} {c[1]}"
+                    last = c
                 yield f"P {x} {y} {z}"
         if g.samples is not None:
             q = g_to_sample(g.samples)
-            bounds = [0, *[int(i) for i in g.gaps if 0 < i < len(q)], len(q)]
+            n = len(q)
+            gaps = {int(i) for i in g.gaps if 0 < i < n}
+            cuts = set(gaps)
+            if composed:  # a new run wherever the conditions change, led by a T line
+                cond = g.conditions(n)
+                change = np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1
+                cuts.update(change.tolist())
+            bounds = [0, *sorted(cuts), n]
             for a, b in zip(bounds[:-1], bounds[1:]):
-                if a > 0:
+                if a in gaps:
                     yield "X"
+                if composed:
+                    yield f"T {cond[a, 0]} {cond[a, 1]}"
                 for s in range(a, b, BATCH):
                     chunk = q[s:min(b, s + BATCH)]
                     yield f"B {len(chunk)} " + " ".join(map(str, chunk.ravel().tolist()))
@@ -113,9 +154,11 @@ def parse(out_lines) -> list[DeviceResult]:
             cur = DeviceResult(f[1])
             results.append(cur)
         elif tag == "R":
-            cur.rest_int.append(tuple(int(v) for v in f[1:5]))
+            cur.rest_int.append(tuple(int(v) for v in f[1:7]))
         elif tag == "S":
-            cur.selected_int.append(tuple(int(v) for v in f[1:4]))
+            cur.selected_int.append(tuple(int(v) for v in f[1:6]))
+        elif tag == "Z":
+            cur.ref_temp, cur.ref_time = int(f[1]), int(f[2])
         elif tag == "K":
             cur.counts = [int(v) for v in f[1:]]
         elif tag == "F":

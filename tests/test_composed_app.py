@@ -1,0 +1,144 @@
+"""A composed model on the device app (simulated LIS3DH, CPython): the bins gather points spread
+in temperature, the integer fit finds the temp_offset effect, CAL and EFFECT records are logged,
+the host replay reproduces them, the stored calibration resumes after a reboot, and the
+per-sample apply removes the effect as the float model does (bit-identical and allocation-free
+under MicroPython)."""
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from accelcal import boardlog, simulate
+from accelcal.effects import CATALOGUE, ModelSpec
+from accelcal.stimulus import write_stimulus
+from conftest import ROOT, run_both
+
+sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
+from simboard import SimBoard  # noqa: E402
+
+from acal import effects as deff  # noqa: E402
+from acal import log  # noqa: E402
+from acal.app import App, Processor  # noqa: E402
+from acal.model import Calibration  # noqa: E402
+
+RATE = 25
+TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
+C_TRUE = np.array([0.0008, -0.0006, 0.0005])  # g/degC: temp_offset, on the LIS3DH's scale
+SPEC = ModelSpec.parse("base+temp_offset")
+REF = {"T0": 25.0, "t0": 0.0}  # the simulated chip's OUT_ADC3 reads 0 at 25 degC
+
+
+def stimulus(path, rng, n_rest=160, rest_s=8, move_s=4):
+    """Rest at random orientations and temperatures (22-38 degC) between moves."""
+    parts, temps = [], []
+    e = CATALOGUE["temp_offset"]
+    for d in simulate.unit_points(rng, n_rest):
+        temp = float(rng.integers(22, 39))
+        v = simulate.uncorrect(TRUTH, d[None, :])
+        v = e.measure(v, C_TRUE, np.array([temp]), None, REF)[0]
+        parts.append(v + rng.normal(scale=0.0016, size=(RATE * rest_s, 3)))
+        parts.append(v + rng.normal(scale=0.3, size=(RATE * move_s, 3)))
+        temps += [temp] * (RATE * (rest_s + move_s))
+    write_stimulus(path, RATE, np.clip(np.concatenate(parts), -1.9, 1.9), np.array(temps))
+
+
+@pytest.fixture(scope="module")
+def ran(tmp_path_factory):
+    d = tmp_path_factory.mktemp("composed_app")
+    stimulus(d / "stim.bin", np.random.default_rng(7))
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        app = App(SimBoard(str(d / "stim.bin")), rate_hz=RATE, capture_bytes=1 << 24,
+                  recal_seconds=600, model="base+temp_offset")
+        app.run(10 ** 6)
+    finally:
+        os.chdir(cwd)
+    return d, app
+
+
+def last_ok(d):
+    lg = boardlog.decode(d / "log.bin")
+    cals, effs = lg.dicts(log.CAL), lg.dicts(log.EFFECT)
+    assert len(cals) == len(effs) >= 2  # one EFFECT per CAL for a one-effect model
+    ok = [(c, e) for c, e in zip(cals, effs) if c["status"] == 0]
+    assert ok and all(c["index"] == e["index"] for c, e in zip(cals, effs))
+    return ok[-1]
+
+
+def test_the_board_fits_the_effect_in_integers(ran):
+    d, app = ran
+    c, e = last_ok(d)
+    assert c["points"] == 36 and c["iterations"] == 200
+    k = np.array([c[n] for n in ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")]) / 2 ** 24
+    assert np.abs(k - TRUTH).max() < 0.01
+    # c at the board's reference (the held points' middle temperature), in g/degC.
+    cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
+    assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
+    held = app.proc.pipe.bins
+    assert held.temp_span() >= 3 and held.total() == 36  # the spread the fit needs, kept
+
+
+def test_replay_reproduces_cal_and_effect_records(ran):
+    d, _ = ran
+    r = boardlog.replay(d)
+    assert r["identical"], r
+    assert r["effect"]["board"] == r["cal"]["board"] >= 2
+
+
+def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
+    d, app = ran
+    store = log.CalStore(str(d / "cal_a.bin"), str(d / "cal_b.bin"))
+    lg = log.Log(str(tmp_path / "log.bin"))
+    proc = Processor(lg, RATE, store=store, model="base+temp_offset")
+    assert proc.params == app.proc.params and proc.calibrations == app.proc.calibrations
+    c, e = last_ok(d)
+    assert proc.calibration.ref_temp == e["ref_temp"]
+    assert proc.calibration.ref_time == e["ref_time"] - c["index"] // (64 * RATE)
+    other = Processor(log.Log(str(tmp_path / "log2.bin")), RATE, store=store)  # flashed as base
+    assert other.calibrations == 0
+
+
+def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
+    _, app = ran
+    cal = app.proc.calibration
+    theta = SPEC.from_int(app.proc.params)
+    v = rng.uniform(-1.5, 1.5, (300, 3))
+    temps = cal.ref_temp + rng.integers(-15, 16, 300)  # |dT| within the apply's +-32 degC clamp
+    got = []
+    for (x, y, z), temp in zip(np.rint(v * 1024).astype(int).tolist(), temps.tolist()):
+        cal.temp = temp
+        cal.apply(x, y, z)
+        got.append((cal.x, cal.y, cal.z))
+    want = SPEC.correct(theta, np.rint(v * 1024) / 1024, temps.astype(float), None,
+                        {"T0": float(cal.ref_temp), "t0": 0.0})
+    assert np.abs(np.array(got) / 1024 - want).max() < 0.0012  # Q10 out: rounding only
+
+
+APPLY_SCRIPT = r'''
+from acal import effects
+from acal.model import Calibration
+kinds = (1, 3, 4)
+cal = Calibration(kinds)
+p = [16777216 + rnd(800000), 16777216 + rnd(800000), 16777216 + rnd(800000),
+     rnd(200000), rnd(200000), rnd(200000), rnd(900000), rnd(900000), rnd(900000)]
+for k in kinds:
+    p += [rnd(effects.BOUNDS[k]) for _ in range(3)]
+cal.set(p, 30, 5000)
+buf = [rnd(2097) for _ in range(3 * 500)]
+for j in range(10):
+    cal.temp = rnd(60) + 30
+    cal.time = 5000 + rnd(1 << 21)
+    if micropython:  # MicroPython: a MemoryError if the per-sample path allocates
+        micropython.heap_lock()
+    cal.apply_samples(buf, 50 * j, 50)
+    if micropython:
+        micropython.heap_unlock()
+print(" ".join([str(v) for v in buf]))
+'''
+
+
+def test_composed_apply_is_allocation_free_and_identical_under_micropython(tmp_path):
+    mp, host = run_both(APPLY_SCRIPT, tmp_path)
+    assert mp.split() == host.split() and len(mp.split()) == 1500
