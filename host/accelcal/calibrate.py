@@ -49,19 +49,19 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
 
 
 def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
-    """Why the held points cannot fit a composed model's effects (the bins' spread rule), or
-    None."""
-    held = np.array([s[3:5] for s in r.selected_int], dtype=np.int64).reshape(-1, 2)
-    span = np.ptp(held, axis=0) if len(held) else np.zeros(2, dtype=np.int64)
+    """Why the bins, full in counts, are not ready for a composed model (their spread rule,
+    decided on the device), or None."""
+    if r.ready:
+        return None
     for n in spec.effects:
         need = CATALOGUE[n].needs
-        if need == "temp" and span[0] < dbins.TEMP_DIFFER:
-            return (f"{n}: the held points span {span[0]} degC of temperature, the fit needs "
+        if need == "temp" and r.temp_span < dbins.TEMP_DIFFER:
+            return (f"{n}: the held points span {r.temp_span} degC of temperature, the fit needs "
                     f">= {dbins.TEMP_DIFFER}")
-        if need == "t" and span[1] < dbins.TIME_DIFFER:
-            return (f"{n}: the held points span {span[1] * 64 / 3600:.1f} h, the fit needs "
+        if need == "t" and r.time_span < dbins.TIME_DIFFER:
+            return (f"{n}: the held points span {r.time_span * 64 / 3600:.1f} h, the fit needs "
                     f">= {dbins.TIME_DIFFER * 64 / 3600:g} h")
-    return None
+    return "the bins are not ready"
 
 
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
@@ -165,11 +165,8 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     else:
         if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
             raise InputError(f"model {spec} needs a temperature column; {source} has none")
-        cond = np.zeros((n, 2), dtype=np.int64)
-        if temp is not None:
-            cond[:, 0] = np.rint(temp)
-        cond[:, 1] = np.floor((np.asarray(t) - ref["t0"]) / deff.DT_UNIT_S)
-        cuts = np.r_[0, np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1, n]
+        cond = runtime.device_conditions(temp, t, ref["t0"], n)
+        cuts = np.r_[0, runtime.condition_changes(cond), n]
         for a, b in zip(cuts[:-1], cuts[1:]):  # runs of equal conditions, as the app's blocks
             cal.temp, cal.time = int(cond[a, 0]), int(cond[a, 1])
             cal.apply_samples(buf, int(a), int(b - a))

@@ -18,6 +18,7 @@
 #                              and the conditions it was seen at
 #   K c0 ... c8                points per subset
 #   S x y z temp time          every point the bins hold at the end (Q16 g)
+#   Y ready temp_span time_span   the bins' verdict (1/0) and the held points' spread
 #   Z ref_temp ref_time        the fit's reference conditions (composed models)
 #   F status iterations objective_start objective p0 ... p8 [3 per effect]
 import sys
@@ -63,6 +64,8 @@ def run(lines, emit):
                     x, y, z = pipe.bins.point(s, k)
                     temp, time = pipe.bins.condition(s, k)
                     emit("S %d %d %d %d %d" % (x, y, z, temp, time))
+            b = pipe.bins
+            emit("Y %d %d %d" % (1 if b.ready() else 0, b.temp_span(), b.time_span()))
             status = pipe.calibrate()
             o = pipe.optimiser
             emit("Z %d %d" % (pipe.ref_temp, pipe.ref_time))

@@ -66,13 +66,23 @@ class Group:
         return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
 
     def conditions(self, n: int) -> np.ndarray:
-        """(n, 2) ints: temperature (degC) and time (64 s units), as the device reads them."""
-        out = np.zeros((n, 2), dtype=np.int64)
-        if self.temp is not None:
-            out[:, 0] = np.rint(self.temp)
-        if self.t is not None:
-            out[:, 1] = np.floor((self.t - self.t_first) / deff.DT_UNIT_S)
-        return out
+        return device_conditions(self.temp, self.t, self.t_first, n)
+
+
+def device_conditions(temp, t, t0: float, n: int) -> np.ndarray:
+    """(n, 2) ints: temperature (degC, rounded) and time (64 s units from t0), as the device
+    reads them; zeros where a column is missing."""
+    out = np.zeros((n, 2), dtype=np.int64)
+    if temp is not None:
+        out[:, 0] = np.rint(temp)
+    if t is not None:
+        out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
+    return out
+
+
+def condition_changes(cond: np.ndarray) -> np.ndarray:
+    """Indices where a sample's conditions differ from the previous sample's."""
+    return np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1
 
 
 @dataclass
@@ -88,6 +98,9 @@ class DeviceResult:
     selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time
     ref_temp: int = 0
     ref_time: int = 0
+    ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
+    temp_span: int = 0       # of the held points: degC
+    time_span: int = 0       # 64 s units
 
     @property
     def status_name(self) -> str:
@@ -128,8 +141,7 @@ def protocol_lines(groups: list[Group], cfg: Config):
             cuts = set(gaps)
             if composed:  # a new run wherever the conditions change, led by a T line
                 cond = g.conditions(n)
-                change = np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1
-                cuts.update(change.tolist())
+                cuts.update(condition_changes(cond).tolist())
             bounds = [0, *sorted(cuts), n]
             for a, b in zip(bounds[:-1], bounds[1:]):
                 if a in gaps:
@@ -159,6 +171,8 @@ def parse(out_lines) -> list[DeviceResult]:
             cur.selected_int.append(tuple(int(v) for v in f[1:6]))
         elif tag == "Z":
             cur.ref_temp, cur.ref_time = int(f[1]), int(f[2])
+        elif tag == "Y":
+            cur.ready, cur.temp_span, cur.time_span = f[1] == "1", int(f[2]), int(f[3])
         elif tag == "K":
             cur.counts = [int(v) for v in f[1:]]
         elif tag == "F":
