@@ -8,22 +8,38 @@ from acal import bins as dbins
 from acal import effects as deff
 from acal import fixed, optimiser
 from acal.model import Calibration
-from accelcal import methods, runtime
+from accelcal import methods, runtime, vector
 from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import (InputError, Table, g_to_sample, params_record, params_to_float,
                          params_to_int, sample_rate, sample_to_g)
 
 
-def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
-    """Split a points file or recording into device groups."""
+CHUNK = 1 << 20   # samples per numpy chunk of the vectorised engine
+
+
+def groups_from_table(table: Table, by: str | None, engine: str = "device",
+                      cfg: runtime.Config | None = None) -> list[runtime.Group]:
+    """Split a points file or recording into device groups.  A recording with engine "vector":
+    the rest means found by the numpy twin of the device's detector (accelcal.vector), offered
+    to the device's bins in stream order; "device": every sample through the device modules."""
     if table.kind == "recording":
         if by:
             raise InputError(f"{table.path}: --by applies to points files; this is a recording")
         t = table.columns["t"]
         rate = sample_rate(t, table.path)
         gaps = np.flatnonzero(np.diff(t) > 1.5 / rate) + 1
-        return [runtime.Group("recording", samples=table.xyz, gaps=gaps,
-                              temp=table.columns.get("temp"), t=t)]
+        temp = table.columns.get("temp")
+        if engine == "vector":
+            q = g_to_sample(table.xyz)
+            seg = vector.rest_segments(q, cfg.rate_hz, cfg.seconds, cfg.threshold_int, cfg.axis,
+                                       gaps, CHUNK)
+            ends = seg.end[seg.still]
+            cond = runtime.device_conditions(None if temp is None else temp[ends], t[ends],
+                                             float(t[0]), len(ends))
+            return [runtime.Group("recording", points=seg.mean[seg.still] / fixed.POINT_ONE_G,
+                                  temp=None if temp is None else temp[ends], t=t[ends], cond=cond,
+                                  t_origin=float(t[0]), n_samples=len(q))]
+        return [runtime.Group("recording", samples=table.xyz, gaps=gaps, temp=temp, t=t)]
     temp = table.columns.get("temp")
     t = table.columns.get("t")
     if not by:
@@ -65,24 +81,25 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
 
 
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
-                     runtime_name: str, spec: ModelSpec | None = None) -> list[dict]:
+                     runtime_name: str, spec: ModelSpec | None = None,
+                     engine: str = "device") -> list[dict]:
     """One record per group; failed ones carry status 'failed' and a one-line reason.
     spec: a composed model (fitted by the device method only); None is the paper's."""
     spec = spec or ModelSpec(())
     if spec.effects and method != "device":
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
     cfg.kinds = spec.kinds
-    groups = groups_from_table(table, by)
-    for g in groups:
-        try:
-            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
-        except ValueError as e:
-            raise InputError(str(e)) from None
     if table.kind == "recording":
         cfg.rate_hz = sample_rate(table.columns["t"], table.path)
         if cfg.rate_hz * cfg.seconds > fixed.SEGMENT_MAX_SAMPLES:
             raise InputError(f"{table.path}: {cfg.seconds} s segments at {cfg.rate_hz} Hz exceed "
                              f"{fixed.SEGMENT_MAX_SAMPLES} samples")
+    groups = groups_from_table(table, by, engine, cfg)
+    for g in groups:
+        try:
+            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
+        except ValueError as e:
+            raise InputError(str(e)) from None
     results = runtime.run(groups, cfg, runtime_name)
     out = []
     for g, r in zip(groups, results):
@@ -95,8 +112,9 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
         rec["points"] = len(r.selected_int)
         rec["error_before_mg"] = methods.calibration_error_mg(None, rest)
         if min(r.counts) < cfg.min_count:
-            what = (f"{len(g.samples)} samples gave {len(rest)} rest segments"
-                    if g.samples is not None else f"{len(g.points)} points")
+            n_samples = len(g.samples) if g.samples is not None else g.n_samples
+            what = (f"{n_samples} samples gave {len(rest)} rest segments"
+                    if n_samples is not None else f"{len(g.points)} points")
             rec.update(status="failed", reason=f"bins did not fill: {fill_report(r, cfg.min_count)}; {what}")
             out.append(rec)
             continue

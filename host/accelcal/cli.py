@@ -15,8 +15,8 @@ from accelcal.io import InputError
 EPILOG_CAL = """\
 Input: a recording (CSV header t,x,y,z or t,x,y,z,temp; g and s) goes through rest detection,
 bins and the optimiser; a points file (CSV with x,y,z and optional temp,t,device) through bins and
-the optimiser.  The reference methods (lsq, linauto) are fitted on the points the device's bins
-selected.  Exit status 2 when any group fails (the reason is on stderr and in the JSON).
+the optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol)
+are fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.  Exit status 2 when any group fails (the reason is on stderr and in the JSON).
 """
 
 
@@ -95,8 +95,9 @@ def cmd_calibrate(args) -> int:
             save_params(args.save, r)
         return 0
     table = read_table(args.input)
+    engine = args.engine or ("device" if args.runtime == "micropython" else "vector")
     recs = calibrate_groups(table, args.by, _config(args, bool(spec.effects)), args.method,
-                            args.runtime, spec)
+                            args.runtime, spec, engine)
     failed = [r for r in recs if r["status"] != "calibrated"]
     for r in recs:
         if args.json:
@@ -293,6 +294,21 @@ def cmd_table2(args) -> int:
     return table2_main(args)
 
 
+def cmd_compare(args) -> int:
+    from accelcal.compare import compare_main
+    return compare_main(args, _config(args))
+
+
+def cmd_gietzelt(args) -> int:
+    from accelcal.gietzelt import gietzelt_main
+    return gietzelt_main(args)
+
+
+def cmd_table3(args) -> int:
+    from accelcal.table3 import table3_main
+    return table3_main(args)
+
+
 def cmd_bench(args) -> int:
     from accelcal.bench import bench_main
     return bench_main(args)
@@ -313,11 +329,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
                         "A composed device fit keeps 4 points per subset spread in temperature (>= 3 degC) "
                         "and time (>= 12 h) and runs 200 iterations")
-    p.add_argument("--method", choices=["device", "lsq", "linauto"], default="device",
-                   help="device: the integer optimiser (default); lsq: float least squares; "
-                        "linauto: Gietzelt 2013")
+    from accelcal.methods import METHODS
+    p.add_argument("--method", choices=["device", *METHODS], default="device",
+                   help="device: the integer optimiser (default); the float reference methods, "
+                        "fitted on the points the device's bins selected: "
+                        + "; ".join(f"{n}: {m.role}" for n, m in METHODS.items()))
     p.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython",
                    help="interpreter that runs the device modules (micropython: the real unix port)")
+    p.add_argument("--engine", choices=["vector", "device"], default=None,
+                   help="recordings: vector (default under cpython) finds rest segments with the "
+                        "numpy twin of the device's detector, bit-exact with it, and offers them "
+                        "to the device's bins; device (default under micropython) feeds every "
+                        "sample through the device modules, for regression testing device code")
     p.add_argument("--by", metavar="COLUMN", help="calibrate each value of COLUMN (e.g. device) separately")
     p.add_argument("--save", metavar="PARAMS.json", help="save the parameters (with --by: all devices)")
     p.add_argument("--json", action="store_true", help="one JSON object per group on stdout")
@@ -461,6 +484,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 
+    p = sub.add_parser("compare", help="every calibration method on the same data, one table",
+                       description="Rest points (the device's detector) split into training and "
+                                   "held-out parts (recordings: 2-hour blocks, even/odd; points "
+                                   "files without t: alternate points).  The device's bins and "
+                                   "optimiser run on the training part; every float method is "
+                                   "fitted on the points the bins selected (--train all: on every "
+                                   "training point).  All are scored on the held-out part: mean "
+                                   "| |a| - 1 g | in mg before and after, R (Farago eq. 21), fit "
+                                   "time measured in this run.  A method that cannot fit shows "
+                                   "its reason; the others still run.")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("--methods", metavar="M1,M2,...",
+                   help="default all: device," + ",".join(METHODS))
+    p.add_argument("--train", choices=["selected", "thinned", "all"], default="selected",
+                   help="what the float methods are fitted on: the device bins' selection (default, "
+                        "as Farago Table 3; thinned when the bins do not fill), the training points "
+                        "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
+                        "then costs O(points) per generation: minutes on days of data)")
+    p.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython",
+                   help="interpreter for the device method")
+    p.add_argument("--plots", metavar="DIR",
+                   help="write training_curve.png: held-out error against the number of training "
+                        "vectors per method (Gietzelt figure 3)")
+    p.add_argument("--json", action="store_true")
+    _add_pipeline_args(p)
+    p.set_defaults(func=cmd_compare)
+
     p = sub.add_parser("paper", help="reproduce the paper's results")
     psub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     q = psub.add_parser("table2", help="Farago 2024 Table 2 (simulation) beside ours",
@@ -477,6 +527,36 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=2024)
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_table2)
+
+    q = psub.add_parser("gietzelt", help="Gietzelt 2013: Table 4 simulation, unequal and misaligned axes",
+                        description="Section 2.3 (200 points on o = 2300, s = 500 counts, 1 %% jitter, "
+                                    "100 train / 100 test, ten passes) with every method beside the "
+                                    "paper's Table 4 and execution times (Table 3); section 3.5 "
+                                    "(unequal axes up to 1:2:3) and 3.6 (axes misaligned by up to 2 "
+                                    "degrees).")
+    q.add_argument("--passes", type=_positive_int, default=10)
+    q.add_argument("--jitter", type=float, default=1.0,
+                   help="total width of the uniform radial jitter, %% of the radius (default 1, "
+                        "i.e. +-0.5 %%: matches the spread of Table 4; 2 gives +-1 %%)")
+    q.add_argument("--seed", type=int, default=2013)
+    q.add_argument("--plots", metavar="DIR", help="write gietzelt_fig3.png (error against training vectors)")
+    q.add_argument("--json", action="store_true")
+    q.set_defaults(func=cmd_gietzelt)
+
+    q = psub.add_parser("farago-table3", help="Farago 2024 Table 3: four methods on simulated wrist data",
+                        description="Simulated wrist recordings, one per device; each through "
+                                    "`compare` with the device method, linauto (the non-iterative "
+                                    "method), lsq (fminunc's role) and de (LabVIEW's global search), "
+                                    "all fitted on the points the device's bins selected from the "
+                                    "training blocks and scored on the held-out blocks; the mean over "
+                                    "devices beside the paper's Table 3.")
+    q.add_argument("--devices", type=_positive_int, default=10, help="recordings (default 10, as the paper)")
+    q.add_argument("--days", type=float, default=3.0, help="days per recording (default 3)")
+    q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=10, help="Hz (default 10)")
+    q.add_argument("--seed", type=int, default=300)
+    q.add_argument("--keep", metavar="DIR", help="keep the simulated recordings here")
+    q.add_argument("--json", action="store_true")
+    q.set_defaults(func=cmd_table3)
 
     p = sub.add_parser("bench", help="timings and allocations under MicroPython and CPython",
                        description="Measured in one run: optimiser time (N=18, M=50) under both "

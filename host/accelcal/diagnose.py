@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 
 from acal.rest import RestDetector
 from accelcal.effects import CATALOGUE, ModelSpec
-from accelcal.io import InputError, g_to_sample, read_table, sample_rate
+from accelcal.io import InputError, Table, g_to_sample, read_table, sample_rate
 
 BLOCK_S = 2 * 3600
 MIN_IMPROVEMENT_PCT = 10.0
@@ -54,8 +54,10 @@ class RestPoints:
                           self.noise[sel], self.source)
 
 
-def rest_points(path: str, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
-    table = read_table(path)
+def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
+    """path: a file name, or a Table already read."""
+    table = path if isinstance(path, Table) else read_table(path)
+    path = table.path
     if table.kind == "points":
         c = table.columns
         n = len(table.xyz)

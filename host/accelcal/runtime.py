@@ -39,9 +39,14 @@ class Config:
     rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
     kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
 
+    @property
+    def threshold_int(self) -> int:
+        """The rest threshold as the device holds it, Q10 g."""
+        return int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
+
     def line(self) -> str:
         pol = {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy]
-        thr = int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
+        thr = self.threshold_int
         dif = int(round(self.differ_g * fixed.POINT_ONE_G))
         return (f"C {self.rate_hz} {self.seconds} {thr} {self.axis} {self.min_count} "
                 f"{self.max_count} {dif} {pol} {self.iterations} "
@@ -60,12 +65,22 @@ class Group:
     gaps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     temp: np.ndarray | None = None
     t: np.ndarray | None = None
+    # Rest means found on the host (accelcal.vector) stand for a recording: each point's device
+    # conditions as the closing sample of its segment had them, the recording's first time,
+    # and how many samples there were.
+    cond: np.ndarray | None = None
+    t_origin: float | None = None
+    n_samples: int | None = None
 
     @property
     def t_first(self) -> float:
+        if self.t_origin is not None:
+            return self.t_origin
         return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
 
     def conditions(self, n: int) -> np.ndarray:
+        if self.cond is not None:
+            return self.cond
         return device_conditions(self.temp, self.t, self.t_first, n)
 
 

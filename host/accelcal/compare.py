@@ -1,0 +1,230 @@
+"""`accelcal compare`: every calibration method on the same data, scored the same way.
+
+Rest points come from the device's own rest detector (as `diagnose`); they are split into a
+training part and a held-out part (recordings: 2-hour blocks, even train, odd held out, as
+`diagnose`; points files without a time column: alternate points).  The device's bins and
+integer optimiser run on the training part in stream order; by default every float method is
+fitted on the very points those bins selected (Farago 2024: "we used our method to collect and
+select the calibration points for each of the compared calibration algorithms"), or with
+--train all on every training rest point.  All are scored on the held-out part with the Table 3
+metric, mean | |a| - 1 g | in mg, before and after, and the improvement R (eq. 21).  Fit times
+are measured in this run, one fit each.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import optimiser
+from accelcal import methods, runtime
+from accelcal.diagnose import RestPoints, rest_points, split, usable
+from accelcal.io import InputError, params_to_float, read_table
+
+ALL = ["device"] + methods.ORDER
+CURVE_MAX = 1000   # training vectors: Gietzelt's figure 3 goes to ~300; de costs O(n) per step
+
+
+def parse_methods(text: str | None) -> list[str]:
+    if not text:
+        return list(ALL)
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n not in ALL]
+    if bad or not names:
+        raise InputError(f"unknown method {','.join(bad) or repr(text)}; choose from {','.join(ALL)}")
+    return list(dict.fromkeys(names))
+
+
+@dataclass
+class Split:
+    train: RestPoints
+    test: RestPoints
+    how: str
+
+
+def split_points(path: str) -> Split:
+    table = read_table(path)
+    p = usable(rest_points(table))
+    if table.kind == "recording" or "t" in table.columns:
+        train, test, _ = split(p)
+        how = "2-hour blocks: even train, odd held out"
+    else:
+        idx = np.arange(len(p))
+        train, test = p.take(idx % 2 == 0), p.take(idx % 2 == 1)
+        how = "alternate points: even train, odd held out"
+    if len(test) == 0 or len(train) == 0:
+        raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
+                         "both parts need points (a longer recording)")
+    return Split(train, test, how)
+
+
+def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"):
+    """The device's bins and optimiser on points in stream order: (params or None, selected
+    points, reason or None)."""
+    r = runtime.run([runtime.Group("train", points=v)], cfg, runtime_name)[0]
+    sel = r.selected_g
+    if min(r.counts) < cfg.min_count:
+        fill = " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts))
+        return None, sel, f"bins did not fill: {fill} (need >= {cfg.min_count} each)"
+    if r.status != optimiser.OK:
+        return None, sel, f"device fit {r.status_name} after {r.iterations} iterations"
+    return params_to_float(r.params_int), sel, None
+
+
+def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str):
+    """(params or None, seconds, reason or None)."""
+    t0 = time.perf_counter()
+    if name == "device":
+        p, _, why = device_fit(v, cfg, runtime_name)
+        return p, time.perf_counter() - t0, why
+    try:
+        p = methods.METHODS[name](v)
+    except methods.FitError as e:
+        return None, time.perf_counter() - t0, str(e)
+    return p, time.perf_counter() - t0, None
+
+
+def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
+            runtime_name: str = "cpython", say=lambda m: None) -> dict:
+    say(f"{path}: rest detection (device detector)")
+    sp = split_points(path)
+    before = methods.calibration_error_mg(None, sp.test.v)
+    _, selected, dev_why = device_fit(sp.train.v, cfg, runtime_name)
+    if train == "selected" and dev_why is None:
+        fit_on, training = selected, "the points the device's bins selected from the training part"
+    elif train == "all":
+        fit_on, training = sp.train.v, "every training rest point"
+    else:
+        fit_on = sp.train.v[thin_by_direction(sp.train.v)]
+        training = "the training rest points, at most 10 per direction (Gietzelt 2.4)" + (
+            f"; the device's bins could not select: {dev_why}" if train == "selected" else "")
+    rows = []
+    for name in names:
+        say(f"  fitting {name}")
+        v = sp.train.v if name == "device" else fit_on
+        p, secs, why = fit_method(name, v, cfg, runtime_name)
+        row = {"method": name,
+               "role": "the integer device method (Farago 2024)" if name == "device"
+               else methods.METHODS[name].role,
+               "points": int(len(selected) if name == "device" else len(v)),
+               "fit_ms": secs * 1e3, "error_before_mg": before}
+        if p is None:
+            row.update(status="failed", reason=why, error_after_mg=None, improvement_pct=None,
+                       params=None)
+        else:
+            after = methods.calibration_error_mg(p, sp.test.v)
+            row.update(status="calibrated", reason=None, error_after_mg=after,
+                       improvement_pct=100 * before / after if after > 0 else None,
+                       params=dict(zip(("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"),
+                                       np.round(p, 7).tolist())))
+        rows.append(row)
+    return {"input": path, "split": sp.how, "training": training,
+            "rest_points": {"train": len(sp.train), "heldout": len(sp.test)},
+            "heldout": "every held-out rest point", "metric": "mean | |a| - 1 g |, mg (Farago Table 3)",
+            "rows": rows, "_split": sp, "_fit_on": fit_on}
+
+
+def print_table(out: dict) -> None:
+    print(f"{out['input']}: {out['rest_points']['train']} training / {out['rest_points']['heldout']} "
+          f"held-out rest points ({out['split']})")
+    print(f"fitted on {out['training']}; scored on {out['heldout']}: {out['metric']}\n")
+    hdr = f"{'method':<10}{'points':>7}{'fit ms':>9}{'before mg':>11}{'after mg':>10}{'R (eq.21)':>11}  status"
+    print(hdr)
+    print("-" * (len(hdr) + 20))
+    for r in out["rows"]:
+        if r["status"] == "calibrated":
+            imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
+            print(f"{r['method']:<10}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
+                  f"{r['error_after_mg']:10.3f}{imp:>11}  ok")
+        else:
+            print(f"{r['method']:<10}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
+                  f"{'-':>10}{'-':>11}  FAILED: {r['reason']}")
+
+
+def thin_by_direction(v: np.ndarray, per_direction: int = 10, near_g: float = 0.1) -> np.ndarray:
+    """Indices of the points kept, in order, when at most `per_direction` points may lie within
+    near_g (max-norm) of each other: Gietzelt 2.4, "only up to ten measurements of a certain
+    direction were included", so a night in one posture does not outweigh the rest."""
+    kept: list[int] = []
+    for i, p in enumerate(v):
+        if not kept or np.sum(np.abs(v[kept] - p).max(axis=1) < near_g) < per_direction:
+            kept.append(i)
+    return np.array(kept, dtype=int)
+
+
+def training_curve(sp: Split, names: list[str], cfg: runtime.Config, runtime_name: str,
+                   sizes=None) -> dict:
+    """Held-out error against the number of training vectors, each method fed the first n of
+    the training rest points in time order, at most ten per direction (Gietzelt 2013 figure 3
+    and section 2.4).  NaN where a method fails."""
+    train = sp.train.v[thin_by_direction(sp.train.v)][:CURVE_MAX]
+    if sizes is None:
+        sizes = np.unique(np.geomspace(6, len(train), 14).astype(int))
+    curve = {n: [] for n in names}
+    for k in sizes:
+        v = train[:k]
+        for n in names:
+            p, _, _ = fit_method(n, v, cfg, runtime_name)
+            curve[n].append(methods.calibration_error_mg(p, sp.test.v) if p is not None else np.nan)
+    return {"sizes": [int(s) for s in sizes], "error_mg": curve,
+            "training": "first n training rest points in time order, at most 10 per direction"}
+
+
+def plot_curve(curve: dict, path: Path, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    names = list(curve["error_mg"])
+    cols = 4
+    rows = (len(names) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), sharex=True, sharey=True,
+                             squeeze=False)
+    for ax, n in zip(axes.ravel(), names):
+        y = np.array(curve["error_mg"][n], dtype=float)
+        ax.set_title(n, fontsize=10)
+        ax.set_xscale("log")
+        if np.isfinite(y).any():
+            ax.plot(curve["sizes"], y, "o-", ms=3)
+            ax.set_yscale("log")
+        else:
+            ax.text(0.5, 0.5, "no fit at any size", ha="center", va="center", transform=ax.transAxes)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.ravel()[len(names):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("training vectors")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("held-out error, mg")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def compare_main(args, cfg: runtime.Config) -> int:
+    names = parse_methods(args.methods)
+    say = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
+    out = compare(args.input, names, cfg, args.train, args.runtime, say)
+    sp = out.pop("_split")
+    out.pop("_fit_on")
+    if args.plots:
+        say("training curve: every method on growing training sets (Gietzelt figure 3)")
+        curve = training_curve(sp, names, cfg, args.runtime)
+        png = Path(args.plots) / "training_curve.png"
+        plot_curve(curve, png, f"{Path(args.input).name}: held-out error against training vectors "
+                               "(first n in time order)")
+        out["training_curve"] = curve
+        out["plots"] = [str(png)]
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print_table(out)
+        if args.plots:
+            print(f"\nplot: {out['plots'][0]}")
+    return 0 if any(r["status"] == "calibrated" for r in out["rows"]) else 2

@@ -1,0 +1,126 @@
+"""The vectorised numpy twin of the device's per-sample stages, for files of weeks at 100 Hz.
+
+Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
+max - min rest test, per-axis sums, Q16 means) and of acal.model.Calibration.apply_samples for
+the paper's model, on int64 arrays, tied to those modules by bit-exact tests
+(tests/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
+means go to the device's own Pipeline.offer in stream order.
+
+Integer formats as the device's (device/acal/fixed.py): samples Q10 g, sums < 2^30 (segments of
+<= 65 535 samples), means Q16 = floor(sum * 2^6 / n) (the device computes the same floor in two
+steps to stay below 2^30; int64 needs no such care), parameters Q24 -> Q14 for the apply.
+
+Streaming: RestStream.feed takes consecutive chunks; the open segment's samples (fewer than one
+segment) carry over to the next chunk, as the device's detector carries lo/hi/sums across FIFO
+reads, so any chunking gives the same segments as one pass.  A gap drops the open segment (the
+device's reset()).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acal import fixed
+from acal.rest import DEFAULT_SECONDS, DEFAULT_THRESHOLD
+
+
+@dataclass
+class Segments:
+    """Closed segments of one feed, in stream order."""
+    end: np.ndarray      # (n,) int64: stream index of each segment's last sample
+    still: np.ndarray    # (n,) bool
+    spread: np.ndarray   # (n,) int64: max - min of the rest axis, Q10 g
+    mean: np.ndarray     # (n, 3) int64: Q16 g (meaningful where still)
+
+    @staticmethod
+    def empty() -> "Segments":
+        return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64),
+                        np.zeros((0, 3), np.int64))
+
+    @staticmethod
+    def concat(parts: list["Segments"]) -> "Segments":
+        if not parts:
+            return Segments.empty()
+        return Segments(np.concatenate([p.end for p in parts]), np.concatenate([p.still for p in parts]),
+                        np.concatenate([p.spread for p in parts]), np.concatenate([p.mean for p in parts]))
+
+
+def segment_stats(q: np.ndarray, length: int, threshold: int, axis: int, first: int) -> Segments:
+    """Every full segment of a contiguous run q (m x 3 Q10 ints, m a multiple of length) that
+    starts at stream index `first`."""
+    n = len(q) // length
+    seg = q[: n * length].reshape(n, length, 3)
+    a = seg[:, :, axis]
+    spread = a.max(axis=1).astype(np.int64) - a.min(axis=1)
+    sums = seg.sum(axis=1, dtype=np.int64)
+    mean = (sums << fixed.POINT_FROM_SAMPLE_SHIFT) // length   # floor, as mean_q16
+    end = first + (np.arange(1, n + 1, dtype=np.int64) * length) - 1
+    return Segments(end, spread < threshold, spread, mean)
+
+
+class RestStream:
+    """The device's RestDetector over numpy chunks.  rate_hz, seconds, threshold (Q10 g), axis
+    as RestDetector."""
+
+    def __init__(self, rate_hz: int, seconds: int = DEFAULT_SECONDS, threshold: int = DEFAULT_THRESHOLD,
+                 axis: int = 0):
+        length = rate_hz * seconds
+        if length < 1 or length > fixed.SEGMENT_MAX_SAMPLES:
+            raise ValueError("segment must hold 1..65535 samples")
+        if axis not in (0, 1, 2):
+            raise ValueError("axis must be 0, 1 or 2")
+        self.length, self.threshold, self.axis = length, threshold, axis
+        self.pending = np.zeros((0, 3), np.int64)   # the open segment's samples
+        self.position = 0                           # stream index of the next sample
+
+    def feed(self, q: np.ndarray, gaps=()) -> Segments:
+        """q: the next chunk (m x 3 Q10 ints); gaps: chunk-relative indices where a new
+        contiguous run starts (the open segment is dropped there, as by RestDetector.reset())."""
+        q = np.asarray(q)
+        cuts = [0, *sorted(int(g) for g in gaps if 0 <= g <= len(q)), len(q)]
+        parts = []
+        starts_run = set(cuts[1:-1])
+        for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
+            run = q[a:b]
+            if k == 0 and a not in starts_run:   # continues the open segment
+                first = self.position - len(self.pending)
+                run = np.concatenate([self.pending, run]) if len(self.pending) else run
+            else:
+                first = self.position + a
+            full = (len(run) // self.length) * self.length
+            if full:
+                parts.append(segment_stats(run[:full], self.length, self.threshold, self.axis, first))
+            self.pending = np.array(run[full:], dtype=np.int64)
+        self.position += len(q)
+        return Segments.concat(parts)
+
+
+def rest_segments(q: np.ndarray, rate_hz: int, seconds: int = DEFAULT_SECONDS,
+                  threshold: int = DEFAULT_THRESHOLD, axis: int = 0, gaps=(),
+                  chunk: int | None = None) -> Segments:
+    """All closed segments of a whole stream, fed in chunks of `chunk` samples (None: one)."""
+    rs = RestStream(rate_hz, seconds, threshold, axis)
+    gaps = np.asarray(sorted(gaps), dtype=np.int64)
+    step = chunk or max(len(q), 1)
+    parts = []
+    for a in range(0, len(q), step):
+        b = min(a + step, len(q))
+        g = gaps[(gaps >= a) & (gaps < b)] - a
+        parts.append(rs.feed(q[a:b], g))
+    return Segments.concat(parts)
+
+
+def apply_params(p_int, q: np.ndarray) -> np.ndarray:
+    """The twin of Calibration.set(p) + apply_samples for the paper's model: Q24 parameters,
+    Q10 samples in and out (m x 3 int64)."""
+    half_p = 1 << (fixed.APPLY_PARAM_SHIFT - 1)
+    k = [(int(v) + half_p) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:9]]
+    q = np.asarray(q, dtype=np.int64)
+    u = (q << fixed.APPLY_FROM_SAMPLE_SHIFT) + np.array(k[6:9], dtype=np.int64)
+    half = 1 << (fixed.APPLY_OUT_SHIFT - 1)
+    out = np.empty_like(u)
+    out[:, 0] = (k[0] * u[:, 0] + half) >> fixed.APPLY_OUT_SHIFT
+    out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> fixed.APPLY_OUT_SHIFT
+    out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> fixed.APPLY_OUT_SHIFT
+    return out

@@ -1,0 +1,119 @@
+"""The vectorised twin (accelcal.vector) against the device modules, bit for bit, on random and
+adversarial streams: segment and chunk boundaries, ties at the threshold, clipping, gaps."""
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from acal.model import Calibration
+from acal.rest import RestDetector
+from accelcal import vector
+from conftest import run_cli
+
+
+def device_segments(q, rate, seconds, threshold, axis, gaps=()):
+    """What the device's detector reports, fed sample by sample with resets at gaps."""
+    det = RestDetector(rate, seconds, threshold, axis)
+    gaps = set(int(g) for g in gaps)
+    out = []
+    for i, (x, y, z) in enumerate(q.tolist()):
+        if i in gaps:
+            det.reset()
+        if det.add(x, y, z):
+            mean = (det.mean_x, det.mean_y, det.mean_z) if det.still else (None,) * 3
+            out.append((i, det.still, det.spread, *mean))
+    return out
+
+
+def as_tuples(s: vector.Segments):
+    # the device leaves a moving segment's mean unset: compare means of still segments only
+    return [(int(e), bool(st_), int(sp), *(map(int, m) if st_ else (None,) * 3)) for e, st_, sp, m in
+            zip(s.end, s.still, s.spread, s.mean)]
+
+
+def stream(draw_values, n):
+    return np.array(draw_values, dtype=np.int64).reshape(n, 3)
+
+
+@st.composite
+def streams(draw):
+    rate = draw(st.sampled_from([1, 2, 3, 5, 10]))
+    seconds = draw(st.integers(1, 4))
+    n = draw(st.integers(0, 200))
+    kind = draw(st.sampled_from(["random", "near_threshold", "clipped"]))
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    threshold = draw(st.sampled_from([1, 50, 123, 400]))
+    if kind == "random":
+        q = rng.integers(-2048, 2048, (n, 3))
+    elif kind == "near_threshold":  # spreads equal to, one under and one over the threshold
+        base = rng.integers(-1024, 1024, 3)
+        q = base + rng.integers(0, threshold + 2, (n, 3)) * rng.integers(0, 2, (n, 1))
+    else:  # clipped at +-2 g (12-bit), and the +-16 g extremes
+        q = np.clip(rng.integers(-2600, 2600, (n, 3)), -2048, 2047)
+        if n:
+            q[rng.integers(0, n, max(1, n // 10))] = rng.choice([-16383, 16383], 3)
+    gaps = sorted(set(rng.integers(0, n + 1, draw(st.integers(0, 4))).tolist())) if n else []
+    chunk = draw(st.one_of(st.none(), st.integers(1, 60)))
+    axis = draw(st.integers(0, 2))
+    return q.astype(np.int64), rate, seconds, threshold, axis, gaps, chunk
+
+
+@settings(max_examples=300, deadline=None)
+@given(streams())
+def test_rest_segments_equal_the_device_detector(case):
+    q, rate, seconds, threshold, axis, gaps, chunk = case
+    dev = device_segments(q, rate, seconds, threshold, axis, gaps)
+    vec = vector.rest_segments(q, rate, seconds, threshold, axis, gaps, chunk)
+    assert as_tuples(vec) == dev
+
+
+def test_chunking_never_changes_the_segments(rng):
+    q = rng.integers(-1100, 1100, (10_007, 3))
+    q[2000:4500] = rng.integers(-10, 10, (2500, 3)) + [0, 0, 1024]   # a long rest
+    gaps = [0, 1234, 5000, 5001, 9999]
+    whole = as_tuples(vector.rest_segments(q, 10, 5, 123, 0, gaps))
+    assert whole == device_segments(q, 10, 5, 123, 0, gaps)
+    assert sum(s[1] for s in whole) >= 40
+    for chunk in (1, 7, 49, 50, 51, 999, 10_007):
+        assert as_tuples(vector.rest_segments(q, 10, 5, 123, 0, gaps, chunk)) == whole
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-(1 << 24) // 4, (1 << 24) // 4), min_size=6, max_size=6),
+       st.lists(st.integers(750, 1250), min_size=3, max_size=3), st.integers(0, 2 ** 32 - 1))
+def test_apply_equals_the_device_calibration(off, diag, seed):
+    rng = np.random.default_rng(seed)
+    # Q24 parameters inside the calibration bounds: k_ii 0.75..1.25, |k_ij| <= 0.125, |o| <= 0.25 g
+    p = [d * (1 << 24) // 1000 for d in diag] + [v // 2 for v in off[:3]] + off[3:]
+    q = np.r_[rng.integers(-2048, 2048, (200, 3)), [[2047, 2047, 2047], [-2048, -2048, -2048]]]
+    cal = Calibration()
+    cal.set(p)
+    buf = q.ravel().tolist()
+    cal.apply_samples(buf, 0, len(q))
+    assert (vector.apply_params(p, q) == np.array(buf).reshape(-1, 3)).all()
+
+
+def _with_gaps(src, dst):
+    """The recording with two stretches removed (gaps in t), one of them mid-segment."""
+    lines = src.read_text().splitlines(keepends=True)
+    keep = lines[:1] + lines[1:200_003] + lines[230_017:600_000] + lines[601_234:]
+    dst.write_text("".join(keep))
+    return dst
+
+
+@pytest.mark.parametrize("model", ["base", "base+temp_offset"])
+def test_calibrate_engines_give_identical_results(tmp_path, model):
+    rec = tmp_path / "day.csv"
+    args = ["simulate", "wrist", "--days", 1, "--rate", 10, "--seed", 17, "-o", rec]
+    if model != "base":
+        args += ["--effect", "temp_offset"]
+    assert run_cli(*args).returncode == 0
+    rec = _with_gaps(rec, tmp_path / "gaps.csv")
+    out = {}
+    for engine in ("vector", "device"):
+        r = run_cli("calibrate", rec, "--model", model, "--engine", engine, "--json")
+        assert r.returncode in (0, 2), r.stderr
+        out[engine] = (r.returncode, r.stdout, r.stderr)
+    assert out["vector"] == out["device"]
+    assert json.loads(out["vector"][1])["rest_points"] > 1000
