@@ -90,7 +90,8 @@ def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str)
 
 
 def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
-            runtime_name: str = "cpython", say=lambda m: None) -> dict:
+            runtime_name: str = "cpython", say=lambda m: None) -> tuple[dict, Split]:
+    """The comparison (JSON-ready) and the split it was made on."""
     say(f"{path}: rest detection (device detector)")
     sp = split_points(path)
     before = methods.calibration_error_mg(None, sp.test.v)
@@ -126,7 +127,7 @@ def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "sele
     return {"input": path, "split": sp.how, "training": training,
             "rest_points": {"train": len(sp.train), "heldout": len(sp.test)},
             "heldout": "every held-out rest point", "metric": "mean | |a| - 1 g |, mg (Farago Table 3)",
-            "rows": rows, "_split": sp, "_fit_on": fit_on}
+            "rows": rows}, sp
 
 
 def print_table(out: dict) -> None:
@@ -210,9 +211,7 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 def compare_main(args, cfg: runtime.Config) -> int:
     names = parse_methods(args.methods)
     say = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
-    out = compare(args.input, names, cfg, args.train, args.runtime, say)
-    sp = out.pop("_split")
-    out.pop("_fit_on")
+    out, sp = compare(args.input, names, cfg, args.train, args.runtime, say)
     if args.plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, args.runtime)

@@ -41,8 +41,7 @@ def run_table3(devices: int = 10, days: float = 3.0, rate: int = 10, seed: int =
             else:
                 say(f"device {d + 1}/{devices}: simulating {days:g} days at {rate} Hz")
                 wearer.simulate_wrist(path, days, rate, seed + d)
-            out = compare(str(path), METHODS, cfg)
-            out.pop("_split"), out.pop("_fit_on")
+            out, _ = compare(str(path), METHODS, cfg)
             per_device.append(out)
     # The paper's rows average the same recordings, all fitted on the points its bins selected:
     # a recording where the device's bins did not fill (so there is no selection) or any method

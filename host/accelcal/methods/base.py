@@ -51,6 +51,21 @@ def correct(p: np.ndarray, v: np.ndarray) -> np.ndarray:
     return (np.asarray(v, dtype=np.float64) + p[6:9]) @ k_matrix(p).T
 
 
+def jacobian_along(p: np.ndarray, v: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """d_i . da_i/dp for every point (N x 9), a = K (v + o): with d = a/|a| the Jacobian of |a|,
+    with d = a half that of |a|^2."""
+    u = v + p[6:9]
+    J = np.empty((len(v), 9))
+    J[:, 0] = d[:, 0] * u[:, 0]
+    J[:, 1] = d[:, 1] * u[:, 1]
+    J[:, 2] = d[:, 2] * u[:, 2]
+    J[:, 3] = d[:, 1] * u[:, 0]
+    J[:, 4] = d[:, 2] * u[:, 0]
+    J[:, 5] = d[:, 2] * u[:, 1]
+    J[:, 6:9] = d @ k_matrix(p)
+    return J
+
+
 def calibration_error_mg(p: np.ndarray | None, v: np.ndarray) -> float:
     """Mean over rest points of | |a| - 1 g |, in mg (Farago Table 3; GGIR's calibration error).
     p=None gives the error before calibration."""

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 
-from accelcal.methods.base import FitError, check_points, correct, from_ellipsoid, k_matrix, method
+from accelcal.methods.base import (FitError, check_points, correct, from_ellipsoid, jacobian_along,
+                                   method)
 
 TOLERANCE = 1e-3   # Khachiyan's; the polish takes it to numerical precision
 MAX_ITERATIONS = 200_000
@@ -82,7 +83,7 @@ def polish(v: np.ndarray, p0: np.ndarray, rounds: int = 5) -> np.ndarray:
         return 1.0 - np.sum(a * a, axis=1)
 
     def inside_jac(p, w):
-        return -2 * residual_jacobian_sq(p, w)
+        return -2 * jacobian_along(p, w, correct(p, w))
 
     p = p0
     for _ in range(rounds):
@@ -98,19 +99,3 @@ def polish(v: np.ndarray, p0: np.ndarray, rounds: int = 5) -> np.ndarray:
             return p
         near |= outside
     raise FitError("minvol: the enclosing ellipsoid did not settle")
-
-
-def residual_jacobian_sq(p: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """d|a|^2/dp / 2 for every point (N x 9), a = K (v + o)."""
-    u = v + p[6:9]
-    K = k_matrix(p)
-    a = u @ K.T
-    J = np.empty((len(v), 9))
-    J[:, 0] = a[:, 0] * u[:, 0]
-    J[:, 1] = a[:, 1] * u[:, 1]
-    J[:, 2] = a[:, 2] * u[:, 2]
-    J[:, 3] = a[:, 1] * u[:, 0]
-    J[:, 4] = a[:, 2] * u[:, 0]
-    J[:, 5] = a[:, 2] * u[:, 1]
-    J[:, 6:9] = a @ K
-    return J

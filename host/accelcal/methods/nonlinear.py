@@ -9,24 +9,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from accelcal.methods.base import P0, FitError, check_points, correct, k_matrix, method
+from accelcal.methods.base import P0, FitError, check_points, correct, jacobian_along, method
 
 
 def residual_jacobian(p: np.ndarray, v: np.ndarray) -> np.ndarray:
     """d(|a| - 1)/dp for every point (N x 9)."""
-    u = v + p[6:9]
-    K = k_matrix(p)
-    a = u @ K.T
-    d = a / np.linalg.norm(a, axis=1)[:, None]  # d|a|/da
-    J = np.empty((len(v), 9))
-    J[:, 0] = d[:, 0] * u[:, 0]
-    J[:, 1] = d[:, 1] * u[:, 1]
-    J[:, 2] = d[:, 2] * u[:, 2]
-    J[:, 3] = d[:, 1] * u[:, 0]
-    J[:, 4] = d[:, 2] * u[:, 0]
-    J[:, 5] = d[:, 2] * u[:, 1]
-    J[:, 6:9] = d @ K
-    return J
+    a = correct(p, v)
+    return jacobian_along(p, v, a / np.linalg.norm(a, axis=1)[:, None])
 
 
 @method("lsq", 9, "float least squares, Levenberg-Marquardt (fminunc's role; Lukowicz NonLinear)")
