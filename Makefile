@@ -6,6 +6,9 @@ VENV_MPY := .venv-mpy
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 STAMP_MPY := $(VENV_MPY)/.installed
+# scikit-digital-health and actipy, for the side-by-side in `make bench` only
+VENV_BENCH := .venv-bench
+STAMP_BENCH := $(VENV_BENCH)/.installed
 
 .PHONY: setup demo test bench build clean
 
@@ -29,8 +32,15 @@ demo: setup
 test: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
 
-bench: setup
+$(STAMP_BENCH): pyproject.toml
+	$(PY) -m venv $(VENV_BENCH)
+	$(VENV_BENCH)/bin/pip install -q --upgrade pip
+	$(VENV_BENCH)/bin/pip install -q -e . scikit-digital-health actipy
+	touch $@
+
+bench: setup $(STAMP_BENCH)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
+	$(BIN)/python -m accelcal.bench_files --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
 # .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
@@ -44,4 +54,4 @@ build: setup
 	done
 
 clean:
-	rm -rf $(VENV) $(VENV_MPY) build
+	rm -rf $(VENV) $(VENV_MPY) $(VENV_BENCH) build

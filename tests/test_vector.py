@@ -66,6 +66,11 @@ def test_rest_segments_equal_the_device_detector(case):
     dev = device_segments(q, rate, seconds, threshold, axis, gaps)
     vec = vector.rest_segments(q, rate, seconds, threshold, axis, gaps, chunk)
     assert as_tuples(vec) == dev
+    # every axis's min and max (the host's quality checks), against the segment's own samples
+    length = rate * seconds
+    for e, lo, hi in zip(vec.end, vec.lo, vec.hi):
+        w = q[e - length + 1:e + 1]
+        assert (lo == w.min(axis=0)).all() and (hi == w.max(axis=0)).all()
 
 
 def test_chunking_never_changes_the_segments(rng):
@@ -116,4 +121,31 @@ def test_calibrate_engines_give_identical_results(tmp_path, model):
         assert r.returncode in (0, 2), r.stderr
         out[engine] = (r.returncode, r.stdout, r.stderr)
     assert out["vector"] == out["device"]
-    assert json.loads(out["vector"][1])["rest_points"] > 1000
+    rec = json.loads(out["vector"][1])
+    assert rec["rest_points"] > 1000
+    # the device engine was told to exclude the same non-wear segments (W lines)
+    assert rec["excluded"]["nonwear"] > 20 and rec["gaps"] == 2
+
+
+def test_streaming_scan_memory_does_not_grow_with_the_file(tmp_path):
+    """Arrow's blocks go through one at a time: the memory numpy holds while scanning a file
+    three times as long is what one block needs (tracemalloc counts numpy's buffers)."""
+    import tracemalloc
+
+    from accelcal.recording import open_recording
+    from accelcal.scan import scan
+    rng = np.random.default_rng(3)
+    peaks = []
+    for n in (1_000_000, 3_000_000):
+        f = tmp_path / f"r{n}.csv"
+        t = np.arange(n) / 100
+        v = np.round(rng.normal([0, 0, 1], 0.002, (n, 3)), 3)
+        np.savetxt(f, np.column_stack([t, v]), fmt=["%.2f", "%.3f", "%.3f", "%.3f"], delimiter=",",
+                   header="t,x,y,z", comments="")
+        tracemalloc.start()
+        sc = scan(open_recording(f), 5, 123, 0)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert sc.n_samples == n and sc.segments.still.sum() == n // 500
+    assert peaks[1] < 1.3 * peaks[0], peaks
+    assert peaks[0] < 150e6

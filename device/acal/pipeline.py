@@ -18,7 +18,12 @@ class Pipeline:
     bins track temperature and time (bins.py), and the feeder keeps `temp` (int degC) and `time`
     (64 s units) current; a fit takes each point's dT and dt from the middle of the held points'
     ranges (ref_temp, ref_time), which the calibration keeps.  iterations None: 50 for the
-    paper's model, 200 for a composed one (50 leave the effect terms under-converged)."""
+    paper's model, 200 for a composed one (50 leave the effect terms under-converged).
+
+    worn: the feeder's wear signal.  A rest segment that closes while it is False (a device off
+    the wrist, on a table; imputed or idle-sleep stretches) is counted in `excluded` but not
+    offered: it is still, but not what the wearer's data looks like.  The app leaves it True;
+    the host sets it from its non-wear and quality masks."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
@@ -46,6 +51,8 @@ class Pipeline:
         self.ref_time = 0
         self.on_rest = on_rest
         self.rest_count = 0
+        self.worn = True
+        self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
 
     def offer(self, x, y, z):
@@ -68,7 +75,10 @@ class Pipeline:
             if rest.ended:
                 rest.ended = False
                 if rest.still:
-                    self.offer(rest.mean_x, rest.mean_y, rest.mean_z)
+                    if self.worn:
+                        self.offer(rest.mean_x, rest.mean_y, rest.mean_z)
+                    else:
+                        self.excluded += 1
 
     def ready(self):
         return self.bins.ready()

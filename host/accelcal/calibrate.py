@@ -106,60 +106,153 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
         rec: dict = {"model": str(spec), "method": method, "runtime": runtime_name}
         if by:
             rec[by] = g.name
-        rest = r.rest_g
-        rec["rest_points"] = int(len(rest))
-        rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
-        rec["points"] = len(r.selected_int)
-        rec["error_before_mg"] = methods.calibration_error_mg(None, rest)
-        if min(r.counts) < cfg.min_count:
-            n_samples = len(g.samples) if g.samples is not None else g.n_samples
-            what = (f"{n_samples} samples gave {len(rest)} rest segments"
-                    if n_samples is not None else f"{len(g.points)} points")
-            rec.update(status="failed", reason=f"bins did not fill: {fill_report(r, cfg.min_count)}; {what}")
-            out.append(rec)
-            continue
-        why = spread_report(spec, r)
-        if why:
-            rec.update(status="failed", reason=f"bins filled but {why}")
-            out.append(rec)
-            continue
-        if method == "device":
-            if r.status != optimiser.OK:
-                rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
-                           "iterations; no parameters returned")
-                out.append(rec)
-                continue
-            p_int = r.params_int
-            rec["iterations"] = r.iterations
-            rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, len(r.selected_int))
-        else:
-            try:
-                p_int = params_to_int(methods.METHODS[method](r.selected_g))
-            except methods.FitError as e:
-                rec.update(status="failed", reason=str(e))
-                out.append(rec)
-                continue
-            rec["iterations"] = None
-        if spec.effects:
-            theta = spec.from_int(p_int)
-            ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
-            cond = r.rest_conditions  # as the device saw them: int degC, 64 s units
-            a = spec.correct(theta, rest, cond[:, 0].astype(float),
-                             g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref)
-            rec.update(model=str(spec), method=method,
-                       scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
-                             "g, 1/degC, g/day, 1/g",
-                       params_int=dict(zip(spec.param_names, map(int, p_int))),
-                       params=dict(zip(spec.param_names, theta.tolist())), reference=ref)
-            rec["status"] = "calibrated"
-            rec["error_after_mg"] = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
-        else:
-            p = params_to_float(p_int)
-            rec.update(params_record(p_int, "base", method))
-            rec["status"] = "calibrated"
-            rec["error_after_mg"] = methods.calibration_error_mg(p, rest)
-        out.append(rec)
+        out.append(result_record(rec, g, r, cfg, spec, method))
     return out
+
+
+def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: runtime.Config,
+                  spec: ModelSpec, method: str) -> dict:
+    """Fill rec with one group's outcome: status calibrated, not_enough_data (bins not filled,
+    or a composed model's spread not reached) or failed (the fit), with a one-line reason."""
+    rest = r.rest_g
+    rec["rest_points"] = int(len(rest))
+    rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
+    rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
+    rec["points"] = len(r.selected_int)
+    rec["error_before_mg"] = methods.calibration_error_mg(None, rest)
+    if min(r.counts) < cfg.min_count:
+        n_samples = len(g.samples) if g.samples is not None else g.n_samples
+        what = (f"{n_samples} samples gave {len(rest)} rest segments"
+                if n_samples is not None else f"{len(g.points)} points")
+        rec.update(status="not_enough_data",
+                   reason=f"bins did not fill: {fill_report(r, cfg.min_count)}; {what}")
+        return rec
+    why = spread_report(spec, r)
+    if why:
+        rec.update(status="not_enough_data", reason=f"bins filled but {why}")
+        return rec
+    if method == "device":
+        if r.status != optimiser.OK:
+            rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
+                       "iterations; no parameters returned")
+            return rec
+        p_int = r.params_int
+        rec["iterations"] = r.iterations
+        rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, len(r.selected_int))
+    else:
+        try:
+            p_int = params_to_int(methods.METHODS[method](r.selected_g))
+        except methods.FitError as e:
+            rec.update(status="failed", reason=str(e))
+            return rec
+        rec["iterations"] = None
+    if spec.effects:
+        ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+        rec.update(model=str(spec), method=method,
+                   scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                         "g, 1/degC, g/day, 1/g",
+                   params_int=dict(zip(spec.param_names, map(int, p_int))),
+                   params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())), reference=ref)
+    else:
+        rec.update(params_record(p_int, "base", method))
+    rec["status"] = "calibrated"
+    rec["error_after_mg"] = error_after_mg(spec, p_int, rec.get("reference"), g, r)
+    return rec
+
+
+def error_after_mg(spec: ModelSpec, p_int, ref: dict | None, g: runtime.Group,
+                   r: runtime.DeviceResult) -> float:
+    """The calibration error (mean | |a| - 1 g |, mg) of parameters over the group's rest
+    points, composed models at each point's conditions as the device saw them."""
+    rest = r.rest_g
+    if not spec.effects:
+        return methods.calibration_error_mg(params_to_float(p_int), rest)
+    cond = r.rest_conditions  # int degC, 64 s units
+    a = spec.correct(spec.from_int(p_int), rest, cond[:, 0].astype(float),
+                     g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref)
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,
+                        spec: ModelSpec | None = None, engine: str = "vector",
+                        progress=None, fallback: str | None = None) -> dict:
+    """A recording of any size or format (accelcal.recording) through the device pipeline, with
+    its quality report (README "False rest and quality control").  engine "vector": one
+    streaming pass of the numpy twin, constant memory; "device": every sample through the
+    device modules (the whole recording in memory).  The same record either way."""
+    from accelcal.recording import open_recording
+    from accelcal.scan import scan
+    spec = spec or ModelSpec(())
+    if spec.effects and method != "device":
+        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
+    cfg.kinds = spec.kinds
+    rec_in = open_recording(path)
+    out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
+               progress=progress)
+    sc, whole = out if engine == "device" else (out, None)
+    cfg.rate_hz = sc.rate_hz
+    m = sc.masks()
+    kept = m["kept"]
+    temp = None if sc.seg_temp is None else sc.seg_temp[kept]
+    try:
+        spec.check_data(temp, sc.seg_t[kept], path)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if engine == "vector":
+        cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()))
+        g = runtime.Group("recording", points=sc.segments.mean[kept] / fixed.POINT_ONE_G,
+                          temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
+                          n_samples=sc.n_samples)
+    else:
+        t, q, temp_s = whole
+        g = runtime.Group("recording", samples=q / fixed.SAMPLE_ONE_G,
+                          gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s, t=t,
+                          unworn=sc.excluded_runs(kept))
+    r = runtime.run([g], cfg, runtime_name)[0]
+    rec = {"file": path, "format": sc.format, "model": str(spec), "method": method,
+           "runtime": runtime_name}
+    rec.update(quality(sc, m))
+    rec = result_record(rec, g, r, cfg, spec, method)
+    rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
+    if rec["status"] != "calibrated" and fallback:
+        use_fallback(rec, fallback, r.rest_g)
+    return rec
+
+
+def quality(sc, m: dict) -> dict:
+    """The per-file figures researchers' tools report (GGIR, actipy, scikit-digital-health)."""
+    seg_h = sc.length / sc.rate_hz / 3600.0
+    nonwear_h = float(m["nonwear"].sum() * seg_h)
+    return {
+        "rate_hz": sc.rate_hz,
+        "hours": round(sc.hours, 4),
+        "hours_used": round(sc.hours - nonwear_h, 4),
+        "gaps": len(sc.gap_starts),
+        "still_windows": int(m["kept"].sum()),
+        "excluded": {k: int(m[k].sum()) for k in ("nonwear", "imputed", "clipped")},
+        "nonwear_hours": round(nonwear_h, 4),
+        "temp_range_c": None if sc.temp_min is None else [round(sc.temp_min, 3), round(sc.temp_max, 3)],
+        "full_scale_g": sc.full_scale_g,
+        "clipped_pct": round(100.0 * sc.clipped_samples / max(1, sc.n_samples), 4),
+    }
+
+
+def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
+    """A file that did not calibrate takes a device's last good calibration, said so in the
+    record: calibration "fallback", the file it came from, its error on this file's rest
+    points.  The record's own status (why it did not calibrate) stays."""
+    from accelcal.io import load_params
+    model, p_int, ref = load_params(params_path)
+    spec = ModelSpec.parse(model)
+    if spec.effects:
+        raise InputError(f"{params_path}: --fallback takes the paper's model (base); this is {model}")
+    rec["calibration"] = "fallback"
+    rec["fallback"] = params_path
+    rec.update({k: v for k, v in params_record(p_int, model, "fallback").items()
+                if k in ("scale", "params_int", "params")})
+    if len(rest_g):
+        rec["error_after_mg"] = methods.calibration_error_mg(params_to_float(p_int), rest_g)
+    return rec
 
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,

@@ -86,7 +86,9 @@ def cmd_calibrate(args) -> int:
         from accelcal.diagnose import calibrate_model
         if args.by:
             raise InputError(f"model {spec}: --by applies to --method device for composed models")
-        r = calibrate_model(args.input, args.model)
+        if len(args.input) > 1:
+            raise InputError(f"model {spec}: --method lsq calibrates one file")
+        r = calibrate_model(args.input[0], args.model)
         print(json.dumps(r) if args.json else
               f"calibrated {r['model']} by lsq on {r['points']} rest points\n  "
               + "  ".join(f"{k}={v:+.6g}" for k, v in r["params"].items())
@@ -94,11 +96,28 @@ def cmd_calibrate(args) -> int:
         if args.save:
             save_params(args.save, r)
         return 0
-    table = read_table(args.input)
     engine = args.engine or ("device" if args.runtime == "micropython" else "vector")
-    recs = calibrate_groups(table, args.by, _config(args, bool(spec.effects)), args.method,
-                            args.runtime, spec, engine)
-    failed = [r for r in recs if r["status"] != "calibrated"]
+    inputs = args.input
+    if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
+        return _calibrate_batch(args, spec, engine)
+    from accelcal.recording import is_recording
+    if is_recording(inputs[0]):
+        if args.by:
+            raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
+        from accelcal.calibrate import calibrate_recording
+        from tqdm import tqdm
+        bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(),
+                   desc="reading")
+        recs = [calibrate_recording(inputs[0], _config(args, bool(spec.effects)), args.method,
+                                    args.runtime, spec, engine, progress=lambda n: bar.update(n - bar.n),
+                                    fallback=args.fallback)]
+        bar.close()
+    else:
+        recs = calibrate_groups(read_table(inputs[0]), args.by, _config(args, bool(spec.effects)),
+                                args.method, args.runtime, spec, engine)
+        if args.fallback:
+            raise InputError("--fallback applies to recordings")
+    failed = [r for r in recs if r["status"] != "calibrated" and r.get("calibration") != "fallback"]
     for r in recs:
         if args.json:
             print(json.dumps(r))
@@ -114,10 +133,57 @@ def cmd_calibrate(args) -> int:
     return 2 if failed else 0
 
 
+def _calibrate_batch(args, spec, engine) -> int:
+    from accelcal import batch
+    from accelcal.io import save_params
+    if args.by:
+        raise InputError("--by applies to one points file, not to a batch")
+    if spec.effects and args.method == "lsq":
+        raise InputError(f"model {spec}: a batch fits composed models by --method device")
+    job = batch.Job(_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
+                    args.fallback)
+    if args.fallback:
+        from accelcal.io import load_params
+        load_params(args.fallback)  # a bad fallback is bad input, before any file is read
+    if args.dask:
+        recs = batch.run_dask(args.input, job, args.dask, quiet=args.quiet)
+    else:
+        recs = batch.run_local(args.input, job, args.jobs, quiet=args.quiet)
+    summary = args.summary or "accelcal-summary.csv"
+    batch.write_summary(summary, recs)
+    if args.json:
+        for r in recs:
+            print(json.dumps(r))
+    else:
+        batch.print_summary(recs)
+    print(f"summary: {summary}", file=sys.stderr)
+    if args.save:
+        ok = [r for r in recs if r["status"] == "calibrated"]
+        if ok:
+            save_params(args.save, {"by": "file", "devices": ok})
+    bad = [r for r in recs if r["status"] != "calibrated"]
+    return 2 if args.strict and bad else 0
+
+
 def _print_record(r, by):
     head = f"{by} {r[by]}: " if by else ""
+    if "hours" in r:  # a recording: its quality first
+        ex = r["excluded"]
+        tr = r["temp_range_c"]
+        print(f"{head}{r['file']} ({r['format']}, {r['rate_hz']} Hz): {r['hours']:.2f} h, "
+              f"{r['gaps']} gaps, {r['still_windows']} still windows kept (excluded: "
+              f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
+              f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
+              + (f", {tr[0]:.1f}..{tr[1]:.1f} degC" if tr else ", no temperature"))
     if r["status"] != "calibrated":
-        print(f"{head}FAILED: {r['reason']}")
+        label = "NOT ENOUGH DATA" if r["status"] == "not_enough_data" else "FAILED"
+        print(f"{head}{label}: {r['reason']}")
+        if r.get("calibration") == "fallback":
+            print(f"  using the fallback calibration {r['fallback']} (not this file's): "
+                  + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
+            if "error_after_mg" in r:
+                print(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
+                      f"{r['error_after_mg']:.2f} mg with the fallback")
         return
     it = f", {r['iterations']} iterations" if r.get("iterations") else ""
     print(f"{head}calibrated {r['model']} by {r['method']} ({r['runtime']}) on {r['points']} points "
@@ -323,7 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run the device pipeline (or a reference method on the points "
                                    "it selects) and report parameters and calibration error.",
                        epilog=EPILOG_CAL, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", help="recording or points CSV")
+    p.add_argument("input", nargs="+", metavar="INPUT",
+                   help="recording (CSV t,x,y,z[,temp]; Axivity .cwa, GENEActiv .bin, ActiGraph "
+                        ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default="base",
                    help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
@@ -343,7 +411,23 @@ def build_parser() -> argparse.ArgumentParser:
                         "sample through the device modules, for regression testing device code")
     p.add_argument("--by", metavar="COLUMN", help="calibrate each value of COLUMN (e.g. device) separately")
     p.add_argument("--save", metavar="PARAMS.json", help="save the parameters (with --by: all devices)")
-    p.add_argument("--json", action="store_true", help="one JSON object per group on stdout")
+    p.add_argument("--json", action="store_true", help="one JSON object per group (or file) on stdout")
+    p.add_argument("--fallback", metavar="PARAMS.json",
+                   help="a device's last good calibration (from --save): a file that does not "
+                        "calibrate reports it with calibration \"fallback\" and its error, never "
+                        "silently")
+    g = p.add_argument_group("batches (several INPUTs)")
+    g.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                   help="files calibrated at once in a process pool (default 1)")
+    g.add_argument("--dask", metavar="ADDRESS",
+                   help="run the batch on an existing Dask cluster (scheduler address, e.g. "
+                        "tcp://10.0.0.5:8786); its workers need accelcal and the files")
+    g.add_argument("--summary", metavar="CSV",
+                   help="the summary table, one row per file (default accelcal-summary.csv)")
+    g.add_argument("--strict", action="store_true",
+                   help="exit 2 when any file did not calibrate (default: 0; the status is in "
+                        "the summary)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_pipeline_args(p)
     p.set_defaults(func=cmd_calibrate)
 

@@ -11,6 +11,7 @@
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
 #   X                      a gap in the samples: the open segment is dropped
+#   W worn                 1/0: rest segments closing in what follows are offered / excluded
 #   E                      end of group: calibrate and report
 # Output lines:
 #   G name
@@ -44,6 +45,8 @@ def run(lines, emit):
             pipe.add_samples(buf, 0, n)
         elif tag == "X":
             pipe.rest.reset()
+        elif tag == "W":
+            pipe.worn = f[1] == "1"
         elif tag == "T":
             pipe.temp = int(f[1])
             pipe.time = int(f[2])

@@ -71,6 +71,9 @@ class Group:
     cond: np.ndarray | None = None
     t_origin: float | None = None
     n_samples: int | None = None
+    # Sample runs [start, stop) where rest segments closing are not offered to the bins
+    # (the host's non-wear and quality checks, accelcal.scan): the pipeline's worn = False.
+    unworn: np.ndarray | None = None
 
     @property
     def t_first(self) -> float:
@@ -154,6 +157,13 @@ def protocol_lines(groups: list[Group], cfg: Config):
             n = len(q)
             gaps = {int(i) for i in g.gaps if 0 < i < n}
             cuts = set(gaps)
+            worn = np.ones(n + 1, bool)
+            if g.unworn is not None and len(g.unworn):
+                for a, b in g.unworn.tolist():
+                    worn[a:b] = False
+                cuts.update((np.flatnonzero(np.diff(worn[:n])) + 1).tolist())
+                cuts.discard(0)
+            state = True
             if composed:  # a new run wherever the conditions change, led by a T line
                 cond = g.conditions(n)
                 cuts.update(condition_changes(cond).tolist())
@@ -161,6 +171,9 @@ def protocol_lines(groups: list[Group], cfg: Config):
             for a, b in zip(bounds[:-1], bounds[1:]):
                 if a in gaps:
                     yield "X"
+                if bool(worn[a]) != state:
+                    state = bool(worn[a])
+                    yield f"W {int(state)}"
                 if composed:
                     yield f"T {cond[a, 0]} {cond[a, 1]}"
                 for s in range(a, b, BATCH):

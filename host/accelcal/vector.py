@@ -27,36 +27,48 @@ from acal.rest import DEFAULT_SECONDS, DEFAULT_THRESHOLD
 
 @dataclass
 class Segments:
-    """Closed segments of one feed, in stream order."""
+    """Closed segments of one feed, in stream order.  Besides what the device's detector
+    reports (end, still, spread, mean), every axis's min and max: the host's quality checks
+    (non-wear, imputed constants, clipping) read them; the device's rest test does not."""
     end: np.ndarray      # (n,) int64: stream index of each segment's last sample
     still: np.ndarray    # (n,) bool
     spread: np.ndarray   # (n,) int64: max - min of the rest axis, Q10 g
     mean: np.ndarray     # (n, 3) int64: Q16 g (meaningful where still)
+    lo: np.ndarray       # (n, 3) int64: each axis's min, Q10 g
+    hi: np.ndarray       # (n, 3) int64: each axis's max, Q10 g
+
+    FIELDS = ("end", "still", "spread", "mean", "lo", "hi")
 
     @staticmethod
     def empty() -> "Segments":
-        return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64),
-                        np.zeros((0, 3), np.int64))
+        z3 = np.zeros((0, 3), np.int64)
+        return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), z3, z3, z3)
 
     @staticmethod
     def concat(parts: list["Segments"]) -> "Segments":
         if not parts:
             return Segments.empty()
-        return Segments(np.concatenate([p.end for p in parts]), np.concatenate([p.still for p in parts]),
-                        np.concatenate([p.spread for p in parts]), np.concatenate([p.mean for p in parts]))
+        return Segments(*(np.concatenate([getattr(p, f) for p in parts]) for f in Segments.FIELDS))
+
+    def take(self, sel) -> "Segments":
+        return Segments(*(getattr(self, f)[sel] for f in Segments.FIELDS))
+
+    def __len__(self):
+        return len(self.end)
 
 
-def segment_stats(q: np.ndarray, length: int, threshold: int, axis: int, first: int) -> Segments:
-    """Every full segment of a contiguous run q (m x 3 Q10 ints, m a multiple of length) that
-    starts at stream index `first`."""
-    n = len(q) // length
-    seg = q[: n * length].reshape(n, length, 3)
-    a = seg[:, :, axis]
-    spread = a.max(axis=1).astype(np.int64) - a.min(axis=1)
-    sums = seg.sum(axis=1, dtype=np.int64)
+def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: int) -> Segments:
+    """Every full segment of a contiguous run p (3 x m Q10 ints, planar: one row per axis, m a
+    multiple of length) that starts at stream index `first`."""
+    n = p.shape[1] // length
+    seg = p[:, : n * length].reshape(3, n, length)
+    lo = seg.min(axis=2).T.astype(np.int64)
+    hi = seg.max(axis=2).T.astype(np.int64)
+    sums = seg.sum(axis=2, dtype=np.int64).T
     mean = (sums << fixed.POINT_FROM_SAMPLE_SHIFT) // length   # floor, as mean_q16
+    spread = hi[:, axis] - lo[:, axis]
     end = first + (np.arange(1, n + 1, dtype=np.int64) * length) - 1
-    return Segments(end, spread < threshold, spread, mean)
+    return Segments(end, spread < threshold, spread, mean, lo, hi)
 
 
 class RestStream:
@@ -71,35 +83,40 @@ class RestStream:
         if axis not in (0, 1, 2):
             raise ValueError("axis must be 0, 1 or 2")
         self.length, self.threshold, self.axis = length, threshold, axis
-        self.pending = np.zeros((0, 3), np.int64)   # the open segment's samples
+        self.pending = np.zeros((3, 0), np.int32)   # the open segment's samples, planar
         self.position = 0                           # stream index of the next sample
 
     def feed(self, q: np.ndarray, gaps=()) -> Segments:
         """q: the next chunk (m x 3 Q10 ints); gaps: chunk-relative indices where a new
         contiguous run starts (the open segment is dropped there, as by RestDetector.reset())."""
-        q = np.asarray(q)
-        cuts = [0, *sorted(int(g) for g in gaps if 0 <= g <= len(q)), len(q)]
+        return self.feed_planar(np.ascontiguousarray(np.asarray(q, dtype=np.int32).reshape(-1, 3).T), gaps)
+
+    def feed_planar(self, p: np.ndarray, gaps=()) -> Segments:
+        """As feed, with the chunk planar: 3 x m Q10 ints (int32: |sample| < 2**14)."""
+        m = p.shape[1]
+        cuts = [0, *sorted(int(g) for g in gaps if 0 <= g <= m), m]
         parts = []
         starts_run = set(cuts[1:-1])
         for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
-            run = q[a:b]
+            run = p[:, a:b]
             if k == 0 and a not in starts_run:   # continues the open segment
-                first = self.position - len(self.pending)
-                run = np.concatenate([self.pending, run]) if len(self.pending) else run
+                first = self.position - self.pending.shape[1]
+                run = np.concatenate([self.pending, run], axis=1) if self.pending.shape[1] else run
             else:
                 first = self.position + a
-            full = (len(run) // self.length) * self.length
+            full = (run.shape[1] // self.length) * self.length
             if full:
-                parts.append(segment_stats(run[:full], self.length, self.threshold, self.axis, first))
-            self.pending = np.array(run[full:], dtype=np.int64)
-        self.position += len(q)
+                parts.append(segment_stats(run[:, :full], self.length, self.threshold, self.axis, first))
+            self.pending = np.array(run[:, full:], dtype=np.int32)
+        self.position += m
         return Segments.concat(parts)
 
 
 def rest_segments(q: np.ndarray, rate_hz: int, seconds: int = DEFAULT_SECONDS,
                   threshold: int = DEFAULT_THRESHOLD, axis: int = 0, gaps=(),
                   chunk: int | None = None) -> Segments:
-    """All closed segments of a whole stream, fed in chunks of `chunk` samples (None: one)."""
+    """All closed segments of a whole stream (m x 3 Q10 ints), fed in chunks of `chunk` samples
+    (None: one)."""
     rs = RestStream(rate_hz, seconds, threshold, axis)
     gaps = np.asarray(sorted(gaps), dtype=np.int64)
     step = chunk or max(len(q), 1)
@@ -109,6 +126,18 @@ def rest_segments(q: np.ndarray, rate_hz: int, seconds: int = DEFAULT_SECONDS,
         g = gaps[(gaps >= a) & (gaps < b)] - a
         parts.append(rs.feed(q[a:b], g))
     return Segments.concat(parts)
+
+
+def samples_planar(x, y, z) -> np.ndarray:
+    """Floats in g (three columns) -> the device's samples, planar 3 x m int32 Q10 g: rounded,
+    clipped to +-16 g (as io.g_to_sample, without the m x 3 copy)."""
+    out = np.empty((3, len(x)), np.int32)
+    for i, c in enumerate((x, y, z)):
+        v = np.multiply(c, fixed.SAMPLE_ONE_G, dtype=np.float64)
+        np.rint(v, out=v)
+        np.clip(v, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX, out=v)
+        out[i] = v
+    return out
 
 
 def apply_params(p_int, q: np.ndarray) -> np.ndarray:

@@ -1,0 +1,203 @@
+"""Recordings of any size and format, read in chunks onto our recording model (DESIGN.md "Files"):
+time t in s, x/y/z in g, temperature in degC where the device records it.
+
+* CSV (header t,x,y,z[,temp]) streams through Apache Arrow's CSV reader: a C++ engine, parsed in
+  blocks on both cores, so memory stays constant whatever the file's length.
+* Axivity .cwa (AX3, AX6), GENEActiv .bin and ActiGraph .gt3x go through `actfast`, a maintained
+  reader of all three.  It reads a whole file at once (about 20 bytes a sample: a 14-day 100 Hz
+  file needs ~2.4 GB), then we hand it on in chunks.  Time: seconds since the epoch (the file's
+  clock); temperature: the device's once-per-block reading, held until the next (as the devices'
+  own exporters do).  The axes are taken as they are: gyroscopes, light, buttons are dropped.
+
+Gaps: a step in t longer than 1.5 sample periods and longer than GAP_S starts a new contiguous
+run.  Real devices' timestamps jitter at block boundaries (an AX3 at 200 Hz: steps of 5 to 15 ms),
+which must not cut every rest segment; a second missing inside a 5 s segment moves its mean by
+nothing that matters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from accelcal.io import InputError
+
+GAP_S = 1.0
+CHUNK = 1 << 20                      # samples per chunk handed on
+ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
+STANDARD_RANGES_G = (2, 4, 8, 16)
+
+
+@dataclass
+class Chunk:
+    """Consecutive samples: t (n,) s; xyz (n, 3) g; temp (n,) degC or None; first: the stream
+    index of the first sample."""
+    t: np.ndarray
+    xyz: np.ndarray
+    temp: np.ndarray | None
+    first: int
+
+
+def gap_limit(rate_hz: int) -> float:
+    return max(1.5 / rate_hz, GAP_S)
+
+
+class Recording:
+    """A recording opened for reading in chunks.  `format` names it; `range_g` is the full scale
+    the file declares (None: not declared); `meta` the reader's metadata (JSON-ready)."""
+
+    format = "?"
+
+    def __init__(self, path: str):
+        self.path = str(path)
+        self.range_g: float | None = None
+        self.meta: dict = {}
+        self.has_temp = False
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        raise NotImplementedError
+
+
+def open_recording(path: str | Path) -> Recording:
+    """The reader for a file, chosen by its name: .cwa/.bin/.gt3x are actigraphy files,
+    anything else is CSV."""
+    path = str(path)
+    if not Path(path).is_file():
+        raise InputError(f"{path}: no such file")
+    ext = Path(path).suffix.lower()
+    if ext in ACTIGRAPHY:
+        return ActigraphyRecording(path)
+    return CsvRecording(path)
+
+
+class CsvRecording(Recording):
+    format = "CSV"
+
+    def __init__(self, path: str):
+        super().__init__(path)
+        with open(path, newline="") as fh:
+            first = fh.readline()
+        header = [h.strip() for h in first.strip().split(",")]
+        if not first.strip():
+            raise InputError(f"{path}: empty file")
+        if header not in (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"]):
+            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp; found "
+                             f"{','.join(header)}")
+        self.header = header
+        self.has_temp = "temp" in header
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        """One chunk per block Arrow parses (16 MB of text, ~350 000 rows): memory stays
+        constant; `size` is not used (Arrow's blocks are the natural unit)."""
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+        types = {h: pa.float64() for h in self.header}
+        first = 0
+        try:
+            reader = pacsv.open_csv(
+                self.path, read_options=pacsv.ReadOptions(block_size=1 << 24, use_threads=True),
+                convert_options=pacsv.ConvertOptions(column_types=types, null_values=[""]))
+            for batch in reader:
+                if batch.num_rows:
+                    yield self._chunk(batch, first)
+                    first += batch.num_rows
+        except pa.ArrowInvalid as e:
+            raise InputError(f"{self.path}: {_arrow_message(e)}") from None
+        if first == 0:
+            raise InputError(f"{self.path}: no data rows")
+
+    def _chunk(self, batch, first: int) -> Chunk:
+        cols = []
+        for i, h in enumerate(self.header):
+            c = batch.column(i)
+            if c.null_count:
+                row = first + int(np.argmax(c.is_null().to_numpy(zero_copy_only=False)))
+                raise InputError(f"{self.path}:{row + 2}: missing value in column {h}")
+            v = c.to_numpy()
+            if not np.isfinite(v).all():
+                row = first + int(np.argmax(~np.isfinite(v)))
+                raise InputError(f"{self.path}:{row + 2}: {v[row - first]} in column {h} "
+                                 "(values must be finite)")
+            cols.append(v)
+        return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first)
+
+
+def _arrow_message(e: Exception) -> str:
+    return " ".join(str(e).split())[:300]
+
+
+class ActigraphyRecording(Recording):
+    def __init__(self, path: str):
+        super().__init__(path)
+        self.format = ACTIGRAPHY[Path(path).suffix.lower()]
+        import actfast
+        try:
+            data = actfast.read(path)
+        except Exception as e:  # actfast raises its own errors for corrupt or unknown files
+            raise InputError(f"{path}: not a readable {self.format} file "
+                             f"({' '.join(str(e).split())[:200]})") from None
+        self.format = data.get("format", self.format)
+        hf = data["timeseries"].get("high_frequency", {})
+        if "acceleration" not in hf or not len(hf["acceleration"]):
+            raise InputError(f"{path}: {self.format} file holds no acceleration samples")
+        self.t = hf["datetime"].astype(np.float64) / 1e9
+        self.xyz = hf["acceleration"]
+        lf = data["timeseries"].get("low_frequency", {})
+        self.temp = None
+        if "temperature" in lf and len(lf["temperature"]):
+            tl = lf["datetime"].astype(np.float64) / 1e9
+            held = np.clip(np.searchsorted(tl, self.t, side="right") - 1, 0, None)
+            self.temp = lf["temperature"].astype(np.float64)[held]
+        self.has_temp = self.temp is not None
+        self.meta = data.get("metadata", {})
+        self.range_g = _declared_range(self.meta)
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        n = len(self.t)
+        for a in range(0, n, size):
+            b = min(n, a + size)
+            yield Chunk(self.t[a:b], self.xyz[a:b].astype(np.float64),
+                        None if self.temp is None else self.temp[a:b], a)
+
+
+def _declared_range(meta: dict) -> float | None:
+    """The full scale a file's header declares: Axivity's accelerometer_range_g, GENEActiv's
+    "Accelerometer Range" ("-8 to 8")."""
+    for sec in meta.values():
+        if not isinstance(sec, dict):
+            continue
+        for k, v in sec.items():
+            if k in ("accelerometer_range_g", "Accelerometer Range"):
+                try:
+                    return float(str(v).split()[-1])
+                except ValueError:
+                    return None
+    return None
+
+
+def read_whole(path: str | Path):
+    """(t, xyz, temp or None, recording) of a whole recording, for what needs it in memory."""
+    rec = open_recording(path)
+    parts = list(rec.chunks())
+    t = np.concatenate([c.t for c in parts])
+    xyz = np.concatenate([c.xyz for c in parts])
+    temp = np.concatenate([c.temp for c in parts]) if rec.has_temp else None
+    return t, xyz, temp, rec
+
+
+def is_recording(path: str | Path) -> bool:
+    """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
+    header is t,x,y,z[,temp]."""
+    path = str(path)
+    if Path(path).suffix.lower() in ACTIGRAPHY:
+        return True
+    try:
+        with open(path, newline="") as fh:
+            header = [h.strip() for h in fh.readline().strip().split(",")]
+    except OSError as e:
+        raise InputError(f"{path}: cannot open ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a CSV text file (nor .cwa/.bin/.gt3x)") from None
+    return header in (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])
