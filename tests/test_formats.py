@@ -93,7 +93,7 @@ def test_recording_kinds_and_corrupt_files(tmp_path):
 
 def test_csv_streams_in_blocks_with_row_numbers_in_errors(tmp_path):
     f = tmp_path / "r.csv"
-    n = 400_000   # more than one Arrow block (16 MB of text is ~350 000 such rows at 45 B)
+    n = 400_000   # many Arrow blocks (1 MB of text is ~40 000 such rows)
     t = np.arange(n) / 100
     body = "\n".join(f"{v:.2f},0.01,0.02,0.99" for v in t)
     f.write_text("t,x,y,z\n" + body + "\n")

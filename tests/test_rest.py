@@ -71,3 +71,20 @@ def test_mean_q16_is_exact_floor(rng):
         n = int(rng.integers(1, 65536))
         total = int(rng.integers(-16383 * n, 16383 * n + 1))
         assert mean_q16(total, n) == (total * 64) // n
+
+
+def test_pipeline_does_not_offer_rest_while_not_worn():
+    """The host's non-wear signal (Pipeline.worn): a still segment that closes while it is False
+    is counted as excluded and never reaches the bins; the detector itself is unchanged."""
+    from acal.pipeline import Pipeline
+    still = [0, 0, 1024] * 50            # 50 samples = one 5 s segment at 10 Hz
+    seen = []
+    p = Pipeline(10, on_rest=lambda x, y, z, s: seen.append((x, y, z)))
+    p.add_samples(still, 0, 50)
+    p.worn = False
+    p.add_samples(still, 0, 50)
+    p.add_samples(still, 0, 50)
+    p.worn = True
+    p.add_samples(still, 0, 50)
+    assert len(seen) == 2 and p.excluded == 2 and p.rest.segments == 4
+    assert p.rest_count == 2

@@ -282,3 +282,29 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         cal.temp, cal.time = int(cond[a, 0]), int(cond[a, 1])
         cal.apply_samples(buf, int(a), int(b - a))
     return sample_to_g(np.array(buf, dtype=np.int64).reshape(-1, 3))
+
+
+def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str) -> int:
+    """Calibrate a recording of any format and length chunk by chunk (accelcal.recording) with
+    the device's per-sample code; writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3).
+    Returns the number of samples."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    from accelcal.recording import open_recording
+    rec = open_recording(path)
+    names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
+    schema = pa.schema([(n, pa.float64()) for n in names])
+    n = 0
+    try:
+        sink = open(output, "wb")
+    except OSError as e:
+        raise InputError(f"{output}: cannot write ({e.strerror})") from None
+    sink.write((",".join(names) + "\n").encode())
+    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
+    with sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
+        for ch in rec.chunks():
+            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path), 6)
+            cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else [])
+            writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
+            n += len(ch.t)
+    return n

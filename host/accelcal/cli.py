@@ -195,23 +195,15 @@ def _print_record(r, by):
 
 
 def cmd_apply(args) -> int:
-    from accelcal.calibrate import apply_to_samples
-    from accelcal.io import load_params, read_table, write_csv
+    from accelcal.calibrate import apply_file
+    from accelcal.io import load_params
+    from accelcal.recording import is_recording
     model, p_int, ref = load_params(args.params, args.device)
-    table = read_table(args.input)
-    if table.kind != "recording":
-        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp])")
-    a = apply_to_samples(p_int, table.xyz, model, table.columns.get("temp"), table.columns["t"],
-                         ref, table.path)
-    cols = [table.columns["t"], a[:, 0], a[:, 1], a[:, 2]]
-    header = ["t", "x", "y", "z"]
-    fmt = ["%.6f", "%.6f", "%.6f", "%.6f"]
-    if "temp" in table.columns:
-        cols.append(table.columns["temp"])
-        header.append("temp")
-        fmt.append("%.3f")
-    write_csv(args.output, header, cols, fmt)
-    print(f"wrote {len(a)} calibrated samples to {args.output}", file=sys.stderr)
+    if not is_recording(args.input):
+        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
+                         ".cwa/.bin/.gt3x)")
+    n = apply_file(p_int, model, ref, args.input, args.output)
+    print(f"wrote {n} calibrated samples to {args.output}", file=sys.stderr)
     return 0
 
 
@@ -433,7 +425,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("apply", help="calibrate a recording with saved parameters",
                        description="Apply saved parameters to every sample with the device's "
-                                   "integer per-sample code; writes t,x,y,z[,temp] in g.")
+                                   "integer per-sample code (the paper's model through its numpy "
+                                   "twin, bit-exact); writes t,x,y,z[,temp] in g.  Streams: any "
+                                   "length of recording in constant memory.")
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True, help="output CSV")

@@ -40,8 +40,16 @@ class Table:
 def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Table:
     """Read a recording (header t,x,y,z[,temp]) or a points file (x,y,z plus optional temp, t,
     device, ...).  Every numeric cell is checked: non-numeric, missing or NaN -> InputError
-    naming the line and column."""
+    naming the line and column.  Actigraphy files (.cwa, .bin, .gt3x) are read whole through
+    accelcal.recording as recordings."""
     path = str(path)
+    if Path(path).suffix.lower() in (".cwa", ".bin", ".gt3x"):
+        from accelcal.recording import read_whole
+        t, xyz, temp, _ = read_whole(path)
+        cols = {"t": t, "x": xyz[:, 0].copy(), "y": xyz[:, 1].copy(), "z": xyz[:, 2].copy()}
+        if temp is not None:
+            cols["temp"] = temp
+        return Table(path, cols, "recording", {})
     try:
         fh = open(path, newline="")
     except OSError as e:
