@@ -25,7 +25,7 @@ class Job:
     the pool and for Dask)."""
     cfg: runtime.Config
     method: str = "device"
-    runtime: str = "cpython"
+    runtime_name: str = "cpython"
     model: str = "base"
     engine: str = "vector"
     fallback: str | None = None
@@ -44,11 +44,11 @@ def calibrate_file(path: str, job: Job) -> dict:
     try:
         spec = ModelSpec.parse(job.model)
         if is_recording(path):
-            rec = calibrate_recording(path, cfg, job.method, job.runtime, spec, job.engine,
+            rec = calibrate_recording(path, cfg, job.method, job.runtime_name, spec, job.engine,
                                       fallback=job.fallback)
         else:
             rec = {"file": path, "format": "points",
-                   **calibrate_groups(read_table(path), None, cfg, job.method, job.runtime, spec)[0]}
+                   **calibrate_groups(read_table(path), None, cfg, job.method, job.runtime_name, spec)[0]}
             rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
             if rec["status"] != "calibrated" and job.fallback:
                 import numpy as np
@@ -160,7 +160,8 @@ def print_summary(recs: list[dict], out=sys.stdout) -> None:
     for r in recs:
         def num(k, fmt):
             v = r.get(k)
-            return format(v, fmt) if isinstance(v, (int, float)) else "-"
+            width = int(fmt.split(".")[0].rstrip("dfg"))
+            return format(v, fmt) if isinstance(v, (int, float)) else "-".rjust(width)
         status = r["status"] + ("*" if r.get("calibration") == "fallback" else "")
         bins = f"{r['bins_filled']}/9" if "bins_filled" in r else "-"
         print(f"{os.path.basename(r['file']):<{name_w}}  {status:<15} {num('hours', '7.1f')} "

@@ -11,35 +11,13 @@ from acal.model import Calibration
 from accelcal import methods, runtime, vector
 from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import (InputError, Table, g_to_sample, params_record, params_to_float,
-                         params_to_int, sample_rate, sample_to_g)
+                         params_to_int, sample_to_g)
 
 
-CHUNK = 1 << 20   # samples per numpy chunk of the vectorised engine
-
-
-def groups_from_table(table: Table, by: str | None, engine: str = "device",
-                      cfg: runtime.Config | None = None) -> list[runtime.Group]:
-    """Split a points file or recording into device groups.  A recording with engine "vector":
-    the rest means found by the numpy twin of the device's detector (accelcal.vector), offered
-    to the device's bins in stream order; "device": every sample through the device modules."""
+def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
+    """Split a points file into device groups (recordings stream: calibrate_recording)."""
     if table.kind == "recording":
-        if by:
-            raise InputError(f"{table.path}: --by applies to points files; this is a recording")
-        t = table.columns["t"]
-        rate = sample_rate(t, table.path)
-        gaps = np.flatnonzero(np.diff(t) > 1.5 / rate) + 1
-        temp = table.columns.get("temp")
-        if engine == "vector":
-            q = g_to_sample(table.xyz)
-            seg = vector.rest_segments(q, cfg.rate_hz, cfg.seconds, cfg.threshold_int, cfg.axis,
-                                       gaps, CHUNK)
-            ends = seg.end[seg.still]
-            cond = runtime.device_conditions(None if temp is None else temp[ends], t[ends],
-                                             float(t[0]), len(ends))
-            return [runtime.Group("recording", points=seg.mean[seg.still] / fixed.POINT_ONE_G,
-                                  temp=None if temp is None else temp[ends], t=t[ends], cond=cond,
-                                  t_origin=float(t[0]), n_samples=len(q))]
-        return [runtime.Group("recording", samples=table.xyz, gaps=gaps, temp=temp, t=t)]
+        raise InputError(f"{table.path}: a recording goes through calibrate_recording")
     temp = table.columns.get("temp")
     t = table.columns.get("t")
     if not by:
@@ -81,20 +59,14 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
 
 
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
-                     runtime_name: str, spec: ModelSpec | None = None,
-                     engine: str = "device") -> list[dict]:
-    """One record per group; failed ones carry status 'failed' and a one-line reason.
+                     runtime_name: str, spec: ModelSpec | None = None) -> list[dict]:
+    """A points file: one record per group (result_record: status and a one-line reason).
     spec: a composed model (fitted by the device method only); None is the paper's."""
     spec = spec or ModelSpec(())
     if spec.effects and method != "device":
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
     cfg.kinds = spec.kinds
-    if table.kind == "recording":
-        cfg.rate_hz = sample_rate(table.columns["t"], table.path)
-        if cfg.rate_hz * cfg.seconds > fixed.SEGMENT_MAX_SAMPLES:
-            raise InputError(f"{table.path}: {cfg.seconds} s segments at {cfg.rate_hz} Hz exceed "
-                             f"{fixed.SEGMENT_MAX_SAMPLES} samples")
-    groups = groups_from_table(table, by, engine, cfg)
+    groups = groups_from_table(table, by)
     for g in groups:
         try:
             spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
@@ -119,7 +91,8 @@ def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: run
     rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
     rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
     rec["points"] = len(r.selected_int)
-    rec["error_before_mg"] = methods.calibration_error_mg(None, rest)
+    # no rest points: no figure (null in JSON, never NaN)
+    rec["error_before_mg"] = methods.calibration_error_mg(None, rest) if len(rest) else None
     if min(r.counts) < cfg.min_count:
         n_samples = len(g.samples) if g.samples is not None else g.n_samples
         what = (f"{n_samples} samples gave {len(rest)} rest segments"

@@ -114,7 +114,7 @@ def cmd_calibrate(args) -> int:
         bar.close()
     else:
         recs = calibrate_groups(read_table(inputs[0]), args.by, _config(args, bool(spec.effects)),
-                                args.method, args.runtime, spec, engine)
+                                args.method, args.runtime, spec)
         if args.fallback:
             raise InputError("--fallback applies to recordings")
     failed = [r for r in recs if r["status"] != "calibrated" and r.get("calibration") != "fallback"]
@@ -181,7 +181,7 @@ def _print_record(r, by):
         if r.get("calibration") == "fallback":
             print(f"  using the fallback calibration {r['fallback']} (not this file's): "
                   + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
-            if "error_after_mg" in r:
+            if r.get("error_after_mg") is not None and r.get("error_before_mg") is not None:
                 print(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                       f"{r['error_after_mg']:.2f} mg with the fallback")
         return

@@ -77,9 +77,10 @@ class CsvRecording(Recording):
 
     def __init__(self, path: str):
         super().__init__(path)
+        import csv
         with open(path, newline="") as fh:
             first = fh.readline()
-        header = [h.strip() for h in first.strip().split(",")]
+        header = [h.strip() for h in next(csv.reader([first]), [])]
         if not first.strip():
             raise InputError(f"{path}: empty file")
         if header not in (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"]):
@@ -193,9 +194,10 @@ def is_recording(path: str | Path) -> bool:
     path = str(path)
     if Path(path).suffix.lower() in ACTIGRAPHY:
         return True
+    import csv
     try:
         with open(path, newline="") as fh:
-            header = [h.strip() for h in fh.readline().strip().split(",")]
+            header = [h.strip() for h in next(csv.reader([fh.readline()]), [])]
     except OSError as e:
         raise InputError(f"{path}: cannot open ({e.strerror})") from None
     except UnicodeDecodeError:
