@@ -140,3 +140,19 @@ def test_imputed_and_clipped_segments_are_kept_from_the_bins(files, tmp_path):
     truth_clipped = json.loads((files / "s3.truth.json").read_text())["clipped_samples"]
     assert rec["clipped_pct"] == pytest.approx(100 * (n_clip + truth_clipped) / 864000, abs=1e-4)
     assert rec["still_windows"] < base["still_windows"]
+
+
+def test_relative_temperature_uses_the_cooling_test_only(files, tmp_path):
+    """An LIS3DH's temperature without a reference is relative (here: 25 degC low throughout).
+    Below 25 degC everywhere, yet only the cooling (taking the device off) counts as non-wear."""
+    import pyarrow.csv as pacsv
+    tab = pacsv.read_csv(files / "s3.csv")
+    cols = {c: tab.column(c).to_numpy() for c in tab.column_names}
+    cols["temp"] = cols["temp"] - 25.0
+    f = tmp_path / "relative.csv"
+    np.savetxt(f, np.column_stack([cols[c] for c in ("t", "x", "y", "z", "temp")]), delimiter=",",
+               fmt=["%.4f", "%.3f", "%.3f", "%.3f", "%.2f"], header="t,x,y,z,temp", comments="")
+    absolute = scan(open_recording(files / "s3.csv"), 5, 123, 0).masks()
+    relative = scan(open_recording(f), 5, 123, 0).masks()
+    assert 0 < relative["nonwear"].sum() < absolute["nonwear"].sum()
+    assert (relative["nonwear"] & ~absolute["nonwear"]).sum() == 0

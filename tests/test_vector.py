@@ -99,6 +99,42 @@ def test_apply_equals_the_device_calibration(off, diag, seed):
     assert (vector.apply_params(p, q) == np.array(buf).reshape(-1, 3)).all()
 
 
+@st.composite
+def composed_cases(draw):
+    """A composed model inside the calibration bounds, samples to the extremes, dT and dt past
+    the device's clamps."""
+    from acal import effects as deff
+    kinds = draw(st.lists(st.sampled_from([deff.TEMP_OFFSET, deff.TEMP_SCALE, deff.DRIFT,
+                                           deff.NONLINEAR]), min_size=1, max_size=4, unique=True))
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    one = 1 << 24
+    p = [int(v) for v in rng.integers(3 * one // 4, 5 * one // 4, 3)]
+    p += [int(v) for v in rng.integers(-one // 8, one // 8, 3)] + [int(v) for v in rng.integers(-one // 4, one // 4, 3)]
+    for k in kinds:
+        b = deff.BOUNDS[k]
+        p += [int(v) for v in rng.choice([-b, b, *rng.integers(-b, b, 3)], 3)]
+    n = 300
+    q = rng.integers(-2048, 2048, (n, 3))
+    q[:8] = rng.choice([-16383, -2048, 2047, 16383], (8, 3))
+    dT = rng.integers(-50, 51, n)
+    dt = rng.integers(-(1 << 21), 1 << 21, n)
+    return tuple(kinds), p, q.astype(np.int64), dT, dt
+
+
+@settings(max_examples=150, deadline=None)
+@given(composed_cases())
+def test_composed_apply_equals_the_device_calibration(case):
+    kinds, p, q, dT, dt = case
+    cal = Calibration(kinds)
+    cal.set(p)
+    dev = []
+    for (x, y, z), a, b in zip(q.tolist(), dT.tolist(), dt.tolist()):
+        cal.temp, cal.time = a, b
+        cal.apply(x, y, z)
+        dev.append((cal.x, cal.y, cal.z))
+    assert (vector.apply_params(p, q, kinds, dT, dt) == np.array(dev)).all()
+
+
 def _with_gaps(src, dst):
     """The recording with two stretches removed (gaps in t), one of them mid-segment."""
     lines = src.read_text().splitlines(keepends=True)

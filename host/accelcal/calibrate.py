@@ -230,8 +230,8 @@ def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
                      ref: dict | None = None, source: str = "recording") -> np.ndarray:
-    """Calibrate samples with the device's own per-sample code (model.Calibration; the paper's
-    model through its vectorised twin, bit-exact with it).  A composed
+    """Calibrate samples with the vectorised twin of the device's per-sample code
+    (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them as int degC and 64 s units from t0."""
     spec = ModelSpec.parse(model)
@@ -243,18 +243,13 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
                          "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
                          "bounds)") from None
+    q = g_to_sample(xyz_g)
     if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
-        return sample_to_g(vector.apply_params(p_int, g_to_sample(xyz_g)))
-    buf = g_to_sample(xyz_g).ravel().tolist()
-    n = len(buf) // 3
+        return sample_to_g(vector.apply_params(p_int, q))
     if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
-    cond = runtime.device_conditions(temp, t, ref["t0"], n)
-    cuts = np.r_[0, runtime.condition_changes(cond), n]
-    for a, b in zip(cuts[:-1], cuts[1:]):  # runs of equal conditions, as the app's blocks
-        cal.temp, cal.time = int(cond[a, 0]), int(cond[a, 1])
-        cal.apply_samples(buf, int(a), int(b - a))
-    return sample_to_g(np.array(buf, dtype=np.int64).reshape(-1, 3))
+    cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
+    return sample_to_g(vector.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1]))
 
 
 def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str) -> int:

@@ -13,10 +13,21 @@ import numpy as np
 from accelcal.io import InputError
 
 EPILOG_CAL = """\
-Input: a recording (CSV header t,x,y,z or t,x,y,z,temp; g and s) goes through rest detection,
-bins and the optimiser; a points file (CSV with x,y,z and optional temp,t,device) through bins and
-the optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol)
-are fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.  Exit status 2 when any group fails (the reason is on stderr and in the JSON).
+Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
+GENEActiv .bin, ActiGraph .gt3x) goes through rest detection, bins and the optimiser, streamed in
+constant memory; a points file (CSV with x,y,z and optional temp,t,device) through bins and the
+optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol) are
+fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.
+
+A recording's record carries its quality: hours, gaps, still windows kept and excluded (non-wear:
+still on every axis and colder than skin or cooling; imputed: every axis constant; clipped: at
+full scale), bins filled, temperature range, clipping share, calibration error before/after (mg),
+and status: calibrated, not_enough_data or failed, with the reason.  Nothing is applied silently:
+--fallback names the calibration a file gets instead.
+
+Exit status: one input: 2 when it did not calibrate (reason on stderr and in the JSON) unless a
+--fallback was used.  Several inputs (a batch): 0, with each file's status in the summary; 2 with
+--strict when any file did not calibrate.  Bad options: 2.
 """
 
 

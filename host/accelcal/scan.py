@@ -8,7 +8,8 @@ rest and are kept from the bins (README "False rest and quality control"):
 * clipped: a sample at the full scale in the segment (the mean is not gravity's);
 * non-wear: still on every axis (not only the rest-test axis) while the device is colder than
   skin (below WEAR_TEMP_C) or cooling fast (faster than COOLING_C_PER_MIN): off the wrist
-  (Zhou et al. 2015 use temperature the same way).  Files without temperature: not detected.
+  (Zhou et al. 2015 use temperature the same way).  Files without temperature: not detected;
+  files whose temperature never reaches skin's (relative LIS3DH readings): the cooling test only.
 
 What is kept is decided per segment, so both engines (this twin and the device modules fed every
 sample) see the same: the device's Pipeline gets `worn = False` over the excluded segments.
@@ -25,6 +26,8 @@ from accelcal.io import InputError
 from accelcal.recording import STANDARD_RANGES_G, Recording, gap_limit
 
 WEAR_TEMP_C = 25.0          # worn wrist devices read 28-35 degC; off the wrist: the room's
+SKIN_MIN_C = 28.0           # a file that never reads this has relative temperatures (an LIS3DH
+                            # without a reference) or was never worn: no "cold" test there
 COOLING_C_PER_MIN = 0.3     # taken off: skin -> room with a ~15 min time constant, ~0.6 degC/min
 COOLING_WINDOW_S = 120      # slope over 2 min: an AX3's 0.29 degC steps stay below the rate
 CLIP_FRACTION = 0.99925     # at full scale: within 1.5 mg of 2 g (the LIS3DH's last digits)
@@ -89,7 +92,8 @@ class Scan:
         nonwear = np.zeros(len(s), bool)
         if self.seg_temp is not None and len(s):
             all_still = (rng < self.threshold).all(axis=1)
-            cold = self.seg_temp < WEAR_TEMP_C
+            absolute = self.temp_max is not None and self.temp_max >= SKIN_MIN_C
+            cold = (self.seg_temp < WEAR_TEMP_C) if absolute else np.zeros(len(s), bool)
             # temperature slope over the last COOLING_WINDOW_S, per minute
             k = np.searchsorted(self.seg_t, self.seg_t - COOLING_WINDOW_S)
             dt = self.seg_t - self.seg_t[k]

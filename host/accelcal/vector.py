@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from acal import effects as deff
 from acal import fixed
 from acal.rest import DEFAULT_SECONDS, DEFAULT_THRESHOLD
 
@@ -140,13 +141,39 @@ def samples_planar(x, y, z) -> np.ndarray:
     return out
 
 
-def apply_params(p_int, q: np.ndarray) -> np.ndarray:
-    """The twin of Calibration.set(p) + apply_samples for the paper's model: Q24 parameters,
-    Q10 samples in and out (m x 3 int64)."""
+def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None) -> np.ndarray:
+    """The twin of Calibration(kinds).set(p, ref_temp) + apply_samples: Q24 parameters (9, then
+    3 per effect), Q10 samples in and out (m x 3 int64).  A composed model also takes each
+    sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
+    time), as the device's temp - ref_temp and time - ref_time; clamped as the device clamps."""
     half_p = 1 << (fixed.APPLY_PARAM_SHIFT - 1)
     k = [(int(v) + half_p) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:9]]
-    q = np.asarray(q, dtype=np.int64)
-    u = (q << fixed.APPLY_FROM_SAMPLE_SHIFT) + np.array(k[6:9], dtype=np.int64)
+    q = np.asarray(q, dtype=np.int64).reshape(-1, 3)
+    off = np.array(k[6:9], dtype=np.int64)
+    if kinds:
+        w = q << fixed.APPLY_FROM_SAMPLE_SHIFT
+        m = len(q)
+        dT = np.clip(np.broadcast_to(np.asarray(0 if dT is None else dT, np.int64), (m,)),
+                     -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
+        dt = np.clip(np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,)),
+                     -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)[:, None]
+        for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
+            kind = kinds[j]
+            shift = 10 if kind in (deff.TEMP_OFFSET, deff.DRIFT) else 6
+            ke = np.array([(int(v) + (1 << (shift - 1))) >> shift for v in p_int[9 + 3 * j:12 + 3 * j]],
+                          dtype=np.int64)
+            if kind == deff.TEMP_OFFSET:
+                w -= (ke * dT) >> 4
+            elif kind == deff.TEMP_SCALE:
+                w -= (((ke * dT) >> 4) * w) >> 18
+            elif kind == deff.DRIFT:
+                w -= (ke * dt) >> 11
+            elif kind == deff.NONLINEAR:
+                w -= (ke * ((q * q) >> 10)) >> 14
+        np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)
+        u = w + off
+    else:
+        u = (q << fixed.APPLY_FROM_SAMPLE_SHIFT) + off
     half = 1 << (fixed.APPLY_OUT_SHIFT - 1)
     out = np.empty_like(u)
     out[:, 0] = (k[0] * u[:, 0] + half) >> fixed.APPLY_OUT_SHIFT
