@@ -185,6 +185,8 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec = {"file": path, "format": sc.format, "model": str(spec), "method": method,
            "runtime": runtime_name}
     rec.update(quality(sc, m))
+    if rec_in.warnings:
+        rec["reader_warnings"] = rec_in.warnings
     rec = result_record(rec, g, r, cfg, spec, method)
     rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
     if rec["status"] != "calibrated" and fallback:

@@ -55,6 +55,7 @@ class Recording:
         self.range_g: float | None = None
         self.meta: dict = {}
         self.has_temp = False
+        self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         raise NotImplementedError
@@ -153,6 +154,7 @@ class ActigraphyRecording(Recording):
             self.temp = lf["temperature"].astype(np.float64)[held]
         self.has_temp = self.temp is not None
         self.meta = data.get("metadata", {})
+        self.warnings = [" ".join(str(w).split()) for w in data.get("warnings", [])]
         self.range_g = _declared_range(self.meta)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
