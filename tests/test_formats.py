@@ -110,3 +110,32 @@ def test_csv_streams_in_blocks_with_row_numbers_in_errors(tmp_path):
     f.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"r.csv:300002: nan in column y"):
         list(open_recording(f).chunks())
+
+
+@pytest.mark.parametrize("name", ["ax3_sample.cwa", "ax6_sample.cwa"])
+def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
+    """A .cwa goes to actfast a few blocks at a time (constant memory): the pieces give the
+    same samples, times and temperatures as actfast on the whole file, and the same calibration
+    record."""
+    import actfast
+
+    from accelcal.recording import CwaRecording
+    whole = actfast.read(str(REAL / name))["timeseries"]
+    rec = CwaRecording(str(REAL / name))
+    rec.BLOCKS = 37   # pieces that split the file unevenly
+    chunks = list(rec.chunks())
+    assert len(chunks) > 5
+    t = np.concatenate([c.t for c in chunks])
+    assert np.array_equal(t, whole["high_frequency"]["datetime"] / 1e9)
+    assert np.array_equal(np.concatenate([c.xyz for c in chunks]), whole["high_frequency"]["acceleration"])
+    assert [c.first for c in chunks] == list(np.cumsum([0] + [len(c.t) for c in chunks[:-1]]))
+    tl = whole["low_frequency"]["datetime"] / 1e9
+    held = whole["low_frequency"]["temperature"][np.clip(np.searchsorted(tl, t, "right") - 1, 0, None)]
+    assert np.array_equal(np.concatenate([c.temp for c in chunks]), held)
+    one = json.loads(run_cli("calibrate", REAL / name, "--json").stdout)
+    monkeypatch.setattr(CwaRecording, "BLOCKS", 37)
+    from accelcal import runtime
+    from accelcal.calibrate import calibrate_recording
+    cfg = runtime.Config()
+    pieces = calibrate_recording(str(REAL / name), cfg, "device", "cpython")
+    assert {k: v for k, v in pieces.items() if k != "file"} == {k: v for k, v in one.items() if k != "file"}

@@ -5,7 +5,8 @@ time t in s, x/y/z in g, temperature in degC where the device records it.
   blocks on both cores, so memory stays constant whatever the file's length.
 * Axivity .cwa (AX3, AX6), GENEActiv .bin and ActiGraph .gt3x go through `actfast`, a maintained
   reader of all three.  It reads a whole file at once (about 20 bytes a sample: a 14-day 100 Hz
-  file needs ~2.4 GB), then we hand it on in chunks.  Time: seconds since the epoch (the file's
+  file would need ~2.4 GB), so a .cwa, made of self-contained 512-byte blocks, goes to it in
+  pieces of a few MB (CwaRecording): constant memory.  .bin and .gt3x are read whole.  Time: seconds since the epoch (the file's
   clock); temperature: the device's once-per-block reading, held until the next (as the devices'
   own exporters do).  The axes are taken as they are: gyroscopes, light, buttons are dropped.
 
@@ -68,6 +69,8 @@ def open_recording(path: str | Path) -> Recording:
     if not Path(path).is_file():
         raise InputError(f"{path}: no such file")
     ext = Path(path).suffix.lower()
+    if ext == ".cwa":
+        return CwaRecording(path)
     if ext in ACTIGRAPHY:
         return ActigraphyRecording(path)
     return CsvRecording(path)
@@ -130,28 +133,42 @@ def _arrow_message(e: Exception) -> str:
     return " ".join(str(e).split())[:300]
 
 
+def _actfast(path: str, fmt: str) -> dict:
+    import actfast
+    try:
+        return actfast.read(path)
+    except Exception as e:  # actfast raises its own errors for corrupt or unknown files
+        raise InputError(f"{path}: not a readable {fmt} file "
+                         f"({' '.join(str(e).split())[:200]})") from None
+
+
+def _columns(data: dict):
+    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None)."""
+    hf = data["timeseries"].get("high_frequency", {})
+    if "acceleration" not in hf or not len(hf["acceleration"]):
+        return None
+    t = hf["datetime"].astype(np.float64) / 1e9
+    lf = data["timeseries"].get("low_frequency", {})
+    temp = None
+    if "temperature" in lf and len(lf["temperature"]):
+        tl = lf["datetime"].astype(np.float64) / 1e9
+        held = np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
+        temp = lf["temperature"].astype(np.float64)[held]
+    return t, hf["acceleration"], temp
+
+
 class ActigraphyRecording(Recording):
+    """GENEActiv .bin, ActiGraph .gt3x: read whole by actfast, handed on in chunks."""
+
     def __init__(self, path: str):
         super().__init__(path)
         self.format = ACTIGRAPHY[Path(path).suffix.lower()]
-        import actfast
-        try:
-            data = actfast.read(path)
-        except Exception as e:  # actfast raises its own errors for corrupt or unknown files
-            raise InputError(f"{path}: not a readable {self.format} file "
-                             f"({' '.join(str(e).split())[:200]})") from None
+        data = _actfast(path, self.format)
         self.format = data.get("format", self.format)
-        hf = data["timeseries"].get("high_frequency", {})
-        if "acceleration" not in hf or not len(hf["acceleration"]):
+        cols = _columns(data)
+        if cols is None:
             raise InputError(f"{path}: {self.format} file holds no acceleration samples")
-        self.t = hf["datetime"].astype(np.float64) / 1e9
-        self.xyz = hf["acceleration"]
-        lf = data["timeseries"].get("low_frequency", {})
-        self.temp = None
-        if "temperature" in lf and len(lf["temperature"]):
-            tl = lf["datetime"].astype(np.float64) / 1e9
-            held = np.clip(np.searchsorted(tl, self.t, side="right") - 1, 0, None)
-            self.temp = lf["temperature"].astype(np.float64)[held]
+        self.t, self.xyz, self.temp = cols
         self.has_temp = self.temp is not None
         self.meta = data.get("metadata", {})
         self.warnings = [" ".join(str(w).split()) for w in data.get("warnings", [])]
@@ -163,6 +180,67 @@ class ActigraphyRecording(Recording):
             b = min(n, a + size)
             yield Chunk(self.t[a:b], self.xyz[a:b].astype(np.float64),
                         None if self.temp is None else self.temp[a:b], a)
+
+
+class CwaRecording(Recording):
+    """Axivity .cwa, streamed: the file is a header packet ('MD', its length in bytes 2-3) and
+    512-byte data blocks, each with its own timestamp, temperature and samples.  actfast reads a
+    piece made of the header and a run of blocks to exactly what it reads for those blocks in
+    the whole file (tests/test_formats.py), so pieces of BLOCKS blocks go through a scratch file
+    one at a time: constant memory for any length (a 14-day 100 Hz file is ~1 M blocks)."""
+
+    BLOCKS = 8192      # 4 MB of file, ~1 M samples of an AX3 (120 per packed block)
+    BLOCK = 512
+
+    def __init__(self, path: str):
+        super().__init__(path)
+        self.format = "Axivity CWA"
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+        if len(head) < 4 or head[:2] != b"MD":
+            raise InputError(f"{path}: not an Axivity CWA file (no 'MD' header packet)")
+        self.header_len = int.from_bytes(head[2:4], "little") + 4
+        size = Path(path).stat().st_size
+        self.n_blocks = max(0, (size - self.header_len) // self.BLOCK)
+        if self.n_blocks == 0:
+            raise InputError(f"{path}: {self.format} file holds no data blocks")
+        first = self._piece(0, 1)
+        self.format = first.get("format", self.format)
+        self.meta = first.get("metadata", {})
+        self.range_g = _declared_range(self.meta)
+        cols = _columns(first)
+        self.has_temp = cols is not None and cols[2] is not None
+
+    def _piece(self, a: int, b: int) -> dict:
+        import tempfile
+        with open(self.path, "rb") as fh:
+            header = fh.read(self.header_len)
+            fh.seek(self.header_len + a * self.BLOCK)
+            blocks = fh.read((b - a) * self.BLOCK)
+        scratch = "/dev/shm" if Path("/dev/shm").is_dir() else None
+        with tempfile.NamedTemporaryFile(suffix=".cwa", dir=scratch) as tmp:
+            tmp.write(header + blocks)
+            tmp.flush()
+            return _actfast(tmp.name, f"{self.format} (blocks {a}-{b - 1} of {self.path})")
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        first = 0
+        held = [float("nan")]   # the last temperature reading, for a piece without one
+        for a in range(0, self.n_blocks, self.BLOCKS):
+            data = self._piece(a, min(self.n_blocks, a + self.BLOCKS))
+            self.warnings += [" ".join(str(w).split()) for w in data.get("warnings", [])]
+            cols = _columns(data)
+            if cols is None:
+                continue
+            t, xyz, temp = cols
+            if self.has_temp and temp is None:   # a piece without a reading: hold the last
+                temp = np.full(len(t), held[0])
+            yield Chunk(t, xyz.astype(np.float64), temp if self.has_temp else None, first)
+            if self.has_temp:
+                held[0] = float(temp[-1])
+            first += len(t)
+        if first == 0:
+            raise InputError(f"{self.path}: {self.format} file holds no acceleration samples")
 
 
 def _declared_range(meta: dict) -> float | None:
