@@ -25,6 +25,7 @@ from acal import optimiser
 from accelcal import methods, runtime
 from accelcal.diagnose import RestPoints, rest_points, split, usable
 from accelcal.io import InputError, params_to_float, read_table
+from accelcal.recording import is_recording
 
 ALL = ["device"] + methods.ORDER
 CURVE_MAX = 1000   # training vectors: Gietzelt's figure 3 goes to ~300; de costs O(n) per step
@@ -48,9 +49,12 @@ class Split:
 
 
 def split_points(path: str) -> Split:
-    table = read_table(path)
-    p = usable(rest_points(table))
-    if table.kind == "recording" or "t" in table.columns:
+    if is_recording(path):
+        p, timed = usable(rest_points(path)), True
+    else:
+        table = read_table(path)
+        p, timed = usable(rest_points(table)), "t" in table.columns
+    if timed:
         train, test, _ = split(p)
         how = "2-hour blocks: even train, odd held out"
     else:

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from acal.rest import RestDetector
 from accelcal.effects import CATALOGUE, ModelSpec
-from accelcal.io import InputError, Table, g_to_sample, read_table, sample_rate
+from accelcal.io import InputError, Table, read_table
+from accelcal.recording import is_recording
 
 BLOCK_S = 2 * 3600
 MIN_IMPROVEMENT_PCT = 10.0
@@ -55,37 +55,26 @@ class RestPoints:
 
 
 def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
-    """path: a file name, or a Table already read."""
-    table = path if isinstance(path, Table) else read_table(path)
-    path = table.path
-    if table.kind == "points":
-        c = table.columns
-        n = len(table.xyz)
-        return RestPoints(table.xyz, c["t"] if "t" in c else np.arange(n, dtype=float),
-                          c.get("temp"), np.zeros(n), path)
-    t = table.columns["t"]
-    rate = sample_rate(t, path)
-    xyz = table.xyz
-    det = RestDetector(rate, seconds, int(round(threshold_g * 1024)))
-    buf = g_to_sample(xyz).ravel().tolist()
-    n = len(xyz)
-    start, segs = 0, []
-    while start < n:  # the device's detector decides; the host only reads its results
-        used = det.add_samples(buf, start, n - start)
-        start += used
-        if det.ended:
-            det.ended = False
-            if det.still:
-                segs.append((start - det.length, det.mean_x, det.mean_y, det.mean_z))
-    if not segs:
+    """path: a recording (any size or format: one streaming pass of the vectorised twin of the
+    device's detector, accelcal.scan; every still segment, gaps honoured) or a points Table."""
+    if isinstance(path, Table):
+        if path.kind != "points":
+            raise InputError(f"{path.path}: recordings are read by name (streamed)")
+        c = path.columns
+        n = len(path.xyz)
+        return RestPoints(path.xyz, c["t"] if "t" in c else np.arange(n, dtype=float),
+                          c.get("temp"), np.zeros(n), path.path)
+    from accelcal.recording import open_recording
+    from accelcal.scan import scan
+    rec = open_recording(path)
+    sc = scan(rec, seconds, int(round(threshold_g * 1024)), 0, extras=True)
+    still = sc.segments.still
+    if not still.any():
         raise InputError(f"{path}: no rest segments found")
-    idx = np.array([s[0] for s in segs])
-    means = np.array([s[1:] for s in segs], dtype=np.float64) / 65536.0
-    win = idx[:, None] + np.arange(det.length)[None, :]
-    mag = np.linalg.norm(xyz[win], axis=2)
-    temp = table.columns.get("temp")
-    return RestPoints(means, t[win].mean(axis=1), None if temp is None else temp[win].mean(axis=1),
-                      mag.std(axis=1) / np.sqrt(det.length), path)
+    m = sc.seg_means[still]
+    sd = np.sqrt(np.maximum(m[:, 3] - m[:, 2] ** 2, 0.0))
+    return RestPoints(sc.segments.mean[still] / 65536.0, m[:, 0], m[:, 1] if rec.has_temp else None,
+                      sd / np.sqrt(sc.length), str(path))
 
 
 def usable(p: RestPoints) -> RestPoints:
@@ -107,7 +96,7 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
         spec = ModelSpec.parse(model)
     except ValueError as e:
         raise InputError(str(e)) from None
-    p = usable(rest_points(path))
+    p = usable(rest_points(path if is_recording(path) else read_table(path)))
     check_model(spec, p)
     return spec, p
 
@@ -370,6 +359,6 @@ def report_main(args) -> int:
 def heldout_error_of(path: str, model: str, theta, ref: dict) -> float:
     """The held-out error (mg, same split as diagnose) of given parameters: for the truth."""
     spec = ModelSpec.parse(model)
-    _, test, _ = split(usable(rest_points(path)))
+    _, test, _ = split(usable(rest_points(path if is_recording(path) else read_table(path))))
     _, r = residuals(spec, np.asarray(theta, dtype=np.float64), test, ref)
     return float(np.mean(np.abs(r)) * 1e3)

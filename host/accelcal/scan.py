@@ -53,6 +53,9 @@ class Scan:
     range_g: float | None = None                           # declared by the file, if at all
     length: int = 0                                        # samples per segment
     threshold: int = 0                                     # Q10 g
+    # with scan(extras=True), per segment the means of: t (s), temperature (degC; 0 without),
+    # |v| and |v|^2 of the file's own float samples (g, g^2)
+    seg_means: np.ndarray | None = None
 
     @property
     def hours(self) -> float:
@@ -115,10 +118,11 @@ class Scan:
 
 
 def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int | None = None,
-         keep_samples: bool = False, progress=None):
+         keep_samples: bool = False, progress=None, extras: bool = False):
     """Stream rec through the twin's detector.  rate_hz None: from the first chunk's median time
     step.  keep_samples: also return the whole recording (t, xyz Q10 m x 3, temp) for the
-    device engine.  progress(samples_done) after each chunk."""
+    device engine.  extras: also each segment's means of t, temperature, |v|, |v|^2
+    (Scan.seg_means, for diagnose).  progress(samples_done) after each chunk."""
     sc = None
     stream = None
     parts, seg_t, seg_temp = [], [], []
@@ -157,7 +161,12 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
         gaps = np.flatnonzero(steps > limit) + (1 if last_t is None else 0)
         sc.gap_starts.extend((gaps + ch.first).tolist())
         p = vector.samples_planar(ch.xyz[:, 0], ch.xyz[:, 1], ch.xyz[:, 2])
-        seg = stream.feed_planar(p, gaps)
+        extra = None
+        if extras:
+            mag2 = np.einsum("ij,ij->i", ch.xyz, ch.xyz)
+            extra = np.vstack([t - sc.t_first, ch.temp if ch.temp is not None else np.zeros(len(t)),
+                               np.sqrt(mag2), mag2])
+        seg = stream.feed_planar(p, gaps, extra)
         local = seg.end - ch.first
         parts.append(seg)
         seg_t.append(t[local])
@@ -184,6 +193,9 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
     sc.segments = vector.Segments.concat(parts)
     sc.seg_t = np.concatenate(seg_t) if seg_t else np.zeros(0)
     sc.seg_temp = np.concatenate(seg_temp) if seg_temp and rec.has_temp else None
+    if extras:
+        sc.seg_means = sc.segments.extra / sc.length
+        sc.seg_means[:, 0] += sc.t_first
     if keep_samples:
         whole = (np.concatenate(kept_t), np.concatenate(kept_q),
                  np.concatenate(kept_temp) if rec.has_temp else None)

@@ -37,13 +37,15 @@ class Segments:
     mean: np.ndarray     # (n, 3) int64: Q16 g (meaningful where still)
     lo: np.ndarray       # (n, 3) int64: each axis's min, Q10 g
     hi: np.ndarray       # (n, 3) int64: each axis's max, Q10 g
+    extra: np.ndarray    # (n, k) float64: sums of the feeder's extra per-sample columns (k >= 0)
 
-    FIELDS = ("end", "still", "spread", "mean", "lo", "hi")
+    FIELDS = ("end", "still", "spread", "mean", "lo", "hi", "extra")
 
     @staticmethod
-    def empty() -> "Segments":
+    def empty(k: int = 0) -> "Segments":
         z3 = np.zeros((0, 3), np.int64)
-        return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), z3, z3, z3)
+        return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), z3, z3, z3,
+                        np.zeros((0, k)))
 
     @staticmethod
     def concat(parts: list["Segments"]) -> "Segments":
@@ -58,10 +60,15 @@ class Segments:
         return len(self.end)
 
 
-def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: int) -> Segments:
+def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: int,
+                  extra: np.ndarray | None = None) -> Segments:
     """Every full segment of a contiguous run p (3 x m Q10 ints, planar: one row per axis, m a
-    multiple of length) that starts at stream index `first`."""
+    multiple of length) that starts at stream index `first`; extra (k x m floats): summed per
+    segment too."""
     n = p.shape[1] // length
+    k = 0 if extra is None else extra.shape[0]
+    ext = (extra[:, : n * length].reshape(k, n, length).sum(axis=2).T if k
+           else np.zeros((n, 0)))
     seg = p[:, : n * length].reshape(3, n, length)
     lo = seg.min(axis=2).T.astype(np.int64)
     hi = seg.max(axis=2).T.astype(np.int64)
@@ -69,7 +76,7 @@ def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: 
     mean = (sums << fixed.POINT_FROM_SAMPLE_SHIFT) // length   # floor, as mean_q16
     spread = hi[:, axis] - lo[:, axis]
     end = first + (np.arange(1, n + 1, dtype=np.int64) * length) - 1
-    return Segments(end, spread < threshold, spread, mean, lo, hi)
+    return Segments(end, spread < threshold, spread, mean, lo, hi, ext)
 
 
 class RestStream:
@@ -85,6 +92,7 @@ class RestStream:
             raise ValueError("axis must be 0, 1 or 2")
         self.length, self.threshold, self.axis = length, threshold, axis
         self.pending = np.zeros((3, 0), np.int32)   # the open segment's samples, planar
+        self.pending_extra = None                   # and their extra columns, if fed any
         self.position = 0                           # stream index of the next sample
 
     def feed(self, q: np.ndarray, gaps=()) -> Segments:
@@ -92,25 +100,36 @@ class RestStream:
         contiguous run starts (the open segment is dropped there, as by RestDetector.reset())."""
         return self.feed_planar(np.ascontiguousarray(np.asarray(q, dtype=np.int32).reshape(-1, 3).T), gaps)
 
-    def feed_planar(self, p: np.ndarray, gaps=()) -> Segments:
-        """As feed, with the chunk planar: 3 x m Q10 ints (int32: |sample| < 2**14)."""
+    def feed_planar(self, p: np.ndarray, gaps=(), extra: np.ndarray | None = None) -> Segments:
+        """As feed, with the chunk planar: 3 x m Q10 ints (int32: |sample| < 2**14).  extra:
+        k x m floats per sample (the host's: time, temperature, |v|...) summed per segment
+        (Segments.extra); the same k on every call."""
         m = p.shape[1]
         cuts = [0, *sorted(int(g) for g in gaps if 0 <= g <= m), m]
         parts = []
         starts_run = set(cuts[1:-1])
+        if extra is not None and self.pending_extra is None:
+            self.pending_extra = np.zeros((extra.shape[0], 0))
         for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
             run = p[:, a:b]
+            ext = None if extra is None else extra[:, a:b]
             if k == 0 and a not in starts_run:   # continues the open segment
                 first = self.position - self.pending.shape[1]
-                run = np.concatenate([self.pending, run], axis=1) if self.pending.shape[1] else run
+                if self.pending.shape[1]:
+                    run = np.concatenate([self.pending, run], axis=1)
+                    if ext is not None:
+                        ext = np.concatenate([self.pending_extra, ext], axis=1)
             else:
                 first = self.position + a
             full = (run.shape[1] // self.length) * self.length
             if full:
-                parts.append(segment_stats(run[:, :full], self.length, self.threshold, self.axis, first))
+                parts.append(segment_stats(run[:, :full], self.length, self.threshold, self.axis,
+                                           first, None if ext is None else ext[:, :full]))
             self.pending = np.array(run[:, full:], dtype=np.int32)
+            if ext is not None:
+                self.pending_extra = np.array(ext[:, full:])
         self.position += m
-        return Segments.concat(parts)
+        return Segments.concat(parts) if parts else Segments.empty(0 if extra is None else extra.shape[0])
 
 
 def rest_segments(q: np.ndarray, rate_hz: int, seconds: int = DEFAULT_SECONDS,
