@@ -62,10 +62,7 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
                      runtime_name: str, spec: ModelSpec | None = None) -> list[dict]:
     """A points file: one record per group (result_record: status and a one-line reason).
     spec: a composed model (fitted by the device method only); None is the paper's."""
-    spec = spec or ModelSpec(())
-    if spec.effects and method != "device":
-        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
-    cfg.kinds = spec.kinds
+    spec = _device_spec(spec, method, cfg)
     groups = groups_from_table(table, by)
     for g in groups:
         try:
@@ -80,6 +77,15 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
             rec[by] = g.name
         out.append(result_record(rec, g, r, cfg, spec, method))
     return out
+
+
+def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config) -> ModelSpec:
+    """The model for the device pipeline (None: the paper's); its effects into cfg."""
+    spec = spec or ModelSpec(())
+    if spec.effects and method != "device":
+        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
+    cfg.kinds = spec.kinds
+    return spec
 
 
 def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: runtime.Config,
@@ -155,10 +161,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     device modules (the whole recording in memory).  The same record either way."""
     from accelcal.recording import open_recording
     from accelcal.scan import scan
-    spec = spec or ModelSpec(())
-    if spec.effects and method != "device":
-        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
-    cfg.kinds = spec.kinds
+    spec = _device_spec(spec, method, cfg)
     rec_in = open_recording(path)
     out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
                progress=progress)

@@ -56,7 +56,10 @@ class RestPoints:
 
 def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
     """path: a recording (any size or format: one streaming pass of the vectorised twin of the
-    device's detector, accelcal.scan; every still segment, gaps honoured) or a points Table."""
+    device's detector, accelcal.scan; every still segment, gaps honoured), or a points file or
+    Table."""
+    if not isinstance(path, Table) and not is_recording(path):
+        path = read_table(path)
     if isinstance(path, Table):
         if path.kind != "points":
             raise InputError(f"{path.path}: recordings are read by name (streamed)")
@@ -96,7 +99,7 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
         spec = ModelSpec.parse(model)
     except ValueError as e:
         raise InputError(str(e)) from None
-    p = usable(rest_points(path if is_recording(path) else read_table(path)))
+    p = usable(rest_points(path))
     check_model(spec, p)
     return spec, p
 
@@ -359,6 +362,6 @@ def report_main(args) -> int:
 def heldout_error_of(path: str, model: str, theta, ref: dict) -> float:
     """The held-out error (mg, same split as diagnose) of given parameters: for the truth."""
     spec = ModelSpec.parse(model)
-    _, test, _ = split(usable(rest_points(path if is_recording(path) else read_table(path))))
+    _, test, _ = split(usable(rest_points(path)))
     _, r = residuals(spec, np.asarray(theta, dtype=np.float64), test, ref)
     return float(np.mean(np.abs(r)) * 1e3)

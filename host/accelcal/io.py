@@ -43,8 +43,8 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
     naming the line and column.  Actigraphy files (.cwa, .bin, .gt3x) are read whole through
     accelcal.recording as recordings."""
     path = str(path)
-    if Path(path).suffix.lower() in (".cwa", ".bin", ".gt3x"):
-        from accelcal.recording import read_whole
+    from accelcal.recording import ACTIGRAPHY, read_whole
+    if Path(path).suffix.lower() in ACTIGRAPHY:
         t, xyz, temp, _ = read_whole(path)
         cols = {"t": t, "x": xyz[:, 0].copy(), "y": xyz[:, 1].copy(), "z": xyz[:, 2].copy()}
         if temp is not None:

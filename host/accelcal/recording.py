@@ -23,7 +23,7 @@ from typing import Iterator
 
 import numpy as np
 
-from accelcal.io import InputError
+from accelcal.io import RECORDING_HEADERS, InputError
 
 GAP_S = 1.0
 CHUNK = 1 << 20                      # samples per chunk handed on
@@ -81,13 +81,10 @@ class CsvRecording(Recording):
 
     def __init__(self, path: str):
         super().__init__(path)
-        import csv
-        with open(path, newline="") as fh:
-            first = fh.readline()
-        header = [h.strip() for h in next(csv.reader([first]), [])]
-        if not first.strip():
+        header = csv_header(path)
+        if not header:
             raise InputError(f"{path}: empty file")
-        if header not in (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"]):
+        if header not in RECORDING_HEADERS:
             raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp; found "
                              f"{','.join(header)}")
         self.header = header
@@ -271,15 +268,18 @@ def read_whole(path: str | Path):
 def is_recording(path: str | Path) -> bool:
     """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
     header is t,x,y,z[,temp]."""
-    path = str(path)
     if Path(path).suffix.lower() in ACTIGRAPHY:
         return True
+    return csv_header(path) in RECORDING_HEADERS
+
+
+def csv_header(path: str | Path) -> list[str]:
+    """A CSV file's header cells, stripped ([] for an empty file)."""
     import csv
     try:
         with open(path, newline="") as fh:
-            header = [h.strip() for h in next(csv.reader([fh.readline()]), [])]
+            return [h.strip() for h in next(csv.reader([fh.readline()]), [])]
     except OSError as e:
         raise InputError(f"{path}: cannot open ({e.strerror})") from None
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a CSV text file (nor .cwa/.bin/.gt3x)") from None
-    return header in (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])

@@ -33,6 +33,11 @@ COOLING_WINDOW_S = 120      # slope over 2 min: an AX3's 0.29 degC steps stay be
 CLIP_FRACTION = 0.99925     # at full scale: within 1.5 mg of 2 g (the LIS3DH's last digits)
 
 
+def clip_level(range_g: float) -> int:
+    """The Q10 magnitude at and past which a sample counts as clipped at that full scale."""
+    return int(np.ceil(range_g * CLIP_FRACTION * fixed.SAMPLE_ONE_G))
+
+
 @dataclass
 class Scan:
     """A recording's rest segments and quality figures.  Arrays are per closed segment."""
@@ -88,8 +93,7 @@ class Scan:
         imputed = (rng == 0).all(axis=1)
         r = self.full_scale_g
         if r:
-            level = int(np.ceil(r * CLIP_FRACTION * fixed.SAMPLE_ONE_G))
-            clipped = np.maximum(s.hi.max(axis=1), -s.lo.min(axis=1)) >= level
+            clipped = np.maximum(s.hi.max(axis=1), -s.lo.min(axis=1)) >= clip_level(r)
         else:
             clipped = np.zeros(len(s), bool)
         nonwear = np.zeros(len(s), bool)
@@ -178,7 +182,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
         am = np.abs(p).max(axis=0)
         sc.abs_max_q10 = max(sc.abs_max_q10, int(am.max()))
         for r in sc.clip_counts:
-            sc.clip_counts[r] += int(np.count_nonzero(am >= int(np.ceil(r * CLIP_FRACTION * fixed.SAMPLE_ONE_G))))
+            sc.clip_counts[r] += int(np.count_nonzero(am >= clip_level(r)))
         sc.n_samples += len(t)
         last_t = float(t[-1])
         if keep_samples:
