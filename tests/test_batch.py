@@ -19,7 +19,9 @@ REAL = Path(__file__).parent / "data" / "real"
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("batch")
-    for seed in (3, 1):   # seed 3 fills the bins in a day at 10 Hz, seed 1 does not (xn = 1)
+    # seed 3 fills the paper profile's bins in a day at 10 Hz, seed 1 does not (xn = 1); the
+    # batch runs the paper profile to have both
+    for seed in (3, 1):
         r = run_cli("simulate", "wrist", "--days", 1, "--rate", 10, "--seed", seed, "-o", d / f"s{seed}.csv")
         assert r.returncode == 0, r.stderr
     lines = (d / "s3.csv").read_text().splitlines(keepends=True)
@@ -34,7 +36,8 @@ def files(tmp_path_factory):
 def _batch(files, *extra):
     names = ["s3.csv", "short.csv", "corrupt.csv", "s1.csv", "ax6.cwa", "missing.csv"]
     summary = files / "summary.csv"
-    r = run_cli("calibrate", *[files / n for n in names], "--summary", summary, "--json", *extra)
+    r = run_cli("calibrate", *[files / n for n in names], "--summary", summary, "--json",
+                "--profile", "paper", *extra)
     recs = {Path(json.loads(x)["file"]).name: json.loads(x) for x in r.stdout.splitlines()}
     return r, recs, summary
 
@@ -57,7 +60,7 @@ def test_batch_reports_each_file_and_never_stops(files):
     s3 = rows[0]
     assert float(s3["kxx"]) == recs["s3.csv"]["params"]["kxx"] and s3["bins_filled"] == "9"
     # the batch's record of a file is the one-file record of it (less the timing)
-    one = json.loads(run_cli("calibrate", files / "s3.csv", "--json").stdout)
+    one = json.loads(run_cli("calibrate", files / "s3.csv", "--json", "--profile", "paper").stdout)
     assert {k: v for k, v in recs["s3.csv"].items() if k != "seconds"} == one
     # --strict: the same batch, now a failure
     r2, _, _ = _batch(files, "--strict", "--quiet")
@@ -75,8 +78,9 @@ def test_fallback_is_reported_not_silent(files, tmp_path):
     assert rec["fallback"] == str(params)
     saved = json.loads(params.read_text())
     assert rec["params_int"] == saved["params_int"]
-    # its error on this file: the saved parameters scored here on the kept rest means
-    sc = scan(open_recording(morning), 5, 123, 0)
+    # its error on this file: the saved parameters scored here on the kept rest means (the
+    # default profile's rest test: every axis, the threshold from the noise)
+    sc = scan(open_recording(morning), 5, 0, 3)
     v = sc.segments.mean[sc.masks()["kept"]] / 65536.0
     v = v[(np.linalg.norm(v, axis=1) > 0) ]
     p = saved["params"]

@@ -26,10 +26,11 @@ def one_error_line(r):
 
 def test_calibrate_by_device_json_recovers_truth(points_csv):
     truth = json.loads(points_csv.with_suffix(".truth.json").read_text())["params"]
-    r = run_cli("calibrate", points_csv, "--by", "device", "--json")
+    r = run_cli("calibrate", points_csv, "--by", "device", "--json", "--profile", "paper")
     assert r.returncode == 0, r.stderr
     recs = [json.loads(line) for line in r.stdout.splitlines()]
     assert [x["device"] for x in recs] == ["s0000", "s0001", "s0002"]
+    assert all(x["profile"] == "paper" for x in recs)
     for rec in recs:
         for key in ("model", "params", "params_int", "iterations", "points", "error_before_mg", "error_after_mg"):
             assert key in rec
@@ -73,7 +74,7 @@ def test_recording_save_and_apply(tmp_path, rng):
     rec = tmp_path / "rec.csv"
     np.savetxt(rec, np.array(rows), delimiter=",", header="t,x,y,z", comments="", fmt="%.6f")
     params = tmp_path / "params.json"
-    r = run_cli("calibrate", rec, "--save", params, "--json")
+    r = run_cli("calibrate", rec, "--save", params, "--json", "--profile", "paper")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["rest_points"] >= 140 and out["error_after_mg"] < 3
@@ -142,7 +143,7 @@ def test_one_hemisphere_does_not_fill(tmp_path, rng):
 
 
 def test_diverging_fit(points_csv):
-    r = run_cli("calibrate", points_csv, "--by", "device", "--rates", "3,8,2")
+    r = run_cli("calibrate", points_csv, "--by", "device", "--rates", "3,8,2", "--profile", "paper")
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 3 and all("diverged" in x and "no parameters" in x for x in lines)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from accelcal import compare, methods
+from accelcal import compare, methods, runtime
 from conftest import run_cli
 
 
@@ -27,7 +27,7 @@ def test_compare_gives_one_row_per_method_on_the_same_heldout_points(recording, 
     assert len({x["error_before_mg"] for x in rows.values()}) == 1
     assert len({x["points"] for x in rows.values()}) == 1   # all fitted on the bins' selection
     # Re-score every row's parameters on the held-out part, independently of compare's table.
-    sp = compare.split_points(str(recording))
+    sp = compare.split_points(str(recording), runtime.Config.for_profile("wear"))
     assert (len(sp.train), len(sp.test)) == (out["rest_points"]["train"], out["rest_points"]["heldout"])
     for x in rows.values():
         p = np.array(list(x["params"].values()))

@@ -21,6 +21,7 @@ from acal import effects as deff  # noqa: E402
 from acal import log  # noqa: E402
 from acal.app import App, Processor  # noqa: E402
 from acal.model import Calibration  # noqa: E402
+from acal.profile import GRADIENT, PAPER, WEAR  # noqa: E402
 
 RATE = 25
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
@@ -43,15 +44,17 @@ def stimulus(path, rng, n_rest=160, rest_s=8, move_s=4):
     write_stimulus(path, RATE, np.clip(np.concatenate(parts), -1.9, 1.9), np.array(temps))
 
 
-@pytest.fixture(scope="module")
-def ran(tmp_path_factory):
+@pytest.fixture(scope="module", params=[PAPER, WEAR], ids=["paper", "wear"])
+def ran(tmp_path_factory, request):
     d = tmp_path_factory.mktemp("composed_app")
-    stimulus(d / "stim.bin", np.random.default_rng(7))
+    # the paper's fit (200 gradient steps of 13 objective evaluations, one a slice, four slices
+    # a block) takes ~18 min of 25 Hz data to finish: a longer day for it
+    stimulus(d / "stim.bin", np.random.default_rng(7), n_rest=160 if request.param == WEAR else 400)
     cwd = os.getcwd()
     os.chdir(d)
     try:
         app = App(SimBoard(str(d / "stim.bin")), rate_hz=RATE, capture_bytes=1 << 24,
-                  recal_seconds=600, model="base+temp_offset")
+                  recal_seconds=600, model="base+temp_offset", profile=request.param)
         app.run(10 ** 6)
     finally:
         os.chdir(cwd)
@@ -70,14 +73,17 @@ def last_ok(d):
 def test_the_board_fits_the_effect_in_integers(ran):
     d, app = ran
     c, e = last_ok(d)
-    assert c["points"] == 36 and c["iterations"] == 200
+    held = app.proc.pipe.bins
+    if app.proc.pipe.fit == GRADIENT:  # 4 points per subset, 200 gradient steps
+        assert c["points"] == 36 and c["iterations"] == 200 and held.total() == 36
+    else:  # 8 per subset less the outliers, Gauss-Newton to convergence
+        assert 36 <= c["points"] <= 72 and c["iterations"] <= 20 and held.total() >= 36
     k = np.array([c[n] for n in ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")]) / 2 ** 24
     assert np.abs(k - TRUTH).max() < 0.01
     # c at the board's reference (the held points' middle temperature), in g/degC.
     cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
     assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
-    held = app.proc.pipe.bins
-    assert held.temp_span() >= 3 and held.total() == 36  # the spread the fit needs, kept
+    assert held.temp_span() >= 3  # the spread the fit needs, kept
 
 
 def test_replay_reproduces_cal_and_effect_records(ran):

@@ -136,6 +136,6 @@ def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     monkeypatch.setattr(CwaRecording, "BLOCKS", 37)
     from accelcal import runtime
     from accelcal.calibrate import calibrate_recording
-    cfg = runtime.Config()
+    cfg = runtime.Config.for_profile("wear")
     pieces = calibrate_recording(str(REAL / name), cfg, "device", "cpython")
     assert {k: v for k, v in pieces.items() if k != "file"} == {k: v for k, v in one.items() if k != "file"}

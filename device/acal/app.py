@@ -10,12 +10,13 @@ import gc
 import struct
 
 from acal import effects, log
+from acal import profile as profiles
 from acal.fixed import N_PARAMS, POINT_ONE_G
 from acal.model import Calibration
-from acal.optimiser import OK
+from acal.optimiser import usable
 from acal.pipeline import Pipeline
 
-VERSION = 1
+VERSION = 2  # 2: profiles (BOOT carries the fit)
 BLOCK = log.SAMPLES_PER_RECORD
 RETRIES = 3
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
@@ -29,31 +30,41 @@ REST_BUDGET_DAYS = 14
 REST_RESERVE_BYTES = 4000       # of each day's allowance, kept for points the bins keep
 COUNTERS_SECONDS = 3600
 CAPTURE_FLUSH_RECORDS = 32  # ~8 kB: a flush per record would cost more than the processing
-COMPOSED_MAX_COUNT = 4      # points per subset for a composed model (bins.py): 36, spread in T, t
+COMPOSED_MAX_COUNT = 4      # paper profile: points per subset for a composed model (bins.py): 36
+FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit runs between FIFO reads
 
 
 class Processor:
-    """rate_hz, seconds, threshold, axis, min_count, max_count, differ, policy, iterations as
-    Pipeline; recal_seconds: least time between calibrations; logger: a log.Log; capture: a
-    log.Log for the raw samples or None; store: a log.CalStore or None; model: 'base' (the
-    paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
+    """profile: acal.profile.WEAR (the default) or PAPER, whose settings (profile.settings) any of
+    seconds, threshold, axis, min_count, max_count, differ, policy, iterations, fit given here
+    override (as Pipeline); recal_seconds: least time between calibrations; logger: a log.Log;
+    capture: a log.Log for the raw samples or None; store: a log.CalStore or None; model: 'base'
+    (the paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
 
-    A composed model's bins hold COMPOSED_MAX_COUNT points per subset (unless max_count is
-    given) and are kept across calibrations, so their temperature and time spread keeps growing
-    (the paper's model starts afresh after each).  Its time is the board's running time since
+    The fit runs in slices, FIT_STEPS_PER_FEED per block fed, so acquisition never waits for it
+    (README "Sliced fit"); the calibration in use changes when it ends.
+
+    With the paper's fit a composed model's bins hold COMPOSED_MAX_COUNT points per subset
+    (unless max_count is given).  A composed model's bins are kept across calibrations, so
+    their temperature and time spread keeps growing (the paper's model starts afresh after
+    each; the wear profile keeps its bins too, its CENTRE rule keeps improving them).  Its time is the board's running time since
     boot in 64 s units (no clock survives a power cut): a stored composed calibration is resumed
     at boot as if the board had not been off."""
 
     def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
-                 model="base", **pipeline_settings):
+                 model="base", profile=profiles.DEFAULT, **pipeline_settings):
         self.log = logger
         self.capture = capture
         self.store = store
         self.rate_hz = rate_hz
         self.kinds = effects.parse_model(model)
-        if self.kinds and "max_count" not in pipeline_settings:
-            pipeline_settings["max_count"] = COMPOSED_MAX_COUNT
-        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, **pipeline_settings)
+        settings = profiles.settings(profile)
+        for k in pipeline_settings:
+            settings[k] = pipeline_settings[k]
+        if self.kinds and settings["fit"] == _GRADIENT and "max_count" not in pipeline_settings:
+            settings["max_count"] = COMPOSED_MAX_COUNT
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, **settings)
+        self.fitting = False
         self.recal_samples = recal_seconds * rate_hz
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
@@ -145,9 +156,16 @@ class Processor:
                 out[i] = buf[i]
             self.calibration.apply_samples(out, 0, n)
             self.on_samples(out, n)
-        if self.pipe.ready() and (self.last_cal_index < 0 or
-                                  self.index - self.last_cal_index >= self.recal_samples):
-            self.calibrate()
+        if self.fitting:
+            for _ in range(FIT_STEPS_PER_FEED):
+                if pipe.fit_step():
+                    self._fitted()
+                    break
+        elif pipe.ready() and (self.last_cal_index < 0 or
+                               self.index - self.last_cal_index >= self.recal_samples):
+            pipe.begin_fit()
+            self.fitting = True
+            self.last_cal_index = self.index  # calibrations start recal_samples apart
 
     def gap(self, lost):
         """lost samples were never read: the open segment is dropped."""
@@ -173,12 +191,23 @@ class Processor:
             self.capture_full = True
 
     def calibrate(self):
-        pipe = self.pipe
-        status = pipe.calibrate()
-        o = pipe.optimiser
+        """Calibrate now, in one go (the app itself slices the fit: feed())."""
         self.last_cal_index = self.index
+        self.pipe.begin_fit()
+        while not self.pipe.fit_step():
+            pass
+        return self._fitted()
+
+    def _fitted(self):
+        # The fit has ended: log it, take its parameters if it is good, start the bins afresh
+        # (the paper's model).
+        self.fitting = False
+        pipe = self.pipe
+        o = pipe.optimiser
+        status = o.status
         number = self.calibrations + 1
-        values = (self.index, number, status, o.iterations, pipe.bins.total(),
+        values = (self.index, number, status, o.iterations,
+                  o.n if pipe.fit == profiles.NEWTON else pipe.bins.total(),
                   _sat32(o.objective_start >> 16), _sat32(o.objective >> 16)) + tuple(o.p[:N_PARAMS])
         self.log.write(log.CAL, *values)
         extra = []
@@ -187,16 +216,19 @@ class Processor:
             extra.append((self.index, self.kinds[j], pipe.ref_temp, pipe.ref_time,
                           o.p[e], o.p[e + 1], o.p[e + 2]))
             self.log.write(log.EFFECT, *extra[j])
-        if status == OK:
+        if usable(status):
             self.calibrations = number
             for i in range(len(self.params)):
                 self.params[i] = o.p[i]
             self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time)
             if self.store is not None:
                 self.store.save(values, extra)
-        if not self.kinds:
+        if not self.kinds and pipe.fit == _GRADIENT:
             pipe.bins.clear()
         return status
+
+
+_GRADIENT = profiles.GRADIENT
 
 
 def _sat32(v):
@@ -271,7 +303,7 @@ class App:
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
                        p.bins.max_count, p.bins.differ, p.iterations,
                        self.proc.recal_samples // rate_hz, -128 if ref is None else ref,
-                       effects.model_code(self.proc.kinds))
+                       effects.model_code(self.proc.kinds), p.fit)
 
     def _retry(self, fn):
         for attempt in range(RETRIES):

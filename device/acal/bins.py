@@ -32,6 +32,17 @@ from acal.fixed import POINT_ONE_G
 
 FIRST = 0
 CENTRE = 1
+# Coverage (the default profile, README "Profiles"): the n and p subsets take points from
+# COVER_LEVEL (not 0.75 g) out, so that a posture a wrist rarely holds still (the arm hanging: it
+# sways) is still represented by tilted points, which the CENTRE rule replaces by better-placed
+# ones when they come; and the bins are also ready, without nine full subsets, when the held points reach past +-COVER_LEVEL on both sides of every axis, at least
+# COVER_SIDE points each side, and number at least COVER_POINTS (GGIR's rule is the same with
+# +-0.3 g and one point).  A real wrist may never lie face down (no point in C_zn): offsets and
+# scales are still pinned by points on both sides, and misalignment by the tilted ones; the
+# fit's own guard (acal/solve.py) refuses a set that does not pin every parameter.
+COVER_LEVEL = (3 * 65536) // 10  # 0.3 g, Q16
+COVER_SIDE = 2
+COVER_POINTS = 27
 
 N_SUBSETS = 9
 SUBSET_NAMES = ("xn", "x0", "xp", "yn", "y0", "yp", "zn", "z0", "zp")
@@ -48,13 +59,14 @@ _MAG2_MIN = (POINT_ONE_G >> 5) * (POINT_ONE_G >> 5)      # (0.5 g)^2 in Q24
 _MAG2_MAX = 9 * (POINT_ONE_G >> 5) * (POINT_ONE_G >> 5)  # (1.5 g)^2
 
 
-def subset_of(c, axis):
-    """Subset index for a point whose component on `axis` is c (Q16 g), or -1."""
+def subset_of(c, axis, lo_out=_LO_OUT):
+    """Subset index for a point whose component on `axis` is c (Q16 g), or -1.  lo_out: the
+    inner edge of the n and p subsets (the paper's 0.75 g; COVER_LEVEL with coverage)."""
     if -_HI_MID <= c <= _HI_MID:
         return 3 * axis + 1
-    if _LO_OUT <= c <= _HI_OUT:
+    if lo_out <= c <= _HI_OUT:
         return 3 * axis + 2
-    if -_HI_OUT <= c <= -_LO_OUT:
+    if -_HI_OUT <= c <= -lo_out:
         return 3 * axis
     return -1
 
@@ -88,9 +100,11 @@ class Bins:
     """
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
-                 temp_differ=0, time_differ=0):
+                 temp_differ=0, time_differ=0, coverage=False):
         if not 1 <= min_count <= max_count:
             raise ValueError("need 1 <= min_count <= max_count")
+        self.coverage = coverage
+        self.lo_out = COVER_LEVEL if coverage else _LO_OUT
         self.min_count = min_count
         self.max_count = max_count
         self.differ = differ
@@ -120,12 +134,54 @@ class Bins:
         return t
 
     def ready(self):
-        """True when every subset holds at least min_count points (and, for a composed model,
-        the held points span temp_differ and time_differ)."""
+        """True when every subset holds at least min_count points, or with `coverage` when the
+        held points cover every axis (covered()); and, for a composed model, when the held
+        points span temp_differ and time_differ."""
+        full = True
         for s in range(N_SUBSETS):
             if self.counts[s] < self.min_count:
-                return False
+                full = False
+        if not full and not (self.coverage and self.covered()):
+            return False
         return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ
+
+    def covered(self):
+        """True when at least COVER_POINTS points are held and, on every axis, at least
+        COVER_SIDE of them lie beyond +COVER_LEVEL and COVER_SIDE beyond -COVER_LEVEL."""
+        if self.total() < COVER_POINTS:
+            return False
+        m = self.max_count
+        for axis in range(3):
+            pos = 0
+            neg = 0
+            for s in range(N_SUBSETS):
+                for k in range(self.counts[s]):
+                    c = self.xyz[3 * (s * m + k) + axis]
+                    if c >= COVER_LEVEL:
+                        pos += 1
+                    elif c <= -COVER_LEVEL:
+                        neg += 1
+            if pos < COVER_SIDE or neg < COVER_SIDE:
+                return False
+        return True
+
+    def remove(self, x, y, z):
+        """Remove a held point equal to (x, y, z) (Q16 g), if any: the fit found it an outlier
+        (acal/gaussnewton.py); its slot takes new points again.  Returns True if one was."""
+        m = self.max_count
+        for s in range(N_SUBSETS):
+            n = self.counts[s]
+            for k in range(n):
+                i = 3 * (s * m + k)
+                if self.xyz[i] == x and self.xyz[i + 1] == y and self.xyz[i + 2] == z:
+                    for j in range(k + 1, n):  # the later slots move down one
+                        i = 3 * (s * m + j)
+                        c = 2 * (s * m + j)
+                        self._store(s * m + j - 1, self.xyz[i], self.xyz[i + 1], self.xyz[i + 2],
+                                    self.cond[c], self.cond[c + 1])
+                    self.counts[s] = n - 1
+                    return True
+        return False
 
     def _span(self, c):
         # Range of condition c (0 temperature, 1 time) over every held point.
@@ -221,7 +277,7 @@ class Bins:
         m = self.max_count
         best = -1
         for axis in range(3):
-            s = subset_of(x if axis == 0 else (y if axis == 1 else z), axis)
+            s = subset_of(x if axis == 0 else (y if axis == 1 else z), axis, self.lo_out)
             if s >= 0 and self.counts[s] < m and (best < 0 or self.counts[s] < self.counts[best]):
                 best = s
         if best >= 0:
@@ -237,7 +293,7 @@ class Bins:
         gain = ((self.temp_differ or 1) * (self.time_differ or 1)) >> 2  # a quarter threshold
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
-            s = subset_of(c, axis)
+            s = subset_of(c, axis, self.lo_out)
             if s < 0:
                 continue
             now = 0  # the subset's spread as it is: slot 0 "replaced" by itself

@@ -83,6 +83,62 @@ def objective(p, u, n):
     return total
 
 
+def residual(p, ux, uy, uz):
+    """r = |K (u + o)|^2 - 1 g^2 of one point u (Q24 g), in Q30 g^2: the term objective() squares
+    (the same shifts, so sum((r * r) >> F_SHIFT) is objective())."""
+    ux += p[6]
+    uy += p[7]
+    uz += p[8]
+    ax = (p[0] * ux) >> A_SHIFT
+    ay = (p[3] * ux + p[1] * uy) >> A_SHIFT
+    az = (p[4] * ux + p[5] * uy + p[2] * uz) >> A_SHIFT
+    return (ax * ax + ay * ay + az * az - _ONE_G2_Q56) >> R_SHIFT
+
+
+# Jacobian rows (acal/gaussnewton.py) in units of 2**-13 per parameter unit: d = J 2**13, with
+# J = dr/dp in g^2 per unit of the parameter (r = |a|^2 - 1 g^2), so |d| ~ 2**14 at 1 g.  From
+# a (Q28) and u + o (Q24) or K (Q24): 2 a u 2**13 = (a u) >> 38, products < 2**54.
+J_SHIFT = 38
+
+
+def residual_jacobian(p, ux, uy, uz, d):
+    """residual() of one point (Q24 g, effects already removed) and its derivatives with
+    respect to the 9 parameters into d[0:9] (analytic: a = K (u + o), r = |a|^2 - 1)."""
+    ux += p[6]
+    uy += p[7]
+    uz += p[8]
+    kxx = p[0]
+    kxy = p[3]
+    kxz = p[4]
+    ax = (kxx * ux) >> A_SHIFT
+    ay = (kxy * ux + p[1] * uy) >> A_SHIFT
+    az = (kxz * ux + p[5] * uy + p[2] * uz) >> A_SHIFT
+    s = J_SHIFT
+    d[0] = (ax * ux) >> s
+    d[1] = (ay * uy) >> s
+    d[2] = (az * uz) >> s
+    d[3] = (ay * ux) >> s
+    d[4] = (az * ux) >> s
+    d[5] = (az * uy) >> s
+    d[6] = (ax * kxx + ay * kxy + az * kxz) >> s
+    d[7] = (ay * p[1] + az * p[5]) >> s
+    d[8] = (az * p[2]) >> s
+    return (ax * ax + ay * ay + az * az - _ONE_G2_Q56) >> R_SHIFT
+
+
+def residual_effects(p, u, at, dT, dt, kinds, w):
+    """residual() of the point u[at:at+3] seen at dT, dt, with a composed model's effects removed
+    first (into w, a list of 3), as objective_effects does it."""
+    w[0] = u[at]
+    w[1] = u[at + 1]
+    w[2] = u[at + 2]
+    k = len(kinds) - 1
+    while k >= 0:
+        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, 0)
+        k -= 1
+    return residual(p, w[0], w[1], w[2])
+
+
 def objective_effects(p, u, aux, n, kinds, w):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order

@@ -2,14 +2,22 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.bins import Bins, CENTRE, DEFAULT_DIFFER, N_SUBSETS, TEMP_DIFFER, TIME_DIFFER
-from acal.optimiser import Optimiser, DEFAULT_ITERATIONS, COMPOSED_ITERATIONS
+from acal.optimiser import (Optimiser, DEFAULT_ITERATIONS, COMPOSED_ITERATIONS, OK,
+                            BASE_KEPT_FAILED, BASE_KEPT_WORSE)
+from acal.fixed import N_PARAMS
+from acal.gaussnewton import GaussNewton
+from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
+from acal.profile import GRADIENT, NEWTON
 from acal import effects
 
 
 class Pipeline:
-    """rate_hz, seconds, threshold (Q10 g), axis: rest detection; min_count, max_count,
-    differ (Q16 g), policy: bins; iterations and alphas (learning rates in tenths): optimiser.
+    """rate_hz, seconds, threshold (Q10 g or rest.AUTO), axis (or rest.ALL_AXES): rest
+    detection; min_count, max_count, differ (Q16 g), policy: bins; fit (profile.GRADIENT: the
+    paper's, with iterations and alphas, learning rates in tenths; profile.NEWTON: Gauss-Newton
+    with outlier rejection, and bins that are also ready on coverage): the optimiser.  A
+    profile's settings: acal.profile.settings().
 
     on_rest, if given, is called as on_rest(x, y, z, subset) for every rest mean (Q16 g), with
     the subset it was kept in or -1 (the app logs these; the host collects them).
@@ -18,7 +26,11 @@ class Pipeline:
     bins track temperature and time (bins.py), and the feeder keeps `temp` (int degC) and `time`
     (64 s units) current; a fit takes each point's dT and dt from the middle of the held points'
     ranges (ref_temp, ref_time), which the calibration keeps.  iterations None: 50 for the
-    paper's model, 200 for a composed one (50 leave the effect terms under-converged).
+    paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
+    NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
+
+    The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
+    between FIFO reads), or calibrate() at once; the same integers either way.
 
     worn: the feeder's wear signal.  A rest segment that closes while it is False (a device off
     the wrist, on a table; imputed or idle-sleep stretches) is counted in `excluded` but not
@@ -28,8 +40,9 @@ class Pipeline:
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  iterations=None, on_rest=None,
-                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=()):
+                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT):
         self.kinds = tuple(kinds)
+        self.fit = fit
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
         temp_differ = 0
         time_differ = 0
@@ -38,10 +51,20 @@ class Pipeline:
                 temp_differ = TEMP_DIFFER
             elif k == effects.DRIFT:
                 time_differ = TIME_DIFFER
-        self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ)
-        self.optimiser = Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
+        self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
+                         fit == NEWTON)
+        self.base_fit = None
+        if fit == NEWTON:
+            self.optimiser = GaussNewton(N_SUBSETS * max_count, self.kinds, True)
+            if self.kinds:  # the base fit of the same points: kept when the composed one fails
+                self.base_fit = GaussNewton(N_SUBSETS * max_count, (), True)
+        else:
+            self.optimiser = Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
         if iterations is None:
-            iterations = COMPOSED_ITERATIONS if self.kinds else DEFAULT_ITERATIONS
+            if fit == NEWTON:
+                iterations = gaussnewton.DEFAULT_ITERATIONS
+            else:
+                iterations = COMPOSED_ITERATIONS if self.kinds else DEFAULT_ITERATIONS
         self.iterations = iterations
         self.points = [0] * (3 * N_SUBSETS * max_count)
         self.aux = [0] * (2 * N_SUBSETS * max_count)  # dT, dt per point (composed models)
@@ -54,6 +77,8 @@ class Pipeline:
         self.worn = True
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
+        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 1 the model's own
+        self.n_fit = 0     # points gathered for the fit
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g), seen at self.temp and self.time -> bins; returns the subset it
@@ -86,17 +111,75 @@ class Pipeline:
     def calibrate(self):
         """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
         The parameters are in self.optimiser.p (Q24; 9, then 3 per effect)."""
+        self.begin_fit()
+        while not self.fit_step():
+            pass
+        return self.optimiser.status
+
+    def begin_fit(self):
+        """Gather the held points (a composed model: with their dT, dt from the middle of
+        their ranges) and start the optimiser on them (a composed model with the wear
+        profile's fit: the base fit of the same points first)."""
+        self.stage = 1
         if not self.kinds:
-            n = self.bins.gather(self.points)
-            return self.optimiser.run(self.points, n, self.iterations)
+            self.n_fit = self.bins.gather(self.points)
+            self.optimiser.begin(self.points, self.n_fit, self.iterations)
+            return
         aux = self.aux
         n = self.bins.gather(self.points, aux)
+        self.n_fit = n
         self.ref_temp = _middle(aux, 0, n)
         self.ref_time = _middle(aux, 1, n)
         for i in range(n):
             aux[2 * i] -= self.ref_temp
             aux[2 * i + 1] -= self.ref_time
-        return self.optimiser.run(self.points, n, self.iterations, aux)
+        if self.base_fit is not None:
+            self.stage = 0
+            self.base_fit.begin(self.points, n, self.iterations)
+        else:
+            self.optimiser.begin(self.points, n, self.iterations, aux)
+
+    def fit_step(self):
+        """One slice of the fit; True when it has ended (the status is the optimiser's).  The
+        points the fit rejected as outliers leave the bins then (by value: the bins may have
+        taken or replaced points while the fit ran on its own copy).  A composed model whose
+        fit failed or ended worse than the base fit keeps the base fit's parameters (effects
+        zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
+        if self.stage == 0:
+            b = self.base_fit
+            if b.step():
+                self.stage = 1
+                self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
+                                     b.p if b.status == OK else None)
+            return False
+        if not self.optimiser.step():
+            return False
+        o = self.optimiser
+        b = self.base_fit
+        if b is not None and b.status == OK:
+            if o.status != OK:
+                self._keep_base(BASE_KEPT_FAILED)
+            elif o.objective * b.n > b.objective * o.n:  # mean over the points each kept
+                self._keep_base(BASE_KEPT_WORSE)
+        if self.fit == NEWTON and o.rejected:
+            pts = self.points
+            for i in range(o.n_given):
+                if not o.keep[i]:
+                    self.bins.remove(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2])
+        return True
+
+    def _keep_base(self, why):
+        o = self.optimiser
+        b = self.base_fit
+        for i in range(o.n_params):
+            o.p[i] = b.p[i] if i < N_PARAMS else 0
+        for i in range(o.n_given):
+            o.keep[i] = b.keep[i]
+        o.rejected = b.rejected
+        o.n = b.n
+        o.iterations = b.iterations
+        o.objective = b.objective
+        o.status = why
 
 
 def _middle(cond, c, n):

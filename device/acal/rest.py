@@ -2,6 +2,10 @@
 # is at rest when max - min of one chosen axis stays below a threshold.  Per-axis sums are
 # accumulated during the segment and the mean is taken at its end.
 #
+# Beyond the paper (the default profile, acal/profile.py): axis ALL_AXES judges max - min on all
+# three axes (the paper's one-axis test lets arm motion along y and z through), and threshold
+# AUTO derives the threshold from the sensor's own noise, measured here (NoiseGauge).
+#
 # Formats (fixed.py): samples Q10 g, sums < 2**30, means Q16 g.  Nothing is allocated per sample:
 # state lives in int attributes, and `add` returns a bool.
 from acal.fixed import SAMPLE_ONE_G, SEGMENT_MAX_SAMPLES, POINT_FROM_SAMPLE_SHIFT
@@ -9,26 +13,97 @@ from acal.fixed import SAMPLE_ONE_G, SEGMENT_MAX_SAMPLES, POINT_FROM_SAMPLE_SHIF
 # Default threshold 0.12 g in Q10 (122.88 -> 123) and segment length 5 s, as the paper.
 DEFAULT_THRESHOLD = (12 * SAMPLE_ONE_G + 50) // 100
 DEFAULT_SECONDS = 5
+ALL_AXES = 3   # axis: max - min of every axis below the threshold
+AUTO = 0       # threshold: from the measured noise (NoiseGauge)
+
+# The noise gauge.  A segment's spread (the largest max - min of its axes, Q10 g) is at least the
+# sensor's noise range; the quietest segments (a wrist asleep, a device on a table) show little
+# more.  The gauge keeps a histogram of the spreads of the segments that could be rest (spread
+# below NOISE_BINS LSB, 125 mg; a spread of 0 is imputed data, not a sensor, and is not counted),
+# and every NOISE_EVERY such segments sets
+#     threshold = clamp(NOISE_MUL * q + NOISE_ADD, THRESHOLD_MIN, THRESHOLD_MAX)
+# where q is the spread below which the quietest 1/NOISE_QUANTILE of them lie.  A still segment's
+# spread scatters little around its typical value (the range of n Gaussian samples), so twice the
+# quiet level, plus two digits for quantisation, admits every still segment of the sensor and
+# keeps out arm motion of more than a few mg.  Measured: LIS3DH at 12 bit, 220 ug/sqrt(Hz):
+# ~4 LSB at 10 Hz -> 10 LSB, ~10 LSB at 100 Hz -> 22 LSB (README "Profiles").  The counts
+# halve when they pass NOISE_HALVE, so the gauge follows a sensor whose noise changes (a range
+# or rate change; ageing) and its ints stay small.  Until the first NOISE_EVERY quiet segments
+# (80 s) no segment is judged still.
+NOISE_BINS = 128
+NOISE_EVERY = 16
+NOISE_QUANTILE = 8
+NOISE_MUL = 2
+NOISE_ADD = 2
+NOISE_HALVE = 4096
+THRESHOLD_MIN = 6     # 5.9 mg: quantisation alone spans 2 digits
+THRESHOLD_MAX = DEFAULT_THRESHOLD  # never laxer than the paper
+
+
+class NoiseGauge:
+    """The histogram of quiet segments' spreads and the threshold it gives (see above).
+    threshold is 0 (nothing is still) until the first update."""
+
+    def __init__(self):
+        self.hist = [0] * NOISE_BINS
+        self.count = 0        # segments counted since the last halving
+        self.seen = 0         # quiet segments ever counted (updates every NOISE_EVERY)
+        self.threshold = 0
+        self.level = 0        # q of the last update, Q10 g
+
+    def add(self, spread):
+        if spread <= 0 or spread >= NOISE_BINS:
+            return
+        self.hist[spread] += 1
+        self.count += 1
+        self.seen += 1
+        if self.seen % NOISE_EVERY == 0:
+            self._update()
+
+    def _update(self):
+        hist = self.hist
+        need = (self.count + NOISE_QUANTILE - 1) // NOISE_QUANTILE
+        acc = 0
+        q = 0
+        for b in range(NOISE_BINS):
+            acc += hist[b]
+            if acc >= need:
+                q = b
+                break
+        self.level = q
+        t = NOISE_MUL * q + NOISE_ADD
+        self.threshold = THRESHOLD_MIN if t < THRESHOLD_MIN else (THRESHOLD_MAX if t > THRESHOLD_MAX else t)
+        if self.count >= NOISE_HALVE:
+            c = 0
+            for b in range(NOISE_BINS):
+                hist[b] >>= 1
+                c += hist[b]
+            self.count = c
 
 
 class RestDetector:
     """Splits a sample stream into segments and tells which are at rest.
 
     rate_hz: samples per second (int); seconds: segment length (int, s);
-    threshold: max - min limit of the rest axis, in Q10 g (default 0.12 g);
-    axis: 0, 1 or 2 for x, y, z.
+    threshold: max - min limit, in Q10 g (default 0.12 g), or AUTO (from the measured noise);
+    axis: 0, 1 or 2 for x, y, z, or ALL_AXES.
     After `add` returns True a segment has ended: `still` says whether it was at rest, and if so
-    mean_x/mean_y/mean_z hold its mean in Q16 g; `spread` holds its max - min (Q10 g).
+    mean_x/mean_y/mean_z hold its mean in Q16 g; `spread` holds its max - min (Q10 g; with
+    ALL_AXES the largest of the three).  `threshold` is the one in force (AUTO: the gauge's).
     """
 
     def __init__(self, rate_hz, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0):
         n = rate_hz * seconds
         if n < 1 or n > SEGMENT_MAX_SAMPLES:
             raise ValueError("segment must hold 1..65535 samples")
-        if axis not in (0, 1, 2):
-            raise ValueError("axis must be 0, 1 or 2")
+        if axis not in (0, 1, 2, ALL_AXES):
+            raise ValueError("axis must be 0, 1, 2 or ALL_AXES")
+        if threshold < 0:
+            raise ValueError("threshold must be > 0, or AUTO")
         self.length = n
-        self.threshold = threshold
+        self.auto = threshold == AUTO
+        self.gauge = NoiseGauge() if self.auto else None
+        self.threshold = 0 if self.auto else threshold
         self.axis = axis
         self.segments = 0
         self.ended = False  # set when a segment closes; the reader clears it
@@ -47,10 +122,21 @@ class RestDetector:
         self.sum_z = 0
         self.lo = SAMPLE_ONE_G * 64  # above any sample
         self.hi = -SAMPLE_ONE_G * 64
+        self.lo_y = self.lo_z = self.lo   # ALL_AXES: lo/hi are x's, these y's and z's
+        self.hi_y = self.hi_z = self.hi
 
     def add(self, x, y, z):
         """Take one sample (Q10 g ints); return True when it closes a segment."""
-        s = x if self.axis == 0 else (y if self.axis == 1 else z)
+        if self.axis == ALL_AXES:
+            if y < self.lo_y:
+                self.lo_y = y
+            if y > self.hi_y:
+                self.hi_y = y
+            if z < self.lo_z:
+                self.lo_z = z
+            if z > self.hi_z:
+                self.hi_z = z
+        s = x if self.axis == 0 or self.axis == ALL_AXES else (y if self.axis == 1 else z)
         if s < self.lo:
             self.lo = s
         if s > self.hi:
@@ -69,6 +155,8 @@ class RestDetector:
         sample index `start`.  Returns how many it consumed: it stops right after a segment
         closes, so the caller reads the result and calls again for the rest.  (Indices, not
         slices: a slice would allocate.)"""
+        if self.axis == ALL_AXES:
+            return self._add_samples_all(buf, start, n)
         axis = self.axis
         lo = self.lo
         hi = self.hi
@@ -107,10 +195,74 @@ class RestDetector:
             self._close()
         return i // 3 - start
 
+    def _add_samples_all(self, buf, start, n):
+        # add_samples with every axis's max - min tracked (a loop of its own: the one-axis loop
+        # stays as lean as it was).
+        lx = self.lo
+        hx = self.hi
+        ly = self.lo_y
+        hy = self.hi_y
+        lz = self.lo_z
+        hz = self.hi_z
+        sx = self.sum_x
+        sy = self.sum_y
+        sz = self.sum_z
+        count = self.count
+        length = self.length
+        i = 3 * start
+        end = 3 * (start + n)
+        closed = False
+        while i < end:
+            x = buf[i]
+            y = buf[i + 1]
+            z = buf[i + 2]
+            if x < lx:
+                lx = x
+            if x > hx:
+                hx = x
+            if y < ly:
+                ly = y
+            if y > hy:
+                hy = y
+            if z < lz:
+                lz = z
+            if z > hz:
+                hz = z
+            sx += x
+            sy += y
+            sz += z
+            count += 1
+            i += 3
+            if count >= length:
+                closed = True
+                break
+        self.lo = lx
+        self.hi = hx
+        self.lo_y = ly
+        self.hi_y = hy
+        self.lo_z = lz
+        self.hi_z = hz
+        self.sum_x = sx
+        self.sum_y = sy
+        self.sum_z = sz
+        self.count = count
+        if closed:
+            self._close()
+        return i // 3 - start
+
     def _close(self):
         n = self.count
-        self.spread = self.hi - self.lo
-        self.still = self.spread < self.threshold
+        spread = self.hi - self.lo
+        if self.axis == ALL_AXES:
+            if self.hi_y - self.lo_y > spread:
+                spread = self.hi_y - self.lo_y
+            if self.hi_z - self.lo_z > spread:
+                spread = self.hi_z - self.lo_z
+        self.spread = spread
+        self.still = spread < self.threshold
+        if self.auto:  # judged by the threshold in force, then counted for the next ones
+            self.gauge.add(spread)
+            self.threshold = self.gauge.threshold
         if self.still:
             self.mean_x = mean_q16(self.sum_x, n)
             self.mean_y = mean_q16(self.sum_y, n)

@@ -29,6 +29,7 @@ class Job:
     model: str = "base"
     engine: str = "vector"
     fallback: str | None = None
+    points: str = "bins"
 
 
 def calibrate_file(path: str, job: Job) -> dict:
@@ -45,10 +46,11 @@ def calibrate_file(path: str, job: Job) -> dict:
         spec = ModelSpec.parse(job.model)
         if is_recording(path):
             rec = calibrate_recording(path, cfg, job.method, job.runtime_name, spec, job.engine,
-                                      fallback=job.fallback)
+                                      fallback=job.fallback, points=job.points)
         else:
             rec = {"file": path, "format": "points",
-                   **calibrate_groups(read_table(path), None, cfg, job.method, job.runtime_name, spec)[0]}
+                   **calibrate_groups(read_table(path), None, cfg, job.method, job.runtime_name, spec,
+                                        job.points)[0]}
             rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
             if rec["status"] != "calibrated" and job.fallback:
                 import numpy as np

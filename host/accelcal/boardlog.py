@@ -18,7 +18,7 @@ from accelcal.io import InputError
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FIELDS = {
     log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
-               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model"),
+               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit"),
     log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
     log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
               "objective", *fixed.PARAM_NAMES),
@@ -104,7 +104,7 @@ def run_capture(dirpath: str | Path, log_path: str | Path):
     proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                      threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
                      max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                     model=model)
+                     model=model, fit=b["fit"])
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])

@@ -7,6 +7,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import effects as deff
 from acal import fixed, optimiser
+from acal import profile as dprofile
 from acal.model import Calibration
 from accelcal import methods, runtime, vector
 from accelcal.effects import CATALOGUE, ModelSpec
@@ -42,6 +43,16 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
     return " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts)) + f" (need >= {min_count} each)"
 
 
+def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
+    """Why the bins are not ready by their counts (the wear profile: nor by coverage), or None."""
+    if min(r.counts) >= cfg.min_count or (cfg.fit == dprofile.NEWTON and r.covered):
+        return None
+    cover = (f" and the held points do not cover every axis (>= {dbins.COVER_SIDE} beyond "
+             f"+-0.3 g on each side, >= {dbins.COVER_POINTS} points)"
+             if cfg.fit == dprofile.NEWTON else "")
+    return f"bins did not fill: {fill_report(r, cfg.min_count)}{cover}"
+
+
 def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
     """Why the bins, full in counts, are not ready for a composed model (their spread rule,
     decided on the device), or None."""
@@ -59,9 +70,11 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
 
 
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
-                     runtime_name: str, spec: ModelSpec | None = None) -> list[dict]:
+                     runtime_name: str, spec: ModelSpec | None = None,
+                     points: str = "bins") -> list[dict]:
     """A points file: one record per group (result_record: status and a one-line reason).
-    spec: a composed model (fitted by the device method only); None is the paper's."""
+    spec: a composed model (fitted by the device method or lsq); None is the paper's.
+    points: what a float method is fitted on (result_record)."""
     spec = _device_spec(spec, method, cfg)
     groups = groups_from_table(table, by)
     for g in groups:
@@ -75,58 +88,106 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
         rec: dict = {"model": str(spec), "method": method, "runtime": runtime_name}
         if by:
             rec[by] = g.name
-        out.append(result_record(rec, g, r, cfg, spec, method))
+        out.append(result_record(rec, g, r, cfg, spec, method, points))
     return out
 
 
 def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config) -> ModelSpec:
     """The model for the device pipeline (None: the paper's); its effects into cfg."""
     spec = spec or ModelSpec(())
-    if spec.effects and method != "device":
+    if spec.effects and method not in ("device", "lsq"):
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
     cfg.kinds = spec.kinds
     return spec
 
 
 def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: runtime.Config,
-                  spec: ModelSpec, method: str) -> dict:
+                  spec: ModelSpec, method: str, points: str = "bins") -> dict:
     """Fill rec with one group's outcome: status calibrated, not_enough_data (bins not filled,
-    or a composed model's spread not reached) or failed (the fit), with a one-line reason."""
+    or a composed model's spread not reached) or failed (the fit), with a one-line reason.
+    A float method is fitted on points "bins" (the points the device's bins selected and its
+    fit kept) or "all" (every usable rest point: |v| within 0.5-1.5 g, the bins' own gate;
+    the bins' readiness does not matter then)."""
     rest = r.rest_g
+    rec["profile"] = cfg.profile
     rec["rest_points"] = int(len(rest))
+    if r.threshold is not None:
+        rec["rest_threshold_g"] = r.threshold / fixed.SAMPLE_ONE_G
+        rec["noise_level_g"] = r.noise_level / fixed.SAMPLE_ONE_G
     rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
     rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
     rec["points"] = len(r.selected_int)
     # no rest points: no figure (null in JSON, never NaN)
     rec["error_before_mg"] = methods.calibration_error_mg(None, rest) if len(rest) else None
-    if min(r.counts) < cfg.min_count:
+    if method != "device":
+        rec["points_from"] = points
+        if points == "all":
+            return _float_fit_record(rec, g, r, spec, method, rest, r.rest_conditions)
+    why = fill_reason(r, cfg)
+    if why:
         n_samples = len(g.samples) if g.samples is not None else g.n_samples
         what = (f"{n_samples} samples gave {len(rest)} rest segments"
                 if n_samples is not None else f"{len(g.points)} points")
-        rec.update(status="not_enough_data",
-                   reason=f"bins did not fill: {fill_report(r, cfg.min_count)}; {what}")
+        rec.update(status="not_enough_data", reason=f"{why}; {what}")
         return rec
     why = spread_report(spec, r)
     if why:
         rec.update(status="not_enough_data", reason=f"bins filled but {why}")
         return rec
+    if r.kept is not None:
+        rec["points"] = int(sum(r.kept))
+        rec["outliers"] = len(r.kept) - rec["points"]
     if method == "device":
-        if r.status != optimiser.OK:
+        if not optimiser.usable(r.status):
             rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
                        "iterations; no parameters returned")
             return rec
         p_int = r.params_int
+        if r.status != optimiser.OK:  # a composed fit refused, the base fit kept
+            rec["note"] = r.status_name
         rec["iterations"] = r.iterations
-        rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, len(r.selected_int))
+        rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
     else:
-        try:
-            p_int = params_to_int(methods.METHODS[method](r.selected_g))
-        except methods.FitError as e:
-            rec.update(status="failed", reason=str(e))
-            return rec
-        rec["iterations"] = None
+        sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 5)
+        if r.kept is not None:
+            sel = sel[np.asarray(r.kept, bool)]
+        return _float_fit_record(rec, g, r, spec, method, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:5])
+    return _params_record(rec, g, r, spec, method, p_int)
+
+
+def _float_fit_record(rec, g, r, spec, method, v, cond):
+    """A float method fitted on points v (g) seen at cond (int degC, 64 s units): the paper's
+    model by any method, a composed one by lsq (diagnose.fit) with the device's references."""
+    mag = np.linalg.norm(v, axis=1)
+    ok = (mag > 0.5) & (mag < 1.5)
+    v, cond = v[ok], cond[ok]
+    rec["points"] = int(len(v))
+    rec["iterations"] = None
+    ref = None
+    try:
+        if not spec.effects:
+            p_int = params_to_int(methods.METHODS[method](v))
+        else:
+            from accelcal.diagnose import RestPoints, fit
+            methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
+            pts = RestPoints(v, g.t_first + cond[:, 1] * float(deff.DT_UNIT_S),
+                             cond[:, 0].astype(float), np.zeros(len(v)), "points")
+            # the references: the middle of the points' ranges, as the device takes them
+            ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
+                   "t0": g.t_first + ((int(cond[:, 1].min()) + int(cond[:, 1].max())) >> 1)
+                   * float(deff.DT_UNIT_S)}
+            p_int = spec.to_int(fit(spec, pts, ref))
+    except methods.FitError as e:
+        rec.update(status="failed", reason=str(e))
+        return rec
+    return _params_record(rec, g, r, spec, method, p_int, ref)
+
+
+def _params_record(rec, g, r, spec, method, p_int, ref=None):
+    """rec with the parameters (decoded and Q24) and the error after; ref: a composed model's
+    references (None: the device fit's)."""
     if spec.effects:
-        ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+        ref = ref or {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
         rec.update(model=str(spec), method=method,
                    scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
                          "g, 1/degC, g/day, 1/g",
@@ -154,7 +215,7 @@ def error_after_mg(spec: ModelSpec, p_int, ref: dict | None, g: runtime.Group,
 
 def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,
                         spec: ModelSpec | None = None, engine: str = "vector",
-                        progress=None, fallback: str | None = None) -> dict:
+                        progress=None, fallback: str | None = None, points: str = "bins") -> dict:
     """A recording of any size or format (accelcal.recording) through the device pipeline, with
     its quality report (README "False rest and quality control").  engine "vector": one
     streaming pass of the numpy twin, constant memory; "device": every sample through the
@@ -185,12 +246,14 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
                           gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s, t=t,
                           unworn=sc.excluded_runs(kept))
     r = runtime.run([g], cfg, runtime_name)[0]
+    if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
+        r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level
     rec = {"file": path, "format": sc.format, "model": str(spec), "method": method,
            "runtime": runtime_name}
     rec.update(quality(sc, m))
     if rec_in.warnings:
         rec["reader_warnings"] = rec_in.warnings
-    rec = result_record(rec, g, r, cfg, spec, method)
+    rec = result_record(rec, g, r, cfg, spec, method, points)
     rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
     if rec["status"] != "calibrated" and fallback:
         use_fallback(rec, fallback, r.rest_g)

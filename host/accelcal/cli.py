@@ -49,37 +49,68 @@ def _rates(s):
     return tuple(tenths)
 
 
+def _threshold(s):
+    if s == "auto":
+        return "auto"
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError("a number of g (e.g. 0.05) or auto") from None
+    if not 0 < v <= 2:
+        raise argparse.ArgumentTypeError("must be in (0, 2] g, or auto")
+    return v
+
+
+AXES = {"x": 0, "y": 1, "z": 2, "all": 3}  # 3: acal.rest.ALL_AXES
+
+
 def _add_pipeline_args(p):
-    g = p.add_argument_group("device pipeline")
+    g = p.add_argument_group("device pipeline",
+                             "--profile sets every default below; an option given overrides it.")
+    g.add_argument("--profile", choices=["wear", "paper"], default="wear",
+                   help="wear (default): rest on all axes against a threshold from the sensor's "
+                        "measured noise, 8 points per subset, a Gauss-Newton fit to the optimum "
+                        "with outlier rejection, ready on coverage; paper: Farago 2024 to the "
+                        "letter (x axis, 0.12 g, 2 points per subset, 50 gradient steps)")
     g.add_argument("--seconds", type=_positive_int, default=5, help="rest segment length, s (default 5)")
-    g.add_argument("--threshold", type=float, default=0.12, help="max-min rest threshold, g (default 0.12)")
-    g.add_argument("--axis", choices="xyz", default="x", help="axis for the rest test (default x)")
-    g.add_argument("--min-count", type=_positive_int, default=2, help="points per subset to calibrate (default 2)")
+    g.add_argument("--threshold", type=_threshold, default=None,
+                   help="max-min rest threshold, g, or auto (from the measured noise); "
+                        "default: wear auto, paper 0.12")
+    g.add_argument("--axis", choices=["x", "y", "z", "all"], default=None,
+                   help="axis for the rest test, or all; default: wear all, paper x")
+    g.add_argument("--min-count", type=_positive_int, default=None,
+                   help="points per subset to calibrate (default 2)")
     g.add_argument("--max-count", type=_positive_int, default=None,
-                   help="points kept per subset (default 2; 4 for a composed model)")
+                   help="points kept per subset (default: wear 8; paper 2, 4 for a composed model)")
     g.add_argument("--differ", type=float, default=0.1,
                    help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
     g.add_argument("--select", choices=["centre", "first"], default="centre",
                    help="point selection once a subset is full: centre (replace by better-placed points) "
                         "or first (first come, as printed in the paper)")
     g.add_argument("--iterations", type=_positive_int, default=None,
-                   help="optimiser iterations M (default 50; 200 for a composed model)")
+                   help="optimiser iterations (default: wear up to 20 Gauss-Newton steps per "
+                        "round; paper 50, 200 for a composed model)")
     g.add_argument("--rates", type=_rates, default=(3, 8, 2), metavar="S,M,O",
-                   help="learning rates for scale, misalignment, offset, multiples of 0.1 "
-                        "(default 0.3,0.8,0.2, the paper's)")
+                   help="paper profile: learning rates for scale, misalignment, offset, multiples "
+                        "of 0.1 (default 0.3,0.8,0.2, the paper's)")
 
 
 def _config(args, composed=False):
-    from acal.app import COMPOSED_MAX_COUNT
-    from acal.optimiser import COMPOSED_ITERATIONS, DEFAULT_ITERATIONS
     from accelcal.runtime import Config
-    iterations = args.iterations or (COMPOSED_ITERATIONS if composed else DEFAULT_ITERATIONS)
-    max_count = args.max_count or (COMPOSED_MAX_COUNT if composed else 2)
-    if max_count < args.min_count:
+    thr = None if args.threshold in (None, "auto") else args.threshold
+    cfg = Config.for_profile(args.profile, composed, threshold_g=thr,
+                             axis=None if args.axis is None else AXES[args.axis],
+                             min_count=args.min_count, max_count=args.max_count,
+                             iterations=args.iterations)
+    if args.threshold == "auto":
+        cfg.threshold_g = None
+    cfg.seconds = args.seconds
+    cfg.differ_g = args.differ
+    cfg.policy = args.select
+    cfg.rates_tenths = args.rates
+    if cfg.max_count < cfg.min_count:
         raise InputError("--max-count must be >= --min-count")
-    return Config(seconds=args.seconds, threshold_g=args.threshold, axis="xyz".index(args.axis),
-                  min_count=args.min_count, max_count=max_count, differ_g=args.differ,
-                  policy=args.select, iterations=iterations, rates_tenths=args.rates)
+    return cfg
 
 
 def cmd_calibrate(args) -> int:
@@ -92,21 +123,10 @@ def cmd_calibrate(args) -> int:
         raise InputError(str(e)) from None
     if spec.effects and args.method not in ("device", "lsq"):
         raise InputError(f"model {spec}: composed models are fitted by --method device (the "
-                         "device's integer optimiser) or lsq (float, on all rest points)")
-    if spec.effects and args.method == "lsq":
-        from accelcal.diagnose import calibrate_model
-        if args.by:
-            raise InputError(f"model {spec}: --by applies to --method device for composed models")
-        if len(args.input) > 1:
-            raise InputError(f"model {spec}: --method lsq calibrates one file")
-        r = calibrate_model(args.input[0], args.model)
-        print(json.dumps(r) if args.json else
-              f"calibrated {r['model']} by lsq on {r['points']} rest points\n  "
-              + "  ".join(f"{k}={v:+.6g}" for k, v in r["params"].items())
-              + f"\n  calibration error: {r['error_before_mg']:.2f} mg before -> {r['error_after_mg']:.2f} mg after")
-        if args.save:
-            save_params(args.save, r)
-        return 0
+                         "device's integer optimiser) or lsq (float; --points bins|all)")
+    if args.points and args.method == "device":
+        raise InputError("--points applies to the float methods (--method lsq, ...); the device "
+                         "method fits the points its bins select")
     engine = args.engine or ("device" if args.runtime == "micropython" else "vector")
     inputs = args.input
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
@@ -121,11 +141,11 @@ def cmd_calibrate(args) -> int:
                    desc="reading")
         recs = [calibrate_recording(inputs[0], _config(args, bool(spec.effects)), args.method,
                                     args.runtime, spec, engine, progress=lambda n: bar.update(n - bar.n),
-                                    fallback=args.fallback)]
+                                    fallback=args.fallback, points=args.points or "bins")]
         bar.close()
     else:
         recs = calibrate_groups(read_table(inputs[0]), args.by, _config(args, bool(spec.effects)),
-                                args.method, args.runtime, spec)
+                                args.method, args.runtime, spec, args.points or "bins")
         if args.fallback:
             raise InputError("--fallback applies to recordings")
     failed = [r for r in recs if r["status"] != "calibrated" and r.get("calibration") != "fallback"]
@@ -149,10 +169,8 @@ def _calibrate_batch(args, spec, engine) -> int:
     from accelcal.io import save_params
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
-    if spec.effects and args.method == "lsq":
-        raise InputError(f"model {spec}: a batch fits composed models by --method device")
     job = batch.Job(_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
-                    args.fallback)
+                    args.fallback, args.points or "bins")
     if args.fallback:
         from accelcal.io import load_params
         load_params(args.fallback)  # a bad fallback is bad input, before any file is read
@@ -267,7 +285,8 @@ def cmd_board_virtual(args) -> int:
 
 
 def _app_settings(args) -> dict:
-    s = {"rate_hz": args.rate}
+    from acal import profile as dprofile
+    s = {"rate_hz": args.rate, "profile": dprofile.parse(args.profile)}
     if args.capture_kb:
         s["capture_bytes"] = args.capture_kb * 1024
     if args.fifo:
@@ -405,6 +424,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="device: the integer optimiser (default); the float reference methods, "
                         "fitted on the points the device's bins selected: "
                         + "; ".join(f"{n}: {m.role}" for n, m in METHODS.items()))
+    p.add_argument("--points", choices=["bins", "all"], default=None,
+                   help="float methods: fit the points the device's bins selected and its fit "
+                        "kept (bins, the default), or every usable rest point (all: |v| within "
+                        "0.5-1.5 g; the bins need not fill).  The same for the paper's model and "
+                        "composed ones; the record says which (points_from)")
     p.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython",
                    help="interpreter that runs the device modules (micropython: the real unix port)")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
@@ -512,6 +536,10 @@ def build_parser() -> argparse.ArgumentParser:
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "
                             "one such as base+temp_offset (what `accelcal diagnose` named)")
+        g.add_argument("--profile", choices=["wear", "paper"], default="wear",
+                       help="wear (default): all-axis rest against the measured noise, 72 points, "
+                            "Gauss-Newton with outlier rejection, sliced between FIFO reads; "
+                            "paper: Farago 2024 to the letter")
 
     p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "

@@ -23,7 +23,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import optimiser
 from accelcal import methods, runtime
-from accelcal.diagnose import RestPoints, rest_points, split, usable
+from accelcal.diagnose import RestPoints, check_coverage, rest_points, split, usable
 from accelcal.io import InputError, params_to_float, read_table
 from accelcal.recording import is_recording
 
@@ -48,12 +48,15 @@ class Split:
     how: str
 
 
-def split_points(path: str) -> Split:
+def split_points(path: str, cfg: runtime.Config | None = None) -> Split:
+    """The rest points (by cfg's rest test; None: the paper's) split into train and held out."""
+    seconds, thr, axis = (5, 123, 0) if cfg is None else (cfg.seconds, cfg.threshold_int, cfg.axis)
     if is_recording(path):
-        p, timed = usable(rest_points(path)), True
+        p, timed = usable(rest_points(path, seconds, thr, axis)), True
     else:
         table = read_table(path)
         p, timed = usable(rest_points(table)), "t" in table.columns
+    check_coverage(p)
     if timed:
         train, test, _ = split(p)
         how = "2-hour blocks: even train, odd held out"
@@ -70,11 +73,12 @@ def split_points(path: str) -> Split:
 def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"):
     """The device's bins and optimiser on points in stream order: (params or None, selected
     points, reason or None)."""
+    from accelcal.calibrate import fill_reason
     r = runtime.run([runtime.Group("train", points=v)], cfg, runtime_name)[0]
-    sel = r.selected_g
-    if min(r.counts) < cfg.min_count:
-        fill = " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts))
-        return None, sel, f"bins did not fill: {fill} (need >= {cfg.min_count} each)"
+    sel = r.fit_points_g
+    why = fill_reason(r, cfg)
+    if why:
+        return None, sel, why
     if r.status != optimiser.OK:
         return None, sel, f"device fit {r.status_name} after {r.iterations} iterations"
     return params_to_float(r.params_int), sel, None
@@ -96,8 +100,8 @@ def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str)
 def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
             runtime_name: str = "cpython", say=lambda m: None) -> tuple[dict, Split]:
     """The comparison (JSON-ready) and the split it was made on."""
-    say(f"{path}: rest detection (device detector)")
-    sp = split_points(path)
+    say(f"{path}: rest detection (the device's detector, {cfg.profile} profile)")
+    sp = split_points(path, cfg)
     before = methods.calibration_error_mg(None, sp.test.v)
     _, selected, dev_why = device_fit(sp.train.v, cfg, runtime_name)
     if train == "selected" and dev_why is None:
@@ -128,7 +132,7 @@ def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "sele
                        params=dict(zip(("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"),
                                        np.round(p, 7).tolist())))
         rows.append(row)
-    return {"input": path, "split": sp.how, "training": training,
+    return {"input": path, "profile": cfg.profile, "split": sp.how, "training": training,
             "rest_points": {"train": len(sp.train), "heldout": len(sp.test)},
             "heldout": "every held-out rest point", "metric": "mean | |a| - 1 g |, mg (Farago Table 3)",
             "rows": rows}, sp
@@ -214,7 +218,9 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 
 def compare_main(args, cfg: runtime.Config) -> int:
     names = parse_methods(args.methods)
-    say = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
+    # progress for a person watching (a terminal); errors stay one line for scripts
+    quiet = args.json or not sys.stderr.isatty()
+    say = (lambda m: None) if quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     out, sp = compare(args.input, names, cfg, args.train, args.runtime, say)
     if args.plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")

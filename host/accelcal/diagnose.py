@@ -54,10 +54,11 @@ class RestPoints:
                           self.noise[sel], self.source)
 
 
-def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints:
+def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> RestPoints:
     """path: a recording (any size or format: one streaming pass of the vectorised twin of the
     device's detector, accelcal.scan; every still segment, gaps honoured), or a points file or
-    Table."""
+    Table.  seconds, threshold (Q10 g; 0: from the noise), axis (3: all): the rest test, by
+    default the wear profile's."""
     if not isinstance(path, Table) and not is_recording(path):
         path = read_table(path)
     if isinstance(path, Table):
@@ -70,7 +71,7 @@ def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints
     from accelcal.recording import open_recording
     from accelcal.scan import scan
     rec = open_recording(path)
-    sc = scan(rec, seconds, int(round(threshold_g * 1024)), 0, extras=True)
+    sc = scan(rec, seconds, threshold, axis, extras=True)
     still = sc.segments.still
     if not still.any():
         raise InputError(f"{path}: no rest segments found")
@@ -83,6 +84,21 @@ def rest_points(path, seconds: int = 5, threshold_g: float = 0.12) -> RestPoints
 def usable(p: RestPoints) -> RestPoints:
     mag = np.linalg.norm(p.v, axis=1)
     return p.take((mag > 0.5) & (mag < 1.5))  # as the device's bins: not gravity otherwise
+
+
+def check_coverage(p: RestPoints) -> None:
+    """Exit-2 reason for rest points that cannot pin a calibration: fewer than the 9 parameters,
+    or all on one side of a plane through 0 g (one orientation or one hemisphere: a device lying
+    still, in a temperature chamber say); the fit would only extrapolate to the other side.
+    calibrate (its bins, its methods' checks) and compare refuse the same data."""
+    from accelcal.methods import one_side_margin
+    if len(p) < 9:
+        raise InputError(f"{p.source}: {len(p)} usable rest points; a calibration needs at "
+                         "least 9, in different orientations")
+    if one_side_margin(p.v) > 1e-9:
+        raise InputError(f"{p.source}: the {len(p)} rest points cover one hemisphere only (all lie "
+                         "on one side of a plane through 0 g: one orientation, or a device that "
+                         "never turned over); a calibration needs both sides of every axis")
 
 
 def check_model(spec: ModelSpec, p: RestPoints) -> None:
@@ -100,6 +116,7 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
     except ValueError as e:
         raise InputError(str(e)) from None
     p = usable(rest_points(path))
+    check_coverage(p)
     check_model(spec, p)
     return spec, p
 

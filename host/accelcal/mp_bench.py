@@ -6,7 +6,7 @@ import micropython
 from array import array
 
 from acal.optimiser import Optimiser
-from acal.rest import RestDetector
+from acal.rest import RestDetector, ALL_AXES, AUTO
 
 
 def samples(n):
@@ -93,6 +93,19 @@ def main():
     micropython.heap_unlock()
     print("rest_heap_locked_ok", ok)
     print("segments", det.segments)
+    # The wear profile's detector: every axis, the threshold from the noise gauge.
+    wear = RestDetector(100, 5, AUTO, ALL_AXES)
+    detect(wear, buf, n_samples)
+    print("rest_wear_us", best_us(lambda: detect(wear, buf, n_samples), 5))
+    ok = 1
+    micropython.heap_lock()
+    try:
+        detect(wear, buf, n_samples)
+    except MemoryError:
+        ok = 0
+    micropython.heap_unlock()
+    print("rest_wear_heap_locked_ok", ok)
+    print("rest_wear_threshold", wear.threshold)
 
 
 main()

@@ -15,6 +15,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import effects as deff
 from acal import fixed, optimiser, rest
+from acal import profile as dprofile
 from accelcal import mp_runner
 from accelcal.io import InputError, g_to_point, g_to_sample
 
@@ -26,11 +27,12 @@ BATCH = 1000  # samples per line of the protocol
 
 @dataclass
 class Config:
-    """Pipeline settings in physical units; `line()` gives the device's integers."""
+    """Pipeline settings in physical units; `line()` gives the device's integers.  The defaults
+    are the paper profile's; Config.for_profile() gives a profile's (acal/profile.py)."""
     rate_hz: int = 100
     seconds: int = rest.DEFAULT_SECONDS
-    threshold_g: float = 0.12
-    axis: int = 0
+    threshold_g: float | None = 0.12   # None: from the measured noise (acal.rest.AUTO)
+    axis: int = 0                      # 3: all axes (acal.rest.ALL_AXES)
     min_count: int = 2
     max_count: int = 2
     differ_g: float = 0.1
@@ -38,10 +40,39 @@ class Config:
     iterations: int = optimiser.DEFAULT_ITERATIONS
     rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
     kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
+    fit: int = dprofile.GRADIENT
+    profile: str = "paper"
+
+    @classmethod
+    def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
+        """A profile's settings (acal.profile.settings), then any overrides (None: not given).
+        composed: a composed model's defaults (more points and iterations for the paper's fit)."""
+        from acal.app import COMPOSED_MAX_COUNT
+        s = dprofile.settings(dprofile.parse(name))
+        thr = s["threshold"]
+        fit = s["fit"]
+        if fit == dprofile.NEWTON:
+            from acal.gaussnewton import DEFAULT_ITERATIONS as iterations
+        else:
+            iterations = optimiser.COMPOSED_ITERATIONS if composed else optimiser.DEFAULT_ITERATIONS
+        max_count = s["max_count"]
+        if composed and fit == dprofile.GRADIENT:
+            max_count = COMPOSED_MAX_COUNT
+        cfg = cls(threshold_g=None if thr == rest.AUTO else thr / fixed.SAMPLE_ONE_G,
+                  axis=s["axis"], min_count=s["min_count"], max_count=max_count,
+                  iterations=iterations, fit=fit, profile=name)
+        if name == "paper":
+            cfg.threshold_g = 0.12  # the paper's 0.12 g as given (Q10: 123)
+        for k, v in overrides.items():
+            if v is not None:
+                setattr(cfg, k, v)
+        return cfg
 
     @property
     def threshold_int(self) -> int:
-        """The rest threshold as the device holds it, Q10 g."""
+        """The rest threshold as the device holds it, Q10 g (0: rest.AUTO)."""
+        if self.threshold_g is None:
+            return rest.AUTO
         return int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
 
     def line(self) -> str:
@@ -49,7 +80,7 @@ class Config:
         thr = self.threshold_int
         dif = int(round(self.differ_g * fixed.POINT_ONE_G))
         return (f"C {self.rate_hz} {self.seconds} {thr} {self.axis} {self.min_count} "
-                f"{self.max_count} {dif} {pol} {self.iterations} "
+                f"{self.max_count} {dif} {pol} {self.iterations} {self.fit} "
                 + " ".join(map(str, self.rates_tenths + tuple(self.kinds))))
 
 
@@ -119,6 +150,10 @@ class DeviceResult:
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
     temp_span: int = 0       # of the held points: degC
     time_span: int = 0       # 64 s units
+    covered: bool = False    # the held points cover every axis (bins.covered())
+    kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
+    threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
+    noise_level: int | None = None  # and the noise level it came from, Q10 g
 
     @property
     def status_name(self) -> str:
@@ -131,6 +166,12 @@ class DeviceResult:
     @property
     def selected_g(self) -> np.ndarray:
         return np.array([r[:3] for r in self.selected_int], dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+    @property
+    def fit_points_g(self) -> np.ndarray:
+        """The selected points the device's fit kept (all of them unless it rejected outliers)."""
+        sel = self.selected_g
+        return sel if self.kept is None else sel[np.asarray(self.kept, bool)]
 
     @property
     def rest_conditions(self) -> np.ndarray:
@@ -201,8 +242,13 @@ def parse(out_lines) -> list[DeviceResult]:
             cur.ref_temp, cur.ref_time = int(f[1]), int(f[2])
         elif tag == "Y":
             cur.ready, cur.temp_span, cur.time_span = f[1] == "1", int(f[2]), int(f[3])
+            cur.covered = f[4] == "1"
         elif tag == "K":
             cur.counts = [int(v) for v in f[1:]]
+        elif tag == "D":
+            cur.kept = [int(v) for v in f[2:]]
+        elif tag == "N":
+            cur.threshold, cur.noise_level = int(f[1]), int(f[2])
         elif tag == "F":
             v = [int(x) for x in f[1:]]
             cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]

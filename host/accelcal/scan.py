@@ -61,6 +61,9 @@ class Scan:
     # with scan(extras=True), per segment the means of: t (s), temperature (degC; 0 without),
     # |v| and |v|^2 of the file's own float samples (g, g^2)
     seg_means: np.ndarray | None = None
+    # threshold AUTO: the noise gauge at the end (Q10 g): its threshold and the noise level
+    noise_threshold: int | None = None
+    noise_level: int | None = None
 
     @property
     def hours(self) -> float:
@@ -98,7 +101,7 @@ class Scan:
             clipped = np.zeros(len(s), bool)
         nonwear = np.zeros(len(s), bool)
         if self.seg_temp is not None and len(s):
-            all_still = (rng < self.threshold).all(axis=1)
+            all_still = (rng < s.threshold[:, None]).all(axis=1)
             absolute = self.temp_max is not None and self.temp_max >= SKIN_MIN_C
             cold = (self.seg_temp < WEAR_TEMP_C) if absolute else np.zeros(len(s), bool)
             # temperature slope over the last COOLING_WINDOW_S, per minute
@@ -194,6 +197,8 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
     if sc is None:
         raise InputError(f"{rec.path}: no samples")
     sc.t_last = last_t
+    if stream.gauge is not None:
+        sc.noise_threshold, sc.noise_level = stream.gauge.threshold, stream.gauge.level
     sc.segments = vector.Segments.concat(parts)
     sc.seg_t = np.concatenate(seg_t) if seg_t else np.zeros(0)
     sc.seg_temp = np.concatenate(seg_temp) if seg_temp and rec.has_temp else None

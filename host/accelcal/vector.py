@@ -1,7 +1,7 @@
 """The vectorised numpy twin of the device's per-sample stages, for files of weeks at 100 Hz.
 
 Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
-max - min rest test, per-axis sums, Q16 means) and of acal.model.Calibration.apply_samples for
+max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.model.Calibration.apply_samples for
 the paper's model, on int64 arrays, tied to those modules by bit-exact tests
 (tests/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
 means go to the device's own Pipeline.offer in stream order.
@@ -23,7 +23,8 @@ import numpy as np
 
 from acal import effects as deff
 from acal import fixed
-from acal.rest import DEFAULT_SECONDS, DEFAULT_THRESHOLD
+from acal import rest as drest
+from acal.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 
 
 @dataclass
@@ -33,19 +34,20 @@ class Segments:
     (non-wear, imputed constants, clipping) read them; the device's rest test does not."""
     end: np.ndarray      # (n,) int64: stream index of each segment's last sample
     still: np.ndarray    # (n,) bool
-    spread: np.ndarray   # (n,) int64: max - min of the rest axis, Q10 g
+    spread: np.ndarray   # (n,) int64: max - min of the rest axis (ALL_AXES: the largest), Q10 g
     mean: np.ndarray     # (n, 3) int64: Q16 g (meaningful where still)
     lo: np.ndarray       # (n, 3) int64: each axis's min, Q10 g
     hi: np.ndarray       # (n, 3) int64: each axis's max, Q10 g
     extra: np.ndarray    # (n, k) float64: sums of the feeder's extra per-sample columns (k >= 0)
+    threshold: np.ndarray  # (n,) int64: the threshold each segment was judged by, Q10 g
 
-    FIELDS = ("end", "still", "spread", "mean", "lo", "hi", "extra")
+    FIELDS = ("end", "still", "spread", "mean", "lo", "hi", "extra", "threshold")
 
     @staticmethod
     def empty(k: int = 0) -> "Segments":
         z3 = np.zeros((0, 3), np.int64)
         return Segments(np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), z3, z3, z3,
-                        np.zeros((0, k)))
+                        np.zeros((0, k)), np.zeros(0, np.int64))
 
     @staticmethod
     def concat(parts: list["Segments"]) -> "Segments":
@@ -60,11 +62,60 @@ class Segments:
         return len(self.end)
 
 
+class NoiseGaugeTwin:
+    """The twin of acal.rest.NoiseGauge over arrays of spreads: the threshold each segment is
+    judged by, the gauge's state carried from call to call (bit-exact: tests/test_vector.py)."""
+
+    def __init__(self):
+        self.hist = np.zeros(drest.NOISE_BINS, np.int64)
+        self.count = 0
+        self.seen = 0
+        self.threshold = 0
+        self.level = 0
+
+    def thresholds(self, spread: np.ndarray) -> np.ndarray:
+        """Per segment (in stream order): the threshold in force when it closed; then its
+        spread counted, as RestDetector._close does."""
+        out = np.empty(len(spread), np.int64)
+        quiet = np.flatnonzero((spread > 0) & (spread < drest.NOISE_BINS))
+        every = drest.NOISE_EVERY
+        # the quiet segments at which an update happens (after it has been counted)
+        first = (every - self.seen % every) - 1
+        events = quiet[first::every]
+        prev_seg = 0
+        prev_q = 0
+        for e in events.tolist():
+            out[prev_seg:e + 1] = self.threshold     # judged before the update
+            k = int(np.searchsorted(quiet, e)) + 1   # quiet segments up to and with e
+            self._count(spread[quiet[prev_q:k]])
+            self._update()
+            prev_seg, prev_q = e + 1, k
+        out[prev_seg:] = self.threshold
+        self._count(spread[quiet[prev_q:]])
+        return out
+
+    def _count(self, v: np.ndarray) -> None:
+        if len(v):
+            self.hist += np.bincount(v, minlength=drest.NOISE_BINS)
+            self.count += len(v)
+            self.seen += len(v)
+
+    def _update(self) -> None:
+        need = (self.count + drest.NOISE_QUANTILE - 1) // drest.NOISE_QUANTILE
+        q = int(np.searchsorted(np.cumsum(self.hist), need)) if need else 0
+        self.level = q
+        self.threshold = int(np.clip(drest.NOISE_MUL * q + drest.NOISE_ADD, drest.THRESHOLD_MIN,
+                                     drest.THRESHOLD_MAX))
+        if self.count >= drest.NOISE_HALVE:
+            self.hist >>= 1
+            self.count = int(self.hist.sum())
+
+
 def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: int,
-                  extra: np.ndarray | None = None) -> Segments:
+                  extra: np.ndarray | None = None, gauge: NoiseGaugeTwin | None = None) -> Segments:
     """Every full segment of a contiguous run p (3 x m Q10 ints, planar: one row per axis, m a
     multiple of length) that starts at stream index `first`; extra (k x m floats): summed per
-    segment too."""
+    segment too.  axis ALL_AXES: the largest spread of the three; threshold AUTO: the gauge's."""
     n = p.shape[1] // length
     k = 0 if extra is None else extra.shape[0]
     ext = (extra[:, : n * length].reshape(k, n, length).sum(axis=2).T if k
@@ -74,9 +125,10 @@ def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: 
     hi = seg.max(axis=2).T.astype(np.int64)
     sums = seg.sum(axis=2, dtype=np.int64).T
     mean = (sums << fixed.POINT_FROM_SAMPLE_SHIFT) // length   # floor, as mean_q16
-    spread = hi[:, axis] - lo[:, axis]
+    spread = (hi - lo).max(axis=1) if axis == ALL_AXES else hi[:, axis] - lo[:, axis]
     end = first + (np.arange(1, n + 1, dtype=np.int64) * length) - 1
-    return Segments(end, spread < threshold, spread, mean, lo, hi, ext)
+    thr = gauge.thresholds(spread) if threshold == AUTO else np.full(n, threshold, np.int64)
+    return Segments(end, spread < thr, spread, mean, lo, hi, ext, thr)
 
 
 class RestStream:
@@ -88,9 +140,10 @@ class RestStream:
         length = rate_hz * seconds
         if length < 1 or length > fixed.SEGMENT_MAX_SAMPLES:
             raise ValueError("segment must hold 1..65535 samples")
-        if axis not in (0, 1, 2):
-            raise ValueError("axis must be 0, 1 or 2")
+        if axis not in (0, 1, 2, ALL_AXES):
+            raise ValueError("axis must be 0, 1, 2 or ALL_AXES")
         self.length, self.threshold, self.axis = length, threshold, axis
+        self.gauge = NoiseGaugeTwin() if threshold == AUTO else None
         self.pending = np.zeros((3, 0), np.int32)   # the open segment's samples, planar
         self.pending_extra = None                   # and their extra columns, if fed any
         self.position = 0                           # stream index of the next sample
@@ -124,7 +177,7 @@ class RestStream:
             full = (run.shape[1] // self.length) * self.length
             if full:
                 parts.append(segment_stats(run[:, :full], self.length, self.threshold, self.axis,
-                                           first, None if ext is None else ext[:, :full]))
+                                           first, None if ext is None else ext[:, :full], self.gauge))
             self.pending = np.array(run[:, full:], dtype=np.int32)
             if ext is not None:
                 self.pending_extra = np.array(ext[:, full:])

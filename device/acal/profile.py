@@ -1,0 +1,48 @@
+# The two profiles of the one device pipeline (README "Profiles"): named settings, not two
+# implementations.
+#
+#   PAPER  Farago 2024 to the letter: rest when max - min of x stays below 0.12 g, 2 points per
+#          subset (18), the paper's gradient descent for 50 iterations.  Table 2, Table 3 and
+#          the comparisons run it.
+#   WEAR   the default, for real wear: rest judged on all three axes against a threshold derived
+#          from the sensor's noise measured on the device (rest.NoiseGauge), 8 points per subset
+#          (72), a Gauss-Newton fit run to the optimum of its points, integer outlier rejection
+#          (gaussnewton.py), and readiness from coverage (bins.py) rather than nine full
+#          subsets.
+# Composed models (effects.py) keep their spread rules (bins.py) in both.
+from acal.rest import ALL_AXES, AUTO, DEFAULT_THRESHOLD
+
+PAPER = 0
+WEAR = 1
+NAMES = ("paper", "wear")
+DEFAULT = WEAR
+
+GRADIENT = 0   # fit: the paper's gradient descent (optimiser.py)
+NEWTON = 1     # fit: Gauss-Newton with outlier rejection (gaussnewton.py)
+
+WEAR_MAX_COUNT = 8
+# Why 8 per subset (72 points): the outlier test needs enough points that one bad one is a
+# minority in its neighbourhood (18 cannot outvote a point); RAM is ~5 kB of list slots at 72
+# points; a Gauss-Newton step costs 10 residuals per point, ~0.2 s on an RP2040 at 72 points,
+# sliced (README "Sliced fit").  More points than the bins' 0.1 g spacing lets a band hold
+# would sit unused.
+
+
+def settings(profile):
+    """A profile's pipeline settings: axis, threshold (Q10 g or rest.AUTO), min_count,
+    max_count, fit (GRADIENT / NEWTON), iterations (None: the fit's default)."""
+    if profile == PAPER:
+        return {"axis": 0, "threshold": DEFAULT_THRESHOLD, "min_count": 2, "max_count": 2,
+                "fit": GRADIENT}
+    if profile == WEAR:
+        return {"axis": ALL_AXES, "threshold": AUTO, "min_count": 2,
+                "max_count": WEAR_MAX_COUNT, "fit": NEWTON}
+    raise ValueError("profile must be PAPER or WEAR")
+
+
+def parse(name):
+    """'paper' or 'wear' -> the profile id; ValueError otherwise."""
+    for i in range(len(NAMES)):
+        if NAMES[i] == name:
+            return i
+    raise ValueError("a profile is paper or wear: " + name)

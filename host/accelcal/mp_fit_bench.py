@@ -1,0 +1,84 @@
+# `accelcal bench`: the fit's slices timed under MicroPython (README "Sliced fit").  Runs in
+# the MicroPython unix port (and CPython: time.perf_counter_ns stands in for ticks_us).
+# For each case: the pipeline's fit from begin_fit() to its end, one fit_step() at a time;
+# prints "name slices worst_us total_us status".
+import time
+
+from acal import effects
+from acal.pipeline import Pipeline
+from acal.profile import GRADIENT, NEWTON, PAPER, WEAR, settings
+
+try:
+    ticks = time.ticks_us
+    diff = time.ticks_diff
+except AttributeError:
+    def ticks():
+        return time.perf_counter_ns() // 1000
+
+    def diff(a, b):
+        return a - b
+
+_seed = [4321]
+
+
+def rnd(m):
+    _seed[0] = (_seed[0] * 1103515245 + 12345) & 0x7FFFFFFF
+    return (_seed[0] >> 8) % (2 * m + 1) - m
+
+
+def isqrt(v):
+    x = v
+    y = (x + 1) // 2
+    while y < x:
+        x = y
+        y = (x + v // x) // 2
+    return x
+
+
+def point(one):
+    # a random direction of length `one`, with sensor-like errors (+-3 % scale, +-60 mg offset)
+    while True:
+        x = rnd(1000)
+        y = rnd(1000)
+        z = rnd(1000)
+        n2 = x * x + y * y + z * z
+        if 10000 < n2 <= 1000000:
+            break
+    n = isqrt(n2)
+    return ((x * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
+            (y * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
+            (z * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000)
+
+
+def case(name, prof, kinds):
+    s = settings(prof)
+    pipe = Pipeline(100, kinds=kinds, **s)
+    for i in range(4000):
+        pipe.temp = 20 + (i % 17)
+        pipe.time = i
+        x, y, z = point(65536)
+        pipe.offer(x, y, z)
+        if pipe.bins.total() >= 9 * pipe.bins.max_count:
+            break
+    pipe.begin_fit()
+    worst = 0
+    total = 0
+    slices = 0
+    while True:
+        t0 = ticks()
+        done = pipe.fit_step()
+        dt = diff(ticks(), t0)
+        total += dt
+        slices += 1
+        if dt > worst:
+            worst = dt
+        if done:
+            break
+    print(name, slices, worst, total, pipe.optimiser.status)
+
+
+case("paper_base", PAPER, ())
+case("wear_base", WEAR, ())
+case("wear_temp_offset", WEAR, (effects.TEMP_OFFSET,))
+case("wear_four_effects", WEAR, (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT,
+                                  effects.NONLINEAR))
