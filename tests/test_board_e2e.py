@@ -45,9 +45,12 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
     r = run_cli("deploy", "--port", port, "--rate", RATE, "--capture-kb", 2048, "--json")
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
-    assert info["board"] == "virtual" and info["platform"] == "linux" and info["modules"] == 11
+    from accelcal.boardtools import APP_MODULES
+    assert info["board"] == "virtual" and info["platform"] == "linux"
+    assert info["modules"] == len(APP_MODULES) == 14
     assert (board.dir / "flash" / "lib" / "acal" / "optimiser.py").exists()
-    assert "acal.app.main(rate_hz=10, capture_bytes=2097152)" in (board.dir / "flash" / "main.py").read_text()
+    assert "acal.app.main(rate_hz=10, profile=1, capture_bytes=2097152)" in \
+        (board.dir / "flash" / "main.py").read_text()   # profile 1: wear, the default
 
     r = run_cli("acquire", "--port", port, "--hours", 2, "--rate", RATE, "--capture-kb", 2048,
                 "--recal-hours", 0.25)
@@ -141,6 +144,7 @@ def test_mip_package_lists_every_device_module_and_installs(tmp_path):
     with vboard.Running(tmp_path / "flash", stim) as b:
         mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "package.json"))
         out = mpremote(b.port, "exec", "import acal.app, acal.lis3dh_cp\nprint(acal.app.VERSION)")
-    assert out.strip() == "1"
+    from acal.app import VERSION
+    assert out.strip() == str(VERSION) == "2"
     assert sorted(p.name for p in (tmp_path / "flash" / "lib" / "acal").iterdir()) == \
         sorted(p.name for p in (ROOT / "device" / "acal").glob("*.py"))

@@ -72,13 +72,14 @@ def test_too_few_points_fail_some_rows_while_the_others_complete(tmp_path, rng):
         assert rows[n]["status"] == "calibrated" and rows[n]["error_after_mg"] < 5
 
 
-def test_one_hemisphere_fails_every_row_and_exits_2(tmp_path, rng):
+def test_one_hemisphere_is_refused_before_any_method(tmp_path, rng):
+    # as calibrate and diagnose refuse it (tests/test_degenerate.py): one line, exit 2
     a = rng.normal(size=(60, 3))
     a[:, 2] = np.abs(a[:, 2]) + 0.3
     path = _points_file(tmp_path / "hemi.csv", a / np.linalg.norm(a, axis=1, keepdims=True))
     r = run_cli("compare", path)
-    assert r.returncode == 2
-    assert r.stdout.count("FAILED") == 8 and r.stdout.count("one hemisphere") == 7
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and "one hemisphere" in r.stderr
 
 
 @pytest.mark.parametrize("method", methods.ORDER)

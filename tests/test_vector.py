@@ -43,19 +43,19 @@ def streams(draw):
     n = draw(st.integers(0, 200))
     kind = draw(st.sampled_from(["random", "near_threshold", "clipped"]))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
-    threshold = draw(st.sampled_from([1, 50, 123, 400]))
+    threshold = draw(st.sampled_from([0, 1, 50, 123, 400]))   # 0: rest.AUTO, the noise gauge
     if kind == "random":
         q = rng.integers(-2048, 2048, (n, 3))
     elif kind == "near_threshold":  # spreads equal to, one under and one over the threshold
         base = rng.integers(-1024, 1024, 3)
-        q = base + rng.integers(0, threshold + 2, (n, 3)) * rng.integers(0, 2, (n, 1))
+        q = base + rng.integers(0, max(threshold, 8) + 2, (n, 3)) * rng.integers(0, 2, (n, 1))
     else:  # clipped at +-2 g (12-bit), and the +-16 g extremes
         q = np.clip(rng.integers(-2600, 2600, (n, 3)), -2048, 2047)
         if n:
             q[rng.integers(0, n, max(1, n // 10))] = rng.choice([-16383, 16383], 3)
     gaps = sorted(set(rng.integers(0, n + 1, draw(st.integers(0, 4))).tolist())) if n else []
     chunk = draw(st.one_of(st.none(), st.integers(1, 60)))
-    axis = draw(st.integers(0, 2))
+    axis = draw(st.integers(0, 3))   # 3: rest.ALL_AXES
     return q.astype(np.int64), rate, seconds, threshold, axis, gaps, chunk
 
 
@@ -71,6 +71,35 @@ def test_rest_segments_equal_the_device_detector(case):
     for e, lo, hi in zip(vec.end, vec.lo, vec.hi):
         w = q[e - length + 1:e + 1]
         assert (lo == w.min(axis=0)).all() and (hi == w.max(axis=0)).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 3000), st.integers(1, 700))
+def test_noise_gauge_twin_equals_the_device_gauge(seed, n, chunk):
+    """The threshold every segment is judged by: the device's NoiseGauge, one spread at a time,
+    against the twin's over arrays fed in chunks (updates, halving, spreads of 0 and >= 128)."""
+    from acal.rest import NoiseGauge
+    rng = np.random.default_rng(seed)
+    spread = rng.choice([0, 1, 2, 3, 5, 9, 40, 127, 128, 900], n, p=[.05, .2, .2, .2, .1, .1, .05,
+                                                                    .04, .03, .03])
+    spread = np.where(rng.random(n) < 0.3, rng.integers(0, 140, n), spread).astype(np.int64)
+    dev, g = [], NoiseGauge()
+    for s in spread.tolist():
+        dev.append(g.threshold)
+        g.add(s)
+    twin = vector.NoiseGaugeTwin()
+    got = np.concatenate([twin.thresholds(spread[a:a + chunk]) for a in range(0, n, chunk)])
+    assert got.tolist() == dev
+    assert (twin.threshold, twin.level, twin.count, twin.seen) == (g.threshold, g.level, g.count, g.seen)
+    assert twin.hist.tolist() == g.hist
+
+
+def test_noise_gauge_halves_its_counts():
+    from acal.rest import NOISE_HALVE, NoiseGauge
+    g = NoiseGauge()
+    for _ in range(NOISE_HALVE + 40):
+        g.add(3)
+    assert g.count < NOISE_HALVE and g.threshold == 3 * 2 + 2
 
 
 def test_chunking_never_changes_the_segments(rng):

@@ -3,6 +3,7 @@ Runs in its own environment (.venv-bench: scikit-digital-health and actipy), one
 process so that each one's peak memory is its own:
 
     python -m accelcal.bench_others skdh|actipy RECORDING.csv WINDOWS.npz
+    python -m accelcal.bench_others heldout skdh|actipy FIT.csv TEST_WINDOWS.npz
 
 Reads the CSV whole (Arrow, as both tools need the arrays in memory), calibrates with the tool's
 own function and its defaults, and scores the tool's calibrated samples on accelcal's still
@@ -39,17 +40,17 @@ def read(path: str):
     return t, acc, temp
 
 
-def run_skdh(t, acc, temp, rate):
+def run_skdh(t, acc, temp, rate, min_hours=72):
     from skdh.preprocessing import CalibrateAccelerometer
     # skdh wants epoch-like seconds; its default needs >= 72 h of data
-    res = CalibrateAccelerometer().predict(time=t + 1.6e9, accel=acc, fs=float(rate),
-                                           temperature=temp, apply=True)
+    res = CalibrateAccelerometer(min_hours=min_hours).predict(
+        time=t + 1.6e9, accel=acc, fs=float(rate), temperature=temp, apply=True)
     return res["accel"], {"offset": np.asarray(res["offset"]).tolist(),
                           "scale": np.asarray(res["scale"]).tolist(),
                           "temperature_scale": np.asarray(res["temperature scale"]).tolist()}
 
 
-def run_actipy(t, acc, temp, rate):
+def run_actipy(t, acc, temp, rate, **_):
     import pandas as pd
     from actipy.processing import calibrate_gravity
     idx = pd.to_datetime((t * 1e9).astype("int64") + 1_600_000_000_000_000_000)
@@ -64,8 +65,38 @@ def run_actipy(t, acc, temp, rate):
     return cal, keep
 
 
+def heldout(tool: str, path: str, windows: str) -> dict:
+    """The tool calibrates FIT.csv with its own function; its map, per axis affine in the
+    reading and the temperature (skdh: (v + o) s + (T - Tm) m; actipy/GGIR the same form), is
+    read back from its calibrated samples by least squares on [1, v, T, v T] (exact for those
+    forms) and applied to the held-out windows' means (v, T): the error in mg."""
+    t, acc, temp = read(path)
+    rate = int(round(1.0 / float(np.median(np.diff(t[:100000])))))
+    kw = {}
+    if tool == "skdh":  # its hours in steps of 12 (72 by default): what the fit part has
+        kw["min_hours"] = max(12, int((t[-1] - t[0]) / 3600) // 12 * 12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal, params = (run_skdh if tool == "skdh" else run_actipy)(t, acc, temp, rate, **kw)
+    w = np.load(windows)
+    v, wt = w["v"], w["temp"]
+    T = temp if temp is not None else np.zeros(len(t))
+    idx = np.linspace(0, len(t) - 1, min(len(t), 400_000)).astype(int)
+    out = np.empty_like(v)
+    for i in range(3):
+        X = np.column_stack([np.ones(len(idx)), acc[idx, i], T[idx], acc[idx, i] * T[idx]])
+        coef, *_ = np.linalg.lstsq(X, cal[idx, i], rcond=None)
+        out[:, i] = coef[0] + coef[1] * v[:, i] + coef[2] * wt + coef[3] * v[:, i] * wt
+    err = float(np.mean(np.abs(np.linalg.norm(out, axis=1) - 1.0)) * 1e3)
+    return {"tool": tool, "heldout_error_mg": err, "params": params, **kw}
+
+
 def main(argv=None) -> int:
-    tool, path, windows = (argv or sys.argv[1:])[:3]
+    argv = argv or sys.argv[1:]
+    if argv[0] == "heldout":
+        print(json.dumps(heldout(*argv[1:4])))
+        return 0
+    tool, path, windows = argv[:3]
     w = np.load(windows)
     t0 = time.perf_counter()
     t, acc, temp = read(path)

@@ -9,9 +9,11 @@ error of every report here, mean | |a| - 1 g | over those windows, in mg.
 Rows: raw; the device pipeline with the paper profile; with the wear profile (the default);
 the wear profile after the discovery loop (diagnose on the fit part names an effect, the device
 fits base+EFFECT, up to two steps); float least squares on every rest point of the fit part with
-the loop's model; the true sensor model; and wear / true.
+the loop's model; scikit-digital-health and actipy (offset and scale per axis, and a temperature
+term where the file has temperature) fitted by their own functions on the fit part (--others);
+the true sensor model; and wear_loop / true.
 
-    python -m accelcal.heldout [--seeds 1,2,3] [--effects clean,temp_offset,...] [--json]
+    python -m accelcal.heldout [--seeds 1,2,3] [--effects clean,temp_offset,...] [--others PY] [--json]
 """
 from __future__ import annotations
 
@@ -82,7 +84,22 @@ def device_fit(path: Path, profile: str, model: str = "base"):
     return (model, list(rec["params"].values()), rec.get("reference")), None
 
 
-def run_case(case: tuple[str, int], workdir: str) -> dict:
+def others(python: str, fit: Path, win, workdir: Path) -> dict:
+    """scikit-digital-health and actipy, each fitted on the fit part by its own function in
+    its own environment (accelcal.bench_others heldout), scored on the same windows."""
+    wpath = workdir / f"{fit.stem}.windows.npz"
+    v, _, temp = win
+    np.savez(wpath, v=v, temp=temp if temp is not None else np.zeros(len(v)))
+    out = {}
+    for tool in ("skdh", "actipy"):
+        r = subprocess.run([python, "-m", "accelcal.bench_others", "heldout", tool, str(fit),
+                            str(wpath)], capture_output=True, text=True)
+        out[tool] = json.loads(r.stdout)["heldout_error_mg"] if r.returncode == 0 else None
+    wpath.unlink()
+    return out
+
+
+def run_case(case: tuple[str, int], workdir: str, others_python: str | None = None) -> dict:
     effect, seed = case
     from accelcal import wearer
     from accelcal.diagnose import calibrate_model, diagnose
@@ -122,12 +139,14 @@ def run_case(case: tuple[str, int], workdir: str) -> dict:
         true_model += "+" + e["effect"]
         ref = e["reference"]
     row["true"] = score_mg(true_model, theta, ref, win)
+    if others_python:
+        row.update(others(others_python, fit, win, d))
     for f in (fit, test, fit.with_suffix(".truth.json"), whole.with_suffix(".truth.json")):
         f.unlink(missing_ok=True)
     return row
 
 
-COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_all", "true")
+COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_all", "skdh", "actipy", "true")
 
 
 def table(rows: list[dict]) -> str:
@@ -139,7 +158,7 @@ def table(rows: list[dict]) -> str:
         def mean(c):
             v = [r[c] for r in rs if r[c] is not None]
             return float(np.mean(v)) if len(v) == len(rs) else None
-        cells = [mean(c) for c in COLUMNS]
+        cells = [mean(c) if all(c in r for r in rs) else None for c in COLUMNS]
         ratio = (np.mean([r["wear_loop"] / r["true"] for r in rs])
                  if all(r["wear_loop"] is not None for r in rs) else None)
         lines.append(f"{case:<12}{len(rs):>6}" + "".join(f"{c:10.3f}" if c is not None else f"{'-':>10}"
@@ -154,6 +173,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--effects", default=",".join(CASES))
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--others", metavar="PYTHON",
+                    help="interpreter with scikit-digital-health and actipy (make bench: "
+                         ".venv-bench/bin/python); without it those columns are left out")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     cases = [(e, int(s)) for e in a.effects.split(",") for s in a.seeds.split(",")]
@@ -163,13 +185,13 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     rows = []
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(a.jobs) as pool:
-        futs = [pool.submit(run_case, c, tmp) for c in cases]
+        futs = [pool.submit(run_case, c, tmp, a.others) for c in cases]
         for f in futs:
             r = f.result()
             rows.append(r)
             print(json.dumps(r) if a.json else
                   f"{r['case']:<12} seed {r['seed']}: " + "  ".join(
-                      f"{c} {r[c]:.3f}" if r[c] is not None else f"{c} -" for c in COLUMNS)
+                      f"{c} {r[c]:.3f}" if r.get(c) is not None else f"{c} -" for c in COLUMNS)
                   + f"  (loop: {r['loop_model']})", file=sys.stdout if a.json else sys.stderr,
                   flush=True)
     if not a.json:
