@@ -300,3 +300,17 @@ def test_the_sliced_fit_loses_no_sample_at_100_hz(tmp_path, rng, monkeypatch):
     assert s.samples == 60 * 10 * rate   # every sample of the stimulus read
     one, _ = results["one go"]
     assert one.fifo_overruns > 0 and one.lost > 0
+
+
+def test_replay_with_the_other_profile(tmp_path, stim):
+    """replay --profile runs the capture through the other profile's settings: the board ran
+    the paper's; the wear profile's replay differs and its calibration is nearer the truth."""
+    path, _ = stim
+    run_app(tmp_path, board(path), profile=PAPER)
+    assert boardlog.replay(tmp_path)["identical"]
+    other = boardlog.replay(tmp_path, "wear")
+    assert not other["identical"] and other["profile"] == "wear"
+    with_wear = boardlog.run_capture(tmp_path, tmp_path / "wear_log.bin", "wear")
+    assert with_wear.pipe.fit == 1 and with_wear.calibrations >= 1
+    p = np.array(with_wear.params) / 2 ** 24
+    assert np.abs(p - TRUTH).max() < 0.005

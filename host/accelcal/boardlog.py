@@ -11,7 +11,7 @@ import numpy as np
 
 from acal import bins as dbins
 from acal import effects as deff
-from acal import fixed, log
+from acal import fixed, log, optimiser
 from acal.app import Processor
 from accelcal.io import InputError
 
@@ -88,9 +88,11 @@ def read_capture(dirpath: Path) -> Capture:
     return Capture(blocks, boots[-1] if boots else None)
 
 
-def run_capture(dirpath: str | Path, log_path: str | Path):
+def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None = None):
     """Feed a pulled capture through the current device Processor, configured from the board's
-    BOOT record, logging to log_path.  Returns the Processor."""
+    BOOT record, logging to log_path.  profile: run that profile's pipeline settings instead
+    of the board's (rate, recalibration interval and model stay the board's).  Returns the
+    Processor."""
     d = Path(dirpath)
     for f in ("log.bin", "capture.bin"):
         if not (d / f).exists():
@@ -101,10 +103,15 @@ def run_capture(dirpath: str | Path, log_path: str | Path):
     b = dict(zip(FIELDS[log.BOOT], cap.boot))
     lg = log.Log(str(log_path))
     model = "+".join(["base"] + [deff.NAMES[k] for k in deff.model_kinds(b["model"])])
-    proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                     threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
-                     max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                     model=model, fit=b["fit"])
+    if profile is None:
+        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                         threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
+                         max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
+                         model=model, fit=b["fit"])
+    else:
+        from acal import profile as dprofile
+        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                         model=model, profile=dprofile.parse(profile))
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])
@@ -119,12 +126,13 @@ def run_capture(dirpath: str | Path, log_path: str | Path):
     return proc
 
 
-def replay(dirpath: str | Path) -> dict:
+def replay(dirpath: str | Path, profile: str | None = None) -> dict:
     """Re-run a pulled capture through the current device Processor; diff REST and CAL records
-    against the board's log over the span the capture covers."""
+    against the board's log over the span the capture covers.  profile: replay with that
+    profile's settings instead of the board's (what it would have done; differences expected)."""
     d = Path(dirpath)
     with tempfile.TemporaryDirectory() as tmp:
-        proc = run_capture(d, Path(tmp) / "log.bin")
+        proc = run_capture(d, Path(tmp) / "log.bin", profile)
         end = proc.index
         mine = decode(Path(tmp) / "log.bin")
     board = decode(d / "log.bin")
@@ -132,7 +140,7 @@ def replay(dirpath: str | Path) -> dict:
     # board wrote after its last BOOT record.
     last_boot = max((i for i, (t, _) in enumerate(board.records) if t == log.BOOT), default=0)
     session = board.records[last_boot:]
-    out = {"samples_replayed": end}
+    out = {"samples_replayed": end, "profile": profile or "the board's"}
     for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect")):
         theirs = [v for t, v in session if t == rtype and v[0] <= end]
         ours = mine.of(rtype)
@@ -159,7 +167,9 @@ def summary(dirpath: str | Path) -> dict:
     for c in cals:
         for n in fixed.PARAM_NAMES:
             c[n] = c[n] / fixed.PARAM_ONE
-        c["status"] = ("ok", "diverged", "too few points", "out of calibration bounds")[c["status"]]
+        code = c["status"]
+        c["status"] = (optimiser.STATUS_NAMES[code] if code < len(optimiser.STATUS_NAMES)
+                       else f"status {code}")
         for e in effects:  # a composed model's EFFECT records follow their CAL, same index
             if e["index"] == c["index"] and e["effect"] in deff.NAMES:
                 eff = CATALOGUE[deff.NAMES[e["effect"]]]

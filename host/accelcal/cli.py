@@ -352,18 +352,22 @@ def _print_summary(s, where):
 
 def cmd_replay(args) -> int:
     from accelcal import boardlog
-    r = boardlog.replay(args.dir)
+    r = boardlog.replay(args.dir, args.profile)
     if args.json:
         print(json.dumps(r))
     else:
-        print(f"replayed {r['samples_replayed']} samples of {args.dir}/capture.bin through the current device modules")
+        how = f", with the {args.profile} profile's settings" if args.profile else ""
+        print(f"replayed {r['samples_replayed']} samples of {args.dir}/capture.bin through the current "
+              f"device modules{how}")
         for k in ("rest", "cal", "effect"):
             d = r[k]
             if k == "effect" and not d["board"] and not d["replay"]:
                 continue  # the paper's model: no effect records
             first = "" if d["first_difference"] is None else f", first difference at record {d['first_difference']}"
             print(f"  {k:4s}: board {d['board']}, replay {d['replay']}, differing {d['differ']}{first}")
-        print("identical" if r["identical"] else "DIFFERENT: the device code no longer does what the board did")
+        print("identical" if r["identical"] else
+              "DIFFERENT: " + (f"the {args.profile} profile parts from what the board did" if args.profile
+                               else "the device code no longer does what the board did"))
     return 0 if r["identical"] else 1
 
 
@@ -576,6 +580,10 @@ def build_parser() -> argparse.ArgumentParser:
                                    "and calibration against DIR/log.bin.  Exit 0 identical, 1 different, "
                                    "2 bad input.")
     p.add_argument("dir", help="folder written by `accelcal pull`")
+    p.add_argument("--profile", choices=["wear", "paper"], default=None,
+                   help="replay with this profile's pipeline settings instead of the board's "
+                        "(its BOOT record's): what the other profile would have done on the same "
+                        "samples; the diff then shows where they part")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_replay)
 
@@ -641,6 +649,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal")
     q.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython")
     q.add_argument("--no-first", action="store_true", help="skip the first-come comparison")
+    q.add_argument("--profile", choices=["paper", "wear"], default="paper",
+                   help="paper (default: the paper's Table 2), or wear: the default profile's "
+                        "72 points and Gauss-Newton fit, beside lsq on the same points")
     q.add_argument("--seed", type=int, default=2024)
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_table2)

@@ -19,7 +19,7 @@ import numpy as np
 
 from accelcal import boardlog, methods, vboard, wearer
 from acal.fixed import PARAM_NAMES, PARAM_ONE, POINT_ONE_G
-from acal import log
+from acal import log, optimiser
 
 DAYS = 1
 RATE = 10
@@ -61,7 +61,7 @@ def main() -> int:
     rep = cli("replay", str(work / "pulled"))
 
     lg = boardlog.decode(work / "pulled" / "log.bin")
-    cals = [c for c in lg.dicts(log.CAL) if c["status"] == 0]
+    cals = [c for c in lg.dicts(log.CAL) if optimiser.usable(c["status"])]
     if not cals:
         print("\nthe board did not calibrate in this day (bins not full): see pulled/summary.json")
         return 1
@@ -118,13 +118,22 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
     if not named:
         return False
     model = f"base+{named}"
-    lsq = json.loads(cli("calibrate", str(rec), "--model", model, "--method", "lsq", "--json",
-                         quiet=True).stdout)
+    lsq = json.loads(cli("calibrate", str(rec), "--model", model, "--method", "lsq", "--points",
+                         "all", "--json", quiet=True).stdout)
     dev = cli("calibrate", str(rec), "--model", model, "--json", quiet=True, ok=(0, 2))
     dev = json.loads(dev.stdout) if dev.stdout.strip() else {"status": "failed", "reason": "no output"}
-    print(f"{model} on all rest points: lsq {lsq['error_before_mg']:.2f} -> {lsq['error_after_mg']:.2f} mg; "
-          + (f"the device's integer fit (36 points, 200 iterations) -> {dev['error_after_mg']:.2f} mg"
+    print(f"{model}: float lsq on all {lsq['points']} rest points {lsq['error_before_mg']:.2f} -> "
+          f"{lsq['error_after_mg']:.2f} mg; "
+          + (f"the device's integer fit ({dev['profile']} profile, {dev['points']} points, "
+             f"{dev['iterations']} Gauss-Newton steps) -> {dev['error_after_mg']:.2f} mg"
              if dev["status"] == "calibrated" else f"the device's fit: {dev['reason']}"))
+    if dev["status"] == "calibrated":
+        ratio = dev["error_after_mg"] / lsq["error_after_mg"]
+        if dev.get("note"):
+            print(f"  the device kept its base calibration: {dev['note']}")
+        print(f"  device / lsq: {ratio:.2f}" + ("" if ratio <= 1.5 else
+              "  -- MORE than 1.5x: the device's points do not show the effect as well as all "
+              "rest points do (README \"Profiles\")"))
     after = json.loads(cli("diagnose", str(rec), "--model", model, "--json", "--history", str(hist),
                            quiet=True).stdout)
     print(f"with {named}: held-out error {after['heldout_error_mg']:.2f} mg "
