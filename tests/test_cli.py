@@ -164,3 +164,21 @@ def test_help_for_every_command():
                 ["paper", "table2", "--help"], ["bench", "--help"]):
         r = run_cli(*cmd)
         assert r.returncode == 0 and "usage:" in r.stdout
+
+
+def test_profiles_and_points_in_the_records(points_csv):
+    """Every record says which profile ran and, for a float method, what it was fitted on."""
+    wear = [json.loads(x) for x in run_cli("calibrate", points_csv, "--by", "device", "--json").stdout.splitlines()]
+    assert all(x["profile"] == "wear" and x["status"] == "calibrated" for x in wear)
+    assert all(x["points"] > 18 for x in wear)   # up to 8 per subset, less the outliers
+    for pts in ("bins", "all"):
+        r = run_cli("calibrate", points_csv, "--by", "device", "--method", "lsq", "--points", pts, "--json")
+        recs = [json.loads(x) for x in r.stdout.splitlines()]
+        assert r.returncode == 0 and all(x["points_from"] == pts for x in recs)
+        if pts == "all":
+            assert all(x["points"] >= 190 for x in recs)   # every usable point of each device
+    line = one_error_line(run_cli("calibrate", points_csv, "--points", "all"))
+    assert "--points applies to the float methods" in line
+    for bad in ("nan", "inf", "-0.1", "x"):
+        r = run_cli("calibrate", points_csv, "--threshold", bad)
+        assert r.returncode == 2 and "Traceback" not in r.stderr

@@ -41,21 +41,20 @@ for k in range(72):
 gn = GaussNewton(72)
 
 
-def work():  # locals only: a new module global would itself allocate
+def feed(d):  # locals only: a new module global would itself allocate
     start = 0
     n = N
     while n > 0:
-        used = det.add_samples(buf, start, n)
+        used = d.add_samples(buf, start, n)
         start += used
         n -= used
+
+
+def work():
+    feed(det)
     pipe.add_samples(buf, 0, N)
     opt.run(pts, 18, 50)
-    start = 0
-    n = N
-    while n > 0:
-        used = wear_det.add_samples(buf, start, n)
-        start += used
-        n -= used
+    feed(wear_det)
     wear_pipe.add_samples(buf, 0, N)
     gn.run(gpts, 72)
 

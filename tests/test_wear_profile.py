@@ -257,3 +257,21 @@ def test_paper_simulation_parameter_errors_equal_lsq_on_the_same_points():
     assert r.failed == 0
     assert abs(r.mean().sum() / r.mean("lsq").sum() - 1) < 0.01
     assert r.mean().sum() < 1.15 * r.mean("bound").sum()
+
+
+def test_a_composed_fit_that_fails_keeps_the_base_calibration(rng):
+    # drift with every point seen at the same time: its parameters are not determined, the
+    # composed fit fails, and the pipeline keeps the base fit of the same points (effects zero)
+    from acal import effects
+    truth = np.array([1.02, 0.97, 1.01, 0.01, -0.02, 0.01, 0.04, -0.05, 0.03])
+    pts = simulate.uncorrect(truth, simulate.unit_points(rng, 300)) + rng.normal(scale=5e-4, size=(300, 3))
+    pipe = Pipeline(100, kinds=(effects.DRIFT,), **settings(WEAR))
+    for x, y, z in q16(pts).tolist():
+        pipe.offer(x, y, z)
+    status = pipe.calibrate()
+    assert status == optimiser.BASE_KEPT_FAILED and optimiser.usable(status)
+    b = pipe.base_fit
+    assert b.status == optimiser.OK
+    assert pipe.optimiser.p[:9] == b.p[:9] and pipe.optimiser.p[9:] == [0, 0, 0]
+    assert np.abs(np.array(b.p) / 2.0 ** 24 - truth).max() < 2e-3   # and it is a good one
+    assert "base calibration kept" in optimiser.STATUS_NAMES[status]

@@ -11,7 +11,8 @@ bytes_per_sample: heap bytes per sample (MicroPython mem_total), the slope betwe
   rest_heap_locked_ok proves over the whole stream).
 bytes_per_optimiser_run: the same per-call frames, one per objective evaluation (10 M + 1).
 long_ints_per_optimiser_run_32bit: optimiser values >= 2**30 in one run, counted under CPython
-with traced ints: each is a heap-allocated long on a 32-bit port (RP2040, ESP32).
+with traced ints: each is a heap-allocated long on a 32-bit port (RP2040, ESP32); _wear_fit:
+the same for the wear profile's Gauss-Newton fit of 72 points (paper simulation, 1 mg).
 
 The app (acquisition -> rest -> bins -> calibration -> log) on the simulated LIS3DH, MicroPython:
 app_us_per_sample_unix_*: App.step per sample at 100 Hz (register reads / FIFO reads), minus
@@ -72,6 +73,12 @@ def measure() -> dict:
     tr = Tracer()
     T = traced(tr)
     Optimiser(18).run([T(v) for v in pts], 18, 50)
+    from acal.gaussnewton import GaussNewton
+    rng = np.random.default_rng(11)
+    _, v72 = simulate.paper_scenario(rng, 72, 1e-3)
+    gtr = Tracer()
+    G = traced(gtr)
+    GaussNewton(72).run([G(int(x)) for x in g_to_point(v72).ravel()], 72)
     return {
         "optimiser_ms_micropython": mp["optimiser_us"] / 1000.0,
         "optimiser_ms_cpython": cp_s * 1000.0,
@@ -86,6 +93,9 @@ def measure() -> dict:
         "long_ints_per_optimiser_run_32bit": tr.big,
         "int_ops_per_optimiser_run": tr.ops,
         "optimiser_max_abs_int_log2": round(float(np.log2(tr.max_abs)), 2),
+        "long_ints_per_wear_fit_32bit": gtr.big,
+        "int_ops_per_wear_fit": gtr.ops,
+        "wear_fit_max_abs_int_log2": round(float(np.log2(gtr.max_abs)), 2),
     }
 
 

@@ -421,12 +421,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="base",
                    help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
-                        "A composed device fit keeps 4 points per subset spread in temperature (>= 3 degC) "
-                        "and time (>= 12 h) and runs 200 iterations")
+                        "A composed device fit keeps points spread in temperature (>= 3 degC) and time "
+                        "(>= 12 h): wear profile 8 per subset, the base fit first and kept if the "
+                        "composed one fails or is worse; paper profile 4 per subset, 200 iterations")
     from accelcal.methods import METHODS
     p.add_argument("--method", choices=["device", *METHODS], default="device",
                    help="device: the integer optimiser (default); the float reference methods, "
-                        "fitted on the points the device's bins selected: "
+                        "fitted on the points the device's bins selected (or --points all): "
                         + "; ".join(f"{n}: {m.role}" for n, m in METHODS.items()))
     p.add_argument("--points", choices=["bins", "all"], default=None,
                    help="float methods: fit the points the device's bins selected and its fit "

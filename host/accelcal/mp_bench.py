@@ -83,29 +83,27 @@ def main():
     m2 = micropython.mem_total()
     print("bytes_half", m1 - m0)
     print("bytes_full", m2 - m1)
-    # The strict proof: with the heap locked any allocation raises MemoryError.
-    ok = 1
-    micropython.heap_lock()
-    try:
-        detect(det, buf, n_samples)
-    except MemoryError:
-        ok = 0
-    micropython.heap_unlock()
-    print("rest_heap_locked_ok", ok)
+    print("rest_heap_locked_ok", locked_ok(det, buf, n_samples))
     print("segments", det.segments)
     # The wear profile's detector: every axis, the threshold from the noise gauge.
     wear = RestDetector(100, 5, AUTO, ALL_AXES)
     detect(wear, buf, n_samples)
     print("rest_wear_us", best_us(lambda: detect(wear, buf, n_samples), 5))
+    print("rest_wear_heap_locked_ok", locked_ok(wear, buf, n_samples))
+    print("rest_wear_threshold", wear.threshold)
+
+
+def locked_ok(det, buf, n):
+    """1 when the detector takes the stream with the heap locked: the strict proof that it
+    allocates nothing (any allocation raises MemoryError)."""
     ok = 1
     micropython.heap_lock()
     try:
-        detect(wear, buf, n_samples)
+        detect(det, buf, n)
     except MemoryError:
         ok = 0
     micropython.heap_unlock()
-    print("rest_wear_heap_locked_ok", ok)
-    print("rest_wear_threshold", wear.threshold)
+    return ok
 
 
 main()
