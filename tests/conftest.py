@@ -35,6 +35,27 @@ except ImportError:
 '''
 
 
+@pytest.fixture(scope="session")
+def mp32():
+    """The 32-bit MicroPython (make setup installs it); a test that needs it is skipped, saying
+    why, where it or Node is missing (CI has both)."""
+    from accelcal import runtime
+    from accelcal.io import InputError
+    try:
+        runtime.micropython32_module()
+    except InputError as e:
+        pytest.skip(f"32-bit MicroPython not available: {e}")
+    return runtime.run_micropython32_script
+
+
+@pytest.fixture(params=["micropython", "micropython32"])
+def mp(request):
+    """Each real MicroPython in turn: the 64-bit unix port, the 32-bit WebAssembly port."""
+    if request.param == "micropython32":
+        request.getfixturevalue("mp32")
+    return request.param
+
+
 def run_both(script, tmp_path):
     """Stdout of the script (MP_RANDOM prepended) under real MicroPython and under CPython."""
     import contextlib

@@ -59,6 +59,7 @@ def test_batch_reports_each_file_and_never_stops(files):
     assert {x["status"] for x in rows} == {"calibrated", "not_enough_data", "failed"}
     s3 = rows[0]
     assert float(s3["kxx"]) == recs["s3.csv"]["params"]["kxx"] and s3["bins_filled"] == "9"
+    assert {x["profile"] for x in rows} == {"paper"}   # every row, the failed ones too
     # the batch's record of a file is the one-file record of it (less the timing)
     one = json.loads(run_cli("calibrate", files / "s3.csv", "--json", "--profile", "paper").stdout)
     assert {k: v for k, v in recs["s3.csv"].items() if k != "seconds"} == one

@@ -87,3 +87,62 @@ def test_heap_lock_does_detect_allocation(tmp_path):
                  "    micropython.heap_unlock()\n    print('OK')\nexcept MemoryError:\n"
                  "    micropython.heap_unlock()\n    print('ALLOCATED')\n")
     assert runtime.run_micropython_script(str(f)).strip() == "ALLOCATED"
+
+
+PER_SAMPLE_32 = r'''
+import micropython
+from array import array
+from acal.rest import RestDetector, ALL_AXES, AUTO
+from acal.model import Calibration
+
+N = 6000
+buf = array("i", [0] * (3 * N))
+s = 1
+for i in range(3 * N):
+    s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+    buf[i] = (-2048 + (s >> 8) % 4096) if (i // 900) % 2 else (1000 + (s >> 8) % 9 - 4)
+paper = RestDetector(100, 5)
+wear = RestDetector(100, 5, AUTO, ALL_AXES)
+cal = Calibration()
+# parameters at the corner of the bounds that maximises |a| (fixed.py: k 1.25, |k_ij| 0.125,
+# |o| 0.25 g), Q24
+cal.set([20971520, 20971520, 20971520, 2097152, 2097152, 2097152, 4194304, 4194304, 4194304])
+out = array("i", [0] * (3 * N))
+for i in range(3 * N):
+    out[i] = 2047 if buf[i] > 0 else -2048   # full scale, every sample
+
+
+def feed(d):
+    start = 0
+    n = N
+    while n > 0:
+        used = d.add_samples(buf, start, n)
+        start += used
+        n -= used
+
+
+def work():
+    feed(paper)
+    feed(wear)
+    cal.apply_samples(out, 0, N)
+
+
+micropython.heap_lock()
+try:
+    work()
+    micropython.heap_unlock()
+    print("OK", paper.segments, wear.segments, out[0])
+except MemoryError:
+    micropython.heap_unlock()
+    print("ALLOCATED")
+'''
+
+
+def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
+    """Where ints past 2^30 allocate (the WebAssembly port, as an RP2040): both profiles' rest
+    detectors and the apply at full scale with parameters at the bounds' corner."""
+    f = tmp_path / "heap32.py"
+    f.write_text(PER_SAMPLE_32)
+    out = mp32(str(f)).split()
+    assert out[0] == "OK", out
+    assert int(out[1]) == int(out[2]) == 12

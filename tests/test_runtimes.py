@@ -1,4 +1,6 @@
-"""CPython and the real MicroPython interpreter run the same device modules to the same integers."""
+"""CPython and the real MicroPython interpreters (the 64-bit unix port and the 32-bit
+WebAssembly port, where ints past 2^30 are heap longs) run the same device modules to the same
+integers."""
 import numpy as np
 
 from accelcal import runtime, simulate
@@ -19,7 +21,7 @@ def random_recording(rng, segments, rate):
     return xyz, gaps
 
 
-def test_points_identical_on_many_random_devices(rng):
+def test_points_identical_on_many_random_devices(rng, mp):
     groups = []
     for i in range(40):
         n = int(rng.integers(5, 400))
@@ -29,14 +31,14 @@ def test_points_identical_on_many_random_devices(rng):
     for policy in ("centre", "first"):
         cfg = runtime.Config(policy=policy, max_count=int(rng.integers(2, 4)))
         a = runtime.run(groups, cfg, "cpython")
-        b = runtime.run(groups, cfg, "micropython")
+        b = runtime.run(groups, cfg, mp)
         assert len(a) == len(b) == 40
         for x, y in zip(a, b):
             assert x == y  # every field: rest points, bins, selection, status, objective, params
         assert sum(r.status == 0 and min(r.counts) >= 2 for r in a) > 10  # many real fits compared
 
 
-def test_recordings_identical(rng):
+def test_recordings_identical(rng, mp):
     groups = []
     for i in range(4):
         rate = int(rng.choice([10, 25, 100]))
@@ -44,16 +46,16 @@ def test_recordings_identical(rng):
         groups.append(runtime.Group(f"r{i}", samples=xyz, gaps=gaps))
     cfg = runtime.Config(rate_hz=25, seconds=2, axis=int(rng.integers(0, 3)))
     a = runtime.run(groups, cfg, "cpython")
-    b = runtime.run(groups, cfg, "micropython")
+    b = runtime.run(groups, cfg, mp)
     assert [r.rest_int for r in a] == [r.rest_int for r in b]
     assert a == b
     assert sum(len(r.rest_int) for r in a) > 50
 
 
-def test_divergence_reported_identically(rng):
+def test_divergence_reported_identically(rng, mp):
     _, v = simulate.paper_scenario(rng, 300, 1e-3)
     cfg = runtime.Config(rates_tenths=(30, 80, 20))
     a = runtime.run([runtime.Group("d", points=v)], cfg, "cpython")
-    b = runtime.run([runtime.Group("d", points=v)], cfg, "micropython")
+    b = runtime.run([runtime.Group("d", points=v)], cfg, mp)
     assert a == b
     assert a[0].status_name == "diverged"

@@ -172,7 +172,7 @@ def wear_config(**kw):
     return runtime.Config.for_profile("wear", **kw)
 
 
-def test_points_identical_under_micropython(rng):
+def test_points_identical_under_micropython(rng, mp):
     groups = []
     for i in range(16):
         n = int(rng.integers(20, 400))
@@ -181,26 +181,26 @@ def test_points_identical_under_micropython(rng):
         groups.append(runtime.Group(f"d{i}", points=v))
     cfg = wear_config()
     a = runtime.run(groups, cfg, "cpython")
-    b = runtime.run(groups, cfg, "micropython")
+    b = runtime.run(groups, cfg, mp)
     assert a == b
     assert sum(r.status == 0 for r in a) >= 10
     assert sum(r.kept is not None and 0 in r.kept for r in a) >= 3  # rejections compared too
 
 
-def test_recordings_identical_under_micropython(rng):
+def test_recordings_identical_under_micropython(rng, mp):
     groups = []
     for i in range(3):
         xyz, gaps = random_recording(rng, 120, 25)
         groups.append(runtime.Group(f"r{i}", samples=xyz, gaps=gaps))
     cfg = wear_config(rate_hz=25, seconds=2)
     a = runtime.run(groups, cfg, "cpython")
-    b = runtime.run(groups, cfg, "micropython")
+    b = runtime.run(groups, cfg, mp)
     assert a == b
     assert sum(len(r.rest_int) for r in a) > 50
     assert all(r.threshold for r in a)  # the gauge measured the noise
 
 
-def test_composed_points_identical_under_micropython(rng):
+def test_composed_points_identical_under_micropython(rng, mp):
     truth = np.array([1.02, 0.97, 1.01, 0.01, -0.02, 0.01, 0.04, -0.05, 0.03])
     n = 600
     d = simulate.unit_points(rng, n)
@@ -210,7 +210,7 @@ def test_composed_points_identical_under_micropython(rng):
     from acal import effects
     cfg = wear_config(composed=True, kinds=(effects.TEMP_OFFSET,))
     a = runtime.run([g], cfg, "cpython")
-    b = runtime.run([g], cfg, "micropython")
+    b = runtime.run([g], cfg, mp)
     assert a == b
     assert a[0].status == optimiser.OK
     c = np.array(a[0].params_int[9:12]) / (16 * 2.0 ** 24)  # g/degC

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from accelcal import runtime
 from accelcal.io import InputError
 
-SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "format", "rate_hz", "hours",
+SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
                    "hours_used", "gaps", "still_windows", "nonwear_excluded", "imputed_excluded",
                    "clipped_excluded", "bins_filled", "temp_min_c", "temp_max_c", "clipped_pct",
                    "error_before_mg", "error_after_mg", "iterations", "seconds",
@@ -63,6 +63,7 @@ def calibrate_file(path: str, job: Job) -> dict:
     except Exception as e:  # a bug must not stop the batch: say what it was
         rec = {"file": path, "status": "failed", "calibration": "none",
                "reason": f"internal error: {type(e).__name__}: {' '.join(str(e).split())[:200]}"}
+    rec.setdefault("profile", job.cfg.profile)
     rec["seconds"] = round(time.perf_counter() - t0, 3)
     return rec
 

@@ -147,9 +147,26 @@ def measure_app(tmp: Path) -> dict:
 def measure_fit_slices() -> dict:
     """The fit's slices under MicroPython (mp_fit_bench.py): per case the worst slice, best of
     three runs (one run's worst can be an interruption of the process), and the RP2040
-    estimate as for the app (RP2040_SLOWDOWN)."""
+    estimate as for the app (RP2040_SLOWDOWN); then the same fits on the 32-bit MicroPython, in
+    the same run: bytes allocated per fit (its longs) and time as a ratio to the unix port."""
     script = str(Path(__file__).with_name("mp_fit_bench.py"))
     runs = [runtime.run_micropython_script(script).split("\n") for _ in range(3)]
+    res = _fit_rows(runs, "")
+    try:
+        runs32 = [runtime.run_micropython32_script(script).split("\n") for _ in range(3)]
+    except Exception as e:  # not installed: say so in the figures
+        res["micropython32"] = f"not measured: {e}"
+        return res
+    res32 = _fit_rows(runs32, "_mp32")
+    for k in list(res32):
+        if k.endswith("_total_ms_unix_mp32"):
+            name = k[len("fit_"):-len("_total_ms_unix_mp32")]
+            res32[f"fit_{name}_time_ratio_mp32_to_unix"] = res32[k] / res[f"fit_{name}_total_ms_unix"]
+    res.update({k: v for k, v in res32.items() if "bytes" in k or "ratio" in k})
+    return res
+
+
+def _fit_rows(runs, suffix) -> dict:
     res = {}
     for lines in zip(*runs):
         rows = [ln.split() for ln in lines if ln.strip()]
@@ -157,10 +174,11 @@ def measure_fit_slices() -> dict:
             continue
         name = rows[0][0]
         worst = min(int(r[2]) for r in rows)
-        res[f"fit_{name}_slices"] = int(rows[0][1])
-        res[f"fit_{name}_total_ms_unix"] = min(int(r[3]) for r in rows) / 1000.0
-        res[f"fit_{name}_worst_slice_us_unix"] = worst
-        res[f"rp2040_fit_{name}_worst_slice_ms"] = worst * RP2040_SLOWDOWN[1] / 1000.0
+        res[f"fit_{name}_slices{suffix}"] = int(rows[0][1])
+        res[f"fit_{name}_total_ms_unix{suffix}"] = min(int(r[3]) for r in rows) / 1000.0
+        res[f"fit_{name}_worst_slice_us_unix{suffix}"] = worst
+        res[f"rp2040_fit_{name}_worst_slice_ms{suffix}"] = worst * RP2040_SLOWDOWN[1] / 1000.0
+        res[f"fit_{name}_bytes{suffix}"] = min(int(r[5]) for r in rows)
     return res
 
 

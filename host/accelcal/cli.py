@@ -127,7 +127,7 @@ def cmd_calibrate(args) -> int:
     if args.points and args.method == "device":
         raise InputError("--points applies to the float methods (--method lsq, ...); the device "
                          "method fits the points its bins select")
-    engine = args.engine or ("device" if args.runtime == "micropython" else "vector")
+    engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
     inputs = args.input
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
         return _calibrate_batch(args, spec, engine)
@@ -434,8 +434,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "kept (bins, the default), or every usable rest point (all: |v| within "
                         "0.5-1.5 g; the bins need not fill).  The same for the paper's model and "
                         "composed ones; the record says which (points_from)")
-    p.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython",
-                   help="interpreter that runs the device modules (micropython: the real unix port)")
+    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+                   help="interpreter that runs the device modules: micropython, the real unix port "
+                        "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
+                        "ints past 2^30 allocate as on an RP2040)")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "
@@ -628,7 +630,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "as Farago Table 3; thinned when the bins do not fill), the training points "
                         "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
                         "then costs O(points) per generation: minutes on days of data)")
-    p.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython",
+    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
                    help="interpreter for the device method")
     p.add_argument("--plots", metavar="DIR",
                    help="write training_curve.png: held-out error against the number of training "
@@ -648,7 +650,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--candidates", type=_positive_int, default=300,
                    help="random rest means offered to the bins per scenario (default 300)")
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal")
-    q.add_argument("--runtime", choices=["cpython", "micropython"], default="cpython")
+    q.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython")
     q.add_argument("--no-first", action="store_true", help="skip the first-come comparison")
     q.add_argument("--profile", choices=["paper", "wear"], default="paper",
                    help="paper (default: the paper's Table 2), or wear: the default profile's "

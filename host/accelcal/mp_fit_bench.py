@@ -1,7 +1,9 @@
 # `accelcal bench`: the fit's slices timed under MicroPython (README "Sliced fit").  Runs in
 # the MicroPython unix port (and CPython: time.perf_counter_ns stands in for ticks_us).
 # For each case: the pipeline's fit from begin_fit() to its end, one fit_step() at a time;
-# prints "name slices worst_us total_us status".
+# prints "name slices worst_us total_us status bytes" (bytes: heap allocated by the whole fit,
+# the collector held off; on a 32-bit port every int past 2**30 is one of these).
+import gc
 import time
 
 from acal import effects
@@ -60,6 +62,9 @@ def case(name, prof, kinds):
         pipe.offer(x, y, z)
         if pipe.bins.total() >= 9 * pipe.bins.max_count:
             break
+    gc.collect()
+    gc.disable()
+    m0 = gc.mem_alloc()
     pipe.begin_fit()
     worst = 0
     total = 0
@@ -74,7 +79,9 @@ def case(name, prof, kinds):
             worst = dt
         if done:
             break
-    print(name, slices, worst, total, pipe.optimiser.status)
+    used = gc.mem_alloc() - m0
+    gc.enable()
+    print(name, slices, worst, total, pipe.optimiser.status, used)
 
 
 case("paper_base", PAPER, ())

@@ -1,6 +1,8 @@
-"""Run the device pipeline on host data, under CPython (in-process) or under the real MicroPython
-interpreter (a subprocess).  Both execute host/accelcal/mp_runner.py on the same integer lines,
-so their answers can be compared bit for bit."""
+"""Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
+unix port (a subprocess; 64-bit: small ints to 2**62), or under the 32-bit MicroPython
+(WebAssembly under Node, host/accelcal/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32).
+All execute host/accelcal/mp_runner.py on the same integer lines, so their answers can be
+compared bit for bit."""
 from __future__ import annotations
 
 import os
@@ -22,6 +24,9 @@ from accelcal.io import InputError, g_to_point, g_to_sample
 ROOT = Path(__file__).resolve().parents[2]
 DEVICE_DIR = ROOT / "device"
 RUNNER = Path(__file__).resolve().parent / "mp_runner.py"
+MP32_DRIVER = Path(__file__).resolve().parent / "mp32.mjs"
+MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
+RUNTIMES = ("cpython", "micropython", "micropython32")
 BATCH = 1000  # samples per line of the protocol
 
 
@@ -286,17 +291,44 @@ def run_micropython_script(script: str, *args: str, heap: str | None = None,
     return proc.stdout
 
 
+def micropython32_module() -> str:
+    """The 32-bit MicroPython's loader (micropython.mjs): $ACCELCAL_MP32, or the project's
+    build/mp32 (make setup installs it from npm)."""
+    env = os.environ.get("ACCELCAL_MP32")
+    cand = Path(env) if env else ROOT / "build" / "mp32" / "node_modules" / MP32_PACKAGE / "micropython.mjs"
+    if not cand.exists():
+        raise InputError(f"the 32-bit MicroPython is not installed ({cand}): run `make setup` (npm "
+                         f"installs {MP32_PACKAGE} into build/mp32) or set ACCELCAL_MP32")
+    if not shutil.which("node"):
+        raise InputError("the 32-bit MicroPython needs Node (node not found on PATH)")
+    return str(cand)
+
+
+def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
+                             timeout: float = 600, extra_path: list[str] = ()) -> str:
+    """Run a script file under the 32-bit MicroPython with device/ (and extra_path) on its path.
+    heap: bytes (an RP2040 board has ~160-190 kB for Python)."""
+    cmd = ["node", str(MP32_DRIVER), micropython32_module(), str(heap),
+           ":".join([str(DEVICE_DIR), *extra_path]), script, *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"micropython32 failed ({proc.returncode}): {proc.stdout[-2000:]}"
+                           f"{proc.stderr[-2000:]}")
+    return proc.stdout
+
+
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
-    """Run the device pipeline on each group under the chosen runtime."""
+    """Run the device pipeline on each group under the chosen runtime (RUNTIMES)."""
     if runtime == "cpython":
         out: list[str] = []
         mp_runner.run(protocol_lines(groups, cfg), out.append)
         return parse(out)
-    if runtime == "micropython":
+    if runtime in ("micropython", "micropython32"):
+        script = run_micropython_script if runtime == "micropython" else run_micropython32_script
         with tempfile.TemporaryDirectory() as tmp:
             inp = Path(tmp) / "in.txt"
             with open(inp, "w") as fh:
                 for line in protocol_lines(groups, cfg):
                     fh.write(line + "\n")
-            return parse(run_micropython_script(str(RUNNER), str(inp)).splitlines())
-    raise InputError(f"unknown runtime {runtime!r}: cpython or micropython")
+            return parse(script(str(RUNNER), str(inp)).splitlines())
+    raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")
