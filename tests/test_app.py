@@ -314,3 +314,26 @@ def test_replay_with_the_other_profile(tmp_path, stim):
     assert with_wear.pipe.fit == 1 and with_wear.calibrations >= 1
     p = np.array(with_wear.params) / 2 ** 24
     assert np.abs(p - TRUTH).max() < 0.005
+
+
+def test_the_app_across_the_tick_wrap(tmp_path, stim):
+    """Board ticks wrap at 2^30 us (17.9 min); the virtual clock's do too.  Started 5 min before
+    a wrap, the app reads, loses and logs exactly what it does on a clock that starts at 0: no
+    sample lost or counted twice, the same log."""
+    from vclock import TICKS_PERIOD
+    path, _ = stim
+    runs = {}
+    for name, start in (("plain", 0), ("wrapping", TICKS_PERIOD - 300 * 10 ** 6)):
+        d = tmp_path / name
+        d.mkdir()
+        clock = StallingClock(every=500, stall_us=400000)   # stalls: samples lost, the same ones
+        clock.us = start
+        b = board(path, faults=30, clock=clock)
+        app = run_app(d, b)
+        runs[name] = (app, b, (d / "log.bin").read_bytes(), (d / "capture.bin").read_bytes())
+    app, b, log_bytes, cap = runs["wrapping"]
+    plain, _, plain_log, plain_cap = runs["plain"]
+    assert b.clock.now_us() > TICKS_PERIOD + 60 * 10 ** 6   # ran on well past the wrap
+    assert app.samples + app.lost == b.chip.generated and app.lost > 0
+    assert (app.samples, app.lost) == (plain.samples, plain.lost)
+    assert cap == plain_cap and log_bytes == plain_log   # segments, means, calibrations alike

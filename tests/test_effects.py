@@ -80,3 +80,28 @@ print("\n".join(out))
 def test_micropython_gives_the_same_integers(tmp_path):
     mp, host = run_both(SCRIPT, tmp_path)
     assert mp.split() == host.split() and len(mp.splitlines()) == 800
+
+
+def test_apply_stays_small_in_every_composition_and_order():
+    """The per-sample apply of a composed model (model.Calibration) at the worst case: every
+    set of effects in every order, parameters at the corners of their bounds and of the
+    calibration bounds, readings at full scale (+-2.048 g), dT and dt at and past their clamps
+    (a drift removed over years, then temp_scale multiplying what is left): below 2**30."""
+    from acal.model import Calibration
+    tr = Tracer()
+    T = traced(tr)
+    base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
+    kinds = list(deff.NAMES)
+    for n in range(1, len(kinds) + 1):
+        for order in itertools.permutations(kinds, n):
+            for sign in (-1, 1):
+                cal = Calibration(order)
+                p = [sign * v if i >= 3 else v for i, v in enumerate(base)]
+                p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
+                cal.set(p)
+                cal.k = [T(v) for v in cal.k]
+                for temp, time in ((-100, -(10 ** 7)), (100, 10 ** 7), (5, 3)):
+                    cal.temp, cal.time = T(temp), T(time)
+                    for x in (-2097, 2097):
+                        cal.apply(T(x), T(-x), T(x))
+    assert tr.ops > 10000 and tr.max_abs < 2 ** 30, tr.max_abs

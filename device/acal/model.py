@@ -227,8 +227,10 @@ class Calibration:
         self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> APPLY_OUT_SHIFT
 
     def _remove_effects(self, x, y, z):
-        # The effects, last first (the reverse of the order they act in), in Q14; clamped to
-        # +-2.048 g (fixed.APPLY_W_MAX), into self.w.
+        # The effects, last first (the reverse of the order they act in), in Q14, into self.w;
+        # after each one clamped to +-2.048 g (fixed.APPLY_W_MAX): the next effect's products
+        # and the 9-parameter apply then stay below 2**30 in every order (a drift removed over
+        # months can move a reading by several g, and temp_scale multiplies what it leaves).
         w = self.w
         w[0] = x << APPLY_FROM_SAMPLE_SHIFT
         w[1] = y << APPLY_FROM_SAMPLE_SHIFT
@@ -238,12 +240,12 @@ class Calibration:
         j = len(self.kinds) - 1
         while j >= 0:
             effects.correct_sample(self.kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)
+            for i in range(3):
+                if w[i] > APPLY_W_MAX:
+                    w[i] = APPLY_W_MAX
+                elif w[i] < -APPLY_W_MAX:
+                    w[i] = -APPLY_W_MAX
             j -= 1
-        for i in range(3):
-            if w[i] > APPLY_W_MAX:
-                w[i] = APPLY_W_MAX
-            elif w[i] < -APPLY_W_MAX:
-                w[i] = -APPLY_W_MAX
 
     def apply_samples(self, buf, start, n):
         """Correct n interleaved samples x y z ... of an int array in place, from sample `start`."""

@@ -217,7 +217,8 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None) -> np.ndarray
     """The twin of Calibration(kinds).set(p, ref_temp) + apply_samples: Q24 parameters (9, then
     3 per effect), Q10 samples in and out (m x 3 int64).  A composed model also takes each
     sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
-    time), as the device's temp - ref_temp and time - ref_time; clamped as the device clamps."""
+    time), as the device's temp - ref_temp and time - ref_time; clamped as the device clamps
+    (dT, dt, and the reading after each effect)."""
     half_p = 1 << (fixed.APPLY_PARAM_SHIFT - 1)
     k = [(int(v) + half_p) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:9]]
     q = np.asarray(q, dtype=np.int64).reshape(-1, 3)
@@ -242,7 +243,7 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None) -> np.ndarray
                 w -= (ke * dt) >> 11
             elif kind == deff.NONLINEAR:
                 w -= (ke * ((q * q) >> 10)) >> 14
-        np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)
+            np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
         u = w + off
     else:
         u = (q << fixed.APPLY_FROM_SAMPLE_SHIFT) + off

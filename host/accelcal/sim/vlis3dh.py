@@ -84,6 +84,9 @@ class SimLIS3DH:
         self.dropped = 0        # ground truth: samples the FIFO overwrote (stream mode)
         self.generated = 0      # ground truth: samples produced since the ODR was set
         self.exhausted = False
+        # The stimulus is the world's time line, from the moment the board powers up (the clock
+        # may start anywhere: a test puts its ticks' wrap where it wants it).
+        self.epoch_us = clock.now_us()
         self._reset()
 
     def _reset(self):
@@ -140,7 +143,7 @@ class SimLIS3DH:
         due = (self.clock.now_us() - self.start_us) // period
         while self.generated < due:
             t_us = self.start_us + (self.generated + 1) * period
-            k = (t_us * self.stim.rate_hz) // 1000000
+            k = ((t_us - self.epoch_us) * self.stim.rate_hz) // 1000000
             if not self.stim.load(k):
                 # The stimulus is over: the chip goes on converting its last input (the run
                 # stops when the board sees `exhausted`), so every sample is still accounted.
