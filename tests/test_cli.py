@@ -182,3 +182,23 @@ def test_profiles_and_points_in_the_records(points_csv):
     for bad in ("nan", "inf", "-0.1", "x"):
         r = run_cli("calibrate", points_csv, "--threshold", bad)
         assert r.returncode == 2 and "Traceback" not in r.stderr
+
+
+def test_apply_at_the_full_scale_and_says_what_it_clipped(tmp_path):
+    """apply runs the device's per-sample code at a full scale: readings past it are clipped,
+    as the device's would be, and counted; --range keeps them (its format: one bit less)."""
+    params = tmp_path / "p.json"
+    params.write_text(json.dumps({"model": "base", "scale": "Q24", "params_int": {
+        "kxx": 1 << 24, "kyy": 1 << 24, "kzz": 1 << 24, "kxy": 0, "kxz": 0, "kyz": 0,
+        "ox": 0, "oy": 0, "oz": 0}}))
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,x,y,z\n0,0,0,1\n0.1,3.0,0,1\n0.2,0,-2.5,1\n")
+    out = tmp_path / "o.csv"
+    r = run_cli("apply", params, rec, "-o", out)
+    assert r.returncode == 0 and "2 samples past that full scale were clipped" in r.stderr, r.stderr
+    a = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert a[1, 1] == pytest.approx(2097 / 1024) and a[2, 2] == pytest.approx(-2097 / 1024)
+    r = run_cli("apply", params, rec, "-o", out, "--range", "4")
+    assert r.returncode == 0 and "clipped" not in r.stderr
+    a = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert a[1, 1] == pytest.approx(3.0, abs=2e-3) and a[2, 2] == pytest.approx(-2.5, abs=2e-3)

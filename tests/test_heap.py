@@ -103,13 +103,17 @@ for i in range(3 * N):
     buf[i] = (-2048 + (s >> 8) % 4096) if (i // 900) % 2 else (1000 + (s >> 8) % 9 - 4)
 paper = RestDetector(100, 5)
 wear = RestDetector(100, 5, AUTO, ALL_AXES)
-cal = Calibration()
 # parameters at the corner of the bounds that maximises |a| (fixed.py: k 1.25, |k_ij| 0.125,
-# |o| 0.25 g), Q24
-cal.set([20971520, 20971520, 20971520, 2097152, 2097152, 2097152, 4194304, 4194304, 4194304])
-out = array("i", [0] * (3 * N))
+# |o| 0.25 g), Q24, at every full scale the app accepts
+cals = []
+for r in (2, 4, 8, 16):
+    c = Calibration(range_g=r)
+    c.set([20971520, 20971520, 20971520, 2097152, 2097152, 2097152, 4194304, 4194304, 4194304])
+    cals.append(c)
+full = array("i", [0] * (3 * N))
 for i in range(3 * N):
-    out[i] = 2047 if buf[i] > 0 else -2048   # full scale, every sample
+    full[i] = 16383 if buf[i] > 0 else -16383   # past every full scale: clamped to it
+out = array("i", [0] * (3 * N))
 
 
 def feed(d):
@@ -124,7 +128,10 @@ def feed(d):
 def work():
     feed(paper)
     feed(wear)
-    cal.apply_samples(out, 0, N)
+    for cal in cals:
+        for i in range(3 * N):
+            out[i] = full[i]
+        cal.apply_samples(out, 0, N)
 
 
 micropython.heap_lock()
@@ -140,7 +147,8 @@ except MemoryError:
 
 def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
     """Where ints past 2^30 allocate (the WebAssembly port, as an RP2040): both profiles' rest
-    detectors and the apply at full scale with parameters at the bounds' corner."""
+    detectors, and the apply at every full scale (2, 4, 8, 16 g) with readings at and past it
+    and parameters at the bounds' corner."""
     f = tmp_path / "heap32.py"
     f.write_text(PER_SAMPLE_32)
     out = mp32(str(f)).split()

@@ -56,20 +56,42 @@ def corner_params():
                 yield [kd] * 3 + [sm * fixed.K_OFF_MAX] * 3 + [so * fixed.O_MAX] * 3
 
 
-def test_apply_worst_case_at_2g():
-    lo, hi = FULL_2G[12]
+@pytest.mark.parametrize("range_g", [2, 4, 8, 16])
+def test_apply_worst_case_at_every_range(range_g):
+    # the range's full scale, and the largest Q10 reading anything could hand it (clamped)
+    fs = FULL_2G[12][0] * range_g // 2
     for p in corner_params():
         tr = Tracer()
         T = traced(tr)
-        cal = Calibration()
+        cal = Calibration(range_g=range_g)
         cal.set(p)
         cal.k = [T(v) for v in cal.k]
-        for x in (lo, hi):
-            for y in (lo, hi):
-                for z in (lo, hi):
-                    cal.apply(T(x), T(y), T(z))
+        for lo, hi in ((fs, -fs), (-fixed.SAMPLE_MAX, fixed.SAMPLE_MAX)):
+            for x in (lo, hi):
+                for y in (lo, hi):
+                    for z in (lo, hi):
+                        cal.apply(T(x), T(y), T(z))
         assert tr.ops > 0
-        assert tr.max_abs < SMALL_INT_LIMIT, p
+        assert tr.max_abs < SMALL_INT_LIMIT, (range_g, p)
+
+
+@pytest.mark.parametrize("range_g", [4, 8, 16])
+def test_apply_at_larger_ranges_matches_the_float_model(rng, range_g):
+    # Q(14 - e) parameters: within 1.5 LSB plus the coarser format's rounding (2^e / 2 LSB of
+    # K and o, times the reading) across the range
+    from accelcal.io import params_to_float
+    from accelcal.methods import correct
+    cal = Calibration(range_g=range_g)
+    fs = 2097 * range_g // 2
+    for p in corner_params():
+        cal.set(p)
+        v = rng.integers(-fs, fs, size=(200, 3))
+        exp = correct(params_to_float(p), v / 1024) * 1024
+        got = []
+        for x, y, z in v.tolist():
+            cal.apply(x, y, z)
+            got.append((cal.x, cal.y, cal.z))
+        assert np.abs(np.array(got) - exp).max() <= 1.5 + range_g / 2
 
 
 def test_apply_rejects_parameters_outside_bounds():

@@ -115,17 +115,19 @@ def test_chunking_never_changes_the_segments(rng):
 
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.integers(-(1 << 24) // 4, (1 << 24) // 4), min_size=6, max_size=6),
-       st.lists(st.integers(750, 1250), min_size=3, max_size=3), st.integers(0, 2 ** 32 - 1))
-def test_apply_equals_the_device_calibration(off, diag, seed):
+       st.lists(st.integers(750, 1250), min_size=3, max_size=3), st.integers(0, 2 ** 32 - 1),
+       st.sampled_from([2, 4, 8, 16]))
+def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
     rng = np.random.default_rng(seed)
     # Q24 parameters inside the calibration bounds: k_ii 0.75..1.25, |k_ij| <= 0.125, |o| <= 0.25 g
     p = [d * (1 << 24) // 1000 for d in diag] + [v // 2 for v in off[:3]] + off[3:]
-    q = np.r_[rng.integers(-2048, 2048, (200, 3)), [[2047, 2047, 2047], [-2048, -2048, -2048]]]
-    cal = Calibration()
+    fs = 2048 * range_g // 2   # the range's full scale, and readings past it (clamped)
+    q = np.r_[rng.integers(-fs, fs, (200, 3)), [[fs - 1] * 3, [-fs] * 3], rng.integers(-16383, 16384, (20, 3))]
+    cal = Calibration(range_g=range_g)
     cal.set(p)
     buf = q.ravel().tolist()
     cal.apply_samples(buf, 0, len(q))
-    assert (vector.apply_params(p, q) == np.array(buf).reshape(-1, 3)).all()
+    assert (vector.apply_params(p, q, range_g=range_g) == np.array(buf).reshape(-1, 3)).all()
 
 
 @st.composite

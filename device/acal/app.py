@@ -37,7 +37,8 @@ FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit run
 class Processor:
     """profile: acal.profile.WEAR (the default) or PAPER, whose settings (profile.settings) any of
     seconds, threshold, axis, min_count, max_count, differ, policy, iterations, fit given here
-    override (as Pipeline); recal_seconds: least time between calibrations; logger: a log.Log;
+    override (as Pipeline); range_g: the sensor's full scale (the apply's format, fixed.py; a
+    composed model applies at 2 g); recal_seconds: least time between calibrations; logger: a log.Log;
     capture: a log.Log for the raw samples or None; store: a log.CalStore or None; model: 'base'
     (the paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
 
@@ -52,7 +53,7 @@ class Processor:
     at boot as if the board had not been off."""
 
     def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
-                 model="base", profile=profiles.DEFAULT, **pipeline_settings):
+                 model="base", profile=profiles.DEFAULT, range_g=2, **pipeline_settings):
         self.log = logger
         self.capture = capture
         self.store = store
@@ -69,7 +70,7 @@ class Processor:
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
         self.time_unit_samples = effects.DT_UNIT_S * rate_hz
-        self.calibration = Calibration(self.kinds)
+        self.calibration = Calibration(self.kinds, range_g)
         # The calibrated samples of each block go to on_samples(buf, n) (Q10 g, interleaved),
         # once a calibration exists: the wearable's own use of the data hooks in there.
         self.on_samples = None
@@ -278,7 +279,8 @@ class App:
             open(prefix + "capture.bin", "wb").close()
             cap = log.Log(prefix + "capture.bin", capture_bytes, CAPTURE_FLUSH_RECORDS)
         store = log.CalStore(prefix + "cal_a.bin", prefix + "cal_b.bin")
-        self.proc = Processor(self.log, rate_hz, capture=cap, store=store, **processor_settings)
+        self.proc = Processor(self.log, rate_hz, capture=cap, store=store, range_g=range_g,
+                              **processor_settings)
         self.sensor = None
         for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
             try:

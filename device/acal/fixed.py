@@ -86,10 +86,27 @@ APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
 APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
 APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
+# Larger full scales (+-4, 8, 16 g: range shift e = 1, 2, 3; apply_range_shift()) keep the same
+# bound by giving up e bits of parameter resolution, as their readings give up e bits anyway:
+# K and o in Q(14 - e), u = (x << (4 - e)) + o, a = sum(k u) >> (18 - 2 e), the reading first
+# clamped to the range's full scale, +-(APPLY_IN_MAX << e) in Q10.  Then |u| <=
+# (2.048 + 0.25 / 2**e) 2**14 <= 37650 and |k| row sums <= 1.5 * 2**(14 - e) <= 24576 again, at
+# every range (tests/test_ranges.py; on the 32-bit MicroPython under heap_lock, test_heap.py).
+APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
 # A composed model first removes its effects (acal/effects.py) from the reading in Q14; the
 # result is clamped to the range a reading can have, +-2.048 g, so the bound above still holds
 # (a correction that would go beyond full scale is clipped, as the sensor itself clips).
 APPLY_W_MAX = const(33552)          # 2097 << 4
+
+
+
+def apply_range_shift(range_g):
+    """The apply format's shift e for a full scale of range_g (2, 4, 8 or 16 g)."""
+    for e in range(4):
+        if range_g == 2 << e:
+            return e
+    raise ValueError("full scale must be 2, 4, 8 or 16 g")
+
 
 # Parameter order (paper eq. 6).
 KXX = const(0)

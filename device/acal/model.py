@@ -4,7 +4,8 @@
 #   a_z = kxz (v_x + o_x) + kyz (v_y + o_y) + kzz (v_z + o_z)
 # Parameters are a list of 9 ints in Q24 (fixed.py), in the order of eq. 6.
 from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
-                        APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
+                        APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT, APPLY_IN_MAX,
+                        apply_range_shift,
                         K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX, FIT_K_DIAG_MIN,
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
@@ -180,8 +181,12 @@ class Calibration:
     and `time` (64 s units) current, and the effects are removed with dT = temp - ref_temp and
     dt = time - ref_time, the references the fit used (set())."""
 
-    def __init__(self, kinds=()):
+    def __init__(self, kinds=(), range_g=2):
         self.kinds = tuple(kinds)
+        self.e = apply_range_shift(range_g)  # fixed.py: the format by full scale
+        if self.kinds and self.e:
+            raise ValueError("a composed model applies at +-2 g full scale")
+        self.in_max = APPLY_IN_MAX << self.e
         self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.k = [0] * self.n_params
         self.w = [0, 0, 0]
@@ -200,17 +205,34 @@ class Calibration:
         """Take Q24 parameters; ValueError outside the bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
-        half = 1 << (APPLY_PARAM_SHIFT - 1)
+        shift = APPLY_PARAM_SHIFT + self.e
+        half = 1 << (shift - 1)
         for i in range(N_PARAMS):
-            self.k[i] = (p[i] + half) >> APPLY_PARAM_SHIFT
+            self.k[i] = (p[i] + half) >> shift
         for j in range(len(self.kinds)):
             effects.apply_params(self.kinds[j], p, N_PARAMS + 3 * j, self.k, N_PARAMS + 3 * j)
         self.ref_temp = ref_temp
         self.ref_time = ref_time
 
     def apply(self, x, y, z):
-        """Correct one sample; the result is in self.x, self.y, self.z (Q10 g)."""
+        """Correct one sample; the result is in self.x, self.y, self.z (Q10 g).  A reading past
+        the full scale is clamped to it first (the chip cannot read more; the range bound
+        holds for any input)."""
         k = self.k
+        m = self.in_max
+        if x > m:
+            x = m
+        elif x < -m:
+            x = -m
+        if y > m:
+            y = m
+        elif y < -m:
+            y = -m
+        if z > m:
+            z = m
+        elif z < -m:
+            z = -m
+        e = self.e
         if self.kinds:
             w = self.w
             self._remove_effects(x, y, z)
@@ -218,13 +240,15 @@ class Calibration:
             uy = w[1] + k[7]
             uz = w[2] + k[8]
         else:
-            ux = (x << APPLY_FROM_SAMPLE_SHIFT) + k[6]
-            uy = (y << APPLY_FROM_SAMPLE_SHIFT) + k[7]
-            uz = (z << APPLY_FROM_SAMPLE_SHIFT) + k[8]
-        half = 1 << (APPLY_OUT_SHIFT - 1)
-        self.x = (k[0] * ux + half) >> APPLY_OUT_SHIFT
-        self.y = (k[3] * ux + k[1] * uy + half) >> APPLY_OUT_SHIFT
-        self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> APPLY_OUT_SHIFT
+            s = APPLY_FROM_SAMPLE_SHIFT - e
+            ux = (x << s) + k[6]
+            uy = (y << s) + k[7]
+            uz = (z << s) + k[8]
+        s = APPLY_OUT_SHIFT - 2 * e
+        half = 1 << (s - 1)
+        self.x = (k[0] * ux + half) >> s
+        self.y = (k[3] * ux + k[1] * uy + half) >> s
+        self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> s
 
     def _remove_effects(self, x, y, z):
         # The effects, last first (the reverse of the order they act in), in Q14, into self.w;

@@ -107,11 +107,11 @@ def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None =
         proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                          threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
                          max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                         model=model, fit=b["fit"])
+                         model=model, fit=b["fit"], range_g=b["range_g"])
     else:
         from acal import profile as dprofile
         proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                         model=model, profile=dprofile.parse(profile))
+                         model=model, profile=dprofile.parse(profile), range_g=b["range_g"])
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])

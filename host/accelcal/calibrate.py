@@ -297,13 +297,16 @@ def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
 
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
-                     ref: dict | None = None, source: str = "recording") -> np.ndarray:
+                     ref: dict | None = None, source: str = "recording", range_g: int = 2) -> np.ndarray:
     """Calibrate samples with the vectorised twin of the device's per-sample code
     (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them as int degC and 64 s units from t0."""
     spec = ModelSpec.parse(model)
-    cal = Calibration(spec.kinds)
+    if spec.effects and range_g != 2:
+        raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
+                         f"{source} is at +-{range_g} g")
+    cal = Calibration(spec.kinds, range_g)
     ref_temp = int(round(ref["T0"])) if spec.effects else 0
     try:
         cal.set(p_int, ref_temp, 0)
@@ -313,21 +316,38 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                          "bounds)") from None
     q = g_to_sample(xyz_g)
     if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
-        return sample_to_g(vector.apply_params(p_int, q))
+        return sample_to_g(vector.apply_params(p_int, q, range_g=range_g))
     if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
     return sample_to_g(vector.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1]))
 
 
-def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str) -> int:
+def apply_range(declared, given: int | None) -> int:
+    """The full scale the device's apply takes for a file: given (apply --range), else the
+    file's declared range (rounded up to 2, 4, 8 or 16 g), else 2 g."""
+    if given:
+        return given
+    if declared:
+        for r in (2, 4, 8, 16):
+            if declared <= r:
+                return r
+    return 2
+
+
+def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
+               range_g: int | None = None) -> tuple[int, int, int]:
     """Calibrate a recording of any format and length chunk by chunk (accelcal.recording) with
-    the device's per-sample code; writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3).
-    Returns the number of samples."""
+    the device's per-sample code at the full scale apply_range() picks (readings past it are
+    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3).
+    Returns (samples, samples clipped, full scale in g)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
     from accelcal.recording import open_recording
     rec = open_recording(path)
+    rng = apply_range(rec.range_g, range_g)
+    limit = (fixed.APPLY_IN_MAX << fixed.apply_range_shift(rng)) / fixed.SAMPLE_ONE_G
+    clipped = 0
     names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
     schema = pa.schema([(n, pa.float64()) for n in names])
     n = 0
@@ -339,8 +359,9 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str) 
     opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
     with sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
         for ch in rec.chunks():
-            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path), 6)
+            clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
+            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng), 6)
             cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else [])
             writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
             n += len(ch.t)
-    return n
+    return n, clipped, rng

@@ -231,8 +231,10 @@ def cmd_apply(args) -> int:
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
                          ".cwa/.bin/.gt3x)")
-    n = apply_file(p_int, model, ref, args.input, args.output)
-    print(f"wrote {n} calibrated samples to {args.output}", file=sys.stderr)
+    n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
+    print(f"wrote {n} calibrated samples to {args.output} (the device's apply at +-{rng} g"
+          + (f"; {clipped} samples past that full scale were clipped, as the device's would be: "
+             f"--range 4, 8 or 16 keeps them" if clipped else "") + ")", file=sys.stderr)
     return 0
 
 
@@ -474,6 +476,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True, help="output CSV")
     p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
+    p.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=None,
+                   help="full scale of the device's apply, g: its fixed-point format (Q14 at 2 g, "
+                        "one bit less per doubling) and where readings are clipped (default: the "
+                        "file's declared range, else 2)")
     p.set_defaults(func=cmd_apply)
 
     p = sub.add_parser("simulate", help="simulate data with known truth")

@@ -213,15 +213,20 @@ def samples_planar(x, y, z) -> np.ndarray:
     return out
 
 
-def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None) -> np.ndarray:
-    """The twin of Calibration(kinds).set(p, ref_temp) + apply_samples: Q24 parameters (9, then
-    3 per effect), Q10 samples in and out (m x 3 int64).  A composed model also takes each
+def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2) -> np.ndarray:
+    """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters
+    (9, then 3 per effect), Q10 samples in and out (m x 3 int64), the format of the full scale
+    range_g (fixed.py), readings clamped to it.  A composed model also takes each
     sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
     time), as the device's temp - ref_temp and time - ref_time; clamped as the device clamps
     (dT, dt, and the reading after each effect)."""
-    half_p = 1 << (fixed.APPLY_PARAM_SHIFT - 1)
-    k = [(int(v) + half_p) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:9]]
-    q = np.asarray(q, dtype=np.int64).reshape(-1, 3)
+    e = fixed.apply_range_shift(range_g)
+    if kinds and e:
+        raise ValueError("a composed model applies at +-2 g full scale")
+    shift = fixed.APPLY_PARAM_SHIFT + e
+    k = [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[:9]]
+    m = fixed.APPLY_IN_MAX << e
+    q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
     off = np.array(k[6:9], dtype=np.int64)
     if kinds:
         w = q << fixed.APPLY_FROM_SAMPLE_SHIFT
@@ -246,10 +251,11 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None) -> np.ndarray
             np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
         u = w + off
     else:
-        u = (q << fixed.APPLY_FROM_SAMPLE_SHIFT) + off
-    half = 1 << (fixed.APPLY_OUT_SHIFT - 1)
+        u = (q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)) + off
+    s = fixed.APPLY_OUT_SHIFT - 2 * e
+    half = 1 << (s - 1)
     out = np.empty_like(u)
-    out[:, 0] = (k[0] * u[:, 0] + half) >> fixed.APPLY_OUT_SHIFT
-    out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> fixed.APPLY_OUT_SHIFT
-    out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> fixed.APPLY_OUT_SHIFT
+    out[:, 0] = (k[0] * u[:, 0] + half) >> s
+    out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> s
+    out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> s
     return out
