@@ -4,9 +4,30 @@ detectors of both profiles (the paper's one-axis test; every axis with the noise
 outlier rejection, 72 points) a full run: they allocate nothing (64-bit port)."""
 from accelcal import runtime
 
-SCRIPT = r'''
+STREAM = r'''
 import micropython
 from array import array
+
+
+def stream(n, block):
+    """n samples, Q10 g: blocks of `block` alternately at rest (+-4 LSB) and across +-2 g."""
+    buf = array("i", [0] * (3 * n))
+    s = 1
+    for i in range(3 * n):
+        s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+        buf[i] = (-2097 + (s >> 8) % 4194) if (i // block) % 2 else (1000 + (s >> 8) % 9 - 4)
+    return buf
+
+
+def feed(d, buf, n):  # locals only: a new module global would itself allocate
+    start = 0
+    while n > 0:
+        used = d.add_samples(buf, start, n)
+        start += used
+        n -= used
+'''
+
+SCRIPT = STREAM + r'''
 from acal.rest import RestDetector
 from acal.optimiser import Optimiser
 from acal.pipeline import Pipeline
@@ -15,11 +36,7 @@ from acal.gaussnewton import GaussNewton
 from acal.profile import WEAR, settings
 
 N = 10000
-buf = array("i", [0] * (3 * N))
-s = 1
-for i in range(3 * N):
-    s = (s * 1103515245 + 12345) & 0x7FFFFFFF
-    buf[i] = (-2097 + (s >> 8) % 4194) if (i // 1500) % 2 else (1000 + (s >> 8) % 9 - 4)
+buf = stream(N, 1500)
 det = RestDetector(100, 5)
 pipe = Pipeline(100)
 pts = []
@@ -41,20 +58,11 @@ for k in range(72):
 gn = GaussNewton(72)
 
 
-def feed(d):  # locals only: a new module global would itself allocate
-    start = 0
-    n = N
-    while n > 0:
-        used = d.add_samples(buf, start, n)
-        start += used
-        n -= used
-
-
 def work():
-    feed(det)
+    feed(det, buf, N)
     pipe.add_samples(buf, 0, N)
     opt.run(pts, 18, 50)
-    feed(wear_det)
+    feed(wear_det, buf, N)
     wear_pipe.add_samples(buf, 0, N)
     gn.run(gpts, 72)
 
@@ -89,18 +97,12 @@ def test_heap_lock_does_detect_allocation(tmp_path):
     assert runtime.run_micropython_script(str(f)).strip() == "ALLOCATED"
 
 
-PER_SAMPLE_32 = r'''
-import micropython
-from array import array
+PER_SAMPLE_32 = STREAM + r'''
 from acal.rest import RestDetector, ALL_AXES, AUTO
 from acal.model import Calibration
 
 N = 6000
-buf = array("i", [0] * (3 * N))
-s = 1
-for i in range(3 * N):
-    s = (s * 1103515245 + 12345) & 0x7FFFFFFF
-    buf[i] = (-2048 + (s >> 8) % 4096) if (i // 900) % 2 else (1000 + (s >> 8) % 9 - 4)
+buf = stream(N, 900)
 paper = RestDetector(100, 5)
 wear = RestDetector(100, 5, AUTO, ALL_AXES)
 # parameters at the corner of the bounds that maximises |a| (fixed.py: k 1.25, |k_ij| 0.125,
@@ -116,18 +118,9 @@ for i in range(3 * N):
 out = array("i", [0] * (3 * N))
 
 
-def feed(d):
-    start = 0
-    n = N
-    while n > 0:
-        used = d.add_samples(buf, start, n)
-        start += used
-        n -= used
-
-
 def work():
-    feed(paper)
-    feed(wear)
+    feed(paper, buf, N)
+    feed(wear, buf, N)
     for cal in cals:
         for i in range(3 * N):
             out[i] = full[i]
