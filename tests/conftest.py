@@ -56,8 +56,9 @@ def mp(request):
     return request.param
 
 
-def run_both(script, tmp_path):
-    """Stdout of the script (MP_RANDOM prepended) under real MicroPython and under CPython."""
+def run_both(script, tmp_path, micropython="micropython"):
+    """Stdout of the script (MP_RANDOM prepended) under a real MicroPython (the unix port, or
+    "micropython32") and under CPython."""
     import contextlib
     import io
 
@@ -65,7 +66,8 @@ def run_both(script, tmp_path):
     text = MP_RANDOM + script
     f = tmp_path / "both.py"
     f.write_text(text)
-    mp = runtime.run_micropython_script(str(f))
+    run = runtime.run_micropython_script if micropython == "micropython" else runtime.run_micropython32_script
+    mp = run(str(f))
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         exec(compile(text, str(f), "exec"), {"__name__": "both"})

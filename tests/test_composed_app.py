@@ -145,6 +145,6 @@ print(" ".join([str(v) for v in buf]))
 '''
 
 
-def test_composed_apply_is_allocation_free_and_identical_under_micropython(tmp_path):
-    mp, host = run_both(APPLY_SCRIPT, tmp_path)
-    assert mp.split() == host.split() and len(mp.split()) == 1500
+def test_composed_apply_is_allocation_free_and_identical_under_micropython(tmp_path, mp):
+    got, host = run_both(APPLY_SCRIPT, tmp_path, mp)   # both ports, the 32-bit one too
+    assert got.split() == host.split() and len(got.split()) == 1500

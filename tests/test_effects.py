@@ -77,9 +77,9 @@ print("\n".join(out))
 '''
 
 
-def test_micropython_gives_the_same_integers(tmp_path):
-    mp, host = run_both(SCRIPT, tmp_path)
-    assert mp.split() == host.split() and len(mp.splitlines()) == 800
+def test_micropython_gives_the_same_integers(tmp_path, mp):
+    got, host = run_both(SCRIPT, tmp_path, mp)
+    assert got.split() == host.split() and len(got.splitlines()) == 800
 
 
 def test_apply_stays_small_in_every_composition_and_order():
