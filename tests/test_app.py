@@ -337,3 +337,37 @@ def test_the_app_across_the_tick_wrap(tmp_path, stim):
     assert app.samples + app.lost == b.chip.generated and app.lost > 0
     assert (app.samples, app.lost) == (plain.samples, plain.lost)
     assert cap == plain_cap and log_bytes == plain_log   # segments, means, calibrations alike
+
+
+APP_LOG_SCRIPT = r'''
+import sys, os
+from simboard import SimBoard
+from acal.app import App
+from acal import log
+os.chdir(sys.argv[2])
+app = App(SimBoard(sys.argv[1], 30), rate_hz=25, capture_bytes=0, recal_seconds=600)
+app.run(10 ** 6)
+with open("log.bin", "rb") as f:
+    data = f.read()
+print(len(data), log.crc32(data), app.samples, app.lost, app.bus_errors, app.proc.calibrations)
+'''
+
+
+def test_the_apps_log_is_identical_on_every_runtime(tmp_path, stim, mp):
+    """The app on the simulated chip (3 % bus faults, the wear profile's sliced fit) writes the
+    same log.bin, byte for byte, under CPython and under each real MicroPython."""
+    import subprocess
+    path, _ = stim
+    script = tmp_path / "app_log.py"
+    script.write_text(APP_LOG_SCRIPT)
+    sim = str(ROOT / "host" / "accelcal" / "sim")
+    work = [tmp_path / "cpython", tmp_path / mp]
+    for w in work:
+        w.mkdir()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([sim, str(ROOT / "device")]))
+    host = subprocess.run([sys.executable, str(script), str(path), str(work[0])], env=env,
+                          capture_output=True, text=True, check=True).stdout.split()
+    run = runtime.run_micropython_script if mp == "micropython" else runtime.run_micropython32_script
+    got = run(str(script), str(path), str(work[1]), extra_path=[sim]).split()
+    assert got == host
+    assert int(host[3]) > 0 and int(host[5]) >= 1   # samples lost to faults, a calibration

@@ -7,8 +7,8 @@
 //
 // PATH_DIRS: folders joined by ":" whose .py files (and packages one level down) are copied
 // into the interpreter's filesystem and put on sys.path (device/ first).  SCRIPT and every
-// argument that names an existing file are copied in at the same absolute path; files the script
-// writes stay inside.  stdout and stderr are the script's; exit status 1 on an exception.
+// argument that names an existing file are copied in at the same absolute path, an existing
+// folder is made (empty) there; files the script writes stay inside.  stdout and stderr are the script's; exit status 1 on an exception.
 import fs from "node:fs";
 import path from "node:path";
 
@@ -59,6 +59,10 @@ for (const a of args) {
   if (fs.existsSync(a) && fs.statSync(a).isFile()) {
     const abs = path.resolve(a);
     copyIn(abs, abs);
+    argv.push(abs);
+  } else if (fs.existsSync(a) && fs.statSync(a).isDirectory()) {
+    const abs = path.resolve(a);   // made (empty) inside: the script may work in it
+    mkdirs(abs);
     argv.push(abs);
   } else {
     argv.push(a);
