@@ -4,7 +4,10 @@ optimiser_ms_micropython / optimiser_ms_cpython: the device optimiser, N=18, M=5
 per_sample_ratio: rest detector per sample / a bare loop reading the same buffer (MicroPython);
   _wear: the wear profile's detector (every axis, the noise gauge).
 fit_*: the pipeline's fit run slice by slice (fit_step) under MicroPython, 72 points (paper: 18):
-  slices, total and worst slice (best of three runs), and the worst slice on an RP2040 (estimate).
+  slices, total and worst slice (best of three runs), the worst slice and the whole fit's compute
+  on an RP2040 (estimates; with small ints: the 32-bit port's _mp32 figures give the longs' cost),
+  the 100 Hz data the sliced fit spans in the app, and on the 32-bit MicroPython (_mp32) the
+  bytes a fit allocates and its time as a ratio to the unix port.
 bytes_per_sample: heap bytes per sample (MicroPython mem_total), the slope between a call over
   N/2 and one over N samples; bytes_per_detector_call: the frame MicroPython takes from the heap
   for a call with many locals (freed on return; on the C stack when the heap is locked, which
@@ -179,6 +182,13 @@ def _fit_rows(runs, suffix) -> dict:
         res[f"fit_{name}_worst_slice_us_unix{suffix}"] = worst
         res[f"rp2040_fit_{name}_worst_slice_ms{suffix}"] = worst * RP2040_SLOWDOWN[1] / 1000.0
         res[f"fit_{name}_bytes{suffix}"] = min(int(r[5]) for r in rows)
+        if not suffix:
+            from acal.app import FIT_STEPS_PER_FEED, BLOCK
+            # the whole fit on an RP2040 (its compute, small ints), and the data it spans while
+            # sliced: FIT_STEPS_PER_FEED slices a block of BLOCK samples, at 100 Hz
+            res[f"rp2040_fit_{name}_compute_s"] = res[f"fit_{name}_total_ms_unix"] * RP2040_SLOWDOWN[1] / 1000.0
+            blocks = -(-int(rows[0][1]) // FIT_STEPS_PER_FEED)
+            res[f"fit_{name}_spans_s_at_100hz"] = blocks * BLOCK / 100.0
     return res
 
 
