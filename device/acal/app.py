@@ -30,7 +30,6 @@ REST_BUDGET_DAYS = 14
 REST_RESERVE_BYTES = 4000       # of each day's allowance, kept for points the bins keep
 COUNTERS_SECONDS = 3600
 CAPTURE_FLUSH_RECORDS = 32  # ~8 kB: a flush per record would cost more than the processing
-COMPOSED_MAX_COUNT = 4      # paper profile: points per subset for a composed model (bins.py): 36
 FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit runs between FIFO reads
 
 
@@ -45,8 +44,8 @@ class Processor:
     The fit runs in slices, FIT_STEPS_PER_FEED per block fed, so acquisition never waits for it
     (README "Sliced fit"); the calibration in use changes when it ends.
 
-    With the paper's fit a composed model's bins hold COMPOSED_MAX_COUNT points per subset
-    (unless max_count is given).  A composed model's bins are kept across calibrations, so
+    With the paper's fit a composed model's bins hold profile.COMPOSED_MAX_COUNT points per
+    subset (unless max_count is given).  A composed model's bins are kept across calibrations, so
     their temperature and time spread keeps growing (the paper's model starts afresh after
     each; the wear profile keeps its bins too, its CENTRE rule keeps improving them).  Its time is the board's running time since
     boot in 64 s units (no clock survives a power cut): a stored composed calibration is resumed
@@ -59,11 +58,9 @@ class Processor:
         self.store = store
         self.rate_hz = rate_hz
         self.kinds = effects.parse_model(model)
-        settings = profiles.settings(profile)
+        settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
-        if self.kinds and settings["fit"] == _GRADIENT and "max_count" not in pipeline_settings:
-            settings["max_count"] = COMPOSED_MAX_COUNT
         self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, **settings)
         self.fitting = False
         self.recal_samples = recal_seconds * rate_hz
@@ -224,12 +221,9 @@ class Processor:
             self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time)
             if self.store is not None:
                 self.store.save(values, extra)
-        if not self.kinds and pipe.fit == _GRADIENT:
+        if not self.kinds and pipe.fit == profiles.GRADIENT:
             pipe.bins.clear()
         return status
-
-
-_GRADIENT = profiles.GRADIENT
 
 
 def _sat32(v):

@@ -201,10 +201,7 @@ class GaussNewton:
         dt = self.aux[2 * i + 1]
         for c in range(3):
             w[c] = u[at + c]
-        k = len(kinds) - 1
-        while k >= 0:
-            effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, 0)
-            k -= 1
+        model.remove_effects(p, kinds, w, 0, dT, dt)
         r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
         for k in range(len(kinds)):
             # dr/dtheta = dr/do . dw/dtheta: the correction with d[6:9] as its parameters

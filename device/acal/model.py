@@ -127,16 +127,22 @@ def residual_jacobian(p, ux, uy, uz, d):
     return (ax * ax + ay * ay + az * az - _ONE_G2_Q56) >> R_SHIFT
 
 
+def remove_effects(p, kinds, w, at, dT, dt):
+    """Remove a composed model's effects (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) from
+    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in."""
+    k = len(kinds) - 1
+    while k >= 0:
+        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at)
+        k -= 1
+
+
 def residual_effects(p, u, at, dT, dt, kinds, w):
     """residual() of the point u[at:at+3] seen at dT, dt, with a composed model's effects removed
     first (into w, a list of 3), as objective_effects does it."""
     w[0] = u[at]
     w[1] = u[at + 1]
     w[2] = u[at + 2]
-    k = len(kinds) - 1
-    while k >= 0:
-        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, 0)
-        k -= 1
+    remove_effects(p, kinds, w, 0, dT, dt)
     return residual(p, w[0], w[1], w[2])
 
 
@@ -145,17 +151,10 @@ def objective_effects(p, u, aux, n, kinds, w):
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
     they act in), into w (a list of 3 n ints); the 9-parameter objective then reads w.
     aux: per point dT (degC) and dt (64 s units), flat."""
-    correct = effects.correct_u
-    ne = len(kinds)
     for i in range(3 * n):
         w[i] = u[i]
     for i in range(n):
-        dT = aux[2 * i]
-        dt = aux[2 * i + 1]
-        k = ne - 1
-        while k >= 0:
-            correct(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, 3 * i)
-            k -= 1
+        remove_effects(p, kinds, w, 3 * i, aux[2 * i], aux[2 * i + 1])
     return objective(p, w, n)
 
 

@@ -20,6 +20,7 @@ DEFAULT = WEAR
 GRADIENT = 0   # fit: the paper's gradient descent (optimiser.py)
 NEWTON = 1     # fit: Gauss-Newton with outlier rejection (gaussnewton.py)
 
+COMPOSED_MAX_COUNT = 4  # paper profile, composed model: 4 per subset (36), spread in T and t
 WEAR_MAX_COUNT = 8
 # Why 8 per subset (72 points): the outlier test needs enough points that one bad one is a
 # minority in its neighbourhood (18 cannot outvote a point); RAM is ~5 kB of list slots at 72
@@ -28,12 +29,12 @@ WEAR_MAX_COUNT = 8
 # would sit unused.
 
 
-def settings(profile):
+def settings(profile, composed=False):
     """A profile's pipeline settings: axis, threshold (Q10 g or rest.AUTO), min_count,
-    max_count, fit (GRADIENT / NEWTON), iterations (None: the fit's default)."""
+    max_count, fit (GRADIENT / NEWTON); composed: for a composed model."""
     if profile == PAPER:
-        return {"axis": 0, "threshold": DEFAULT_THRESHOLD, "min_count": 2, "max_count": 2,
-                "fit": GRADIENT}
+        return {"axis": 0, "threshold": DEFAULT_THRESHOLD, "min_count": 2,
+                "max_count": COMPOSED_MAX_COUNT if composed else 2, "fit": GRADIENT}
     if profile == WEAR:
         return {"axis": ALL_AXES, "threshold": AUTO, "min_count": 2,
                 "max_count": WEAR_MAX_COUNT, "fit": NEWTON}

@@ -52,22 +52,16 @@ class Config:
     def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
         """A profile's settings (acal.profile.settings), then any overrides (None: not given).
         composed: a composed model's defaults (more points and iterations for the paper's fit)."""
-        from acal.app import COMPOSED_MAX_COUNT
-        s = dprofile.settings(dprofile.parse(name))
+        s = dprofile.settings(dprofile.parse(name), composed)
         thr = s["threshold"]
         fit = s["fit"]
         if fit == dprofile.NEWTON:
             from acal.gaussnewton import DEFAULT_ITERATIONS as iterations
         else:
             iterations = optimiser.COMPOSED_ITERATIONS if composed else optimiser.DEFAULT_ITERATIONS
-        max_count = s["max_count"]
-        if composed and fit == dprofile.GRADIENT:
-            max_count = COMPOSED_MAX_COUNT
         cfg = cls(threshold_g=None if thr == rest.AUTO else thr / fixed.SAMPLE_ONE_G,
-                  axis=s["axis"], min_count=s["min_count"], max_count=max_count,
+                  axis=s["axis"], min_count=s["min_count"], max_count=s["max_count"],
                   iterations=iterations, fit=fit, profile=name)
-        if name == "paper":
-            cfg.threshold_g = 0.12  # the paper's 0.12 g as given (Q10: 123)
         for k, v in overrides.items():
             if v is not None:
                 setattr(cfg, k, v)
