@@ -297,7 +297,9 @@ def test_the_sliced_fit_loses_no_sample_at_100_hz(tmp_path, rng, monkeypatch):
     s, b = results["sliced"]
     assert s.proc.calibrations >= 2
     assert s.fifo_overruns == 0 and s.lost == 0
-    assert s.samples == 60 * 10 * rate   # every sample of the stimulus read
+    # every sample of the stimulus read (past its end the chip samples on, holding its last
+    # input, while the last step's fit slices run)
+    assert 60 * 10 * rate <= s.samples < 60 * 10 * rate + 32
     one, _ = results["one go"]
     assert one.fifo_overruns > 0 and one.lost > 0
 

@@ -2,6 +2,8 @@
 detectors of both profiles (the paper's one-axis test; every axis with the noise gauge) take
 10 000 samples and both fits (the paper's gradient descent, the wear profile's Gauss-Newton with
 outlier rejection, 72 points) a full run: they allocate nothing (64-bit port)."""
+import numpy as np
+
 from accelcal import runtime
 
 STREAM = r'''
@@ -147,3 +149,58 @@ def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
     out = mp32(str(f)).split()
     assert out[0] == "OK", out
     assert int(out[1]) == int(out[2]) == 12
+
+
+FIT_32 = r'''
+import micropython
+from acal.gaussnewton import GaussNewton
+from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR
+
+PTS = %s
+AUX = %s
+fits = [(GaussNewton(18), 18, None), (GaussNewton(72), 72, None),
+        (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX)]
+res = []
+for gn, n, aux in fits:
+    micropython.heap_lock()
+    try:
+        gn.run(PTS, n, 20, aux)
+        micropython.heap_unlock()
+        res.append("%%d:%%d:%%d:%%d" %% (gn.status, gn.iterations, gn.rejected, gn.p[6]))
+    except MemoryError:
+        micropython.heap_unlock()
+        res.append("ALLOCATED")
+print(" ".join(res))
+'''
+
+
+def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
+    """The default profile's Gauss-Newton fit, with outlier rejection, under heap_lock where
+    ints past 2^30 allocate: 18 points, its largest point count (72, the wear profile's 8 per
+    subset), and a composed model of all four effects over 72 points with temperatures and
+    times spread across the clamps.  Each runs to OK, bit-identical to CPython."""
+    from acal import effects
+    from acal.gaussnewton import GaussNewton
+    from accelcal import simulate
+    truth = np.array([1.03, 0.98, 1.01, 0.02, -0.01, 0.015, 0.05, -0.03, 0.04])
+    d = rng.normal(size=(72, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    v = simulate.uncorrect(truth, d) + rng.normal(scale=1e-3, size=(72, 3))
+    v[5] *= 1.2          # two outliers: rejection runs too
+    v[40] *= 0.85
+    pts = [int(x) for x in np.round(v * 65536).astype(np.int64).ravel()]
+    aux = []
+    for i in range(72):
+        aux += [int(rng.integers(-40, 41)), int(rng.integers(-300000, 300001))]
+    f = tmp_path / "fit32.py"
+    f.write_text(FIT_32 % (pts, aux))
+    out = mp32(str(f)).split()
+    kinds = (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)
+    expect = []
+    for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux)):
+        gn = GaussNewton(n, kind)
+        gn.run(pts, n, 20, a)
+        expect.append("%d:%d:%d:%d" % (gn.status, gn.iterations, gn.rejected, gn.p[6]))
+    assert out == expect, (out, expect)
+    print(expect)
+    assert expect[1].startswith("0:") and int(expect[1].split(":")[2]) >= 2

@@ -132,3 +132,122 @@ def test_optimiser_stays_below_2_62_on_realistic_input(rng):
         worst = max(worst, tr.max_abs)
         assert tr.big > 0  # the documented cost on 32-bit ports is real, not hypothetical
     assert worst < 1 << 62
+
+
+# --- the default profile's fit: every intermediate below 2**30 -------------------------------
+
+def _fit_corners():
+    import itertools
+    F = fixed
+    kd = (F.FIT_K_DIAG_MIN, F.FIT_K_DIAG_MAX)
+    ko = (-F.FIT_K_OFF_MAX, F.FIT_K_OFF_MAX)
+    oo = (-F.FIT_O_MAX, F.FIT_O_MAX)
+    for p in itertools.product(kd, kd, kd, ko, ko, ko, oo, oo, oo):
+        yield list(p)
+
+
+def test_gauss_newton_rows_stay_small_at_the_fit_region_corners():
+    """model.residual and residual_jacobian (the default fit's rows) at every corner of the fit
+    region (k_ii 0.5 or 2, |k_ij| and |o| 0.5) and readings at the fit's clamp (+-2.048 g per
+    axis) in every octant: no intermediate reaches 2^30."""
+    import itertools
+    from acal import model
+    tr = Tracer()
+    T = traced(tr)
+    w = model.FIT_W_MAX
+    d = [0] * 9
+    for p in _fit_corners():
+        pt = [T(v) for v in p]
+        for u in itertools.product((-w, w), repeat=3):
+            model.residual(pt, T(u[0]), T(u[1]), T(u[2]))
+            model.residual_jacobian(pt, T(u[0]), T(u[1]), T(u[2]), d)
+    assert tr.ops > 100000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
+
+
+def test_effects_fit_form_stays_small_at_its_clamps():
+    """effects.correct_u (the fit's form) for every effect with parameters at 4x their bounds
+    (the fit region) and at the Jacobian rows' 2^22, readings at +-2.048 g, dT and dt at and far
+    past their clamps; and model.remove_effects over all four effects in every order."""
+    import itertools
+    from acal import effects, model
+    tr = Tracer()
+    T = traced(tr)
+    w = model.FIT_W_MAX
+    kinds = tuple(effects.NAMES)
+    for kind in kinds:
+        for bound in (4 * effects.BOUNDS[kind], (1 << 22) - 1):
+            for sgn in itertools.product((-1, 1), repeat=3):
+                p = [T(s * bound) for s in sgn]
+                for u0 in (-w, w, 0):
+                    for dT in (-1000, -32, 0, 32, 1000):
+                        for dt in (-(1 << 28), -effects.FIT_TIME_MAX, 0, effects.FIT_TIME_MAX, 1 << 28):
+                            u = [T(u0), T(-u0), T(w)]
+                            effects.correct_u(kind, p, 0, u, T(dT), T(dt))
+    for order in itertools.permutations(kinds):
+        for sgn in (-1, 1):
+            p = [0] * 9 + [T(sgn * 4 * effects.BOUNDS[k]) for k in order for _ in range(3)]
+            for u0 in (-w, w):
+                u = [T(u0), T(-u0), T(u0)]
+                model.remove_effects(p, order, u, 0, T(sgn * 1000), T(-sgn * (1 << 28)))
+                assert max(abs(int(v)) for v in u) <= w
+    assert tr.big == 0, (tr.big, np.log2(tr.max_abs))
+
+
+def test_solver_stays_small_on_ill_conditioned_systems(rng):
+    """acal/solve.py on normal equations as the default fit builds them (A = sum d d^T over up
+    to 128 rows, each column scaled to |d| < 2^11, so entries reach 2^29) for 9 and 21
+    unknowns, condition numbers up to 10^8, right-hand sides from 1 to 2^28 and damping from
+    none to MU_MAX: no intermediate reaches 2^30; undamped, with condition numbers up to 10^4,
+    it solves them, to 2e-3 of the float solution's size."""
+    from acal.gaussnewton import MU_MAX
+    from acal.solve import Solver
+    tr = Tracer()
+    T = traced(tr)
+    worst = 0.0
+    refused = 0
+    for n in (9, 21):
+        s = Solver(n)
+        for trial in range(40):
+            rows = int(rng.integers(n + 1, 129))
+            q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+            decades = rng.uniform(0, 4) if trial % 2 == 0 else rng.uniform(0, 8)
+            d = rng.normal(size=(rows, n)) @ (q * np.logspace(0, -decades / 2, n)) @ q.T
+            d = np.round(d / np.abs(d).max(axis=0) * 2047).astype(np.int64)
+            a = d.T @ d
+            b = np.round(rng.normal(size=n) * 2.0 ** rng.uniform(0, 28))
+            mu = 0 if trial % 2 == 0 else int(rng.choice([0, 1, 85, MU_MAX]))
+            want = np.linalg.solve(a.astype(float), b)
+            k = int(20 - np.ceil(np.log2(np.abs(want).max())))   # x ~ 2^20
+            x = [0] * n
+            ok = s.solve([T(int(v)) for v in a.ravel()], [T(int(v)) for v in b], x, n, T(mu),
+                         [T(k)] * n)
+            if trial % 2 == 0 and np.linalg.cond(a) < 1e4:
+                assert ok, (n, decades)
+                err = np.abs(np.array(x, float) - want * 2.0 ** k).max() / 2.0 ** 20
+                worst = max(worst, err)
+            refused += not ok
+    assert tr.big == 0, (tr.big, np.log2(tr.max_abs))
+    assert worst < 2e-3, worst
+    assert refused > 0   # the guard does refuse the worst-conditioned
+
+
+def test_default_fit_stays_small_on_hostile_points(rng):
+    """The whole default fit, traced: 72 points with outliers at the clamp, points past it,
+    a composed model of all four effects with dT and dt past their clamps."""
+    from acal import effects
+    from acal.gaussnewton import GaussNewton
+    from accelcal import simulate
+    d = rng.normal(size=(72, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    v = simulate.uncorrect(np.array([1.2, 0.8, 1.1, 0.1, -0.1, 0.1, 0.2, -0.2, 0.2]), d)
+    v[:6] = [[16, -16, 16], [2.1, 2.1, 2.1], [0, 0, 0], [-3, 0, 0], [0.5, 0.5, 0.5], [1, 1, 1]]
+    pts = [int(c) for c in np.round(v * 65536).astype(np.int64).ravel()]
+    aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=144)]
+    aux[0::2] = [int(x) for x in rng.integers(-200, 200, size=72)]
+    kinds = tuple(effects.NAMES)
+    for k, a in (((), None), (kinds, aux)):
+        tr = Tracer()
+        T = traced(tr)
+        gn = GaussNewton(72, k)
+        gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
+        assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))

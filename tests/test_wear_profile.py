@@ -22,12 +22,21 @@ def q16(v):
     return np.round(np.asarray(v) * fixed.POINT_ONE_G).astype(np.int64)
 
 
+def float_residuals(v, p):
+    k = np.array([[p[0], 0, 0], [p[3], p[1], 0], [p[4], p[5], p[2]]])
+    a = (v + p[6:9]) @ k.T
+    return (a * a).sum(axis=1) - 1.0
+
+
+def float_objective(v, p_q24):
+    """The paper's square-root-free objective, in float, at the device's parameters (Q24)."""
+    return float((float_residuals(v, np.asarray(p_q24, float) / 2.0 ** 24) ** 2).sum())
+
+
 def float_optimum(v):
     """The float minimiser of the paper's square-root-free objective sum((|a|^2 - 1)^2)."""
     def res(p):
-        k = np.array([[p[0], 0, 0], [p[3], p[1], 0], [p[4], p[5], p[2]]])
-        a = (v + p[6:9]) @ k.T
-        return (a * a).sum(axis=1) - 1.0
+        return float_residuals(v, p)
     r = least_squares(res, [1, 1, 1, 0, 0, 0, 0, 0, 0], xtol=1e-15, ftol=1e-15, gtol=1e-15)
     return r.x, float((r.fun ** 2).sum())
 
@@ -40,7 +49,9 @@ def test_fit_reaches_the_float_optimum_of_its_points(rng):
         gn = GaussNewton(72, reject=False)
         assert gn.run(q.ravel().tolist(), 72) == optimiser.OK
         p_float, f_float = float_optimum(q / fixed.POINT_ONE_G)
-        ratios.append(gn.objective / 2.0 ** fixed.OBJ_Q / f_float)
+        ratios.append(float_objective(q / fixed.POINT_ONE_G, gn.p) / f_float)
+        # the device's own objective (Q24 g^4, floored) says the same to its resolution
+        assert abs(gn.objective / 2.0 ** gn.OBJ_Q - f_float) <= 1e-3 * f_float + 72 * 2.0 ** -24
         gaps.append(np.abs(np.array(gn.p) / 2.0 ** 24 - p_float).max())
         assert gn.iterations <= 8
     assert max(ratios) < 1.001, max(ratios)          # target: within 1.02x
@@ -63,7 +74,7 @@ def test_paper_gradient_descent_stops_short_where_gauss_newton_does_not(rng):
     gd.run(pts, 72, 50)
     gn = GaussNewton(72, reject=False)
     gn.run(pts, 72)
-    assert gn.objective / 2.0 ** fixed.OBJ_Q / f_float < 1.001
+    assert float_objective(q16(v) / fixed.POINT_ONE_G, gn.p) / f_float < 1.001
     assert gd.objective / 2.0 ** fixed.OBJ_Q / f_float > 1.5
 
 
@@ -245,7 +256,7 @@ def test_composed_gauss_newton_reaches_the_float_optimum(name):
     best = least_squares(res, x0, xtol=1e-15, ftol=1e-15, gtol=1e-15)
     f_float = float((best.fun ** 2).sum())
     dev = np.r_[np.array(gn.p[:9]) / 2.0 ** 24, e.from_int(gn.p[9:])]
-    assert gn.objective / 2.0 ** fixed.OBJ_Q / f_float < 1.02
+    assert gn.objective / 2.0 ** gn.OBJ_Q / f_float < 1.02
     assert np.abs(dev[9:] - theta).max() < 0.2 * np.abs(theta).max()
 
 

@@ -206,7 +206,8 @@ class Processor:
         number = self.calibrations + 1
         values = (self.index, number, status, o.iterations,
                   o.n if pipe.fit == profiles.NEWTON else pipe.bins.total(),
-                  _sat32(o.objective_start >> 16), _sat32(o.objective >> 16)) + tuple(o.p[:N_PARAMS])
+                  _sat32(o.objective_start >> (o.OBJ_Q - 24)),
+                  _sat32(o.objective >> (o.OBJ_Q - 24))) + tuple(o.p[:N_PARAMS])
         self.log.write(log.CAL, *values)
         extra = []
         for j in range(len(self.kinds)):

@@ -18,6 +18,12 @@
 #   Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days; both
 #   clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
+#   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
+#   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
+#   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region) - or, for the Jacobian rows of
+#   gaussnewton.py, parameters below 2**22 - the wide products go through acal/wide.py, whose
+#   floors equal the plain (a * b) >> s.
+from acal.wide import mul_shift
 try:
     from micropython import const
 except ImportError:
@@ -32,6 +38,7 @@ NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", N
 DT_UNIT_S = const(64)
 APPLY_DT_MAX = const(32)          # degC either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
+FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
 # |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
 # d 20 mg/day, q 5 %/g.
 BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
@@ -76,20 +83,30 @@ def model_kinds(code):
 
 def correct_u(kind, p, j, u, dT, dt, at=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
-    place; the fit's form."""
+    place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
+    see the formats above); every intermediate stays below 2**30 (acal/wide.py)."""
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
     if kind == TEMP_OFFSET:
         for i in range(3):
             u[at + i] -= (p[j + i] * dT) >> 4
     elif kind == TEMP_SCALE:
         for i in range(3):
-            u[at + i] -= (((p[j + i] * dT) >> 4) * u[at + i]) >> 24
+            u[at + i] -= mul_shift((p[j + i] * dT) >> 4, u[at + i], 24)
     elif kind == DRIFT:
+        if dt > FIT_TIME_MAX:
+            dt = FIT_TIME_MAX
+        elif dt < -FIT_TIME_MAX:
+            dt = -FIT_TIME_MAX
         for i in range(3):
-            u[at + i] -= (p[j + i] * dt) >> 11
+            u[at + i] -= mul_shift(p[j + i] << 5, dt, 16)   # (p dt) >> 11
     elif kind == NONLINEAR:
         for i in range(3):
             v = u[at + i]
-            u[at + i] = v - ((p[j + i] * ((v * v) >> 24)) >> 24)
+            u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
 
 
 def apply_params(kind, p, j, k, m):

@@ -3,60 +3,86 @@
 # optimum of its points instead of a fixed 50 gradient steps; then integer outlier rejection:
 # points whose residual stands far above the others' are dropped and the fit runs again.
 #
-# Sliced: begin() loads the points, each step() does a bounded piece of work (SLICE_POINTS
-# points, one solve or a share of the sort) and returns True when the fit has ended, so the app
+# Sliced: begin() loads the points, each step() does a bounded piece of work (a point, or half
+# of one for a composed model; a few rows of the solve; a share of the sort) and returns True when the fit has ended, so the app
 # runs it between FIFO reads; run() is begin() and every step at once, the same integers.
 #
-# Formats (fixed.py): points u Q24 g, parameters Q24, residuals Q30 g^2 (model.residual).
-# Jacobian rows d = J 2**13 (model.residual_jacobian: analytic for the 9 parameters; an
-# effect's, linear in its parameters, is its own correction with the offsets' sensitivities in
-# place of its parameters: effects.correct_u, the one definition of each effect), |d| ~ 2**14.
-# The normal equations, with J = d 2**-13, r = r_Q30 2**-30 and the step in Q24 LSB:
-#   (sum d d^T) step = -2**STEP_SHIFT sum d r,          STEP_SHIFT = 2 * 13 - 30 - 13 + 24 = 7
-# sum d d^T < 144 * 2**30 and |sum d r| < 144 * 2**15 * 2**31: below 2**53, << 7 below 2**60
-# (acal/solve.py takes them from there).  The objective is model.objective's, Q40 g^4.
-from acal.fixed import N_PARAMS, F_SHIFT
+# Every intermediate stays below 2**30, so a fit allocates nothing on a 32-bit port (an RP2040 or
+# ESP32 keeps |int| < 2**30 unboxed): products wider than that go through acal/wide.py, and the
+# sums are scaled as they grow (block floating point), per column and for the residuals.
+# Formats (fixed.py, model.py): points u Q24 g, clamped to +-2.048 g per axis; parameters Q24;
+# residuals r Q22 g^2 (model.residual); raw Jacobian rows d = J / 2 in 2**-QD_BASE (24) per
+# parameter unit for the 9 parameters and 2**-QD_EFFECT (16) for an effect's (model.
+# residual_jacobian; an effect's row is its own correction with the offsets' rows >> 8 in place
+# of its parameters: effects.correct_u, the one definition of each effect).
+# Scaled for the sums: r~ = round(r 2**-tau) and d~_k = round(d_k 2**-s_k), with tau and each s_k
+# the smallest that keep |r~|, |d~_k| <= 2**11 over the points so far (a sum is shifted down
+# when its scale grows), so that with n <= MAX_POINTS = 128 points
+#   A = sum d~ d~^T, b = sum d~ r~ and f = sum floor(r^2 4**-tau) all stay below 2**29.
+# The Gauss-Newton step (J^T J + lambda diag) delta = -J^T r is then, in Q24 LSB of each
+# parameter,  (A + lambda diag A) z = -b,  delta_k = z_k 2**(tau + 1 - s_k + QD_k)
+# (J = 2 d~ 2**(s - QD), r = r~ 2**(tau - 22)), solved by acal/solve.py.
+# The objective f is in 2**(2 tau - 44) g^4; objective and objective_start are reported in
+# Q24 g^4 (OBJ_Q), saturated at 2**30 - 1.
+from acal.fixed import N_PARAMS, POINT_TO_PARAM_SHIFT
 from acal import effects
 from acal import model
+from acal.model import FIT_W_MAX
+from acal.wide import mul_shift
 from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
-SLICE_POINTS = 1          # points per step() (README "Sliced fit": the RP2040 estimate)
+TRIAL_POINTS = 1          # residuals per step() of a trial (README "Sliced fit")
 SORT_POINTS = 2           # points inserted per step() of the sort
-STEP_SHIFT = 7
-MU_SHIFT = 8              # damping: diagonal * (1 + mu 2**-8); mu 0 is plain Gauss-Newton
-MU_MAX = 1 << 24
+REJECT_POINTS = 8         # points sifted per step() of the rejection
+MAX_POINTS = 128          # the sums' bound (above)
+QD_BASE = 24
+QD_EFFECT = 16
+R_MAX = 1 << 18           # |r~| <= 2**18
+D_MAX = 1 << 11           # |d~| <= 2**11
+B_MASK = 511
+B_SPLIT = 9               # b in two limbs: sum d~ (r~ >> 9) 2**9 + sum d~ (r~ & 511)
+F_SHIFT = 7               # f reads r 2**-(tau + 7): |r| 2**-(tau + 7) <= 2**11
+TRIAL_MAX = 1 << 13       # a trial residual past 2**(13 + tau + 7): the trial is worse
+F_LIMIT = 1 << 29
+RHS_HI_MAX = 1 << (28 - 9 - 1)   # the high limb's bound for -b below 2**28
+OBJ_Q = 24
+OBJ_MAX = 0x3FFFFFFF      # 2**30 - 1
+MU_MAX = 1 << 24          # damping lambda = mu 2**-8; mu 0 is plain Gauss-Newton
 CONVERGED_SHIFT = 14      # converged when a step lowers the objective by < 2**-14 of it
 MAX_REFUSED = 6           # refused steps in a row: as far as the integers go
 # Outlier rejection: |r| above REJECT_MUL x the median |r| (~4 standard deviations of Gaussian
 # residuals) and above REJECT_MIN (4 mg of | |a| - 1 g |, as r ~ 2 (|a| - 1)); up to
 # REJECT_ROUNDS rounds of dropping and refitting.
 REJECT_MUL = 6
-REJECT_MIN = (8 << 30) // 1000
+REJECT_MIN = (8 << model.GN_R_Q) // 1000
 REJECT_ROUNDS = 3
 
 _ACCUM = 0   # residuals and Jacobian rows at p, point by point
-_SOLVE = 1   # the damped normal equations
-_SCALE = 2   # ... scaled (solve.Solver.begin)
-_ELIM = 3    # ... and solved, a pivot row a step -> a trial step
-_TRIAL = 4   # the objective at the trial parameters, point by point
-_SORT = 5    # |r| sorted, point by point, for the median
-_REJECT = 6  # the points above the limit dropped
-_DONE = 7
+_SOLVE = 1   # the damped normal equations, scaled (solve.Solver.begin)
+_ELIM = 2    # ... and solved, a few rows a step -> a trial step
+_TRIAL = 3   # the objective at the trial parameters, point by point
+_SORT = 4    # |r| sorted, point by point, for the median
+_REJECT = 5  # the points above the limit dropped
+_DONE = 6
 
 
 class GaussNewton:
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
     model, acal/effects.py; aux holds each point's dT and dt).  reject: outlier rejection after
-    the fit.  Buffers for up to max_points points are allocated once.
+    the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
 
     After the fit: p (Q24), status (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED),
-    iterations (accepted steps, every round), objective and objective_start (Q40 g^4, over the
-    points kept / all points at p0), n (points kept), rejected, and keep[i] 1/0 for each of the
-    points given to begin() in their order."""
+    iterations (accepted steps, every round), objective and objective_start (Q24 g^4, OBJ_Q,
+    over the points kept / all points at p0), n (points kept), rejected, and keep[i] 1/0 for
+    each of the points given to begin() in their order."""
+
+    OBJ_Q = OBJ_Q
 
     def __init__(self, max_points=72, kinds=(), reject=True):
+        if max_points > MAX_POINTS:
+            raise ValueError("at most 128 points: the fit's sums are sized for them")
         self.max_points = max_points
         self.kinds = tuple(kinds)
         self.reject = reject
@@ -66,19 +92,23 @@ class GaussNewton:
         self.aux = [0] * (2 * max_points)
         self.index = [0] * max_points
         self.keep = [0] * max_points
-        self.r = [0] * max_points       # residuals at p
+        self.r = [0] * max_points       # residuals at p (Q22 g^2)
         self.rt = [0] * max_points      # residuals at the trial parameters
         self.srt = [0] * max_points     # |r| being sorted
         self.p = [0] * np_
         self.pt = [0] * np_
         self.d = [0] * np_
-        self.a = [0] * (np_ * np_)      # sum d d^T, lower triangle
-        self.b = [0] * np_              # sum d r
-        self.m = [0] * (np_ * np_)      # the damped system
+        self.a = [0] * (np_ * np_)      # sum d~ d~^T, lower triangle
+        self.b = [0] * np_              # sum d~ r~, high limb (units of 2**B_SPLIT)
+        self.bl = [0] * np_             # ... low limb, in [0, 2**B_SPLIT) between points
+        self.sh = [0] * np_             # column scales s_k
+        self.qd = [QD_BASE if k < N_PARAMS else QD_EFFECT for k in range(np_)]
         self.rhs = [0] * np_
+        self.xshift = [0] * np_
         self.step_ = [0] * np_
         self.w = [0, 0, 0]
         self.z = [0, 0, 0]
+        self.q = [0, 0, 0]
         self.solver = Solver(np_)
         self.status = OK
         self.phase = _DONE
@@ -93,8 +123,16 @@ class GaussNewton:
         self.pos = 0
         self.f = 0
         self.ft = 0
+        self.tau = 0
+        self.f_start = 0
+        self.tau_start = 0
         self.mu = 0
         self.refused = 0
+        self.limit = 0
+        self.kept = 0
+        self.rh = 0
+        self.rl = 0
+        self.row_ready = False
         self.first = True
 
     # -- the fit as a whole ---------------------------------------------------------------------
@@ -120,19 +158,32 @@ class GaussNewton:
         self.objective = 0
         self.objective_start = 0
         self.first = True
-        model.load_points(pts, n, self.u)
+        u = self.u
+        lim = FIT_W_MAX >> POINT_TO_PARAM_SHIFT
+        for i in range(3 * n):
+            v = pts[i]
+            if v > lim:
+                v = lim
+            elif v < -lim:
+                v = -lim
+            u[i] = v << POINT_TO_PARAM_SHIFT
+        index = self.index
+        keep = self.keep
         for i in range(n):
-            self.index[i] = i
-            self.keep[i] = 1
-            if self.kinds:
-                self.aux[2 * i] = aux[2 * i]
-                self.aux[2 * i + 1] = aux[2 * i + 1]
+            index[i] = i
+            keep[i] = 1
+        if self.kinds:
+            for i in range(2 * n):
+                self.aux[i] = aux[i]
         model.identity(self.p)
         if start is not None:
             for i in range(N_PARAMS):
                 self.p[i] = start[i]
         for i in range(N_PARAMS, self.n_params):
             self.p[i] = 0
+        for k in range(self.n_params):
+            self.sh[k] = 12 if k < N_PARAMS else 4   # ~1 g rows: 2**24, 2**16 -> 2**11
+        self.tau = 0
         if n < self.n_params:
             self.status = TOO_FEW
             self.phase = _DONE
@@ -147,12 +198,20 @@ class GaussNewton:
 
     def _accum_start(self):
         np_ = self.n_params
-        for i in range(np_ * np_):
-            self.a[i] = 0
+        a = self.a
+        for k in range(np_):   # the lower triangle, the part the sums use
+            row = k * np_
+            for j in range(k + 1):
+                a[row + j] = 0
         for i in range(np_):
             self.b[i] = 0
+            self.bl[i] = 0
+            if self.sh[i]:
+                self.sh[i] -= 1   # the columns' scales start a bit below the last pass's
+        self.tau = 0              # the residuals' scale from the smallest
         self.f = 0
         self.pos = 0
+        self.row_ready = False
         self.phase = _ACCUM
 
     def step(self):
@@ -162,11 +221,6 @@ class GaussNewton:
             self._accum()
         elif ph == _SOLVE:
             self._solve()
-        elif ph == _SCALE:
-            if self.solver.begin(self.m, self.rhs, self.step_, self.n_params):
-                self.phase = _ELIM
-            else:
-                self._undetermined()
         elif ph == _ELIM:
             self._elim()
         elif ph == _TRIAL:
@@ -187,7 +241,7 @@ class GaussNewton:
         return model.residual(p, u[at], u[at + 1], u[at + 2])
 
     def _row(self, i):
-        # Residual of point i at p, its Jacobian row into d.
+        # Residual of point i at p, its raw Jacobian row into d.
         p = self.p
         d = self.d
         u = self.u
@@ -197,62 +251,148 @@ class GaussNewton:
             return model.residual_jacobian(p, u[at], u[at + 1], u[at + 2], d)
         w = self.w
         z = self.z
+        q = self.q
         dT = self.aux[2 * i]
         dt = self.aux[2 * i + 1]
         for c in range(3):
             w[c] = u[at + c]
         model.remove_effects(p, kinds, w, 0, dT, dt)
         r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
+        for c in range(3):
+            q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
         for k in range(len(kinds)):
-            # dr/dtheta = dr/do . dw/dtheta: the correction with d[6:9] as its parameters
+            # dr/dtheta = dr/do . dw/dtheta: the correction with the offsets' rows as its
+            # parameters
             for c in range(3):
                 z[c] = u[at + c]
-            effects.correct_u(kinds[k], d, 6, z, dT, dt, 0)
+            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0)
             j = N_PARAMS + 3 * k
             for c in range(3):
                 d[j + c] = z[c] - u[at + c]
         return r0
 
     def _accum(self):
+        # One point a step; a composed model's point takes two: its scaled row, then the sums.
+        i = self.pos
+        if not self.row_ready:
+            self._scaled_row(i)
+            if self.kinds:
+                self.row_ready = True
+                return
+        self.row_ready = False
         d = self.d
         a = self.a
         b = self.b
+        bl = self.bl
+        rh = self.rh
+        rl = self.rl
         np_ = self.n_params
-        end = self.pos + SLICE_POINTS
-        if end > self.n:
-            end = self.n
-        for i in range(self.pos, end):
-            r0 = self._row(i)
-            self.r[i] = r0
-            self.f += (r0 * r0) >> F_SHIFT
-            for k in range(np_):
-                dk = d[k]
-                if dk:
-                    row = k * np_
-                    for j in range(k + 1):
-                        a[row + j] += dk * d[j]
-                    b[k] += dk * r0
-        self.pos = end
-        if end == self.n:
+        for k in range(np_):
+            dk = d[k]
+            if dk:
+                row = k * np_
+                for j in range(k + 1):
+                    a[row + j] += dk * d[j]
+                b[k] += dk * rh
+                v = bl[k] + dk * rl
+                b[k] += v >> B_SPLIT
+                bl[k] = v & B_MASK
+        i += 1
+        self.pos = i
+        if i == self.n:
             if self.first:
-                self.objective_start = self.f
+                self.f_start = self.f
+                self.tau_start = self.tau + F_SHIFT
+                self.objective_start = _q24(self.f, self.tau + F_SHIFT)
                 self.first = False
             self.phase = _SOLVE
 
+    def _scaled_row(self, i):
+        # Point i's residual into r and f, its row scaled into d (d~), r~ into rh, rl.
+        d = self.d
+        sh = self.sh
+        r0 = self._row(i)
+        self.r[i] = r0
+        # the residual's scale tau: grows (and shifts f and b down) as residuals grow
+        ar = r0 if r0 >= 0 else -r0
+        t = self.tau
+        if (ar >> t) >= R_MAX:
+            g = t
+            while (ar >> (g + 4)) >= R_MAX:
+                g += 4
+            while (ar >> g) >= R_MAX:
+                g += 1
+            self.tau = g
+            if i:   # the sums so far are zero at a pass's first point
+                self.f >>= 2 * (g - t)
+                self._shift_b(g - t)
+            t = g
+        self.f += _square(r0, t + F_SHIFT)
+        rs = (r0 + (1 << (t - 1))) >> t if t else r0
+        self.rh = rs >> B_SPLIT
+        self.rl = rs & B_MASK
+        # the columns' scales s_k, likewise
+        for k in range(self.n_params):
+            v = d[k]
+            s = sh[k]
+            av = v if v >= 0 else -v
+            if (av >> s) >= D_MAX:
+                g = s
+                while (av >> (g + 4)) >= D_MAX:
+                    g += 4
+                while (av >> g) >= D_MAX:
+                    g += 1
+                if i:
+                    self._grow(k, g - s)
+                s = g
+                sh[k] = g
+            d[k] = (v + (1 << (s - 1))) >> s if s else v
+
+    def _grow(self, k, g):
+        # Column k's scale grows by g bits: its row and column of A (the diagonal twice) and
+        # its entry of b shift down.
+        a = self.a
+        np_ = self.n_params
+        for j in range(np_):
+            if j < k:
+                a[k * np_ + j] >>= g
+            elif j > k:
+                a[j * np_ + k] >>= g
+        a[k * np_ + k] >>= 2 * g
+        self._shift_limbs(k, g)
+
+    def _shift_b(self, g):
+        for k in range(self.n_params):
+            self._shift_limbs(k, g)
+
+    def _shift_limbs(self, k, g):
+        # b_k = hi 2**9 + lo (lo in [0, 2**9)) -> floor(b_k 2**-g), in limbs again
+        hi = self.b[k]
+        h = hi >> g
+        self.b[k] = h
+        self.bl[k] = (((hi - (h << g)) << B_SPLIT) + self.bl[k]) >> g
+
     def _solve(self):
         np_ = self.n_params
-        a = self.a
-        m = self.m
-        mu = self.mu
+        b = self.b
+        bl = self.bl
+        # -b from its limbs, shifted down by e so that it lies below 2**28
+        e = 0
         for k in range(np_):
-            row = k * np_
-            for j in range(k):
-                m[row + j] = a[row + j]
-                m[j * np_ + k] = a[row + j]
-            dkk = a[row + k]
-            m[row + k] = dkk + ((dkk * mu) >> MU_SHIFT)
-            self.rhs[k] = -(self.b[k] << STEP_SHIFT)
-        self.phase = _SCALE
+            v = b[k] if b[k] >= 0 else -b[k]
+            while (v >> e) >= RHS_HI_MAX:
+                e += 1
+        for k in range(np_):
+            if e <= B_SPLIT:
+                self.rhs[k] = -((b[k] << (B_SPLIT - e)) + (bl[k] >> e))
+            else:
+                h = b[k] >> (e - B_SPLIT)
+                self.rhs[k] = -(h + ((((b[k] - (h << (e - B_SPLIT))) << B_SPLIT) + bl[k]) >> e))
+            self.xshift[k] = self.tau + 1 - self.sh[k] + self.qd[k] + e
+        if self.solver.begin(self.a, self.rhs, self.step_, np_, self.mu, self.xshift):
+            self.phase = _ELIM
+        else:
+            self._undetermined()
 
     def _undetermined(self):
         self.status = UNDETERMINED
@@ -287,18 +427,27 @@ class GaussNewton:
     def _trial(self):
         pt = self.pt
         rt = self.rt
-        end = self.pos + SLICE_POINTS
+        t = self.tau + F_SHIFT
+        end = self.pos + TRIAL_POINTS
         if end > self.n:
             end = self.n
         for i in range(self.pos, end):
             r = self._res(pt, i)
             rt[i] = r
-            self.ft += (r * r) >> F_SHIFT
+            if ((r if r >= 0 else -r) >> t) >= TRIAL_MAX:
+                self.ft = F_LIMIT
+            else:
+                self.ft += _square(r, t)
+                if self.ft > F_LIMIT:
+                    self.ft = F_LIMIT
         self.pos = end
         if end < self.n:
             return
         if self.ft >= self.f:
-            self._refuse()
+            if self.mu == 0 and self.ft - self.f <= (self.f >> CONVERGED_SHIFT):
+                self._fitted()   # the plain step changes f by less than its resolution
+            else:
+                self._refuse()
             return
         # accept: p <- pt, r <- rt (swapped, not copied)
         self.p, self.pt = self.pt, self.p
@@ -339,17 +488,24 @@ class GaussNewton:
             srt[j] = v
         self.pos = end
         if end == self.n:
+            med = self.srt[self.n >> 1]
+            limit = REJECT_MUL * med if med < (1 << 29) // REJECT_MUL else 1 << 29
+            self.limit = limit if limit > REJECT_MIN else REJECT_MIN
+            self.kept = 0
+            self.pos = 0
             self.phase = _REJECT
 
     def _reject(self):
+        # The points within the limit moved down over the dropped ones, REJECT_POINTS a step.
         r = self.r
-        limit = REJECT_MUL * self.srt[self.n >> 1]
-        if limit < REJECT_MIN:
-            limit = REJECT_MIN
         u = self.u
         aux = self.aux
-        kept = 0
-        for i in range(self.n):
+        limit = self.limit
+        kept = self.kept
+        end = self.pos + REJECT_POINTS
+        if end > self.n:
+            end = self.n
+        for i in range(self.pos, end):
             if -limit <= r[i] <= limit:
                 if kept != i:
                     for c in range(3):
@@ -361,6 +517,10 @@ class GaussNewton:
                 kept += 1
             else:
                 self.keep[self.index[i]] = 0
+        self.kept = kept
+        self.pos = end
+        if end < self.n:
+            return
         if kept == self.n:
             self._finish()
             return
@@ -374,12 +534,39 @@ class GaussNewton:
         self._restart()
 
     def _finish(self):
-        self.objective = self.f
+        self.objective = _q24(self.f, self.tau + F_SHIFT)
         p = self.p
-        if self.objective > self.objective_start and self.rejected == 0:
+        if _above(self.f, self.tau + F_SHIFT, self.f_start, self.tau_start) and self.rejected == 0:
             self.status = DIVERGED
         elif not model.in_bounds(p) or (self.kinds and not model.effects_within(p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
         else:
             self.status = OK
         self.phase = _DONE
+
+
+def _square(r, t):
+    # floor(r**2 4**-t) for |r| < 2**(13 + t), below 2**26, without a long.
+    k = 8 - t
+    if k > 0:
+        r <<= k
+        return mul_shift(r, r, 16)
+    return mul_shift(r, r, 2 * t)
+
+
+def _q24(f, t):
+    # f 2**(2t - 44) g^4 in Q24 g^4, saturated at OBJ_MAX.
+    s = 2 * t - 20
+    if s <= 0:
+        return f >> (-s)
+    if f > (OBJ_MAX >> s):
+        return OBJ_MAX
+    return f << s
+
+
+def _above(f1, t1, f2, t2):
+    # f1 4**t1 > f2 4**t2, exactly, without a long.
+    if t1 >= t2:
+        return f1 > (f2 >> (2 * (t1 - t2)))
+    h = f1 >> (2 * (t2 - t1))
+    return h > f2 or (h == f2 and f1 - (h << (2 * (t2 - t1))) > 0)

@@ -10,6 +10,7 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
+from acal.wide import mul_shift
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 
@@ -84,55 +85,78 @@ def objective(p, u, n):
     return total
 
 
+# The default profile's fit (acal/gaussnewton.py) reads residuals and Jacobian rows in formats
+# that keep every intermediate below 2**30, so that it allocates nothing on a 32-bit port:
+#   readings u clamped to +-FIT_W_MAX (2.048 g, the apply's clamp) per axis, v = u + o;
+#   a = K v in Q24 g (wide.mul_shift), |a| < 7.7 g inside the fit region;
+#   r = |a|^2 - 1 g^2 in Q22 g^2 (GN_R_Q; |a|^2 < 125 g^2 < 2**29 in Q22);
+#   Jacobian rows d = J / 2 in Q24 (g^2 per parameter unit) from a, v and K truncated to Q12:
+#   each product < 2**28.3 in the fit region, to ~2**-12 of itself (the fit's rows are scaled
+#   to 11 bits anyway, gaussnewton.py).
+GN_R_Q = 22
+FIT_W_MAX = APPLY_W_MAX << 10    # 2.048 g in Q24
+_ONE_G2_Q22 = 1 << GN_R_Q
+
+
 def residual(p, ux, uy, uz):
-    """r = |K (u + o)|^2 - 1 g^2 of one point u (Q24 g), in Q30 g^2: the term objective() squares
-    (the same shifts, so sum((r * r) >> F_SHIFT) is objective())."""
+    """r = |K (u + o)|^2 - 1 g^2 of one point u (Q24 g, |u| <= FIT_W_MAX per axis) in Q22 g^2,
+    every intermediate below 2**30 inside the fit region (fixed.py)."""
     ux += p[6]
     uy += p[7]
     uz += p[8]
-    ax = (p[0] * ux) >> A_SHIFT
-    ay = (p[3] * ux + p[1] * uy) >> A_SHIFT
-    az = (p[4] * ux + p[5] * uy + p[2] * uz) >> A_SHIFT
-    return (ax * ax + ay * ay + az * az - _ONE_G2_Q56) >> R_SHIFT
-
-
-# Jacobian rows (acal/gaussnewton.py) in units of 2**-13 per parameter unit: d = J 2**13, with
-# J = dr/dp in g^2 per unit of the parameter (r = |a|^2 - 1 g^2), so |d| ~ 2**14 at 1 g.  From
-# a (Q28) and u + o (Q24) or K (Q24): 2 a u 2**13 = (a u) >> 38, products < 2**54.
-J_SHIFT = 38
+    ax = mul_shift(p[0], ux, 24)
+    ay = mul_shift(p[3], ux, 24) + mul_shift(p[1], uy, 24)
+    az = mul_shift(p[4], ux, 24) + mul_shift(p[5], uy, 24) + mul_shift(p[2], uz, 24)
+    return mul_shift(ax, ax, 26) + mul_shift(ay, ay, 26) + mul_shift(az, az, 26) - _ONE_G2_Q22
 
 
 def residual_jacobian(p, ux, uy, uz, d):
     """residual() of one point (Q24 g, effects already removed) and its derivatives with
-    respect to the 9 parameters into d[0:9] (analytic: a = K (u + o), r = |a|^2 - 1)."""
+    respect to the 9 parameters, halved, into d[0:9] (Q24; analytic: a = K (u + o),
+    r = |a|^2 - 1, d = a da/dp)."""
     ux += p[6]
     uy += p[7]
     uz += p[8]
     kxx = p[0]
+    kyy = p[1]
+    kzz = p[2]
     kxy = p[3]
     kxz = p[4]
-    ax = (kxx * ux) >> A_SHIFT
-    ay = (kxy * ux + p[1] * uy) >> A_SHIFT
-    az = (kxz * ux + p[5] * uy + p[2] * uz) >> A_SHIFT
-    s = J_SHIFT
-    d[0] = (ax * ux) >> s
-    d[1] = (ay * uy) >> s
-    d[2] = (az * uz) >> s
-    d[3] = (ay * ux) >> s
-    d[4] = (az * ux) >> s
-    d[5] = (az * uy) >> s
-    d[6] = (ax * kxx + ay * kxy + az * kxz) >> s
-    d[7] = (ay * p[1] + az * p[5]) >> s
-    d[8] = (az * p[2]) >> s
-    return (ax * ax + ay * ay + az * az - _ONE_G2_Q56) >> R_SHIFT
+    kyz = p[5]
+    ax = mul_shift(kxx, ux, 24)
+    ay = mul_shift(kxy, ux, 24) + mul_shift(kyy, uy, 24)
+    az = mul_shift(kxz, ux, 24) + mul_shift(kyz, uy, 24) + mul_shift(kzz, uz, 24)
+    r = mul_shift(ax, ax, 26) + mul_shift(ay, ay, 26) + mul_shift(az, az, 26) - _ONE_G2_Q22
+    ax >>= 12
+    ay >>= 12
+    az >>= 12
+    ux >>= 12
+    uy >>= 12
+    uz >>= 12
+    d[0] = ax * ux
+    d[1] = ay * uy
+    d[2] = az * uz
+    d[3] = ay * ux
+    d[4] = az * ux
+    d[5] = az * uy
+    d[6] = ax * (kxx >> 12) + ay * (kxy >> 12) + az * (kxz >> 12)
+    d[7] = ay * (kyy >> 12) + az * (kyz >> 12)
+    d[8] = az * (kzz >> 12)
+    return r
 
 
 def remove_effects(p, kinds, w, at, dT, dt):
     """Remove a composed model's effects (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) from
-    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in."""
+    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in.
+    Each result is clamped to +-FIT_W_MAX, as the apply clamps it (fixed.APPLY_W_MAX)."""
     k = len(kinds) - 1
     while k >= 0:
         effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at)
+        for c in range(at, at + 3):
+            if w[c] > FIT_W_MAX:
+                w[c] = FIT_W_MAX
+            elif w[c] < -FIT_W_MAX:
+                w[c] = -FIT_W_MAX
         k -= 1
 
 

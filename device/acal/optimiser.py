@@ -8,8 +8,8 @@
 # which the paper's rates alpha_s = 0.3, alpha_m = 0.8, alpha_o = 0.2 converge (with the plain sum
 # the scale step is N times too large and diverges; README "Learning-rate scaling").
 # Formats: fixed.py.  Failure is reported, never returned as parameters: see the status codes.
-from acal.fixed import (H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE, ALPHA_MISALIGN,
-                        ALPHA_OFFSET)
+from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE,
+                        ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal import model
 
 OK = 0
@@ -48,6 +48,8 @@ class Optimiser:
 
     Sliced: begin() then step() until it returns True does what run() does, the same integers;
     a step is one evaluation of the objective (the app runs one between FIFO reads)."""
+
+    OBJ_Q = OBJ_Q
 
     def __init__(self, max_points=18, alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=()):
         self.max_points = max_points

@@ -77,7 +77,8 @@ class Pipeline:
         self.worn = True
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
-        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 1 the model's own
+        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 1 the
+        # model's own
         self.n_fit = 0     # points gathered for the fit
 
     def offer(self, x, y, z):
@@ -146,11 +147,14 @@ class Pipeline:
         fit failed or ended worse than the base fit keeps the base fit's parameters (effects
         zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
         if self.stage == 0:
+            if self.base_fit.step():
+                self.stage = 2   # the model's own fit begins in a slice of its own
+            return False
+        if self.stage == 2:
             b = self.base_fit
-            if b.step():
-                self.stage = 1
-                self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
-                                     b.p if b.status == OK else None)
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
+                                 b.p if b.status == OK else None)
             return False
         if not self.optimiser.step():
             return False
@@ -159,7 +163,7 @@ class Pipeline:
         if b is not None and b.status == OK:
             if o.status != OK:
                 self._keep_base(BASE_KEPT_FAILED)
-            elif o.objective * b.n > b.objective * o.n:  # mean over the points each kept
+            elif _mean_above(o.objective, o.n, b.objective, b.n):
                 self._keep_base(BASE_KEPT_WORSE)
         if self.fit == NEWTON and o.rejected:
             pts = self.points
@@ -180,6 +184,15 @@ class Pipeline:
         o.iterations = b.iterations
         o.objective = b.objective
         o.status = why
+
+
+def _mean_above(f1, n1, f2, n2):
+    # f1 / n1 > f2 / n2 (objectives, the mean over the points each kept), without a long:
+    # both shifted alike to 22 bits, times n <= 128.
+    s = 0
+    while (f1 >> s) >= (1 << 22) or (f2 >> s) >= (1 << 22):
+        s += 1
+    return (f1 >> s) * n2 > (f2 >> s) * n1
 
 
 def _middle(cond, c, n):

@@ -1,34 +1,43 @@
-# Symmetric positive definite linear systems in integers: the normal equations of the default
-# profile's Gauss-Newton fit (acal/gaussnewton.py), n <= 21 unknowns.
+# Symmetric positive definite linear systems in integers: the damped normal equations of the
+# default profile's Gauss-Newton fit (acal/gaussnewton.py), n <= 21 unknowns, with every
+# intermediate below 2**30 (acal/wide.py), so that a solve allocates nothing on a 32-bit port.
 #
-# a x = b is solved by Gaussian elimination without pivoting (a is symmetric positive definite,
-# so the pivots are positive) on a scaled copy, in Q formats chosen so that every product stays
-# below 2**62 (unboxed on 64-bit ports; on 32-bit ones they are longs, README "Integer ranges"):
-#   * each unknown k is scaled by 2**-s_k (s_k >= 0) so that the scaled diagonal lies below
-#     2**DIAG_BITS; off-diagonals then obey |m_kl| <= sqrt(m_kk m_ll) < 2**DIAG_BITS;
-#   * b is scaled by the same 2**-s_k and by one common power of two so that max |b| lies in
-#     [2**(RHS_BITS-1), 2**RHS_BITS): the solution is linear in b, the shift is undone at the end;
-#   * multipliers in Q(MUL_Q); the solution in units of 2**-MUL_Q before the scales are undone.
+# (A + lambda diag A) x = b 2**xshift is solved, lambda = mu 2**-8, by Gaussian elimination
+# without pivoting (the system is symmetric positive definite, so the pivots are positive) on a
+# scaled copy:
+#   * each unknown k is scaled by 2**-s_k so that the scaled diagonal D_k lies in
+#     [2**(DIAG_BITS-2), 2**DIAG_BITS) (s_k < 0 scales a small one up); off-diagonals then obey |m_kl| <= sqrt(D_k D_l) < 2**DIAG_BITS, and so do
+#     the Schur complements as the elimination runs;
+#   * the damping divides the off-diagonals and b by 1 + lambda instead of multiplying the
+#     diagonal by it (the same system, divided through), so no entry grows with mu;
+#   * b is scaled by the same 2**-s_k and by one common power of two 2**-e so that max |c| lies
+#     in [2**(RHS_BITS-1), 2**RHS_BITS) (e found from bit lengths, never forming a long); e grows by 4 whenever the elimination or the back
+#     substitution would carry c or the solution past its bound (the solution is linear in b:
+#     e is undone at the end);
+#   * multipliers in Q(MUL_Q), < 2**27 (|m_ji / m_ii| <= sqrt(D_j / floor_i) <= 2**7);
+#     the solution y in units of 2**-MUL_Q, |y| < 2**23.
 # A pivot that falls below its row's scaled diagonal >> GUARD_SHIFT means the unknown is almost
 # a combination of the others (multiple correlation above 1 - 2**-GUARD_SHIFT): the data does not
-# determine it, and solve() says so instead of returning a huge step.  The guard also bounds the
-# multipliers: |m_ji / m_ii| <= 2**(GUARD_SHIFT / 2 + 1).
-DIAG_BITS = 26
-RHS_BITS = 24
+# determine it, and the solver says so instead of returning a huge step.  Rounding moves the
+# Schur complements by ~2**4 an update, far below the smallest floor (2**(DIAG_BITS-2-12)).
+from acal.wide import mul_shift, div_shift
+
+DIAG_BITS = 24
+RHS_BITS = 19
 MUL_Q = 20
 GUARD_SHIFT = 12
-
-
-def _shr(v, s):
-    # v * 2**-s, floor; s may be negative.
-    return v >> s if s >= 0 else v << (-s)
+ROWS_PER_STEP = 2     # rows eliminated per step(): the slice's size (README "Sliced fit")
+_Y_MAX_SHIFT = 3      # |y| < m_ii 2**3 2**-MUL_Q ... i.e. |y| < 2**(MUL_Q + 3)
+_T_MAX = 1 << 28      # bound of a back-substitution partial sum
+_MAX_RESCALES = 8
 
 
 class Solver:
     """Preallocated work space for systems of up to n_max unknowns (row-major n x n).
 
-    Sliced like the fit that uses it: begin() scales the system (O(n^2)), each step() eliminates
-    one pivot row (O(n^2) at most) and the last one back-substitutes; solve() does it all."""
+    Sliced like the fit that uses it: begin() finds the scales (O(n)), each step() prepares
+    or eliminates up to ROWS_PER_STEP rows, or back-substitutes one unknown; solve() does it
+    all.  a must stay unchanged until the rows are prepared."""
 
     def __init__(self, n_max):
         self.n_max = n_max
@@ -37,27 +46,34 @@ class Solver:
         self.y = [0] * n_max
         self.s = [0] * n_max
         self.floor = [0] * n_max
+        self.xshift = [0] * n_max
         self.n = 0
         self.i = 0
+        self.j = 0
         self.e = 0
+        self.rescales = 0
+        self.back = False
+        self.prep = 0
+        self.inv = 0
+        self.a = None
         self.x = None
         self.ok = False
 
-    def solve(self, a, b, x, n):
-        """Solve a x = b (a: n x n row-major ints, symmetric positive definite; b: n ints) into
-        x (n ints, floor-rounded).  Returns False, x untouched, when an unknown is not determined
-        (a pivot under its guard, or a diagonal <= 0)."""
-        if self.begin(a, b, x, n):
+    def solve(self, a, b, x, n, mu=0, xshift=None):
+        """Solve (a + mu 2**-8 diag a) x = b 2**xshift (a: n x n row-major ints, symmetric
+        positive definite, only the lower triangle read, entries below 2**29; b: n ints below
+        2**29; xshift: n ints or None for 0) into x (n ints, floor-rounded, saturated at
+        +-2**29).  Returns False, x untouched, when an unknown is not determined (a pivot under
+        its guard, a diagonal <= 0, or a solution the integers cannot hold)."""
+        if self.begin(a, b, x, n, mu, xshift):
             while not self.step():
                 pass
         return self.ok
 
-    def begin(self, a, b, x, n):
-        """Scale a copy of the system; False (and ok False) if a diagonal is <= 0."""
-        m = self.m
+    def begin(self, a, b, x, n, mu=0, xshift=None):
+        """Find the scales and scale b; False (and ok False) if a diagonal is <= 0."""
         c = self.c
         s = self.s
-        fl = self.floor
         self.n = n
         self.x = x
         self.ok = False
@@ -65,65 +81,177 @@ class Solver:
             d = a[k * n + k]
             if d <= 0:
                 return False
+            # s_k: D_k = d 4**-s_k in [2**(DIAG_BITS-2), 2**DIAG_BITS); s_k < 0 scales up
             sk = 0
             while (d >> (2 * sk)) >= (1 << DIAG_BITS):
                 sk += 1
+            if sk == 0:
+                while (d << (-2 * sk)) < (1 << (DIAG_BITS - 2)):
+                    sk -= 1
             s[k] = sk
+            self.xshift[k] = xshift[k] if xshift is not None else 0
+        self.inv = div_shift(1 << 8, 256 + mu, 16) if mu else 0   # 2**16 / (1 + lambda)
+        self.a = a
+        # e: max_k |b_k| 2**-s_k 2**-e in [2**(RHS_BITS-1), 2**RHS_BITS), from bit lengths
+        e = None
         for k in range(n):
-            for j in range(n):
-                m[k * n + j] = a[k * n + j] >> (s[k] + s[j])
-            fl[k] = m[k * n + k] >> GUARD_SHIFT
-        big = 0
+            v = b[k] if b[k] >= 0 else -b[k]
+            if v:
+                bits = 0
+                while (v >> (bits + 4)):
+                    bits += 4
+                while (v >> bits):
+                    bits += 1
+                ek = bits - s[k] - RHS_BITS
+                if e is None or ek > e:
+                    e = ek
+        if e is None:
+            e = 0
         for k in range(n):
-            v = b[k] >> s[k]
+            v = _shift_sat(b[k], -(s[k] + e))
+            if mu:
+                v = mul_shift(v, self.inv, 16)
             c[k] = v
-            if v < 0:
-                v = -v
-            if v > big:
-                big = v
-        e = 0  # c holds b_scaled * 2**-e
-        while big >= (1 << RHS_BITS):
-            big >>= 1
-            e += 1
-        while big and big < (1 << (RHS_BITS - 1)):
-            big <<= 1
-            e -= 1
-        for k in range(n):
-            c[k] = _shr(c[k], e)
         self.e = e
         self.i = 0
+        self.j = 1
+        self.prep = 0
+        self.back = False
+        self.rescales = 0
+        return True
+
+    def _prepare(self):
+        # Rows prep.. of the scaled (and damped) copy, ROWS_PER_STEP a step.
+        a = self.a
+        m = self.m
+        s = self.s
+        fl = self.floor
+        inv = self.inv
+        n = self.n
+        k = self.prep
+        end = k + ROWS_PER_STEP
+        if end > n:
+            end = n
+        while k < end:
+            for j in range(k):
+                v = _shift_sat(a[k * n + j], -(s[k] + s[j]))
+                if inv:
+                    v = mul_shift(v, inv, 16)
+                m[k * n + j] = v
+                m[j * n + k] = v
+            dk = _shift_sat(a[k * n + k], -2 * s[k])
+            m[k * n + k] = dk
+            fl[k] = dk >> GUARD_SHIFT
+            k += 1
+        self.prep = k
+
+    def _rescale(self):
+        # c >> 4 (floor), e + 4: the solution shrinks with it and is scaled back at the end.
+        self.rescales += 1
+        if self.rescales > _MAX_RESCALES:
+            return False
+        c = self.c
+        for k in range(self.n):
+            c[k] >>= 4
+        self.e += 4
         return True
 
     def step(self):
-        """Eliminate the next pivot row, or back-substitute after the last; True when done
-        (ok says whether x holds the solution)."""
+        """Eliminate the next rows below the current pivot, or back-substitute the next
+        unknown; True when done (ok says whether x holds the solution)."""
+        if self.back:
+            return self._back_step()
+        if self.prep < self.n:
+            self._prepare()
+            return False
         m = self.m
         c = self.c
         n = self.n
         i = self.i
-        if i < n:
-            piv = m[i * n + i]
+        if i >= n - 1:
+            if i == n - 1 and m[i * n + i] <= self.floor[i]:
+                return True
+            self._back_start()
+            return False
+        piv = m[i * n + i]
+        if self.j == i + 1:
             if piv <= self.floor[i] or piv <= 0:
                 return True
-            for j in range(i + 1, n):
-                mul = (m[j * n + i] << MUL_Q) // piv
-                if mul:
-                    for k in range(i + 1, n):
-                        m[j * n + k] -= (mul * m[i * n + k]) >> MUL_Q
-                    c[j] -= (mul * c[i]) >> MUL_Q
+            lim = 1 << RHS_BITS
+            for k in range(n):
+                while -lim >= c[k] or c[k] >= lim:
+                    if not self._rescale():
+                        return True
+        rows = ROWS_PER_STEP
+        j = self.j
+        while j < n and rows:
+            mji = m[j * n + i]
+            if mji:
+                if (mji if mji > 0 else -mji) >> 9 >= piv:
+                    return True   # beyond any Schur complement of an SPD system: rounding won
+                mul = div_shift(mji, piv, MUL_Q)
+                row = j * n
+                for k in range(i + 1, n):
+                    m[row + k] -= mul_shift(mul, m[i * n + k], MUL_Q)
+                c[j] -= mul_shift(mul, c[i], MUL_Q)
+            j += 1
+            rows -= 1
+        if j >= n:
             self.i = i + 1
-            return False
-        # Back substitution: y in units of 2**-MUL_Q, then x_k = y_k * 2**(e - MUL_Q - s_k).
+            self.j = i + 2
+        else:
+            self.j = j
+        return False
+
+    def _back_start(self):
+        self.back = True
+        self.i = self.n - 1
+
+    def _back_step(self):
+        # y_i = (c_i 2**MUL_Q - sum_k m_ik y_k) / m_ii, in units of 2**-MUL_Q; a sum or a y past
+        # its bound rescales c and starts the back substitution again.
+        m = self.m
         y = self.y
-        i = n - 1
-        while i >= 0:
-            acc = c[i] << MUL_Q
-            for k in range(i + 1, n):
-                acc -= m[i * n + k] * y[k]
-            y[i] = acc // m[i * n + i]
-            i -= 1
+        n = self.n
+        i = self.i
+        t = self.c[i]
+        row = i * n
+        for k in range(i + 1, n):
+            t -= mul_shift(m[row + k], y[k], MUL_Q)
+            if t >= _T_MAX or t <= -_T_MAX:
+                return self._back_restart()
+        piv = m[row + i]
+        if (t if t >= 0 else -t) >> _Y_MAX_SHIFT >= piv:
+            return self._back_restart()
+        y[i] = div_shift(t, piv, MUL_Q)
+        if i > 0:
+            self.i = i - 1
+            return False
+        # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
         x = self.x
         for k in range(n):
-            x[k] = _shr(y[k], MUL_Q - self.e + self.s[k])
+            x[k] = _shift_sat(y[k], self.e - MUL_Q - self.s[k] + self.xshift[k])
         self.ok = True
         return True
+
+    def _back_restart(self):
+        if not self._rescale():
+            return True
+        self.i = self.n - 1
+        return False
+
+
+_SAT = 1 << 29
+
+
+def _shift_sat(v, s):
+    # v * 2**s, floor; saturated at +-2**29 (a step that large leaves every fit region).
+    if s <= 0:
+        return v >> (-s)
+    if v == 0:
+        return 0
+    if v >= (_SAT >> s):
+        return _SAT
+    if v <= -(_SAT >> s):
+        return -_SAT
+    return v << s

@@ -19,9 +19,8 @@ BOARDS_DIR = ROOT / "boards"
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
 # The device modules an app needs (lis3dh_cp only on CircuitPython).
-APP_MODULES = ("__init__", "fixed", "effects", "rest", "bins", "model", "solve", "optimiser",
-               "gaussnewton", "profile", "pipeline", "lis3dh",
-               "log", "app")
+APP_MODULES = ("__init__", "fixed", "wide", "effects", "rest", "bins", "model", "solve",
+               "optimiser", "gaussnewton", "profile", "pipeline", "lis3dh", "log", "app")
 
 
 def boards() -> list[str]:

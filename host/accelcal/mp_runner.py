@@ -81,7 +81,9 @@ def run(lines, emit):
             status = pipe.calibrate()
             o = pipe.optimiser
             emit("Z %d %d" % (pipe.ref_temp, pipe.ref_time))
-            emit("F %d %d %d %d " % (status, o.iterations, o.objective_start, o.objective)
+            q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
+            emit("F %d %d %d %d " % (status, o.iterations, o.objective_start << q,
+                                     o.objective << q)
                  + " ".join([str(v) for v in o.p]))
             if pipe.fit == NEWTON:
                 emit("D %d " % o.n_given + " ".join([str(o.keep[i]) for i in range(o.n_given)]))
