@@ -192,6 +192,26 @@ def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, st
     assert int(out[1]) == 5000 and int(out[3]) == 0
 
 
+def test_acquisition_and_simulator_allocate_nothing_on_the_32_bit_port(tmp_path, stim, mp32):
+    """Where ints past 2^30 allocate (the WebAssembly port, as an RP2040): the app's per-sample
+    steps on the simulated chip, its clock started 100 s before the 2^30 us tick wrap, for 200 s
+    at 25 Hz (past the 43 s where the chip's stimulus index used to leave 2^30): the app, the
+    driver, the simulated chip, its bus and clock allocate nothing, and no sample is lost."""
+    path, _ = stim
+    script = tmp_path / "heap_app32.py"
+    script.write_text(HEAP_SCRIPT.replace(
+        "app = App(SimBoard(sys.argv[1]),",
+        "from vclock import Clock, TICKS_PERIOD\n"
+        "app = App(SimBoard(sys.argv[1], clock=Clock(0, TICKS_PERIOD - 100000000)),").replace(
+        'print("OK", k, app.samples, app.lost)',
+        'print("OK", k, app.samples, app.lost, app.board.clock.s, app.board.clock.ticks_us())'))
+    sim = str(ROOT / "host" / "accelcal" / "sim")
+    out = mp32(str(script), str(path), str(tmp_path), extra_path=[sim]).split()
+    assert out[0] == "OK", out
+    assert int(out[1]) == 5000 and int(out[3]) == 0
+    assert int(out[4]) * 10 ** 6 > (1 << 30) + 60 * 10 ** 6 and int(out[5]) < 200 * 10 ** 6  # wrapped
+
+
 def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
     """A wearer who rests 5 s in a new orientation every 5 s for 14 days (every rest segment
     differs, all of them logged were there no allowance), with hourly counters and calibrations
@@ -329,7 +349,7 @@ def test_the_app_across_the_tick_wrap(tmp_path, stim):
         d = tmp_path / name
         d.mkdir()
         clock = StallingClock(every=500, stall_us=400000)   # stalls: samples lost, the same ones
-        clock.us = start
+        clock.set_us(start)
         b = board(path, faults=30, clock=clock)
         app = run_app(d, b)
         runs[name] = (app, b, (d / "log.bin").read_bytes(), (d / "capture.bin").read_bytes())
@@ -347,7 +367,7 @@ from simboard import SimBoard
 from acal.app import App
 from acal import log
 os.chdir(sys.argv[2])
-app = App(SimBoard(sys.argv[1], 30), rate_hz=25, capture_bytes=0, recal_seconds=600)
+app = App(SimBoard(sys.argv[1], 100), rate_hz=25, capture_bytes=0, recal_seconds=600)
 app.run(10 ** 6)
 with open("log.bin", "rb") as f:
     data = f.read()
@@ -356,7 +376,7 @@ print(len(data), log.crc32(data), app.samples, app.lost, app.bus_errors, app.pro
 
 
 def test_the_apps_log_is_identical_on_every_runtime(tmp_path, stim, mp):
-    """The app on the simulated chip (3 % bus faults, the wear profile's sliced fit) writes the
+    """The app on the simulated chip (10 % bus faults, the wear profile's sliced fit) writes the
     same log.bin, byte for byte, under CPython and under each real MicroPython."""
     import subprocess
     path, _ = stim
@@ -373,3 +393,24 @@ def test_the_apps_log_is_identical_on_every_runtime(tmp_path, stim, mp):
     got = run(str(script), str(path), str(work[1]), extra_path=[sim]).split()
     assert got == host
     assert int(host[3]) > 0 and int(host[5]) >= 1   # samples lost to faults, a calibration
+
+
+def test_virtual_clock_ticks_match_the_modular_definitions(rng):
+    """The 32-bit-safe clock (seconds + microseconds, wrapped tick counters kept beside them)
+    against the plain definitions on unbounded ints: ticks_us = t mod 2^30, ticks_ms =
+    floor(t / 1000) mod 2^30, ticks_diff in [-2^29, 2^29) congruent to a - b."""
+    from vclock import TICKS_PERIOD
+    half = TICKS_PERIOD >> 1
+    for start in (0, TICKS_PERIOD - 5, TICKS_PERIOD * 1000 - 123456, 10 ** 12 + 999999):
+        c = Clock(start_us=start)
+        t = start
+        for us in list(rng.integers(1, 1 << 29, size=200)) + [1] * 50 + [999999, 1000000, 1001]:
+            c.sleep_us(int(us))
+            t += int(us)
+            assert c.now_us() == t
+            assert c.ticks_us() == t % TICKS_PERIOD
+            assert c.ticks_ms() == (t // 1000) % TICKS_PERIOD
+    for a, b in list(rng.integers(0, TICKS_PERIOD, size=(2000, 2))) + [(0, half), (half, 0),
+                                                                         (TICKS_PERIOD - 1, 0)]:
+        d = Clock().ticks_diff(int(a), int(b))
+        assert -half <= d < half and (d - (int(a) - int(b))) % TICKS_PERIOD == 0

@@ -101,3 +101,41 @@ def test_fifo_keeps_10_bits_and_counts_overrun(chip):
     assert d.fifo_level() == 0
     clock.sleep_us(2500 * 40)  # 40 samples into 32 places: 8 overwritten
     assert d.fifo_level() == 32 and d.overrun and c.dropped == 8
+
+
+class _IndexStimulus:
+    """A stimulus that records which sample the chip reads."""
+    rate_hz = 0
+
+    def __init__(self, rate_hz):
+        self.rate_hz = rate_hz
+        self.k = []
+        self.x = self.y = self.z = self.temp_mc = 0
+
+    def load(self, k):
+        self.k.append(k)
+        return True
+
+
+@pytest.mark.parametrize("odr", [1, 2, 3, 4, 5, 6, 7, 8, 9])
+def test_sample_times_and_stimulus_indices_are_the_plain_formulas(odr, rng):
+    """The simulated chip keeps time in seconds and microseconds (32-bit faithful); the samples
+    it converts and the stimulus samples they read are the plain unbounded-int formulas: sample
+    n at start + n * (10^6 // hz) us, reading stimulus sample floor(t * rate / 10^6), at every
+    ODR (1344 Hz's period does not divide a second), from clocks started anywhere."""
+    hz = (0, 1, 10, 25, 50, 100, 200, 400, 1600, 1344)[odr]
+    period = 10 ** 6 // hz
+    for start in (0, (1 << 30) - 777, 5 * 10 ** 11 + 123):
+        rate = int(rng.choice([10, 25, 100, 1000]))
+        stim = _IndexStimulus(rate)
+        c = Clock(start_us=start)
+        chip = SimLIS3DH(stim, c)
+        c.sleep_us(12345)
+        chip.write(0x20, bytearray([(odr << 4) | 7]), 0, 1)
+        t0 = c.now_us()
+        for _ in range(40):
+            c.sleep_us(int(rng.integers(1, 3 * 10 ** 6)))
+            chip.catch_up()
+            assert chip.generated == (c.now_us() - t0) // period
+        want = [((t0 + n * period - start) * rate) // 10 ** 6 for n in range(1, chip.generated + 1)]
+        assert stim.k == want

@@ -2,10 +2,12 @@
 #
 # Notation: "Qn g" means an int whose least significant bit is 2**-n g.
 # Small ints: 32-bit MicroPython ports keep |int| < 2**30 unboxed; past that an int is a
-# heap-allocated long.  The per-sample path (rest detector, apply) stays inside 2**30 for every
-# in-range input (tests/test_ranges.py proves it at the worst case).  The optimiser does not:
-# it needs ~50-bit products, which stay unboxed on 64-bit ports (< 2**62) and are longs on 32-bit
-# boards; README "Integer ranges" gives the account of what that costs.
+# heap-allocated long.  The per-sample path (rest detector, apply) and the default profile's fit
+# (gaussnewton.py, solve.py; its wide products through wide.py) stay inside 2**30 for every
+# in-range input (tests/test_ranges.py proves it at the worst case, tests/test_heap.py under
+# heap_lock on the 32-bit MicroPython).  The paper profile's gradient descent does not: its
+# objective (below) needs ~50-bit products, unboxed on 64-bit ports (< 2**62) and longs on
+# 32-bit boards; README "Integer ranges" gives the account of what that costs.
 try:
     from micropython import const
 except ImportError:  # CPython without Blinka
@@ -31,7 +33,8 @@ POINT_Q = const(16)
 POINT_ONE_G = const(65536)
 POINT_FROM_SAMPLE_SHIFT = const(6)  # POINT_Q - SAMPLE_Q
 
-# --- optimiser ----------------------------------------------------------------------------
+# --- optimiser (the paper profile's gradient descent; the default profile's fit reads its
+# own formats, written in model.py and gaussnewton.py) -------------------------------------
 # PARAM: every parameter in Q24: scales and misalignments dimensionless (1.0 = 2**24), offsets
 # in g (1 g = 2**24).  Points enter as u = (v << 8) + o, in Q24 g.
 PARAM_Q = const(24)

@@ -33,9 +33,9 @@ from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
-TRIAL_POINTS = 1          # residuals per step() of a trial (README "Sliced fit")
-SORT_POINTS = 2           # points inserted per step() of the sort
-REJECT_POINTS = 8         # points sifted per step() of the rejection
+TRIAL_POINTS = 4          # residuals per step() of a trial (README "Sliced fit")
+SORT_POINTS = 8           # points inserted per step() of the sort
+REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)
 QD_BASE = 24
 QD_EFFECT = 16
@@ -272,7 +272,7 @@ class GaussNewton:
         return r0
 
     def _accum(self):
-        # One point a step; a composed model's point takes two: its scaled row, then the sums.
+        # One point; a composed model's takes two calls: its scaled row, then the sums.
         i = self.pos
         if not self.row_ready:
             self._scaled_row(i)

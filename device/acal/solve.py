@@ -26,7 +26,7 @@ DIAG_BITS = 24
 RHS_BITS = 19
 MUL_Q = 20
 GUARD_SHIFT = 12
-ROWS_PER_STEP = 2     # rows eliminated per step(): the slice's size (README "Sliced fit")
+STEP_WORK = 48        # products a step() does, about (README "Sliced fit")
 _Y_MAX_SHIFT = 3      # |y| < m_ii 2**3 2**-MUL_Q ... i.e. |y| < 2**(MUL_Q + 3)
 _T_MAX = 1 << 28      # bound of a back-substitution partial sum
 _MAX_RESCALES = 8
@@ -35,9 +35,9 @@ _MAX_RESCALES = 8
 class Solver:
     """Preallocated work space for systems of up to n_max unknowns (row-major n x n).
 
-    Sliced like the fit that uses it: begin() finds the scales (O(n)), each step() prepares
-    or eliminates up to ROWS_PER_STEP rows, or back-substitutes one unknown; solve() does it
-    all.  a must stay unchanged until the rows are prepared."""
+    Sliced like the fit that uses it: begin() finds the scales (O(n)), each step() does about
+    STEP_WORK products of preparing rows, eliminating rows and back-substituting unknowns;
+    solve() does it all.  a must stay unchanged until the rows are prepared."""
 
     def __init__(self, n_max):
         self.n_max = n_max
@@ -120,31 +120,6 @@ class Solver:
         self.rescales = 0
         return True
 
-    def _prepare(self):
-        # Rows prep.. of the scaled (and damped) copy, ROWS_PER_STEP a step.
-        a = self.a
-        m = self.m
-        s = self.s
-        fl = self.floor
-        inv = self.inv
-        n = self.n
-        k = self.prep
-        end = k + ROWS_PER_STEP
-        if end > n:
-            end = n
-        while k < end:
-            for j in range(k):
-                v = _shift_sat(a[k * n + j], -(s[k] + s[j]))
-                if inv:
-                    v = mul_shift(v, inv, 16)
-                m[k * n + j] = v
-                m[j * n + k] = v
-            dk = _shift_sat(a[k * n + k], -2 * s[k])
-            m[k * n + k] = dk
-            fl[k] = dk >> GUARD_SHIFT
-            k += 1
-        self.prep = k
-
     def _rescale(self):
         # c >> 4 (floor), e + 4: the solution shrinks with it and is scaled back at the end.
         self.rescales += 1
@@ -157,59 +132,84 @@ class Solver:
         return True
 
     def step(self):
-        """Eliminate the next rows below the current pivot, or back-substitute the next
-        unknown; True when done (ok says whether x holds the solution)."""
-        if self.back:
-            return self._back_step()
-        if self.prep < self.n:
-            self._prepare()
-            return False
+        """About STEP_WORK products of work: rows prepared, rows eliminated, unknowns
+        back-substituted; True when done (ok says whether x holds the solution)."""
+        budget = STEP_WORK
+        while budget > 0:
+            if self.back:
+                cost = self._back_unit()
+            elif self.prep < self.n:
+                cost = self._prepare_row()
+            else:
+                cost = self._elim_unit()
+            if cost < 0:
+                return True
+            budget -= cost
+        return False
+
+    def _prepare_row(self):
+        # Row `prep` of the scaled (and damped) copy; its cost.
+        a = self.a
+        m = self.m
+        s = self.s
+        inv = self.inv
+        n = self.n
+        k = self.prep
+        for j in range(k):
+            v = _shift_sat(a[k * n + j], -(s[k] + s[j]))
+            if inv:
+                v = mul_shift(v, inv, 16)
+            m[k * n + j] = v
+            m[j * n + k] = v
+        dk = _shift_sat(a[k * n + k], -2 * s[k])
+        m[k * n + k] = dk
+        self.floor[k] = dk >> GUARD_SHIFT
+        self.prep = k + 1
+        return k + 1
+
+    def _elim_unit(self):
+        # Row j below pivot i eliminated (at a new pivot: its guard, c's bound); its cost, or
+        # -1 when the solve has ended (a pivot under its guard).
         m = self.m
         c = self.c
         n = self.n
         i = self.i
         if i >= n - 1:
             if i == n - 1 and m[i * n + i] <= self.floor[i]:
-                return True
-            self._back_start()
-            return False
+                return -1
+            self.back = True
+            self.i = n - 1
+            return 1
         piv = m[i * n + i]
-        if self.j == i + 1:
+        j = self.j
+        if j == i + 1:
             if piv <= self.floor[i] or piv <= 0:
-                return True
+                return -1
             lim = 1 << RHS_BITS
             for k in range(n):
                 while -lim >= c[k] or c[k] >= lim:
                     if not self._rescale():
-                        return True
-        rows = ROWS_PER_STEP
-        j = self.j
-        while j < n and rows:
-            mji = m[j * n + i]
-            if mji:
-                if (mji if mji > 0 else -mji) >> 9 >= piv:
-                    return True   # beyond any Schur complement of an SPD system: rounding won
-                mul = div_shift(mji, piv, MUL_Q)
-                row = j * n
-                for k in range(i + 1, n):
-                    m[row + k] -= mul_shift(mul, m[i * n + k], MUL_Q)
-                c[j] -= mul_shift(mul, c[i], MUL_Q)
-            j += 1
-            rows -= 1
-        if j >= n:
+                        return -1
+        mji = m[j * n + i]
+        if mji:
+            if (mji if mji > 0 else -mji) >> 9 >= piv:
+                return -1   # beyond any Schur complement of an SPD system: rounding won
+            mul = div_shift(mji, piv, MUL_Q)
+            row = j * n
+            for k in range(i + 1, n):
+                m[row + k] -= mul_shift(mul, m[i * n + k], MUL_Q)
+            c[j] -= mul_shift(mul, c[i], MUL_Q)
+        if j + 1 >= n:
             self.i = i + 1
             self.j = i + 2
         else:
-            self.j = j
-        return False
+            self.j = j + 1
+        return n - i + 4
 
-    def _back_start(self):
-        self.back = True
-        self.i = self.n - 1
-
-    def _back_step(self):
+    def _back_unit(self):
         # y_i = (c_i 2**MUL_Q - sum_k m_ik y_k) / m_ii, in units of 2**-MUL_Q; a sum or a y past
-        # its bound rescales c and starts the back substitution again.
+        # its bound rescales c and starts the back substitution again.  Its cost, or -1 when
+        # the solve has ended.
         m = self.m
         y = self.y
         n = self.n
@@ -226,20 +226,19 @@ class Solver:
         y[i] = div_shift(t, piv, MUL_Q)
         if i > 0:
             self.i = i - 1
-            return False
+            return n - i + 4
         # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
         x = self.x
         for k in range(n):
             x[k] = _shift_sat(y[k], self.e - MUL_Q - self.s[k] + self.xshift[k])
         self.ok = True
-        return True
+        return -1
 
     def _back_restart(self):
         if not self._rescale():
-            return True
+            return -1
         self.i = self.n - 1
-        return False
-
+        return self.n
 
 _SAT = 1 << 29
 

@@ -6,16 +6,23 @@
 #
 # Fault injection: with fault_per_mille > 0, that share of transactions fails with OSError(EIO)
 # before reaching the device (like a NACK in the address phase), so a retry is side-effect free.
-# Faults come from a seeded LCG: a run is reproducible.
+# Faults come from a seeded generator: a run is reproducible.  It is Lehmer's, x <- a x mod m
+# with m = 2**30 - 35 (prime) and a = 16808 (a primitive root: period m - 1), computed by
+# Schrage's method so that every int stays below 2**30: the bus allocates nothing on a 32-bit
+# port.
 EIO = 5
 ENODEV = 19
+_M = 1073741789   # 2**30 - 35
+_A = 16808
+_Q = 63882        # _M // _A
+_R = 13133        # _M % _A, < _Q: a (x mod q) and r (x div q) stay below _M
 
 
 class _Bus:
     def __init__(self, devices, fault_per_mille=0, seed=1):
         self.devices = devices  # {address: device with read(reg, buf, start, end) / write(...)}
         self.fault_per_mille = fault_per_mille
-        self.state = seed & 0x7FFFFFFF or 1
+        self.state = seed % _M or 1
         self.transactions = 0
         self.faults = 0
 
@@ -25,8 +32,12 @@ class _Bus:
         if dev is None:
             raise OSError(ENODEV)
         if self.fault_per_mille:
-            self.state = (self.state * 1103515245 + 12345) & 0x7FFFFFFF
-            if (self.state >> 8) % 1000 < self.fault_per_mille:
+            x = self.state
+            x = _A * (x % _Q) - _R * (x // _Q)
+            if x <= 0:
+                x += _M
+            self.state = x
+            if x % 1000 < self.fault_per_mille:
                 self.faults += 1
                 raise OSError(EIO)
         return dev

@@ -67,8 +67,12 @@ class Stimulus:
 
 
 def _i32(b, j):
-    v = b[j] | (b[j + 1] << 8) | (b[j + 2] << 16) | (b[j + 3] << 24)
-    return v - (1 << 32) if v & 0x80000000 else v
+    # little-endian int32, its top byte signed first: no int past 2**30 for values within
+    # +-2**30 (16 g is 1.6e7 ug), so nothing allocates on a 32-bit port
+    top = b[j + 3]
+    if top & 0x80:
+        top -= 256
+    return (top << 24) + (b[j] | (b[j + 1] << 8) | (b[j + 2] << 16))
 
 
 class SimLIS3DH:
@@ -85,8 +89,10 @@ class SimLIS3DH:
         self.generated = 0      # ground truth: samples produced since the ODR was set
         self.exhausted = False
         # The stimulus is the world's time line, from the moment the board powers up (the clock
-        # may start anywhere: a test puts its ticks' wrap where it wants it).
-        self.epoch_us = clock.now_us()
+        # may start anywhere: a test puts its ticks' wrap where it wants it).  Times are kept as
+        # whole seconds and microseconds, as the clock keeps them (vclock.py: 32-bit faithful).
+        self.epoch_s = clock.s
+        self.epoch_us = clock.us
         self._reset()
 
     def _reset(self):
@@ -97,11 +103,16 @@ class SimLIS3DH:
         self.fifo_level = 0
         self.fifo_head = 0
         self.ovrn = False
-        self.start_us = self.clock.now_us()
-        self.generated = 0
+        self._start()
         self.out = [0, 0, 0]
         self.new_data = False
         self.overrun = False
+
+    def _start(self):
+        # Sampling (re)starts now: the ODR's time line begins here.
+        self.start_s = self.clock.s
+        self.start_us = self.clock.us
+        self.generated = 0
 
     # --- what the configuration implies -----------------------------------------------------
     def odr_hz(self):
@@ -139,11 +150,24 @@ class SimLIS3DH:
         hz = self.odr_hz()
         if hz == 0:
             return
+        # Sample n is converted at start + n * period (period = 10**6 // hz us, and sps whole
+        # periods a second leave `defect` us: 64 at 1344 Hz, else 0); it reads the stimulus
+        # sample k = floor(t * rate_hz / 10**6) of its time t since the epoch.  In seconds and
+        # microseconds, so every int stays below 2**30 for 124 days at 100 Hz.
         period = 1000000 // hz
-        due = (self.clock.now_us() - self.start_us) // period
+        sps = 1000000 // period
+        defect = 1000000 - sps * period
+        ds = self.clock.s - self.start_s
+        due = ds * sps + (ds * defect + self.clock.us - self.start_us) // period
+        rate = self.stim.rate_hz
         while self.generated < due:
-            t_us = self.start_us + (self.generated + 1) * period
-            k = ((t_us - self.epoch_us) * self.stim.rate_hz) // 1000000
+            n = self.generated + 1
+            a = n // sps
+            t_s = self.start_s - self.epoch_s + a
+            t_us = self.start_us - self.epoch_us + (n - a * sps) * period - a * defect
+            t_s += t_us // 1000000
+            t_us %= 1000000
+            k = t_s * rate + ((t_us // 1000) * rate + ((t_us % 1000) * rate) // 1000) // 1000
             if not self.stim.load(k):
                 # The stimulus is over: the chip goes on converting its last input (the run
                 # stops when the board sees `exhausted`), so every sample is still accounted.
@@ -247,8 +271,7 @@ class SimLIS3DH:
         old_odr = self.odr_hz()
         self.regs[reg] = v
         if reg == _REG_CTRL1 and self.odr_hz() != old_odr:
-            self.start_us = self.clock.now_us()
-            self.generated = 0
+            self._start()
         if reg == _REG_FIFO_CTRL or reg == _REG_CTRL5:
             if self.fifo_mode() == 0:  # bypass empties the FIFO
                 self.fifo_level = 0
