@@ -102,8 +102,10 @@ def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
     c, e = last_ok(d)
     assert proc.calibration.ref_temp == e["ref_temp"]
     assert proc.calibration.ref_time == e["ref_time"] - c["index"] // (64 * RATE)
-    other = Processor(log.Log(str(tmp_path / "log2.bin")), RATE, store=store)  # flashed as base
-    assert other.calibrations == 0
+    # flashed as base: starts uncalibrated, numbering on from the stored calibration
+    other = Processor(log.Log(str(tmp_path / "log2.bin")), RATE, store=store)
+    assert other.calibrations == app.proc.calibrations
+    assert other.params == Processor(log.Log(str(tmp_path / "log3.bin")), RATE).params
 
 
 def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):

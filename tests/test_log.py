@@ -144,3 +144,64 @@ def test_calibration_survives_a_cut_at_any_point_of_its_update(tmp_path):
             target.write_bytes(torn)
             _, rec = store.load()
             assert rec == (cal_values(3, 3) if cut == len(new) else cal_values(2, 2)), cut
+
+
+def effect_values(index, kind, seed):
+    rnd = random.Random(seed)
+    return (index, kind, rnd.randrange(-30, 30), rnd.randrange(1 << 20),
+            *[rnd.randrange(-(1 << 20), 1 << 20) for _ in range(3)])
+
+
+def test_a_composed_calibration_is_never_mixed_with_the_previous_one(tmp_path):
+    """One STORE record holds the CAL fields and every EFFECT's under one CRC: a cut at every
+    byte of an update, and a tear over the slot's old bytes at every byte, load the previous
+    calibration whole or the new one whole - never the new CAL without its effects, or with
+    the previous one's."""
+    a, b = tmp_path / "cal_a.bin", tmp_path / "cal_b.bin"
+    store = log.CalStore(str(a), str(b))
+    effs = {n: [effect_values(n * 100, k, 10 * n + k) for k in (1, 2, 3, 4)] for n in (1, 2, 3)}
+    store.save(cal_values(1, 1), effs[1])
+    store.save(cal_values(2, 2), effs[2])
+    slot, good = store.load()
+    assert good == cal_values(2, 2) and store.effects == effs[2]
+    target = (a, b)[1 - slot]
+    old = target.read_bytes()
+    # the update's bytes, as save() writes them (into a scratch store)
+    scratch = log.CalStore(str(tmp_path / "x_a.bin"), str(tmp_path / "x_b.bin"))
+    scratch.save(cal_values(3, 3), effs[3])
+    new = (tmp_path / "x_a.bin").read_bytes()
+    assert len(new) == 7 + 53 + 4 * 22
+    seen = set()
+    for cut in range(len(new) + 1):
+        for torn in (new[:cut], new[:cut] + old[cut:]):
+            target.write_bytes(torn)
+            _, rec = store.load()
+            whole = (rec, store.effects)
+            assert whole in ((cal_values(3, 3), effs[3]), (cal_values(2, 2), effs[2])), cut
+            seen.add(rec[1])
+    assert seen == {2, 3}
+
+
+def test_a_board_flashed_with_another_model_numbers_on_from_the_store(tmp_path):
+    """The store holds calibration 7 of base+temp_offset; the board is flashed as base: it
+    starts uncalibrated, its first calibration is number 8, the store's newest, and the next boot
+    resumes it (the old model's stays in the other slot)."""
+    from acal.app import Processor
+    a, b = tmp_path / "cal_a.bin", tmp_path / "cal_b.bin"
+    store = log.CalStore(str(a), str(b))
+    store.save(cal_values(7, 7), [effect_values(700, 1, 1)])
+    proc = Processor(log.Log(str(tmp_path / "log.bin")), 25, store=store)
+    fresh = Processor(log.Log(str(tmp_path / "log0.bin")), 25).params
+    assert proc.calibrations == 7 and proc.params == fresh
+    mine = (800, proc.calibrations + 1, 0, 5, 72, 1, 1,
+            17000000, 16500000, 16800000, 10000, -20000, 30000, 40000, -50000, 60000)
+    store.save(mine)
+    again = Processor(log.Log(str(tmp_path / "log2.bin")), 25, store=store)
+    assert again.calibrations == 8 and again.params == list(mine[7:])
+    composed = Processor(log.Log(str(tmp_path / "log3.bin")), 25, store=store,
+                         model="base+temp_offset")
+    assert composed.calibrations == 8 and composed.params[:9] == fresh
+    # a checksummed record outside the calibration bounds (no fit makes one) is not applied
+    store.save((900, 9, 0, 5, 72, 1, 1) + (1 << 28,) * 9)
+    odd = Processor(log.Log(str(tmp_path / "log4.bin")), 25, store=store)
+    assert odd.calibrations == 9 and odd.params == fresh

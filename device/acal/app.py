@@ -12,7 +12,7 @@ import struct
 from acal import effects, log
 from acal import profile as profiles
 from acal.fixed import N_PARAMS, POINT_ONE_G
-from acal.model import Calibration
+from acal.model import Calibration, in_bounds, effects_within
 from acal.optimiser import usable
 from acal.pipeline import Pipeline
 
@@ -91,22 +91,34 @@ class Processor:
             self._resume(store)
 
     def _resume(self, store):
-        # The stored calibration, if it is of this model (a board flashed with another model
-        # starts afresh).
+        # The stored calibration, if it is of this model.  A board flashed with another model
+        # starts uncalibrated but numbers on from the stored calibration, so that its first
+        # calibration is the store's newest (the other model's stays in the other slot).
         slot, rec = store.load()
-        if rec is None or len(store.effects) != len(self.kinds):
+        if rec is None:
             return
+        self.calibrations = rec[1]
+        if len(store.effects) != len(self.kinds):
+            return
+        for j in range(len(self.kinds)):
+            if store.effects[j][1] != self.kinds[j]:
+                return
+        p = [0] * self.calibration.n_params   # the stored parameters, checked before any is taken
+        for i in range(N_PARAMS):
+            p[i] = rec[7 + i]
+        for j in range(len(self.kinds)):
+            for i in range(3):
+                p[N_PARAMS + 3 * j + i] = store.effects[j][4 + i]
+        if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
+            return   # a record the checksum passed but no fit could have made: not applied
         ref_temp = 0
         ref_time = 0
         for j in range(len(self.kinds)):
             e = store.effects[j]
-            if e[1] != self.kinds[j]:
-                return
             ref_temp = e[2]
             ref_time = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
             for i in range(3):
                 self.params[N_PARAMS + 3 * j + i] = e[4 + i]
-        self.calibrations = rec[1]
         for i in range(N_PARAMS):
             self.params[i] = rec[7 + i]
         self.calibration.set(self.params, ref_temp, ref_time)

@@ -26,6 +26,9 @@
 #   SAMPLES  <IBb + n*<hhh  raw capture: first sample index, n, temperature (as REST), n samples
 #                          (Q10 g)
 #   GAP      <II            raw capture: sample index, samples lost there
+#   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
+#                          EFFECT payload per effect of a composed model, under one CRC, so a
+#                          cut anywhere leaves the whole calibration or none of it
 import struct
 
 SYNC = 0xA5
@@ -36,12 +39,15 @@ COUNTERS = 4
 SAMPLES = 5
 GAP = 6
 EFFECT = 7
+STORE = 8
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap", EFFECT: "effect"}
+              GAP: "gap", EFFECT: "effect", STORE: "store"}
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
            GAP: "<II", EFFECT: "<IBbI3i"}
 SAMPLES_HEAD = "<IBb"
+_CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
+_EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 22: a STORE of 4 effects is 141 bytes
 MAX_PAYLOAD = 255
 SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
 OVERHEAD = 7             # sync, type, length, CRC
@@ -194,10 +200,12 @@ def unpack(rtype, payload):
 
 
 class CalStore:
-    """The current calibration, stored so that a power cut never loses the last good one: two
-    slots (files), each one CAL-format record with a sequence number (followed by a composed
-    model's EFFECT records); a save writes the slot that does not hold the newest valid record,
-    a load takes the newest valid one."""
+    """The current calibration, stored so that a power cut never loses the last good one nor
+    mixes two: two slots (files), each holding one STORE record - the CAL fields and a composed
+    model's EFFECT fields under one CRC - with the calibration number ordering them; a save
+    writes the slot that does not hold the newest valid record, a load takes the newest valid
+    one.  (A slot written before STORE existed, a CAL record alone, still loads; one followed by
+    EFFECT records is refused: nothing ties its parts together.)"""
 
     def __init__(self, path_a, path_b):
         self.paths = (path_a, path_b)
@@ -210,12 +218,18 @@ class CalStore:
         except OSError:
             return None
         recs, dropped = scan(data)
-        if not recs or dropped or recs[0][1] != CAL or recs[0][0] != 0:
+        if len(recs) != 1 or dropped or recs[0][0] != 0:
             return None
-        for r in recs[1:]:
-            if r[1] != EFFECT:
-                return None
-        return [unpack(r[1], r[2]) for r in recs]
+        rtype = recs[0][1]
+        payload = recs[0][2]
+        if rtype == CAL and len(payload) == _CAL_SIZE:
+            return [unpack(CAL, payload)]
+        if rtype != STORE or len(payload) < _CAL_SIZE or (len(payload) - _CAL_SIZE) % _EFFECT_SIZE:
+            return None
+        out = [struct.unpack_from(FORMATS[CAL], payload, 0)]
+        for at in range(_CAL_SIZE, len(payload), _EFFECT_SIZE):
+            out.append(struct.unpack_from(FORMATS[EFFECT], payload, at))
+        return out
 
     def load(self):
         """(slot, CAL record tuple) of the newest valid calibration, or (-1, None); its EFFECT
@@ -236,10 +250,12 @@ class CalStore:
         effects: EFFECT records' fields, for a composed model."""
         slot, _ = self.load()
         target = 1 if slot == 0 else 0
+        payload = bytearray(_CAL_SIZE + _EFFECT_SIZE * len(effects))
+        struct.pack_into(FORMATS[CAL], payload, 0, *values)
+        for j in range(len(effects)):
+            struct.pack_into(FORMATS[EFFECT], payload, _CAL_SIZE + _EFFECT_SIZE * j, *effects[j])
         with open(self.paths[target], "wb") as f:
-            f.write(_encode_values(CAL, values))
-            for e in effects:
-                f.write(_encode_values(EFFECT, e))
+            f.write(encode(STORE, payload))
         return target
 
 
