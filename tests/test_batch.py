@@ -37,7 +37,7 @@ def _batch(files, *extra):
     names = ["s3.csv", "short.csv", "corrupt.csv", "s1.csv", "ax6.cwa", "missing.csv"]
     summary = files / "summary.csv"
     r = run_cli("calibrate", *[files / n for n in names], "--summary", summary, "--json",
-                "--profile", "paper", *extra)
+                "--profile", "paper", "--force", *extra)   # the summary is written anew each time
     recs = {Path(json.loads(x)["file"]).name: json.loads(x) for x in r.stdout.splitlines()}
     return r, recs, summary
 
@@ -103,7 +103,8 @@ def test_dask_local_cluster_gives_the_local_pool_results(files):
     _, local, _ = _batch(files, "--jobs", 2)
     strip = lambda d: {k: {kk: vv for kk, vv in v.items() if kk != "seconds"} for k, v in d.items()}
     assert strip(recs) == strip(local)
-    r = run_cli("calibrate", files / "s3.csv", files / "s1.csv", "--dask", "tcp://127.0.0.1:9")
+    r = run_cli("calibrate", files / "s3.csv", files / "s1.csv", "--dask", "tcp://127.0.0.1:9",
+                "--summary", files / "unreachable.csv")
     assert r.returncode == 2 and "cannot reach" in r.stderr
 
 

@@ -198,7 +198,7 @@ def test_apply_at_the_full_scale_and_says_what_it_clipped(tmp_path):
     assert r.returncode == 0 and "2 samples past that full scale were clipped" in r.stderr, r.stderr
     a = np.loadtxt(out, delimiter=",", skiprows=1)
     assert a[1, 1] == pytest.approx(2097 / 1024) and a[2, 2] == pytest.approx(-2097 / 1024)
-    r = run_cli("apply", params, rec, "-o", out, "--range", "4")
+    r = run_cli("apply", params, rec, "-o", out, "--range", "4", "--force")
     assert r.returncode == 0 and "clipped" not in r.stderr
     a = np.loadtxt(out, delimiter=",", skiprows=1)
     assert a[1, 1] == pytest.approx(3.0, abs=2e-3) and a[2, 2] == pytest.approx(-2.5, abs=2e-3)

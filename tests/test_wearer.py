@@ -103,7 +103,7 @@ def test_noise_and_truth_explain_the_still_data(day):
 
 def test_simulate_wrist_bad_output_folder(tmp_path):
     r = run_cli("simulate", "wrist", "--days", 0.01, "-o", tmp_path / "nope" / "w.csv")
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no such folder" in r.stderr
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "does not exist" in r.stderr
 
 
 def test_same_seed_same_recording(tmp_path):

@@ -149,7 +149,8 @@ def summary_row(rec: dict) -> dict:
 
 
 def write_summary(path: str, recs: list[dict]) -> None:
-    with open(path, "w", newline="") as fh:
+    from accelcal.outputs import atomic
+    with atomic(path, newline="") as fh:
         w = csv.DictWriter(fh, SUMMARY_COLUMNS)
         w.writeheader()
         for r in recs:

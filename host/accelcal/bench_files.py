@@ -96,7 +96,7 @@ def ensure_recording(days: float, rate: int, seed: int = 14) -> Path:
         print(f"simulating {days:g} days at {rate} Hz into {f} (once) ...", file=sys.stderr, flush=True)
         tmp = f.with_suffix(".part.csv")
         subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", str(days),
-                        "--rate", str(rate), "--seed", str(seed), "-o", str(tmp)], check=True)
+                        "--rate", str(rate), "--seed", str(seed), "-o", str(tmp), "--force"], check=True)
         tmp.with_suffix(".truth.json").rename(f.with_suffix(".truth.json"))
         tmp.rename(f)
     return f

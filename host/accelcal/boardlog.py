@@ -3,6 +3,7 @@ and replay a raw capture through the current device modules to diff against what
 logged - the check a firmware developer runs after changing device code."""
 from __future__ import annotations
 
+import struct
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +36,7 @@ class Decoded:
     records: list[tuple[int, tuple]] = field(default_factory=list)  # (type, values)
     dropped: list[tuple[int, int]] = field(default_factory=list)
     size: int = 0
+    malformed: list[tuple[int, str]] = field(default_factory=list)  # (offset, why): CRC fine
 
     def of(self, rtype):
         return [v for t, v in self.records if t == rtype]
@@ -47,6 +49,8 @@ class Decoded:
         for off, n in self.dropped:
             what = "power-cut padding" if data is not None and not any(data[off:off + n]) else "damaged or torn bytes"
             out.append(f"{self.path}: dropped {n} bytes at offset {off} ({what})")
+        for off, why in self.malformed:
+            out.append(f"{self.path}: dropped a malformed record at offset {off} ({why})")
         return out
 
 
@@ -60,13 +64,50 @@ def decode(path: str | Path) -> Decoded:
         raise InputError(f"{path}: no valid accelcal log records in {len(data)} bytes "
                          "(not a log of ours, or destroyed)")
     out = Decoded(str(path), size=len(data), dropped=dropped)
-    for _, t, payload in recs:
-        if t in FIELDS or t == log.SAMPLES:
-            try:
-                out.records.append((t, log.unpack(t, payload)))
-            except ValueError:
-                out.dropped.append((-1, len(payload)))
+    for off, t, payload in recs:
+        why = malformed(t, payload)
+        if why:   # its CRC passed, its content cannot be: dropped like a torn record, and said
+            out.malformed.append((off, why))
+            continue
+        out.records.append((t, log.unpack(t, payload)))
     return out
+
+
+_SIZES = {t: struct.calcsize(f) for t, f in log.FORMATS.items()}
+_STATUS_COUNT = len(optimiser.STATUS_NAMES)
+
+
+def malformed(rtype: int, payload: bytes) -> str | None:
+    """Why a record that passed its CRC is still not one the app writes (its length for its
+    kind, a field out of its range), or None."""
+    name = log.TYPE_NAMES.get(rtype)
+    if name is None or rtype == log.STORE:
+        return f"unknown record type {rtype}"
+    n = len(payload)
+    if rtype == log.SAMPLES:
+        if n < 6 or (n - 6) % 6 or payload[4] != (n - 6) // 6 or payload[4] > log.SAMPLES_PER_RECORD:
+            return f"{name} record of {n} bytes does not hold the samples it counts"
+        return None
+    sizes = (_SIZES[rtype], struct.calcsize(log.BOOT_V1)) if rtype == log.BOOT else (_SIZES[rtype],)
+    if n not in sizes:
+        return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
+    v = log.unpack(rtype, payload)
+    if rtype == log.BOOT:
+        checks = [(1 <= v[2] <= 5376, "rate_hz"), (v[5] <= 3, "axis"),
+                  (v[6] in (2, 4, 8, 16), "range_g"), (v[7] <= 1, "fifo"),
+                  (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit")]
+    elif rtype == log.REST:
+        checks = [(-1 <= v[5] < 9, "subset")]
+    elif rtype == log.CAL:
+        checks = [(v[2] < _STATUS_COUNT, "status")]
+    elif rtype == log.EFFECT:
+        checks = [(v[1] in deff.NAMES, "effect")]
+    else:
+        checks = []
+    for ok, field_name in checks:
+        if not ok:
+            return f"{name} record with {field_name} out of range"
+    return None
 
 
 @dataclass
@@ -134,6 +175,9 @@ def replay(dirpath: str | Path, profile: str | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         proc = run_capture(d, Path(tmp) / "log.bin", profile)
         end = proc.index
+        if end == 0:   # nothing replayed is nothing compared: not "identical"
+            raise InputError(f"{d / 'capture.bin'}: holds no samples to replay (deploy with "
+                             "--capture-kb to keep them)")
         mine = decode(Path(tmp) / "log.bin")
     board = decode(d / "log.bin")
     # The capture is the last session's (it restarts at each boot): compare the records the

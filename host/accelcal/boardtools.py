@@ -180,25 +180,45 @@ def acquire(port: str, seconds: int, settings: dict, say=print) -> str:
     return out
 
 
-def pull(port: str, outdir: str | Path, say=print) -> dict:
-    """Copy the logs off the board into outdir and decode them."""
+def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
+    """pull's folder, checked before the board is touched: a folder (made if missing) that holds
+    no earlier pull unless force."""
+    from accelcal.outputs import check_output_dir
+    out = check_output_dir(outdir, (), "-o/--output")
+    held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
+    if held and not force:
+        raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "
+                         "--force to replace them, or choose another folder")
+    return out
+
+
+def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
+    """Copy the logs off the board into outdir and decode them.  The files are copied into a
+    temporary folder inside it and renamed into place once all have arrived."""
+    out = check_pull_dir(outdir, force)
     r = Remote(port, timeout=3600)
     ident = r.identify()
     present = [f for f in boardlog.LOG_FILES if f in ident["files"]]
     if "log.bin" not in present:
         raise InputError(f"{port}: no accelcal log.bin on this board (not ours, or never run); "
                          f"it holds: {' '.join(ident['files'][:12]) or 'nothing'}")
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
     total = sum(ident["sizes"].get(f, 0) for f in present)
     if total > 200000:  # mpremote moves about 60 kB/s
         say(f"copying {total / 1e6:.1f} MB over mpremote (about {total / 60000:.0f} s)...")
-    cmd = []
-    for f in present:
-        cmd += ["fs", "cp", f":{f}", str(out / f), "+"]
-    r.run(*cmd[:-1])
+    tmp = out / f".pull-{os.getpid()}.partial"
+    tmp.mkdir(exist_ok=True)
+    try:
+        cmd = []
+        for f in present:
+            cmd += ["fs", "cp", f":{f}", str(tmp / f), "+"]
+        r.run(*cmd[:-1])
+        for f in present:
+            os.replace(tmp / f, out / f)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
     sizes = {f: (out / f).stat().st_size for f in present}
     say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out}")
     summ = boardlog.summary(out)
-    (out / "summary.json").write_text(json.dumps(summ, indent=1))
+    from accelcal.outputs import write_text
+    write_text(out / "summary.json", json.dumps(summ, indent=1))
     return summ

@@ -351,13 +351,11 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
     names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
     schema = pa.schema([(n, pa.float64()) for n in names])
     n = 0
-    try:
-        sink = open(output, "wb")
-    except OSError as e:
-        raise InputError(f"{output}: cannot write ({e.strerror})") from None
-    sink.write((",".join(names) + "\n").encode())
+    from accelcal.outputs import atomic
     opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-    with sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
+    # written whole or not at all: a killed run leaves no partial file that looks like a recording
+    with atomic(output, "wb") as sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
+        sink.write((",".join(names) + "\n").encode())
         for ch in rec.chunks():
             clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
             a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng), 6)

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from accelcal.io import InputError
+from accelcal.outputs import FORCE_HELP
 
 EPILOG_CAL = """\
 Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
@@ -31,11 +33,44 @@ Exit status: one input: 2 when it did not calibrate (reason on stderr and in the
 """
 
 
-def _positive_int(s):
-    v = int(s)
-    if v < 1:
-        raise argparse.ArgumentTypeError("must be >= 1")
-    return v
+class _Parser(argparse.ArgumentParser):
+    """An option error is one line (and exit 2) like every other bad input, with the command's
+    --help named for the details."""
+
+    def error(self, message):
+        self.exit(2, f"accelcal: error: {message} (see `{self.prog} --help`)\n")
+
+
+def _int_in(lo, hi):
+    """An int option within [lo, hi] (every numeric option has an upper bound)."""
+    def parse(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{s!r} is not a whole number") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{v} is outside [{lo}, {hi}]")
+        return v
+    parse.__name__ = "int"
+    return parse
+
+
+def _float_in(lo, hi, lo_open=False):
+    """A finite float option within [lo, hi] ((lo, hi] with lo_open)."""
+    def parse(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{s!r} is not a number") from None
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            raise argparse.ArgumentTypeError(
+                f"{s} is outside {'(' if lo_open else '['}{lo:g}, {hi:g}]")
+        return v
+    parse.__name__ = "float"
+    return parse
+
+
+_positive_int = _int_in(1, 10 ** 6)
 
 
 def _rates(s):
@@ -43,6 +78,8 @@ def _rates(s):
         vals = [float(v) for v in s.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError("three numbers, e.g. 0.3,0.8,0.2") from None
+    if not all(math.isfinite(v) and 0 <= v <= 100 for v in vals):
+        raise argparse.ArgumentTypeError("three rates in [0, 100], e.g. 0.3,0.8,0.2")
     tenths = [round(v * 10) for v in vals]
     if len(vals) != 3 or any(abs(v * 10 - t) > 1e-9 or t < 0 for v, t in zip(vals, tenths)):
         raise argparse.ArgumentTypeError("three non-negative multiples of 0.1, e.g. 0.3,0.8,0.2")
@@ -72,22 +109,22 @@ def _add_pipeline_args(p):
                         "measured noise, 8 points per subset, a Gauss-Newton fit to the optimum "
                         "with outlier rejection, ready on coverage; paper: Farago 2024 to the "
                         "letter (x axis, 0.12 g, 2 points per subset, 50 gradient steps)")
-    g.add_argument("--seconds", type=_positive_int, default=5, help="rest segment length, s (default 5)")
+    g.add_argument("--seconds", type=_int_in(1, 3600), default=5, help="rest segment length, s (default 5)")
     g.add_argument("--threshold", type=_threshold, default=None,
                    help="max-min rest threshold, g, or auto (from the measured noise); "
                         "default: wear auto, paper 0.12")
     g.add_argument("--axis", choices=["x", "y", "z", "all"], default=None,
                    help="axis for the rest test, or all; default: wear all, paper x")
-    g.add_argument("--min-count", type=_positive_int, default=None,
+    g.add_argument("--min-count", type=_int_in(1, 64), default=None,
                    help="points per subset to calibrate (default 2)")
-    g.add_argument("--max-count", type=_positive_int, default=None,
+    g.add_argument("--max-count", type=_int_in(1, 64), default=None,
                    help="points kept per subset (default: wear 8; paper 2, 4 for a composed model)")
-    g.add_argument("--differ", type=float, default=0.1,
+    g.add_argument("--differ", type=_float_in(0, 2), default=0.1,
                    help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
     g.add_argument("--select", choices=["centre", "first"], default="centre",
                    help="point selection once a subset is full: centre (replace by better-placed points) "
                         "or first (first come, as printed in the paper)")
-    g.add_argument("--iterations", type=_positive_int, default=None,
+    g.add_argument("--iterations", type=_int_in(1, 100000), default=None,
                    help="optimiser iterations (default: wear up to 20 Gauss-Newton steps per "
                         "round; paper 50, 200 for a composed model)")
     g.add_argument("--rates", type=_rates, default=(3, 8, 2), metavar="S,M,O",
@@ -129,6 +166,10 @@ def cmd_calibrate(args) -> int:
                          "method fits the points its bins select")
     engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
     inputs = args.input
+    from accelcal.outputs import check_output
+    reads = [*inputs, args.fallback]
+    if args.save:
+        check_output(args.save, reads, args.force, "--save")
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
         return _calibrate_batch(args, spec, engine)
     from accelcal.recording import is_recording
@@ -169,6 +210,9 @@ def _calibrate_batch(args, spec, engine) -> int:
     from accelcal.io import save_params
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
+    from accelcal.outputs import check_output
+    summary = args.summary or "accelcal-summary.csv"
+    check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
     job = batch.Job(_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
                     args.fallback, args.points or "bins")
     if args.fallback:
@@ -178,7 +222,6 @@ def _calibrate_batch(args, spec, engine) -> int:
         recs = batch.run_dask(args.input, job, args.dask, quiet=args.quiet)
     else:
         recs = batch.run_local(args.input, job, args.jobs, quiet=args.quiet)
-    summary = args.summary or "accelcal-summary.csv"
     batch.write_summary(summary, recs)
     if args.json:
         for r in recs:
@@ -227,10 +270,12 @@ def cmd_apply(args) -> int:
     from accelcal.calibrate import apply_file
     from accelcal.io import load_params
     from accelcal.recording import is_recording
+    from accelcal.outputs import check_output
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
                          ".cwa/.bin/.gt3x)")
+    check_output(args.output, [args.params, args.input], args.force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
     print(f"wrote {n} calibrated samples to {args.output} (the device's apply at +-{rng} g"
           + (f"; {clipped} samples past that full scale were clipped, as the device's would be: "
@@ -240,7 +285,10 @@ def cmd_apply(args) -> int:
 
 def cmd_simulate_paper(args) -> int:
     from accelcal import simulate
+    from accelcal.outputs import atomic, check_output, write_text
     from acal.fixed import PARAM_NAMES
+    out = check_output(args.output, (), args.force, "-o/--output")
+    check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
     rng = np.random.default_rng(args.seed)
     rows, truth = [], {}
     for s in range(args.scenarios):
@@ -249,13 +297,13 @@ def cmd_simulate_paper(args) -> int:
         truth[name] = dict(zip(PARAM_NAMES, map(float, p)))
         rows.append((name, v))
     out = Path(args.output)
-    with open(out, "w") as fh:
+    tpath = out.with_suffix(".truth.json")
+    with atomic(out) as fh:
         fh.write("x,y,z,device\n")
         for name, v in rows:
             for x, y, z in v:
                 fh.write(f"{x:.7f},{y:.7f},{z:.7f},{name}\n")
-    tpath = out.with_suffix(".truth.json")
-    tpath.write_text(json.dumps({"simulation": "farago2024 section III-A", "noise_mg": args.noise_mg,
+    write_text(tpath, json.dumps({"simulation": "farago2024 section III-A", "noise_mg": args.noise_mg,
                                  "noise_dist": args.noise_dist, "seed": args.seed,
                                  "points_per_device": args.points, "params": truth}, indent=1) + "\n")
     print(f"wrote {args.scenarios} devices x {args.points} points to {out}, truth to {tpath}",
@@ -265,9 +313,11 @@ def cmd_simulate_paper(args) -> int:
 
 def cmd_simulate_wrist(args) -> int:
     from accelcal import wearer
-    out = Path(args.output)
-    if not out.parent.exists():
-        raise InputError(f"{out.parent}: no such folder")
+    from accelcal.outputs import check_output
+    out = check_output(args.output, (), args.force, "-o/--output")
+    check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
+    if args.stimulus:
+        check_output(args.stimulus, [out], args.force, "--stimulus")
 
     def progress(done, total):
         print(f"\rsimulated {done / (86400 * args.rate):5.2f} of {args.days:g} days", end="",
@@ -323,7 +373,8 @@ def cmd_acquire(args) -> int:
 
 def cmd_pull(args) -> int:
     from accelcal import boardtools
-    s = boardtools.pull(args.port, args.output, say=lambda m: print(m, file=sys.stderr))
+    s = boardtools.pull(args.port, args.output, say=lambda m: print(m, file=sys.stderr),
+                        force=args.force)
     if args.json:
         print(json.dumps(s))
         return 0
@@ -409,7 +460,7 @@ def cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="accelcal", description=__doc__,
+    ap = _Parser(prog="accelcal", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -447,17 +498,20 @@ def build_parser() -> argparse.ArgumentParser:
                         "sample through the device modules, for regression testing device code")
     p.add_argument("--by", metavar="COLUMN", help="calibrate each value of COLUMN (e.g. device) separately")
     p.add_argument("--save", metavar="PARAMS.json", help="save the parameters (with --by: all devices)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": --save, --summary")
     p.add_argument("--json", action="store_true", help="one JSON object per group (or file) on stdout")
     p.add_argument("--fallback", metavar="PARAMS.json",
                    help="a device's last good calibration (from --save): a file that does not "
                         "calibrate reports it with calibration \"fallback\" and its error, never "
                         "silently")
     g = p.add_argument_group("batches (several INPUTs)")
-    g.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+    g.add_argument("--jobs", type=_int_in(1, 256), default=1, metavar="N",
                    help="files calibrated at once in a process pool (default 1)")
     g.add_argument("--dask", metavar="ADDRESS",
                    help="run the batch on an existing Dask cluster (scheduler address, e.g. "
-                        "tcp://10.0.0.5:8786); its workers need accelcal and the files")
+                        "tcp://10.0.0.5:8786); its workers need accelcal and the files.  Name "
+                        "only a scheduler you trust: Dask exchanges pickles, so the scheduler "
+                        "and its workers can run any code on this machine and read what is sent")
     g.add_argument("--summary", metavar="CSV",
                    help="the summary table, one row per file (default accelcal-summary.csv)")
     g.add_argument("--strict", action="store_true",
@@ -474,7 +528,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "length of recording in constant memory.")
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
-    p.add_argument("-o", "--output", required=True, help="output CSV")
+    p.add_argument("-o", "--output", required=True,
+                   help="output CSV (written whole or not at all; never one of the inputs)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
     p.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=None,
                    help="full scale of the device's apply, g: its fixed-point format (Q14 at 2 g, "
@@ -489,13 +545,14 @@ def build_parser() -> argparse.ArgumentParser:
                                     "measurements by the exact inverse of eqs. 7-9, plus noise. "
                                     "Writes a points file with a device column; the truth goes "
                                     "beside it as NAME.truth.json.")
-    q.add_argument("--noise-mg", type=float, default=1.0, help="noise per axis, mg (default 1)")
+    q.add_argument("--noise-mg", type=_float_in(0, 1000), default=1.0, help="noise per axis, mg (default 1)")
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal",
                    help="normal: sd = noise; uniform: on [-noise, +noise]")
-    q.add_argument("--scenarios", type=_positive_int, default=10, help="devices (default 10)")
-    q.add_argument("--points", type=_positive_int, default=300, help="rest means per device (default 300)")
-    q.add_argument("--seed", type=int, default=1)
+    q.add_argument("--scenarios", type=_int_in(1, 100000), default=10, help="devices (default 10)")
+    q.add_argument("--points", type=_int_in(1, 10 ** 6), default=300, help="rest means per device (default 300)")
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=1)
     q.add_argument("-o", "--output", required=True, help="points CSV to write")
+    q.add_argument("--force", action="store_true", help=FORCE_HELP)
     q.set_defaults(func=cmd_simulate_paper)
 
     q = ssub.add_parser("wrist", help="a realistic wrist-worn recording, truth beside it",
@@ -505,16 +562,18 @@ def build_parser() -> argparse.ArgumentParser:
                                     "temperature trace.  Writes the recording CSV (t,x,y,z,temp), its "
                                     "truth as NAME.truth.json, and with --stimulus the virtual board's "
                                     "input (before quantisation: the simulated chip quantises).")
-    q.add_argument("--days", type=float, default=1.0, help="days of wear (default 1)")
+    q.add_argument("--days", type=_float_in(0, 3650, lo_open=True), default=1.0,
+                   help="days of wear (default 1)")
     q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=25, help="Hz (default 25)")
     q.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=2, help="full scale, g (default 2)")
-    q.add_argument("--seed", type=int, default=1)
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=1)
     q.add_argument("--stimulus", metavar="FILE.bin", help="also write the stimulus for `board virtual`")
     from accelcal.effects import CATALOGUE
     q.add_argument("--effect", action="append", default=[], choices=list(CATALOGUE),
                    help="add a hidden physical effect (repeatable): " + ", ".join(CATALOGUE)
                    + "; its true values go to the truth JSON")
     q.add_argument("-o", "--output", required=True, help="recording CSV to write")
+    q.add_argument("--force", action="store_true", help=FORCE_HELP)
     q.set_defaults(func=cmd_simulate_wrist)
 
     p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
@@ -527,13 +586,15 @@ def build_parser() -> argparse.ArgumentParser:
                                     "Runs until Ctrl-C or SIGTERM.")
     q.add_argument("--flash", default="vboard-flash", help="folder that is the board's flash (default vboard-flash)")
     q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
-    q.add_argument("--days", type=float, default=1.0, help="without --stimulus: days to simulate (default 1)")
-    q.add_argument("--rate", type=int, default=25, help="without --stimulus: Hz (default 25)")
-    q.add_argument("--seed", type=int, default=1)
-    q.add_argument("--bus-faults", type=int, default=0, metavar="PER_MILLE",
+    q.add_argument("--days", type=_float_in(0, 3650, lo_open=True), default=1.0,
+                   help="without --stimulus: days to simulate (default 1)")
+    q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=25,
+                   help="without --stimulus: Hz (default 25)")
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=1)
+    q.add_argument("--bus-faults", type=_int_in(0, 1000), default=0, metavar="PER_MILLE",
                    help="share of I2C transactions that fail, per mille (default 0)")
     q.add_argument("--heap", help="MicroPython heap size, e.g. 160k (an RP2040's)")
-    q.add_argument("--speed", type=int, default=0, help="0: as fast as possible (default); N: N x real time")
+    q.add_argument("--speed", type=_int_in(0, 10000), default=0, help="0: as fast as possible (default); N: N x real time")
     q.add_argument("--link", help="also make this symlink to the port")
     q.add_argument("--port-file", help="also write the port to this file")
     q.set_defaults(func=cmd_board_virtual)
@@ -542,10 +603,10 @@ def build_parser() -> argparse.ArgumentParser:
         g = q.add_argument_group("app settings")
         g.add_argument("--rate", type=int, choices=[10, 25, 50, 100, 200, 400], default=100,
                        help="output data rate, Hz (default 100)")
-        g.add_argument("--capture-kb", type=int, default=0,
+        g.add_argument("--capture-kb", type=_int_in(0, 1 << 20), default=0,
                        help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
         g.add_argument("--fifo", action="store_true", help="read the FIFO (10 bits) instead of the registers")
-        g.add_argument("--recal-hours", type=float, help="least time between calibrations (default 6)")
+        g.add_argument("--recal-hours", type=_float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "
                             "one such as base+temp_offset (what `accelcal diagnose` named)")
@@ -570,7 +631,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Runs acal.app.main(seconds=...) on the board with mpremote exec and "
                                    "shows its hourly progress lines.")
     p.add_argument("--port", required=True)
-    p.add_argument("--hours", type=float, required=True, help="hours of board time")
+    p.add_argument("--hours", type=_float_in(0, 87600, lo_open=True), required=True, help="hours of board time")
     app_args(p)
     p.set_defaults(func=cmd_acquire)
 
@@ -579,7 +640,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "them (records dropped by a power cut are reported) and writes "
                                    "DIR/summary.json.")
     p.add_argument("--port", required=True)
-    p.add_argument("-o", "--output", required=True, metavar="DIR")
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="folder for the logs (made if missing; the files arrive whole or not at all)")
+    p.add_argument("--force", action="store_true", help="replace an earlier pull's files in DIR")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_pull)
 
@@ -604,7 +667,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "error with it added; names the missing effect, or none.")
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
-    p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here")
+    p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here "
+                   "(the folder is made if missing; figures in it are replaced)")
     p.add_argument("--history", metavar="FILE", help="append this step (model, held-out error) to FILE "
                                                      "for `accelcal report`")
     p.add_argument("--json", action="store_true")
@@ -614,7 +678,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="A table of each model step with its held-out error and noise floor, "
                                    "and with --plot a PNG of the error per step.")
     p.add_argument("history", help="file written by diagnose --history")
-    p.add_argument("--plot", metavar="PNG")
+    p.add_argument("--plot", metavar="PNG", help="the steps as a figure (replaced if it exists)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 
@@ -652,8 +716,8 @@ def build_parser() -> argparse.ArgumentParser:
                                     "optimiser; prints mean/SD absolute parameter errors beside the "
                                     "paper, lsq on the same points, the Cramer-Rao bound of those "
                                     "points, and first-come selection.")
-    q.add_argument("--scenarios", type=_positive_int, default=500)
-    q.add_argument("--candidates", type=_positive_int, default=300,
+    q.add_argument("--scenarios", type=_int_in(1, 100000), default=500)
+    q.add_argument("--candidates", type=_int_in(1, 100000), default=300,
                    help="random rest means offered to the bins per scenario (default 300)")
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal")
     q.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython")
@@ -661,7 +725,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--profile", choices=["paper", "wear"], default="paper",
                    help="paper (default: the paper's Table 2), or wear: the default profile's "
                         "72 points and Gauss-Newton fit, beside lsq on the same points")
-    q.add_argument("--seed", type=int, default=2024)
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=2024)
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_table2)
 
@@ -671,11 +735,11 @@ def build_parser() -> argparse.ArgumentParser:
                                     "paper's Table 4 and execution times (Table 3); section 3.5 "
                                     "(unequal axes up to 1:2:3) and 3.6 (axes misaligned by up to 2 "
                                     "degrees).")
-    q.add_argument("--passes", type=_positive_int, default=10)
-    q.add_argument("--jitter", type=float, default=1.0,
+    q.add_argument("--passes", type=_int_in(1, 10000), default=10)
+    q.add_argument("--jitter", type=_float_in(0, 100), default=1.0,
                    help="total width of the uniform radial jitter, %% of the radius (default 1, "
                         "i.e. +-0.5 %%: matches the spread of Table 4; 2 gives +-1 %%)")
-    q.add_argument("--seed", type=int, default=2013)
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=2013)
     q.add_argument("--plots", metavar="DIR", help="write gietzelt_fig3.png (error against training vectors)")
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_gietzelt)
@@ -687,10 +751,11 @@ def build_parser() -> argparse.ArgumentParser:
                                     "all fitted on the points the device's bins selected from the "
                                     "training blocks and scored on the held-out blocks; the mean over "
                                     "devices beside the paper's Table 3.")
-    q.add_argument("--devices", type=_positive_int, default=10, help="recordings (default 10, as the paper)")
-    q.add_argument("--days", type=float, default=3.0, help="days per recording (default 3)")
+    q.add_argument("--devices", type=_int_in(1, 1000), default=10, help="recordings (default 10, as the paper)")
+    q.add_argument("--days", type=_float_in(0, 3650, lo_open=True), default=3.0,
+                   help="days per recording (default 3)")
     q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=10, help="Hz (default 10)")
-    q.add_argument("--seed", type=int, default=300)
+    q.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1), default=300)
     q.add_argument("--keep", metavar="DIR", help="keep the simulated recordings here")
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_table3)
@@ -714,6 +779,10 @@ def main(argv=None) -> int:
         return 2
     except BrokenPipeError:
         return 0
+    except OSError as e:   # the system refused a read or a write (disk full, permissions...)
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"accelcal: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -212,12 +212,16 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    from accelcal.outputs import save_figure
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def compare_main(args, cfg: runtime.Config) -> int:
     names = parse_methods(args.methods)
+    if args.plots:
+        from accelcal.outputs import check_output_dir
+        check_output_dir(args.plots, [args.input], "--plots")
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = args.json or not sys.stderr.isatty()
     say = (lambda m: None) if quiet else (lambda m: print(m, file=sys.stderr, flush=True))

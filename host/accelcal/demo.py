@@ -49,7 +49,8 @@ def main() -> int:
                 p.unlink() if p.is_file() else p.rmdir()
     print(f"accelcal demo: {DAYS} day of wrist wear at {RATE} Hz on the virtual board (in {work})\n")
     cli("simulate", "wrist", "--days", str(DAYS), "--rate", str(RATE), "--seed", str(SEED),
-        "-o", str(work / "wrist.csv"), "--stimulus", str(work / "wrist.bin"))
+        "-o", str(work / "wrist.csv"), "--stimulus", str(work / "wrist.bin"),
+        "--force")   # the demo's own folder: its last run's files are replaced
     truth = json.loads((work / "wrist.truth.json").read_text())
     with vboard.Running(work / "flash", work / "wrist.bin", "--heap", "160k") as board:
         print(f"virtual board on {board.port} (160 kB heap, like an RP2040)\n")
@@ -105,7 +106,7 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
     hist.unlink(missing_ok=True)
     print(f"\n--- Model discovery: 3 days at 10 Hz with one hidden effect (seed {seed}) ---\n")
     cli("simulate", "wrist", "--days", "3", "--rate", "10", "--seed", str(seed), "--effect", hidden,
-        "-o", str(rec), quiet=True)
+        "-o", str(rec), "--force", quiet=True)
     out = json.loads(cli("diagnose", str(rec), "--json", "--plots", str(work / "plots"),
                          "--history", str(hist), quiet=True).stdout)
     print(f"base model: held-out error {out['heldout_error_mg']:.2f} mg, noise floor "

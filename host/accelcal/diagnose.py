@@ -22,6 +22,7 @@ effect recordings of seeds that the tests do not use.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ from scipy.optimize import least_squares
 
 from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import InputError, Table, read_table
+from accelcal.outputs import save_figure
 from accelcal.recording import is_recording
 
 BLOCK_S = 2 * 3600
@@ -258,7 +260,7 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor) -> list[st
     fig.suptitle(f"held-out residuals, model {spec}: {err:.2f} mg (noise floor {floor:.2f} mg)")
     fig.tight_layout()
     f1 = d / "residuals.png"
-    fig.savefig(f1, dpi=90)
+    save_figure(fig, f1, dpi=90)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(7, 4))
     names = [c["effect"] for c in cands if c["heldout_error_mg"] is not None]
@@ -269,7 +271,7 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor) -> list[st
     ax.legend()
     fig.tight_layout()
     f2 = d / "candidates.png"
-    fig.savefig(f2, dpi=90)
+    save_figure(fig, f2, dpi=90)
     plt.close(fig)
     return [str(f1), str(f2)]
 
@@ -296,6 +298,11 @@ def print_report(out: dict) -> None:
 
 
 def diagnose_main(args) -> int:
+    from accelcal.outputs import check_output, check_output_dir
+    if args.history:   # appended to: checked here, before the analysis, not replaced
+        check_output(args.history, [args.input], True, "--history")
+    if args.plots:
+        check_output_dir(args.plots, [args.input], "--plots")
     out = diagnose(args.input, args.model, args.plots)
     if args.history:
         append_history(args.history, out)
@@ -325,26 +332,60 @@ def calibrate_model(path: str, model: str) -> dict:
 
 def append_history(path: str, out: dict) -> None:
     rec = {k: out[k] for k in ("model", "input", "heldout_error_mg", "noise_floor_mg", "missing_effect")}
-    with open(path, "a") as fh:
-        fh.write(json.dumps(rec) + "\n")
+    # the old steps and the new one, written whole: a cut leaves the old history or the new one
+    from accelcal.outputs import write_text
+    try:
+        old = Path(path).read_text() if Path(path).exists() else ""
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{path}: cannot read the history to append to ({e})") from None
+    if old and not old.endswith("\n"):
+        old += "\n"
+    write_text(path, old + json.dumps(rec) + "\n")
+
+
+def _history_step(path, i, line):
+    # One line of a diagnose history, checked: (model, held-out mg, floor mg, named, input).
+    bad = f"{path}:{i}: not a diagnose history line"
+    try:
+        rec = json.loads(line, parse_constant=lambda c: float("nan"))
+    except ValueError:
+        raise InputError(bad + " (not JSON)") from None
+    if not isinstance(rec, dict):
+        raise InputError(bad + " (not a JSON object)")
+    model = rec.get("model")
+    if not isinstance(model, str) or not model:
+        raise InputError(f"{path}:{i}: 'model' must be a model name, found {model!r:.40}")
+    vals = []
+    for k, lo in (("heldout_error_mg", 0.0), ("noise_floor_mg", 0.0)):
+        v = rec.get(k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or v < lo or (k == "heldout_error_mg" and v == 0):
+            raise InputError(f"{path}:{i}: {k} must be a finite number of mg"
+                             + (" above 0" if k == "heldout_error_mg" else " >= 0")
+                             + f", found {v!r:.40}")
+        vals.append(float(v))
+    named = rec.get("missing_effect")
+    if named is not None and not isinstance(named, str):
+        raise InputError(f"{path}:{i}: missing_effect must be an effect name or null")
+    return model, vals[0], vals[1], named, str(rec.get("input", ""))
 
 
 def report_main(args) -> int:
     """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
+    if args.plot:   # a figure, regenerated from the history it reads: replaced if it exists
+        from accelcal.outputs import check_output
+        check_output(args.plot, [args.history], True, "--plot")
     try:
-        lines = Path(args.history).read_text().splitlines()
+        lines = Path(args.history).read_bytes().decode("utf-8").splitlines()
     except OSError as e:
         raise InputError(f"{args.history}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{args.history}: not a diagnose history (not UTF-8 text)") from None
     steps = []
     for i, line in enumerate(lines, 1):
         if not line.strip():
             continue
-        try:
-            rec = json.loads(line)
-            steps.append((rec["model"], float(rec["heldout_error_mg"]), float(rec["noise_floor_mg"]),
-                          rec.get("missing_effect"), rec.get("input", "")))
-        except (ValueError, KeyError, TypeError):
-            raise InputError(f"{args.history}:{i}: not a diagnose history line") from None
+        steps.append(_history_step(args.history, i, line))
     if not steps:
         raise InputError(f"{args.history}: no steps (run diagnose --history {args.history})")
     if args.json:
@@ -370,7 +411,7 @@ def report_main(args) -> int:
         ax.set_ylim(bottom=0)
         ax.legend()
         fig.tight_layout()
-        fig.savefig(args.plot, dpi=90)
+        save_figure(fig, args.plot, dpi=90)
         plt.close(fig)
         print(f"plot: {args.plot}", file=sys.stderr)
     return 0

@@ -195,6 +195,9 @@ def format_report(t4: dict, ua: dict, mis: dict, passes: int, jitter_pct: float)
 
 
 def gietzelt_main(args) -> int:
+    if args.plots:
+        from accelcal.outputs import check_output_dir
+        check_output_dir(args.plots, (), "--plots")
     t4 = table4(args.passes, args.seed, args.jitter)
     ua = unequal_axes(args.passes, args.seed + 1, args.jitter)
     mis = misaligned(args.passes, args.seed + 2, args.jitter)

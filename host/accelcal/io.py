@@ -78,8 +78,8 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
             if data is not None and data.shape[1] == len(header) and len(data) \
                     and np.isfinite(data).all():
                 kind = "recording" if header in RECORDING_HEADERS else "points"
-                return Table(path, {h: np.ascontiguousarray(data[:, i]) for i, h in enumerate(header)},
-                             kind, {})
+                return _checked(Table(path, {h: np.ascontiguousarray(data[:, i])
+                                             for i, h in enumerate(header)}, kind, {}))
             fh.seek(0)
             next(reader)
         rows = list(reader)
@@ -116,7 +116,46 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
             i = int(np.argmax(bad))
             raise InputError(f"{path}:{i + 2}: {cells[i]} in column {h} (values must be finite)")
         out[h] = arr
-    return Table(path, out, kind, text)
+    return _checked(Table(path, out, kind, text))
+
+
+MAX_ABS_G = 256.0          # no wearable accelerometer reads more: a larger value is not a reading
+TEMP_RANGE_C = (-100.0, 200.0)
+
+
+def check_values(path: str, t, xyz, temp, first: int, last_t: float | None = None,
+                 line_offset: int = 2) -> None:
+    """Readings a sensor could have given: |x|, |y|, |z| <= MAX_ABS_G, temperatures within
+    TEMP_RANGE_C, time never going back (also across chunks: last_t); InputError naming the
+    line (first data line = line_offset) otherwise."""
+    big = np.abs(xyz) > MAX_ABS_G
+    if big.any():
+        row = int(np.argmax(big.any(axis=1)))
+        raise InputError(f"{path}:{first + row + line_offset}: {xyz[row][big[row]][0]:g} g is not "
+                         f"an acceleration a wearable reads (|value| <= {MAX_ABS_G:g} g)")
+    if temp is not None:
+        lo, hi = TEMP_RANGE_C
+        off = (temp < lo) | (temp > hi)
+        if off.any():
+            row = int(np.argmax(off))
+            raise InputError(f"{path}:{first + row + line_offset}: temperature {temp[row]:g} degC "
+                             f"is outside {lo:g}..{hi:g} degC")
+    if len(t):
+        back = np.diff(t) < 0
+        if back.any():
+            row = int(np.argmax(back)) + 1
+            raise InputError(f"{path}:{first + row + line_offset}: time goes back ({t[row - 1]:g} "
+                             f"s, then {t[row]:g} s)")
+        if last_t is not None and t[0] < last_t:
+            raise InputError(f"{path}:{first + line_offset}: time goes back ({last_t:g} s, then "
+                             f"{t[0]:g} s)")
+
+
+def _checked(table: "Table") -> "Table":
+    c = table.columns
+    xyz = np.column_stack([c["x"], c["y"], c["z"]])
+    check_values(table.path, c.get("t", np.empty(0)), xyz, c.get("temp"), 0)
+    return table
 
 
 def g_to_sample(g: np.ndarray) -> np.ndarray:
@@ -160,44 +199,86 @@ def params_record(p_int, model="base", method="device", **extra) -> dict:
 
 
 def save_params(path: str, record: dict) -> None:
-    Path(path).write_text(json.dumps(record, indent=2) + "\n")
+    """Written whole or not at all (accelcal.outputs); the caller checked the path."""
+    from accelcal.outputs import write_text
+    write_text(path, json.dumps(record, indent=2) + "\n")
+
+
+def _reject_constant(name):
+    raise ValueError(f"{name} is not a number JSON allows")
 
 
 def load_params(path: str, device: str | None = None) -> tuple[str, list[int], dict]:
     """(model spec, integer parameters, reference) from a saved file; `device` picks one from a
-    `calibrate --by` file.  The reference (T0 degC, t0 s) is a composed model's; {} for base."""
+    `calibrate --by` file.  The reference (T0 degC, t0 s) is a composed model's; {} for base.
+    Everything is checked: the shape, integer parameters inside the device's calibration bounds
+    (a file no fit could have written is refused), a finite reference."""
     try:
-        rec = json.loads(Path(path).read_text())
+        text = Path(path).read_bytes().decode("utf-8")
+        rec = json.loads(text, parse_constant=_reject_constant)
     except OSError as e:
         raise InputError(f"{path}: cannot open ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a parameters file (not UTF-8 text)") from None
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno})") from None
-    if isinstance(rec, dict) and "devices" in rec:
+    except ValueError as e:
+        raise InputError(f"{path}: {e}") from None
+    if not isinstance(rec, dict):
+        raise InputError(f"{path}: a parameters file is a JSON object (from calibrate --save); "
+                         f"found {type(rec).__name__}")
+    if "devices" in rec:
         by = rec.get("by", "device")
-        names = [str(d.get(by)) for d in rec["devices"]]
+        devs = rec["devices"]
+        if not isinstance(by, str) or not isinstance(devs, list) or \
+                not all(isinstance(d, dict) for d in devs):
+            raise InputError(f"{path}: 'devices' must be a list of calibrations (from "
+                             "calibrate --by ... --save)")
+        names = [str(d.get(by)) for d in devs]
         if device is None:
             raise InputError(f"{path} holds {len(names)} devices; choose one with --device "
                              f"({', '.join(names[:5])}{', ...' if len(names) > 5 else ''})")
         if device not in names:
             raise InputError(f"{path}: no {by} {device!r}")
-        rec = rec["devices"][names.index(device)]
+        rec = devs[names.index(device)]
     elif device is not None:
         raise InputError(f"{path} holds one calibration; --device applies to calibrate --by files")
     from accelcal.effects import ModelSpec
+    model = rec.get("model", "base")
+    if not isinstance(model, str):
+        raise InputError(f"{path}: 'model' must be a model name such as base or base+drift")
     try:
-        spec = ModelSpec.parse(str(rec.get("model", "base")))
+        spec = ModelSpec.parse(model)
     except ValueError as e:
         raise InputError(f"{path}: {e}") from None
     names = spec.param_names
-    try:
-        pi = rec["params_int"]
-        p_int = [int(pi[n]) for n in names]
-        ref = {k: float(v) for k, v in rec["reference"].items()} if spec.effects else {}
-        if spec.effects and not {"T0", "t0"} <= set(ref):
-            raise KeyError("reference")
-    except (KeyError, TypeError, ValueError, AttributeError):
-        extra = " and reference {T0, t0}" if spec.effects else ""
-        raise InputError(f"{path}: needs params_int with {', '.join(names)}{extra}") from None
+    extra = " and reference {T0, t0}" if spec.effects else ""
+    pi = rec.get("params_int")
+    if not isinstance(pi, dict) or not all(n in pi for n in names):
+        raise InputError(f"{path}: needs params_int with {', '.join(names)}{extra}")
+    for n in names:
+        v = pi[n]
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise InputError(f"{path}: params_int.{n} must be an integer (Q24), found {v!r:.40}")
+    p_int = [pi[n] for n in names]
+    ref = {}
+    if spec.effects:
+        r = rec.get("reference")
+        if not isinstance(r, dict) or not {"T0", "t0"} <= set(r) or not all(
+                isinstance(r[k], (int, float)) and not isinstance(r[k], bool)
+                and math.isfinite(r[k]) for k in ("T0", "t0")):
+            raise InputError(f"{path}: needs params_int with {', '.join(names)}{extra} "
+                             "(finite numbers)")
+        ref = {"T0": float(r["T0"]), "t0": float(r["t0"])}
+        if not -100 <= ref["T0"] <= 200:
+            raise InputError(f"{path}: reference.T0 {ref['T0']:g} degC is not a temperature a "
+                             "sensor works at")
+    from acal import effects as deffects
+    from acal import model as dmodel
+    kinds = tuple(deffects.parse_model(str(spec)))
+    if not dmodel.in_bounds(p_int) or (kinds and not dmodel.effects_within(p_int, kinds, 1)):
+        raise InputError(f"{path}: parameters outside the calibration bounds (README \"Fixed-"
+                         "point formats\"): no fit writes these")
     return str(spec), p_int, ref
 
 

@@ -23,7 +23,7 @@ from typing import Iterator
 
 import numpy as np
 
-from accelcal.io import RECORDING_HEADERS, InputError
+from accelcal.io import RECORDING_HEADERS, InputError, check_values
 
 GAP_S = 1.0
 CHUNK = 1 << 20                      # samples per chunk handed on
@@ -97,6 +97,7 @@ class CsvRecording(Recording):
         import pyarrow.csv as pacsv
         types = {h: pa.float64() for h in self.header}
         first = 0
+        self._last_t = None
         try:
             reader = pacsv.open_csv(
                 self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True),
@@ -123,6 +124,9 @@ class CsvRecording(Recording):
                 raise InputError(f"{self.path}:{row + 2}: {v[row - first]} in column {h} "
                                  "(values must be finite)")
             cols.append(v)
+        check_values(self.path, cols[0], np.column_stack(cols[1:4]),
+                     cols[4] if self.has_temp else None, first, self._last_t)
+        self._last_t = float(cols[0][-1])
         return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first)
 
 

@@ -1,6 +1,7 @@
 """Stimulus files for the simulated LIS3DH (format in host/accelcal/sim/vlis3dh.py)."""
 from __future__ import annotations
 
+import os
 import struct
 from pathlib import Path
 
@@ -11,10 +12,13 @@ MAGIC = b"ACST"
 
 
 class StimulusWriter:
-    """Writes a stimulus file block by block (n_samples known up front): constant memory."""
+    """Writes a stimulus file block by block (n_samples known up front): constant memory.  Into
+    a temporary file beside it, renamed into place by close() once every sample is written."""
 
     def __init__(self, path: str | Path, rate_hz: int, n_samples: int):
-        self.fh = open(path, "wb")
+        self.path = Path(path)
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
+        self.fh = open(self.tmp, "wb")
         self.n = n_samples
         self.written = 0
         self.fh.write(HEADER.pack(MAGIC, 1, int(rate_hz), n_samples, 0))
@@ -28,10 +32,17 @@ class StimulusWriter:
         self.fh.write(rec.tobytes())
         self.written += len(rec)
 
+    def abort(self) -> None:
+        """The run failed: no stimulus file (the partial one removed)."""
+        self.fh.close()
+        self.tmp.unlink(missing_ok=True)
+
     def close(self) -> None:
         self.fh.close()
         if self.written != self.n:
+            self.tmp.unlink(missing_ok=True)
             raise ValueError(f"stimulus: {self.written} samples written, header says {self.n}")
+        os.replace(self.tmp, self.path)
 
 
 def write_stimulus(path: str | Path, rate_hz: int, xyz_g: np.ndarray, temp_c: np.ndarray) -> None:

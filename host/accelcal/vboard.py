@@ -22,6 +22,7 @@ import tty
 from pathlib import Path
 
 from accelcal import runtime
+from accelcal.io import InputError
 
 SIM_DIR = Path(__file__).resolve().parent / "sim"
 
@@ -125,8 +126,16 @@ class VirtualBoard:
 def serve_main(args) -> int:
     """`accelcal board virtual`: make a stimulus if none is given, print the port, relay."""
     from accelcal import wearer
-    flash = Path(args.flash)
-    flash.mkdir(parents=True, exist_ok=True)
+    from accelcal.outputs import check_output, check_output_dir, write_text
+    flash = check_output_dir(args.flash, [args.stimulus], "--flash")
+    if args.link:
+        # never replaces a file it did not make: the link must be new
+        if Path(args.link).is_symlink() or Path(args.link).exists():
+            raise InputError(f"{args.link}: exists; --link makes a new symlink (remove it or "
+                             "choose another name)")
+        check_output(args.link, [args.stimulus], False, "--link")
+    if args.port_file:
+        check_output(args.port_file, [args.stimulus], True, "--port-file")
     stim = Path(args.stimulus) if args.stimulus else flash.parent / (flash.name + "-stimulus.bin")
     if not args.stimulus:
         rec = stim.with_suffix(".csv")
@@ -136,12 +145,9 @@ def serve_main(args) -> int:
     board = VirtualBoard(flash, stim, args.bus_faults, args.heap, args.speed,
                          log=lambda m: print(f"virtual board: {m}", file=sys.stderr, flush=True))
     if args.link:
-        link = Path(args.link)
-        if link.is_symlink() or link.exists():
-            link.unlink()
-        link.symlink_to(board.port)
+        Path(args.link).symlink_to(board.port)
     if args.port_file:
-        Path(args.port_file).write_text(board.port + "\n")
+        write_text(args.port_file, board.port + "\n")
     print(board.port, flush=True)
     print(f"virtual board on {board.port} (flash {flash.resolve()}); try: mpremote connect "
           f"{board.port} exec \"import sys; print(sys.platform)\"; Ctrl-C stops it",
@@ -154,8 +160,9 @@ def serve_main(args) -> int:
         pass
     finally:
         board.stop()
-        if args.link:
-            Path(args.link).unlink(missing_ok=True)
+        link = Path(args.link) if args.link else None
+        if link is not None and link.is_symlink() and os.readlink(link) == board.port:
+            link.unlink()   # ours: the symlink this run made, still pointing at its port
     return 0
 
 

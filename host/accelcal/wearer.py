@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from accelcal import simulate
+from accelcal.outputs import atomic, write_text
 from accelcal.stimulus import StimulusWriter
 
 NOISE_DENSITY_G = 220e-6      # LIS3DH: 220 ug/sqrt(Hz)
@@ -272,27 +273,12 @@ def quantise(v_g: np.ndarray, range_g: int = 2, bits: int = 12) -> np.ndarray:
     return d * step
 
 
-def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
-                   effects=(), stimulus: str | Path | None = None, range_g: int = 2,
-                   progress=None) -> dict:
-    """Write a recording CSV (t,x,y,z,temp) and its truth beside it (NAME.truth.json);
-    with stimulus, also the stimulus file for the virtual board.  effects: catalogue names
-    (accelcal.effects), drawn with realistic magnitudes.  Returns the truth."""
-    from accelcal.effects import CATALOGUE, TrueEffect
-    rng = np.random.default_rng(seed)
-    sensor = Sensor.lis3dh(rng, rate_hz)
-    # Effects draw from their own stream: the same seed gives the same day with or without them.
-    erng = np.random.default_rng([seed, 1])
-    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng)) for n in effects]
-    wearer = Wearer(rng, rate_hz)
-    out_csv = Path(out_csv)
-    n_days = int(np.ceil(days))
-    total = int(round(days * 86400 * rate_hz))
+def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, range_g, progress):
+    # The recording day by day (written whole or not at all) and the stimulus beside it.
     segs_all: list[Segment] = []
     hours: dict[str, float] = {}
     clipped = 0
-    stim = StimulusWriter(stimulus, rate_hz, total) if stimulus is not None else None
-    with open(out_csv, "w") as fh:
+    with atomic(out_csv) as fh:
         fh.write("t,x,y,z,temp\n")
         done = 0
         for day in range(n_days):
@@ -318,6 +304,33 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
             done += n
             if progress:
                 progress(done, total)
+    return hours, segs_all, clipped
+
+
+def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
+                   effects=(), stimulus: str | Path | None = None, range_g: int = 2,
+                   progress=None) -> dict:
+    """Write a recording CSV (t,x,y,z,temp) and its truth beside it (NAME.truth.json);
+    with stimulus, also the stimulus file for the virtual board.  effects: catalogue names
+    (accelcal.effects), drawn with realistic magnitudes.  Returns the truth."""
+    from accelcal.effects import CATALOGUE, TrueEffect
+    rng = np.random.default_rng(seed)
+    sensor = Sensor.lis3dh(rng, rate_hz)
+    # Effects draw from their own stream: the same seed gives the same day with or without them.
+    erng = np.random.default_rng([seed, 1])
+    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng)) for n in effects]
+    wearer = Wearer(rng, rate_hz)
+    out_csv = Path(out_csv)
+    n_days = int(np.ceil(days))
+    total = int(round(days * 86400 * rate_hz))
+    stim = StimulusWriter(stimulus, rate_hz, total) if stimulus is not None else None
+    try:
+        hours, segs_all, clipped = _write_days(out_csv, stim, wearer, sensor, rng, n_days, total,
+                                               rate_hz, range_g, progress)
+    except BaseException:
+        if stim is not None:
+            stim.abort()
+        raise
     if stim is not None:
         stim.close()
     rest = [s.seconds for s in segs_all if s.activity in ("sleep", "awake_rest", "off_wrist")]
@@ -329,5 +342,5 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
              "clipped_samples": clipped,
              "segments": [[round(s.start_s, 2), round(s.seconds, 2), s.activity, s.posture]
                           for s in segs_all]}
-    out_csv.with_suffix(".truth.json").write_text(json.dumps(truth, indent=1))
+    write_text(out_csv.with_suffix(".truth.json"), json.dumps(truth, indent=1))
     return truth
