@@ -51,7 +51,7 @@ def option_cases(good):
     groups = [
         (["calibrate", pts], ["--seconds", "--threshold", "--min-count", "--max-count", "--differ",
                               "--iterations", "--rates", "--jobs", "--axis", "--select", "--profile",
-                              "--points", "--method", "--runtime", "--engine"]),
+                              "--points", "--method", "--runtime", "--engine", "--dask"]),
         (["apply", params, rec, "-o", out], ["--range"]),
         (["simulate", "paper", "-o", out], ["--noise-mg", "--scenarios", "--points", "--seed",
                                              "--noise-dist"]),

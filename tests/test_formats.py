@@ -139,3 +139,59 @@ def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     cfg = runtime.Config.for_profile("wear")
     pieces = calibrate_recording(str(REAL / name), cfg, "device", "cpython")
     assert {k: v for k, v in pieces.items() if k != "file"} == {k: v for k, v in one.items() if k != "file"}
+
+
+GT3X = REAL / "ggir" / "actigraph_testfile.gt3x"   # GGIR's test file (Apache-2.0, beside it)
+
+
+def test_gt3x_reads_to_the_independent_reader():
+    """An ActiGraph wGT3X-BT file reads to the samples pygt3x gives for it (its rows outside
+    idle sleep, stored beside the file): the same times and values; the idle-sleep stretches
+    (the device stopped sampling while still: 35 400 of pygt3x's 53 040 rows repeat a sample)
+    are gaps in ours, never rest."""
+    ref = np.load(GT3X.with_name("actigraph_testfile_pygt3x.npz"))
+    t, xyz, temp, rec = read_whole(GT3X)
+    assert len(t) == len(ref["time"]) == 17640 and int(ref["idle_rows"]) == 35400
+    assert np.abs(t - ref["time"]).max() < 1e-6
+    assert np.array_equal(xyz.astype(np.float32), ref["accel"])
+    gaps = np.diff(t) > 1.0
+    assert gaps.sum() >= 1 and (t[-1] - t[0]) > 0.45 * 3600   # a 0.49 h span, 0.16 h of samples
+    assert temp is None and not rec.has_temp
+
+
+def test_gt3x_idle_sleep_is_not_rest(tmp_path):
+    """calibrate on the .gt3x: the idle-sleep stretches (hours of one repeated sample in other
+    readers) give no rest segment; only the sampled minutes do."""
+    r = run_cli("calibrate", GT3X, "--json", "--method", "lsq", "--points", "all")
+    rec = json.loads(r.stdout.splitlines()[0]) if r.stdout.strip() else None
+    assert rec is not None, r.stderr
+    assert rec["format"].lower().startswith("actigraph") and rec["gaps"] >= 1
+    # 0.16 h of samples: at most that many 5 s segments, whatever the idle hours
+    assert rec["still_windows"] <= 0.17 * 3600 / 5
+
+
+@pytest.mark.parametrize("name", ["ax3_sample.cwa", "gnactv_sample.bin",
+                                  "ggir/actigraph_testfile.gt3x"])
+def test_calibrate_diagnose_and_compare_find_the_same_rest_segments(name):
+    """One file, one set of rest segments: calibrate's still windows (the device's rest test,
+    imputed, clipped and non-wear segments left out) are the ones diagnose and compare read."""
+    from accelcal.diagnose import rest_points
+    r = run_cli("calibrate", REAL / name, "--json")
+    rec = json.loads(r.stdout.splitlines()[0])
+    try:
+        n = len(rest_points(str(REAL / name)))
+    except InputError:
+        n = 0
+    assert n == rec["still_windows"], (name, n, rec["still_windows"])
+
+
+def test_the_same_rest_segments_on_a_day_with_non_wear(tmp_path):
+    """A simulated day with the device off the wrist: calibrate leaves the non-wear segments out
+    of its still windows, and diagnose's rest points are exactly those (before, it counted the
+    off-wrist ones too)."""
+    from accelcal.diagnose import rest_points
+    f = tmp_path / "day.csv"
+    assert run_cli("simulate", "wrist", "--days", "1", "--rate", "10", "-o", f).returncode == 0
+    rec = json.loads(run_cli("calibrate", f, "--json").stdout.splitlines()[0])
+    assert rec["excluded"]["nonwear"] > 0
+    assert len(rest_points(str(f))) == rec["still_windows"]

@@ -110,8 +110,9 @@ def run_dask(paths: list[str], job: Job, address: str, quiet: bool = False) -> l
         raise InputError("--dask needs the distributed package (pip install distributed)") from None
     try:
         client = Client(address, timeout="10s")
-    except (OSError, TimeoutError) as e:
-        raise InputError(f"--dask {address}: cannot reach the scheduler ({e})") from None
+    except (OSError, TimeoutError, ValueError) as e:
+        raise InputError(f"--dask {address}: cannot reach the scheduler "
+                         f"({' '.join(str(e).split())[:200]})") from None
     out: dict[int, dict] = {}
     bar = _progress(len(paths), quiet)
     try:

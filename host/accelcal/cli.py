@@ -73,6 +73,17 @@ def _float_in(lo, hi, lo_open=False):
 _positive_int = _int_in(1, 10 ** 6)
 
 
+def _dask_address(s):
+    """A scheduler address: [scheme://]host:port, the port a number."""
+    import re
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):(\d{1,5})",
+                     s)
+    if not m or not 0 < int(m.group(3)) < 65536:
+        raise argparse.ArgumentTypeError(f"{s!r} is not a scheduler address such as "
+                                         "tcp://10.0.0.5:8786")
+    return s
+
+
 def _rates(s):
     try:
         vals = [float(v) for v in s.split(",")]
@@ -507,7 +518,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("batches (several INPUTs)")
     g.add_argument("--jobs", type=_int_in(1, 256), default=1, metavar="N",
                    help="files calibrated at once in a process pool (default 1)")
-    g.add_argument("--dask", metavar="ADDRESS",
+    g.add_argument("--dask", metavar="ADDRESS", type=_dask_address,
                    help="run the batch on an existing Dask cluster (scheduler address, e.g. "
                         "tcp://10.0.0.5:8786); its workers need accelcal and the files.  Name "
                         "only a scheduler you trust: Dask exchanges pickles, so the scheduler "

@@ -58,7 +58,8 @@ class RestPoints:
 
 def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> RestPoints:
     """path: a recording (any size or format: one streaming pass of the vectorised twin of the
-    device's detector, accelcal.scan; every still segment, gaps honoured), or a points file or
+    device's detector, accelcal.scan; the still segments calibrate keeps, gaps honoured, imputed,
+    clipped and non-wear ones left out), or a points file or
     Table.  seconds, threshold (Q10 g; 0: from the noise), axis (3: all): the rest test, by
     default the wear profile's."""
     if not isinstance(path, Table) and not is_recording(path):
@@ -74,9 +75,11 @@ def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> Re
     from accelcal.scan import scan
     rec = open_recording(path)
     sc = scan(rec, seconds, threshold, axis, extras=True)
-    still = sc.segments.still
+    # the segments calibrate keeps: still, and not imputed, clipped or off the wrist (scan.masks)
+    still = sc.masks()["kept"]
     if not still.any():
-        raise InputError(f"{path}: no rest segments found")
+        raise InputError(f"{path}: no rest segments found (beside any imputed, clipped or "
+                         "non-wear ones)")
     m = sc.seg_means[still]
     sd = np.sqrt(np.maximum(m[:, 3] - m[:, 2] ** 2, 0.0))
     return RestPoints(sc.segments.mean[still] / 65536.0, m[:, 0], m[:, 1] if rec.has_temp else None,

@@ -17,6 +17,7 @@ nothing that matters.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -143,19 +144,49 @@ def _actfast(path: str, fmt: str) -> dict:
                          f"({' '.join(str(e).split())[:200]})") from None
 
 
+def _group(timeseries: dict, key: str) -> dict | None:
+    # The timeseries group that holds `key`: actfast names groups by rate for GENEActiv and
+    # Axivity (high_frequency, low_frequency) and by sensor for ActiGraph (acceleration, ...).
+    for g in timeseries.values():
+        if isinstance(g, dict) and key in g and len(g[key]):
+            return g
+    return None
+
+
 def _columns(data: dict):
     """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None)."""
-    hf = data["timeseries"].get("high_frequency", {})
-    if "acceleration" not in hf or not len(hf["acceleration"]):
+    ts = data.get("timeseries", {})
+    hf = _group(ts, "acceleration")
+    if hf is None:
         return None
     t = hf["datetime"].astype(np.float64) / 1e9
-    lf = data["timeseries"].get("low_frequency", {})
+    lf = _group(ts, "temperature")
     temp = None
-    if "temperature" in lf and len(lf["temperature"]):
+    if lf is not None:
         tl = lf["datetime"].astype(np.float64) / 1e9
         held = np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
         temp = lf["temperature"].astype(np.float64)[held]
     return t, hf["acceleration"], temp
+
+
+def _pygt3x_columns(path: str):
+    """ActiGraph files actfast gives no samples for (GT9X Link): pygt3x, if installed (the
+    optional extra `accelcal[gt3x]`).  Its idle-sleep rows (the device stopped sampling while
+    still and the reader repeats a sample) are left out: a gap, never rest."""
+    try:
+        from pygt3x.reader import FileReader
+    except ImportError:
+        return None
+    try:
+        with FileReader(path) as r:
+            df = r.to_pandas()
+    except Exception as e:   # pygt3x's own errors for files it cannot read
+        raise InputError(f"{path}: not a readable ActiGraph file ({' '.join(str(e).split())[:200]})"
+                         ) from None
+    if "IdleSleepMode" in df:
+        df = df[~df["IdleSleepMode"].astype(bool)]
+    return (df.index.values.astype(np.float64), df[["X", "Y", "Z"]].values.astype(np.float32),
+            None)
 
 
 class ActigraphyRecording(Recording):
@@ -167,7 +198,14 @@ class ActigraphyRecording(Recording):
         data = _actfast(path, self.format)
         self.format = data.get("format", self.format)
         cols = _columns(data)
-        if cols is None:
+        if cols is None and Path(path).suffix.lower() == ".gt3x":
+            cols = _pygt3x_columns(path)
+            if cols is None:
+                raise InputError(f"{path}: actfast reads no samples from this ActiGraph file "
+                                 "(a GT9X Link?); install the optional reader: pip install "
+                                 "'accelcal[gt3x]' (pygt3x)")
+            self.meta_reader = "pygt3x"
+        if cols is None or not len(cols[0]):
             raise InputError(f"{path}: {self.format} file holds no acceleration samples")
         self.t, self.xyz, self.temp = cols
         self.has_temp = self.temp is not None
@@ -253,9 +291,11 @@ def _declared_range(meta: dict) -> float | None:
         for k, v in sec.items():
             if k in ("accelerometer_range_g", "Accelerometer Range"):
                 try:
-                    return float(str(v).split()[-1])
-                except ValueError:
+                    g = float(str(v).split()[-1])
+                except (ValueError, IndexError):
                     return None
+                # a range no accelerometer has (nan, 0, 1e300) is not declared: None
+                return g if math.isfinite(g) and 0 < g <= 400 else None
     return None
 
 

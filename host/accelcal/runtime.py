@@ -253,7 +253,7 @@ def parse(out_lines) -> list[DeviceResult]:
             cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
             cur.params_int = v[4:]
         else:
-            raise RuntimeError(f"device runner said: {line.strip()}")
+            raise InputError(f"the device runner said: {line.strip()[:200]}")
     return results
 
 
@@ -280,9 +280,26 @@ def run_micropython_script(script: str, *args: str, heap: str | None = None,
     env = dict(os.environ, MICROPYPATH=":".join([str(DEVICE_DIR), *extra_path, ".frozen"]))
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     if proc.returncode != 0:
-        raise RuntimeError(f"micropython failed ({proc.returncode}): {proc.stdout[-2000:]}"
-                           f"{proc.stderr[-2000:]}")
+        raise InterpreterFailed("micropython", proc)
     return proc.stdout
+
+
+class InterpreterFailed(InputError):
+    """A MicroPython child ended with an error: one line (its last error line), the whole
+    output kept in a file named in it (the protocol can be thousands of lines)."""
+
+    def __init__(self, name: str, proc: subprocess.CompletedProcess):
+        import tempfile
+        text = (proc.stdout or "") + (proc.stderr or "")
+        fd, path = tempfile.mkstemp(prefix=f"accelcal-{name}-", suffix=".log")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+        errs = [ln for ln in lines if "Error" in ln or "error" in ln]
+        last = (errs or lines or ["no output"])[-1][:200]
+        super().__init__(f"{name} failed (exit {proc.returncode}): {last}; its whole output is "
+                         f"in {path}")
+        self.output = text
 
 
 def micropython32_module() -> str:
@@ -306,8 +323,7 @@ def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
            ":".join([str(DEVICE_DIR), *extra_path]), script, *args]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     if proc.returncode != 0:
-        raise RuntimeError(f"micropython32 failed ({proc.returncode}): {proc.stdout[-2000:]}"
-                           f"{proc.stderr[-2000:]}")
+        raise InterpreterFailed("micropython32", proc)
     return proc.stdout
 
 
