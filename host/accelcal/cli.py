@@ -678,6 +678,12 @@ def build_parser() -> argparse.ArgumentParser:
                                    "error with it added; names the missing effect, or none.")
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write DIR/report.html: one self-contained file (figures inside, no "
+                        "network needed) with the held-out table, the candidates, the named "
+                        "effect's physics, the steps so far (with --history) and the commands to "
+                        "run next; its numbers are --json's (embedded in it)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": DIR/report.html")
     p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here "
                    "(the folder is made if missing; figures in it are replaced)")
     p.add_argument("--history", metavar="FILE", help="append this step (model, held-out error) to FILE "
@@ -688,8 +694,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("report", help="the model steps of a diagnose --history file",
                        description="A table of each model step with its held-out error and noise floor, "
                                    "and with --plot a PNG of the error per step.")
-    p.add_argument("history", help="file written by diagnose --history")
+    p.add_argument("history", help="file written by diagnose --history, or a folder `pull` "
+                                   "wrote (a board's logs)")
     p.add_argument("--plot", metavar="PNG", help="the steps as a figure (replaced if it exists)")
+    p.add_argument("--html", metavar="FILE",
+                   help="one self-contained HTML file (figures inside; opens from disk with no "
+                        "network): the steps, or the board's calibrations over time")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": --html")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 

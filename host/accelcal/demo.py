@@ -60,6 +60,8 @@ def main() -> int:
         print("(the capture is ~5.5 MB: mpremote copies it at about 60 kB/s)")
         cli("pull", "--port", board.port, "-o", str(work / "pulled"))
     rep = cli("replay", str(work / "pulled"))
+    cli("report", str(work / "pulled"), "--html", str(work / "board.html"), "--force", quiet=True)
+    print(f"the board's calibrations over the day: {work / 'board.html'}")
 
     lg = boardlog.decode(work / "pulled" / "log.bin")
     cals = [c for c in lg.dicts(log.CAL) if optimiser.usable(c["status"])]
@@ -107,8 +109,8 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
     print(f"\n--- Model discovery: 3 days at 10 Hz with one hidden effect (seed {seed}) ---\n")
     cli("simulate", "wrist", "--days", "3", "--rate", "10", "--seed", str(seed), "--effect", hidden,
         "-o", str(rec), "--force", quiet=True)
-    out = json.loads(cli("diagnose", str(rec), "--json", "--plots", str(work / "plots"),
-                         "--history", str(hist), quiet=True).stdout)
+    out = json.loads(cli("diagnose", str(rec), "--json", "--report", str(work / "report-base"),
+                         "--history", str(hist), "--force", quiet=True).stdout)
     print(f"base model: held-out error {out['heldout_error_mg']:.2f} mg, noise floor "
           f"{out['noise_floor_mg']:.2f} mg")
     for c in out["candidates"]:
@@ -136,12 +138,13 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
               "  -- MORE than 1.5x: the device's points do not show the effect as well as all "
               "rest points do (README \"Profiles\")"))
     after = json.loads(cli("diagnose", str(rec), "--model", model, "--json", "--history", str(hist),
-                           quiet=True).stdout)
+                           "--report", str(work / "report"), "--force", quiet=True).stdout)
     print(f"with {named}: held-out error {after['heldout_error_mg']:.2f} mg "
           f"(noise floor {after['noise_floor_mg']:.2f} mg); names next: {after['missing_effect'] or 'nothing'}\n")
     cli("report", str(hist), "--plot", str(work / "steps.png"))
     print(f"the hidden effect was: {hidden} -> {'FOUND' if named == hidden else 'MISSED'}; "
-          f"plots in {work / 'plots'} and {work / 'steps.png'}")
+          f"open {work / 'report-base' / 'report.html'} (where the base model fails) and "
+          f"{work / 'report' / 'report.html'} (before and after {named}, the steps so far)")
     return named == hidden
 
 

@@ -218,7 +218,8 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> dict:
            "candidates": cands, "explanation": explanation, "where_it_fails": where,
            "params": dict(zip(spec.param_names, theta.round(6).tolist())), "reference": ref}
     if plots:
-        out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor)
+        out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor,
+                                  train)
     return out
 
 
@@ -241,42 +242,46 @@ def where_it_fails(spec, theta, test, ref, r) -> dict:
     return out
 
 
-def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor) -> list[str]:
+def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None) -> list[str]:
+    """residuals.png (where the model fails: accelcal.figures), candidates.png (each catalogue
+    effect's held-out error) and, for a composed model, step.png: the residuals before and after
+    its last effect, side by side on one y-range."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from accelcal import figures
     d.mkdir(parents=True, exist_ok=True)
     a, _ = residuals(spec, theta, test, ref)
-    panels = [("time (h)", (test.t - test.t.min()) / 3600)]
-    if test.temp is not None:
-        panels.append(("temperature (degC)", test.temp))
-    panels += [(f"a_{c} (g)", a[:, i]) for i, c in enumerate("xyz")]
-    panels.append(("|v| measured (g)", np.linalg.norm(test.v, axis=1)))
-    fig, axs = plt.subplots(2, 3, figsize=(13, 7))
-    for ax, (label, x) in zip(axs.flat, panels):
-        ax.plot(x, r * 1e3, ".", ms=2, alpha=0.4)
-        ax.axhline(0, color="k", lw=0.8)
-        ax.set_xlabel(label)
-        ax.set_ylabel("|a| - 1 g (mg)")
-    for ax in list(axs.flat)[len(panels):]:
-        ax.axis("off")
-    fig.suptitle(f"held-out residuals, model {spec}: {err:.2f} mg (noise floor {floor:.2f} mg)")
-    fig.tight_layout()
+    fig, _ = figures.residual_figure(test, a, r * 1e3, floor,
+                                     f"model {spec}: held-out error {err:.2f} mg, noise floor "
+                                     f"{floor:.2f} mg")
     f1 = d / "residuals.png"
-    save_figure(fig, f1, dpi=90)
+    save_figure(fig, f1, dpi=80)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(7, 4))
     names = [c["effect"] for c in cands if c["heldout_error_mg"] is not None]
     vals = [c["heldout_error_mg"] for c in cands if c["heldout_error_mg"] is not None]
     ax.barh([str(spec)] + [f"+{n}" for n in names], [err] + vals)
-    ax.axvline(floor, color="r", ls="--", label="noise floor")
-    ax.set_xlabel("held-out calibration error (mg)")
+    ax.axvline(floor, color="r", ls="--", label=f"noise floor {floor:.2f} mg")
+    ax.set_xlabel("held-out calibration error (mg): mean | |a| − 1 g | over held-out rest points")
+    ax.set_title(f"model {spec} and each catalogue effect added to it", fontsize=10)
     ax.legend()
     fig.tight_layout()
     f2 = d / "candidates.png"
-    save_figure(fig, f2, dpi=90)
+    save_figure(fig, f2, dpi=80)
     plt.close(fig)
-    return [str(f1), str(f2)]
+    out = [str(f1), str(f2)]
+    if spec.effects and train is not None:
+        before = ModelSpec(spec.effects[:-1])
+        th0 = fit(before, train, ref)
+        a0, r0 = residuals(before, th0, test, ref)
+        fig = figures.before_after_figure(test, a0, r0 * 1e3, a, r * 1e3, floor, str(before),
+                                          str(spec))
+        f3 = d / "step.png"
+        save_figure(fig, f3, dpi=70)
+        plt.close(fig)
+        out.append(str(f3))
+    return out
 
 
 def print_report(out: dict) -> None:
@@ -298,17 +303,29 @@ def print_report(out: dict) -> None:
     print(out["explanation"])
     for f in out.get("plots", []):
         print(f"plot: {f}")
+    if out.get("report"):
+        print(f"report: {out['report']}")
 
 
 def diagnose_main(args) -> int:
-    from accelcal.outputs import check_output, check_output_dir
+    from accelcal.outputs import check_output, check_output_dir, write_text
     if args.history:   # appended to: checked here, before the analysis, not replaced
         check_output(args.history, [args.input], True, "--history")
     if args.plots:
         check_output_dir(args.plots, [args.input], "--plots")
-    out = diagnose(args.input, args.model, args.plots)
+    page = None
+    if args.report:
+        rdir = check_output_dir(args.report, [args.input], "--report")
+        page = check_output(rdir / "report.html", [args.input], args.force, "--report")
+    out = diagnose(args.input, args.model, args.plots or args.report)
     if args.history:
         append_history(args.history, out)
+    if page is not None:
+        from accelcal import report_html
+        pngs = {Path(f).name: Path(f).read_bytes() for f in out["plots"]}
+        steps = read_history(args.history) if args.history else None
+        write_text(page, report_html.diagnose_page(out, pngs, steps))
+        out["report"] = str(page)
     if args.json:
         print(json.dumps(out))
     else:
@@ -373,22 +390,31 @@ def _history_step(path, i, line):
     return model, vals[0], vals[1], named, str(rec.get("input", ""))
 
 
+def read_history(path) -> list[dict]:
+    """The steps of a diagnose history, each line checked (_history_step)."""
+    try:
+        lines = Path(path).read_bytes().decode("utf-8").splitlines()
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a diagnose history (not UTF-8 text)") from None
+    keys = ("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input")
+    return [dict(zip(keys, _history_step(path, i, line)))
+            for i, line in enumerate(lines, 1) if line.strip()]
+
+
 def report_main(args) -> int:
     """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
     if args.plot:   # a figure, regenerated from the history it reads: replaced if it exists
         from accelcal.outputs import check_output
         check_output(args.plot, [args.history], True, "--plot")
-    try:
-        lines = Path(args.history).read_bytes().decode("utf-8").splitlines()
-    except OSError as e:
-        raise InputError(f"{args.history}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{args.history}: not a diagnose history (not UTF-8 text)") from None
-    steps = []
-    for i, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        steps.append(_history_step(args.history, i, line))
+    if Path(args.history).is_dir():
+        return board_report(args)
+    if args.html:
+        from accelcal.outputs import check_output
+        check_output(args.html, [args.history], args.force, "--html")
+    steps = [(d["model"], d["heldout_error_mg"], d["noise_floor_mg"], d["missing_effect"],
+              d["input"]) for d in read_history(args.history)]
     if not steps:
         raise InputError(f"{args.history}: no steps (run diagnose --history {args.history})")
     if args.json:
@@ -401,7 +427,8 @@ def report_main(args) -> int:
             ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
             print(f"{k:<5}{m:<36}{e:12.2f}{f:10.2f}{ch:>9}  {named or '-'}")
             prev = e
-    if args.plot:
+    if args.plot or args.html:
+        import io
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
@@ -411,12 +438,78 @@ def report_main(args) -> int:
         ax.plot(x, [s[2] for s in steps], "r--", label="noise floor")
         ax.set_xticks(x, [s[0].replace("base+", "+") for s in steps], rotation=20)
         ax.set_ylabel("calibration error (mg)")
+        ax.set_title("held-out calibration error at each model step", fontsize=10)
         ax.set_ylim(bottom=0)
         ax.legend()
         fig.tight_layout()
-        save_figure(fig, args.plot, dpi=90)
+        if args.plot:
+            save_figure(fig, args.plot, dpi=90)
+            print(f"plot: {args.plot}", file=sys.stderr)
+        if args.html:
+            from accelcal import report_html
+            from accelcal.outputs import write_text
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=80)
+            keys = ("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input")
+            write_text(args.html, report_html.history_page(
+                args.history, [dict(zip(keys, s)) for s in steps], {"steps.png": buf.getvalue()}))
+            print(f"report: {args.html}", file=sys.stderr)
         plt.close(fig)
-        print(f"plot: {args.plot}", file=sys.stderr)
+    return 0
+
+
+def board_report(args) -> int:
+    """`accelcal report PULLED_DIR`: the board's calibrations over time (table; --html a page
+    with their figure; --json the summary)."""
+    from accelcal import boardlog
+    d = Path(args.history)
+    if not (d / "log.bin").exists():
+        raise InputError(f"{d}: a folder report reads is one `pull` wrote (no log.bin in it)")
+    if args.html:
+        from accelcal.outputs import check_output
+        check_output(args.html, [d / "log.bin"], args.force, "--html")
+    summ = boardlog.summary(d)
+    boots = boardlog.decode(d / "log.bin").dicts(boardlog.log.BOOT)
+    rate = boots[-1]["rate_hz"] if boots else None
+    cals = summ["calibrations"]
+    if args.json:
+        print(json.dumps(summ))
+    else:
+        print(f"{'number':>6} {'hours':>7} {'status':<34} {'points':>6}  kxx      kyy      kzz      "
+              "ox mg   oy mg   oz mg")
+        for c in cals:
+            h = f"{c['index'] / rate / 3600:7.2f}" if rate else "      -"
+            print(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
+                  f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  {c['oy'] * 1e3:6.2f}  "
+                  f"{c['oz'] * 1e3:6.2f}")
+    if args.html:
+        import io
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from accelcal import report_html
+        from accelcal.outputs import write_text
+        pngs = {}
+        if cals:
+            x = [c["index"] / rate / 3600 if rate else c["number"] for c in cals]
+            fig, axs = plt.subplots(1, 2, figsize=(11, 3.5))
+            for k in ("kxx", "kyy", "kzz"):
+                axs[0].plot(x, [c[k] for c in cals], "o-", label=k)
+            for k in ("ox", "oy", "oz"):
+                axs[1].plot(x, [c[k] * 1e3 for c in cals], "o-", label=k)
+            axs[0].set_ylabel("scale (dimensionless)")
+            axs[1].set_ylabel("offset (mg)")
+            for ax in axs:
+                ax.set_xlabel("running time (h)" if rate else "calibration number")
+                ax.legend(fontsize=8)
+            fig.suptitle("the board's calibrations over time", fontsize=10)
+            fig.tight_layout()
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=80)
+            plt.close(fig)
+            pngs["calibrations.png"] = buf.getvalue()
+        write_text(args.html, report_html.board_page(str(d), summ, pngs, rate))
+        print(f"report: {args.html}", file=sys.stderr)
     return 0
 
 
