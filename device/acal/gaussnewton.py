@@ -317,11 +317,7 @@ class GaussNewton:
         ar = r0 if r0 >= 0 else -r0
         t = self.tau
         if (ar >> t) >= R_MAX:
-            g = t
-            while (ar >> (g + 4)) >= R_MAX:
-                g += 4
-            while (ar >> g) >= R_MAX:
-                g += 1
+            g = _scale_for(ar, t, R_MAX)
             self.tau = g
             if i:   # the sums so far are zero at a pass's first point
                 self.f >>= 2 * (g - t)
@@ -337,11 +333,7 @@ class GaussNewton:
             s = sh[k]
             av = v if v >= 0 else -v
             if (av >> s) >= D_MAX:
-                g = s
-                while (av >> (g + 4)) >= D_MAX:
-                    g += 4
-                while (av >> g) >= D_MAX:
-                    g += 1
+                g = _scale_for(av, s, D_MAX)
                 if i:
                     self._grow(k, g - s)
                 s = g
@@ -543,6 +535,15 @@ class GaussNewton:
         else:
             self.status = OK
         self.phase = _DONE
+
+
+def _scale_for(v, s, limit):
+    # The smallest g >= s with v >> g below limit (v >= 0): 4 bits a step, then 1.
+    while (v >> (s + 4)) >= limit:
+        s += 4
+    while (v >> s) >= limit:
+        s += 1
+    return s
 
 
 def _square(r, t):
