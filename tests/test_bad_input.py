@@ -3,7 +3,6 @@ CLI's main(argv) in-process (hundreds of cases in seconds): each must end with e
 and exactly one line on stderr, never a traceback, and never a silent wrong result.  A few run
 as real subprocesses to prove the exit code and the absence of a traceback end to end."""
 import json
-import math
 import struct
 import subprocess
 import sys
@@ -146,7 +145,7 @@ def bad_files(tmp_path_factory):
         "binary.csv": bytes(range(256)) * 10,
         "empty.csv": "",
         "backwards.csv": "t,x,y,z\n" + "".join(f"{(500 - i) / 10:.1f},0,0,1\n" for i in range(500)),
-        "nant.csv": "t,x,y,z\n" + "".join(f"nan,0,0,1\n" for i in range(500)),
+        "nant.csv": "t,x,y,z\n" + "nan,0,0,1\n" * 500,
         "garbage.cwa": bytes(range(256)) * 40,
         "garbage.bin": b"Device Identity\r\nDevice Unique Serial Code:x\r\n" + bytes(300),
         "garbage.gt3x": b"PK\x03\x04" + bytes(200),

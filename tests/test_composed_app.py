@@ -17,10 +17,8 @@ from conftest import ROOT, run_both
 sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
 from simboard import SimBoard  # noqa: E402
 
-from acal import effects as deff  # noqa: E402
 from acal import log  # noqa: E402
 from acal.app import App, Processor  # noqa: E402
-from acal.model import Calibration  # noqa: E402
 from acal.profile import GRADIENT, PAPER, WEAR  # noqa: E402
 
 RATE = 25

@@ -3,7 +3,6 @@ accepts no damaged one and says what it dropped; the stored calibration survives
 import random
 import struct
 
-import pytest
 
 from acal import log
 

@@ -13,7 +13,7 @@ from acal import fixed, optimiser, rest
 from acal.gaussnewton import GaussNewton
 from acal.optimiser import Optimiser
 from acal.pipeline import Pipeline
-from acal.profile import NEWTON, WEAR, settings
+from acal.profile import WEAR, settings
 from accelcal import runtime, simulate
 from test_runtimes import random_recording
 

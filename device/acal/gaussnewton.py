@@ -43,7 +43,7 @@ R_MAX = 1 << 18           # |r~| <= 2**18
 D_MAX = 1 << 11           # |d~| <= 2**11
 B_MASK = 511
 B_SPLIT = 9               # b in two limbs: sum d~ (r~ >> 9) 2**9 + sum d~ (r~ & 511)
-F_SHIFT = 7               # f reads r 2**-(tau + 7): |r| 2**-(tau + 7) <= 2**11
+F_TAU_OFFSET = 7          # f reads r 2**-(tau + 7): |r| 2**-(tau + 7) <= 2**11
 TRIAL_MAX = 1 << 13       # a trial residual past 2**(13 + tau + 7): the trial is worse
 F_LIMIT = 1 << 29
 RHS_HI_MAX = 1 << (28 - 9 - 1)   # the high limb's bound for -b below 2**28
@@ -302,8 +302,8 @@ class GaussNewton:
         if i == self.n:
             if self.first:
                 self.f_start = self.f
-                self.tau_start = self.tau + F_SHIFT
-                self.objective_start = _q24(self.f, self.tau + F_SHIFT)
+                self.tau_start = self.tau + F_TAU_OFFSET
+                self.objective_start = _q24(self.f, self.tau + F_TAU_OFFSET)
                 self.first = False
             self.phase = _SOLVE
 
@@ -323,7 +323,7 @@ class GaussNewton:
                 self.f >>= 2 * (g - t)
                 self._shift_b(g - t)
             t = g
-        self.f += _square(r0, t + F_SHIFT)
+        self.f += _square(r0, t + F_TAU_OFFSET)
         rs = (r0 + (1 << (t - 1))) >> t if t else r0
         self.rh = rs >> B_SPLIT
         self.rl = rs & B_MASK
@@ -419,7 +419,7 @@ class GaussNewton:
     def _trial(self):
         pt = self.pt
         rt = self.rt
-        t = self.tau + F_SHIFT
+        t = self.tau + F_TAU_OFFSET
         end = self.pos + TRIAL_POINTS
         if end > self.n:
             end = self.n
@@ -526,9 +526,9 @@ class GaussNewton:
         self._restart()
 
     def _finish(self):
-        self.objective = _q24(self.f, self.tau + F_SHIFT)
+        self.objective = _q24(self.f, self.tau + F_TAU_OFFSET)
         p = self.p
-        if _above(self.f, self.tau + F_SHIFT, self.f_start, self.tau_start) and self.rejected == 0:
+        if _above(self.f, self.tau + F_TAU_OFFSET, self.f_start, self.tau_start) and self.rejected == 0:
             self.status = DIVERGED
         elif not model.in_bounds(p) or (self.kinds and not model.effects_within(p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from accelcal import runtime
 from accelcal.io import InputError
+from accelcal.outputs import atomic
 
 SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
                    "hours_used", "gaps", "still_windows", "nonwear_excluded", "imputed_excluded",
@@ -150,7 +151,6 @@ def summary_row(rec: dict) -> dict:
 
 
 def write_summary(path: str, recs: list[dict]) -> None:
-    from accelcal.outputs import atomic
     with atomic(path, newline="") as fh:
         w = csv.DictWriter(fh, SUMMARY_COLUMNS)
         w.writeheader()

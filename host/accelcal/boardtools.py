@@ -12,6 +12,7 @@ from pathlib import Path
 
 from accelcal import boardlog
 from accelcal.io import InputError
+from accelcal.outputs import check_output_dir, write_text
 
 ROOT = Path(__file__).resolve().parents[2]
 DEVICE_PKG = ROOT / "device" / "acal"
@@ -183,7 +184,6 @@ def acquire(port: str, seconds: int, settings: dict, say=print) -> str:
 def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
     """pull's folder, checked before the board is touched: a folder (made if missing) that holds
     no earlier pull unless force."""
-    from accelcal.outputs import check_output_dir
     out = check_output_dir(outdir, (), "-o/--output")
     held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
     if held and not force:
@@ -219,6 +219,5 @@ def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
     sizes = {f: (out / f).stat().st_size for f in present}
     say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out}")
     summ = boardlog.summary(out)
-    from accelcal.outputs import write_text
     write_text(out / "summary.json", json.dumps(summ, indent=1))
     return summ

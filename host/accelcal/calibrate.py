@@ -13,6 +13,7 @@ from accelcal import methods, runtime, vector
 from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import (InputError, Table, g_to_sample, params_record, params_to_float,
                          params_to_int, sample_to_g)
+from accelcal.outputs import atomic
 
 
 def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
@@ -351,7 +352,6 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
     names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
     schema = pa.schema([(n, pa.float64()) for n in names])
     n = 0
-    from accelcal.outputs import atomic
     opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
     # written whole or not at all: a killed run leaves no partial file that looks like a recording
     with atomic(output, "wb") as sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from accelcal.io import InputError
-from accelcal.outputs import FORCE_HELP
+from accelcal.outputs import FORCE_HELP, atomic, check_output, write_text
 
 EPILOG_CAL = """\
 Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
@@ -177,7 +177,6 @@ def cmd_calibrate(args) -> int:
                          "method fits the points its bins select")
     engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
     inputs = args.input
-    from accelcal.outputs import check_output
     reads = [*inputs, args.fallback]
     if args.save:
         check_output(args.save, reads, args.force, "--save")
@@ -221,7 +220,6 @@ def _calibrate_batch(args, spec, engine) -> int:
     from accelcal.io import save_params
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
-    from accelcal.outputs import check_output
     summary = args.summary or "accelcal-summary.csv"
     check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
     job = batch.Job(_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
@@ -281,7 +279,6 @@ def cmd_apply(args) -> int:
     from accelcal.calibrate import apply_file
     from accelcal.io import load_params
     from accelcal.recording import is_recording
-    from accelcal.outputs import check_output
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
@@ -296,7 +293,6 @@ def cmd_apply(args) -> int:
 
 def cmd_simulate_paper(args) -> int:
     from accelcal import simulate
-    from accelcal.outputs import atomic, check_output, write_text
     from acal.fixed import PARAM_NAMES
     out = check_output(args.output, (), args.force, "-o/--output")
     check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
@@ -324,7 +320,6 @@ def cmd_simulate_paper(args) -> int:
 
 def cmd_simulate_wrist(args) -> int:
     from accelcal import wearer
-    from accelcal.outputs import check_output
     out = check_output(args.output, (), args.force, "-o/--output")
     check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
     if args.stimulus:

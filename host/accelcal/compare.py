@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import bins as dbins
 from acal import optimiser
 from accelcal import methods, runtime
 from accelcal.diagnose import RestPoints, check_coverage, rest_points, split, usable
 from accelcal.io import InputError, params_to_float, read_table
+from accelcal.outputs import check_output_dir, save_figure
 from accelcal.recording import is_recording
 
 ALL = ["device"] + methods.ORDER
@@ -212,7 +212,6 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    from accelcal.outputs import save_figure
     save_figure(fig, path, dpi=110)
     plt.close(fig)
 
@@ -220,7 +219,6 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 def compare_main(args, cfg: runtime.Config) -> int:
     names = parse_methods(args.methods)
     if args.plots:
-        from accelcal.outputs import check_output_dir
         check_output_dir(args.plots, [args.input], "--plots")
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = args.json or not sys.stderr.isatty()

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from accelcal import boardlog, methods, vboard, wearer
+from accelcal import boardlog, methods, vboard
 from acal.fixed import PARAM_NAMES, PARAM_ONE, POINT_ONE_G
 from acal import log, optimiser
 

@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 
 from accelcal.effects import CATALOGUE, ModelSpec
 from accelcal.io import InputError, Table, read_table
-from accelcal.outputs import save_figure
+from accelcal.outputs import check_output, check_output_dir, save_figure, write_text
 from accelcal.recording import is_recording
 
 BLOCK_S = 2 * 3600
@@ -308,7 +308,6 @@ def print_report(out: dict) -> None:
 
 
 def diagnose_main(args) -> int:
-    from accelcal.outputs import check_output, check_output_dir, write_text
     if args.history:   # appended to: checked here, before the analysis, not replaced
         check_output(args.history, [args.input], True, "--history")
     if args.plots:
@@ -353,7 +352,6 @@ def calibrate_model(path: str, model: str) -> dict:
 def append_history(path: str, out: dict) -> None:
     rec = {k: out[k] for k in ("model", "input", "heldout_error_mg", "noise_floor_mg", "missing_effect")}
     # the old steps and the new one, written whole: a cut leaves the old history or the new one
-    from accelcal.outputs import write_text
     try:
         old = Path(path).read_text() if Path(path).exists() else ""
     except (OSError, UnicodeDecodeError) as e:
@@ -364,7 +362,7 @@ def append_history(path: str, out: dict) -> None:
 
 
 def _history_step(path, i, line):
-    # One line of a diagnose history, checked: (model, held-out mg, floor mg, named, input).
+    # One line of a diagnose history, checked: model, held-out and floor mg, named, input.
     bad = f"{path}:{i}: not a diagnose history line"
     try:
         rec = json.loads(line, parse_constant=lambda c: float("nan"))
@@ -387,7 +385,8 @@ def _history_step(path, i, line):
     named = rec.get("missing_effect")
     if named is not None and not isinstance(named, str):
         raise InputError(f"{path}:{i}: missing_effect must be an effect name or null")
-    return model, vals[0], vals[1], named, str(rec.get("input", ""))
+    return {"model": model, "heldout_error_mg": vals[0], "noise_floor_mg": vals[1],
+            "missing_effect": named, "input": str(rec.get("input", ""))}
 
 
 def read_history(path) -> list[dict]:
@@ -398,34 +397,30 @@ def read_history(path) -> list[dict]:
         raise InputError(f"{path}: cannot read ({e.strerror})") from None
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a diagnose history (not UTF-8 text)") from None
-    keys = ("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input")
-    return [dict(zip(keys, _history_step(path, i, line)))
-            for i, line in enumerate(lines, 1) if line.strip()]
+    return [_history_step(path, i, line) for i, line in enumerate(lines, 1) if line.strip()]
 
 
 def report_main(args) -> int:
     """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
     if args.plot:   # a figure, regenerated from the history it reads: replaced if it exists
-        from accelcal.outputs import check_output
         check_output(args.plot, [args.history], True, "--plot")
     if Path(args.history).is_dir():
         return board_report(args)
     if args.html:
-        from accelcal.outputs import check_output
         check_output(args.html, [args.history], args.force, "--html")
-    steps = [(d["model"], d["heldout_error_mg"], d["noise_floor_mg"], d["missing_effect"],
-              d["input"]) for d in read_history(args.history)]
+    steps = read_history(args.history)
     if not steps:
         raise InputError(f"{args.history}: no steps (run diagnose --history {args.history})")
     if args.json:
-        print(json.dumps([dict(zip(("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input"), s))
-                          for s in steps]))
+        print(json.dumps(steps))
     else:
         print(f"{'step':<5}{'model':<36}{'held-out mg':>12}{'floor mg':>10}{'change':>9}  named next")
         prev = None
-        for k, (m, e, f, named, _) in enumerate(steps, 1):
+        for k, st in enumerate(steps, 1):
+            e = st["heldout_error_mg"]
             ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
-            print(f"{k:<5}{m:<36}{e:12.2f}{f:10.2f}{ch:>9}  {named or '-'}")
+            print(f"{k:<5}{st['model']:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
+                  f"{st['missing_effect'] or '-'}")
             prev = e
     if args.plot or args.html:
         import io
@@ -434,9 +429,9 @@ def report_main(args) -> int:
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(figsize=(max(5, 1.6 * len(steps)), 4))
         x = np.arange(len(steps))
-        ax.plot(x, [s[1] for s in steps], "o-", label="held-out error")
-        ax.plot(x, [s[2] for s in steps], "r--", label="noise floor")
-        ax.set_xticks(x, [s[0].replace("base+", "+") for s in steps], rotation=20)
+        ax.plot(x, [s["heldout_error_mg"] for s in steps], "o-", label="held-out error")
+        ax.plot(x, [s["noise_floor_mg"] for s in steps], "r--", label="noise floor")
+        ax.set_xticks(x, [s["model"].replace("base+", "+") for s in steps], rotation=20)
         ax.set_ylabel("calibration error (mg)")
         ax.set_title("held-out calibration error at each model step", fontsize=10)
         ax.set_ylim(bottom=0)
@@ -447,12 +442,10 @@ def report_main(args) -> int:
             print(f"plot: {args.plot}", file=sys.stderr)
         if args.html:
             from accelcal import report_html
-            from accelcal.outputs import write_text
             buf = io.BytesIO()
             fig.savefig(buf, format="png", dpi=80)
-            keys = ("model", "heldout_error_mg", "noise_floor_mg", "missing_effect", "input")
-            write_text(args.html, report_html.history_page(
-                args.history, [dict(zip(keys, s)) for s in steps], {"steps.png": buf.getvalue()}))
+            write_text(args.html, report_html.history_page(args.history, steps,
+                                                           {"steps.png": buf.getvalue()}))
             print(f"report: {args.html}", file=sys.stderr)
         plt.close(fig)
     return 0
@@ -466,7 +459,6 @@ def board_report(args) -> int:
     if not (d / "log.bin").exists():
         raise InputError(f"{d}: a folder report reads is one `pull` wrote (no log.bin in it)")
     if args.html:
-        from accelcal.outputs import check_output
         check_output(args.html, [d / "log.bin"], args.force, "--html")
     summ = boardlog.summary(d)
     boots = boardlog.decode(d / "log.bin").dicts(boardlog.log.BOOT)
@@ -488,7 +480,6 @@ def board_report(args) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         from accelcal import report_html
-        from accelcal.outputs import write_text
         pngs = {}
         if cals:
             x = [c["index"] / rate / 3600 if rate else c["number"] for c in cals]

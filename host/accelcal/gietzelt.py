@@ -29,6 +29,7 @@ import numpy as np
 
 from accelcal import methods, simulate
 from accelcal.methods.minvolellipsoid import minvol
+from accelcal.outputs import check_output_dir
 
 O_COUNTS = 2300.0
 S_COUNTS = 500.0
@@ -196,7 +197,6 @@ def format_report(t4: dict, ua: dict, mis: dict, passes: int, jitter_pct: float)
 
 def gietzelt_main(args) -> int:
     if args.plots:
-        from accelcal.outputs import check_output_dir
         check_output_dir(args.plots, (), "--plots")
     t4 = table4(args.passes, args.seed, args.jitter)
     ua = unequal_axes(args.passes, args.seed + 1, args.jitter)

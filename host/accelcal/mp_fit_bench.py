@@ -10,7 +10,7 @@ from array import array
 
 from acal import effects
 from acal.pipeline import Pipeline
-from acal.profile import GRADIENT, NEWTON, PAPER, WEAR, settings
+from acal.profile import PAPER, WEAR, settings
 
 try:
     ticks = time.ticks_us

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from accelcal import runtime
 from accelcal.io import InputError
+from accelcal.outputs import check_output, check_output_dir, write_text
 
 SIM_DIR = Path(__file__).resolve().parent / "sim"
 
@@ -126,7 +127,6 @@ class VirtualBoard:
 def serve_main(args) -> int:
     """`accelcal board virtual`: make a stimulus if none is given, print the port, relay."""
     from accelcal import wearer
-    from accelcal.outputs import check_output, check_output_dir, write_text
     flash = check_output_dir(args.flash, [args.stimulus], "--flash")
     if args.link:
         # never replaces a file it did not make: the link must be new
