@@ -36,7 +36,7 @@ $(STAMP_MP32):
 	touch $@
 
 demo: setup
-	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.demo
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo
 
 test: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
@@ -49,8 +49,8 @@ $(STAMP_BENCH): pyproject.toml
 
 bench: setup $(STAMP_BENCH)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
-	$(BIN)/python -m accelcal.bench_files --others $(VENV_BENCH)/bin/python
-	$(BIN)/python -m accelcal.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
+	$(BIN)/python -m accelcal.studies.bench_files --others $(VENV_BENCH)/bin/python
+	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
 # .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).

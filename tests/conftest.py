@@ -39,8 +39,8 @@ except ImportError:
 def mp32():
     """The 32-bit MicroPython (make setup installs it); a test that needs it is skipped, saying
     why, where it or Node is missing (CI has both)."""
-    from accelcal import runtime
-    from accelcal.io import InputError
+    from accelcal.bridge import runtime
+    from accelcal.errors import InputError
     try:
         runtime.micropython32_module()
     except InputError as e:
@@ -62,7 +62,7 @@ def run_both(script, tmp_path, micropython="micropython"):
     import contextlib
     import io
 
-    from accelcal import runtime
+    from accelcal.bridge import runtime
     text = MP_RANDOM + script
     f = tmp_path / "both.py"
     f.write_text(text)

@@ -9,11 +9,13 @@ import sys
 import numpy as np
 import pytest
 
-from accelcal import boardlog, runtime, simulate
-from accelcal.stimulus import write_stimulus
+from accelcal.bridge import boardlog, runtime
+from accelcal import simulate
+from accelcal.simulate.stimulus import write_stimulus
 from conftest import ROOT
 
-sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
+from accelcal.locations import CHIP_DIR  # noqa: E402
+sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 from vclock import Clock  # noqa: E402
 
@@ -185,7 +187,7 @@ def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, st
     path, _ = stim
     script = tmp_path / "heap_app.py"
     script.write_text(HEAP_SCRIPT)
-    sim = str(ROOT / "host" / "accelcal" / "sim")
+    sim = str(CHIP_DIR)
     out = runtime.run_micropython_script(str(script), str(path), str(tmp_path),
                                          extra_path=[sim]).split()
     assert out[0] == "OK", out
@@ -205,7 +207,7 @@ def test_acquisition_and_simulator_allocate_nothing_on_the_32_bit_port(tmp_path,
         "app = App(SimBoard(sys.argv[1], clock=Clock(0, TICKS_PERIOD - 100000000)),").replace(
         'print("OK", k, app.samples, app.lost)',
         'print("OK", k, app.samples, app.lost, app.board.clock.s, app.board.clock.ticks_us())'))
-    sim = str(ROOT / "host" / "accelcal" / "sim")
+    sim = str(CHIP_DIR)
     out = mp32(str(script), str(path), str(tmp_path), extra_path=[sim]).split()
     assert out[0] == "OK", out
     assert int(out[1]) == 5000 and int(out[3]) == 0
@@ -382,7 +384,7 @@ def test_the_apps_log_is_identical_on_every_runtime(tmp_path, stim, mp):
     path, _ = stim
     script = tmp_path / "app_log.py"
     script.write_text(APP_LOG_SCRIPT)
-    sim = str(ROOT / "host" / "accelcal" / "sim")
+    sim = str(CHIP_DIR)
     work = [tmp_path / "cpython", tmp_path / mp]
     for w in work:
         w.mkdir()

@@ -248,7 +248,7 @@ def test_malformed_board_log_records_are_reported_with_their_offset(bad_logs):
     """What `pull` writes into summary.json: a record whose CRC passes but whose length or fields
     cannot be the app's is dropped and said, with its byte offset, like a torn one; the records
     around it are kept."""
-    from accelcal import boardlog
+    from accelcal.bridge import boardlog
     for folder in bad_logs:
         s = boardlog.summary(folder)
         said = [d for d in s["dropped"] if "malformed record at offset" in d]

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from accelcal.recording import open_recording
-from accelcal.scan import scan
+from accelcal.files.recordings import open_recording
+from accelcal.pipeline.scan import scan
 from conftest import run_cli
 
 REAL = Path(__file__).parent / "data" / "real"

@@ -3,7 +3,7 @@ import numpy as np
 
 from acal import bins
 from acal.bins import Bins, subset_of
-from accelcal.io import g_to_point
+from accelcal.fixedpoint import g_to_point
 
 G = 65536
 

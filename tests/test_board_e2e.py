@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import test_app
-from accelcal import vboard
+from accelcal.board import virtual
 from conftest import ROOT, run_cli
 
 RATE = 10
@@ -28,7 +28,7 @@ def board(tmp_path_factory):
         test_app.stimulus(d / "stim.bin", np.random.default_rng(7), n_rest=600)
     finally:
         test_app.RATE = 25
-    with vboard.Running(d / "flash", d / "stim.bin", "--heap", "160k", "--bus-faults", "20") as b:
+    with virtual.Running(d / "flash", d / "stim.bin", "--heap", "160k", "--bus-faults", "20") as b:
         b.dir = d
         yield b
 
@@ -45,7 +45,7 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
     r = run_cli("deploy", "--port", port, "--rate", RATE, "--capture-kb", 2048, "--json")
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
-    from accelcal.boardtools import APP_MODULES
+    from accelcal.board.deploy import APP_MODULES
     assert info["board"] == "virtual" and info["platform"] == "linux"
     device = {f.stem for f in (ROOT / "device" / "acal").glob("*.py")} - {"lis3dh_cp"}
     assert info["modules"] == len(APP_MODULES) and set(APP_MODULES) == device
@@ -86,7 +86,7 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
 def test_pull_from_a_board_without_our_logs(tmp_path):
     stim = tmp_path / "stim.bin"
     test_app.stimulus(stim, np.random.default_rng(1), n_rest=2)
-    with vboard.Running(tmp_path / "empty", stim) as b:
+    with virtual.Running(tmp_path / "empty", stim) as b:
         r = run_cli("pull", "--port", b.port, "-o", tmp_path / "out")
         r2 = run_cli("acquire", "--port", b.port, "--hours", 1)
     assert r2.returncode == 2 and "accelcal is not deployed there" in r2.stderr
@@ -141,7 +141,7 @@ def test_mip_package_lists_every_device_module_and_installs(tmp_path):
     assert all((ROOT / src).exists() for _, src in pkg["urls"])
     stim = tmp_path / "stim.bin"
     test_app.stimulus(stim, np.random.default_rng(1), n_rest=2)
-    with vboard.Running(tmp_path / "flash", stim) as b:
+    with virtual.Running(tmp_path / "flash", stim) as b:
         mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "package.json"))
         out = mpremote(b.port, "exec", "import acal.app, acal.lis3dh_cp\nprint(acal.app.VERSION)")
     from acal.app import VERSION

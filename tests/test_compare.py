@@ -5,7 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from accelcal import compare, methods, runtime
+from accelcal.pipeline import compare
+from accelcal import methods
+from accelcal.bridge import runtime
 from conftest import run_cli
 
 

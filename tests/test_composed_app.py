@@ -9,12 +9,14 @@ import sys
 import numpy as np
 import pytest
 
-from accelcal import boardlog, simulate
-from accelcal.effects import CATALOGUE, ModelSpec
-from accelcal.stimulus import write_stimulus
-from conftest import ROOT, run_both
+from accelcal.bridge import boardlog
+from accelcal import simulate
+from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.simulate.stimulus import write_stimulus
+from conftest import run_both
 
-sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
+from accelcal.locations import CHIP_DIR  # noqa: E402
+sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal import log  # noqa: E402

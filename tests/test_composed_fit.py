@@ -4,9 +4,11 @@ under MicroPython.  (Bins that gather such points on the device come next.)"""
 import numpy as np
 import pytest
 
-from accelcal import runtime, simulate
-from accelcal.diagnose import RestPoints, fit
-from accelcal.effects import CATALOGUE, ModelSpec
+from accelcal.bridge import runtime
+from accelcal import simulate
+from accelcal.pipeline.restpoints import RestPoints
+from accelcal.pipeline.composed_lsq import fit
+from accelcal.model.effects import CATALOGUE, ModelSpec
 from acal.optimiser import OK, Optimiser
 
 P_TRUE = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from accelcal.diagnose import heldout_error_of
+from accelcal.pipeline.diagnose import heldout_error_of
 from acal.fixed import PARAM_NAMES
 from conftest import run_cli
 
@@ -147,7 +147,7 @@ def calibrate(path, model, *extra):
 def test_device_fits_the_composed_model_in_integers(recordings, effect, profile):
     """The device pipeline itself (bins spread in temperature and time, integer optimiser) fits
     base+EFFECT: better than its own base fit, and in the range of the float fit on all points
-    (the paper profile sees 36 points, lsq all of them: README "Bins for composed models"; the
+    (the paper profile sees 36 points, lsq all of them: docs/model-discovery.md "Bins for composed models"; the
     wear profile up to 72, fitted to their optimum: within 1.5x of lsq on all points)."""
     path = recordings["two" if "+" in effect else effect]
     base = calibrate(path, "base", "--profile", profile)

@@ -1,5 +1,5 @@
 """The effects' integer application (device/acal/effects.py) against the host's float form
-(host/accelcal/effects.py, the same first-order model), bit-identical under MicroPython, and
+(host/accelcal/model/effects.py, the same first-order model), bit-identical under MicroPython, and
 inside 2**30 on the per-sample path at the worst case."""
 import itertools
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from acal import effects as deff
-from accelcal.effects import CATALOGUE
-from accelcal.ranges import Tracer, traced
+from accelcal.model.effects import CATALOGUE
+from accelcal.bridge.ranges import Tracer, traced
 from conftest import run_both
 
 DT_UNIT = deff.DT_UNIT_S
@@ -105,3 +105,13 @@ def test_apply_stays_small_in_every_composition_and_order():
                     for x in (-2097, 2097):
                         cal.apply(T(x), T(-x), T(x))
     assert tr.ops > 10000 and tr.max_abs < 2 ** 30, tr.max_abs
+
+
+@pytest.mark.parametrize("name", list(CATALOGUE))
+def test_the_host_and_device_bounds_are_one_bound(name):
+    """Each effect's fit bound is declared on the host (float, its unit) and on the device (Q24 per
+    normalised regressor): the two must be the same number."""
+    e = CATALOGUE[name]
+    assert deff.NAMES[e.kind] == name
+    assert e.to_int([e.bound])[0] == deff.BOUNDS[e.kind]
+    assert set(deff.NAMES.values()) == set(CATALOGUE)

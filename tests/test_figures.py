@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from accelcal import figures
+from accelcal.report import figures
 from conftest import run_cli
 
 

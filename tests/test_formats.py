@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from accelcal.io import InputError
-from accelcal.recording import is_recording, open_recording, read_whole
+from accelcal.errors import InputError
+from accelcal.files.recordings import is_recording, open_recording, read_whole
 from conftest import run_cli
 
 REAL = Path(__file__).parent / "data" / "real"
@@ -119,7 +119,7 @@ def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     record."""
     import actfast
 
-    from accelcal.recording import CwaRecording
+    from accelcal.files.recordings import CwaRecording
     whole = actfast.read(str(REAL / name))["timeseries"]
     rec = CwaRecording(str(REAL / name))
     rec.BLOCKS = 37   # pieces that split the file unevenly
@@ -134,8 +134,8 @@ def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     assert np.array_equal(np.concatenate([c.temp for c in chunks]), held)
     one = json.loads(run_cli("calibrate", REAL / name, "--json").stdout)
     monkeypatch.setattr(CwaRecording, "BLOCKS", 37)
-    from accelcal import runtime
-    from accelcal.calibrate import calibrate_recording
+    from accelcal.bridge import runtime
+    from accelcal.pipeline.calibrate import calibrate_recording
     cfg = runtime.Config.for_profile("wear")
     pieces = calibrate_recording(str(REAL / name), cfg, "device", "cpython")
     assert {k: v for k, v in pieces.items() if k != "file"} == {k: v for k, v in one.items() if k != "file"}
@@ -175,7 +175,7 @@ def test_gt3x_idle_sleep_is_not_rest(tmp_path):
 def test_calibrate_diagnose_and_compare_find_the_same_rest_segments(name):
     """One file, one set of rest segments: calibrate's still windows (the device's rest test,
     imputed, clipped and non-wear segments left out) are the ones diagnose and compare read."""
-    from accelcal.diagnose import rest_points
+    from accelcal.pipeline.restpoints import rest_points
     r = run_cli("calibrate", REAL / name, "--json")
     rec = json.loads(r.stdout.splitlines()[0])
     try:
@@ -189,7 +189,7 @@ def test_the_same_rest_segments_on_a_day_with_non_wear(tmp_path):
     """A simulated day with the device off the wrist: calibrate leaves the non-wear segments out
     of its still windows, and diagnose's rest points are exactly those (before, it counted the
     off-wrist ones too)."""
-    from accelcal.diagnose import rest_points
+    from accelcal.pipeline.restpoints import rest_points
     f = tmp_path / "day.csv"
     assert run_cli("simulate", "wrist", "--days", "1", "--rate", "10", "-o", f).returncode == 0
     rec = json.loads(run_cli("calibrate", f, "--json").stdout.splitlines()[0])

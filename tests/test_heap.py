@@ -4,7 +4,7 @@ detectors of both profiles (the paper's one-axis test; every axis with the noise
 outlier rejection, 72 points) a full run: they allocate nothing (64-bit port)."""
 import numpy as np
 
-from accelcal import runtime
+from accelcal.bridge import runtime
 
 STREAM = r'''
 import micropython

@@ -5,16 +5,16 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
 
-sys.path.insert(0, str(ROOT / "host" / "accelcal" / "sim"))
+from accelcal.locations import CHIP_DIR  # noqa: E402
+sys.path.insert(0, str(CHIP_DIR))
 from vbus import BusioI2C, I2C  # noqa: E402
 from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 import adafruit_lis3dh  # noqa: E402
 from acal import lis3dh, lis3dh_cp  # noqa: E402
-from accelcal.stimulus import write_stimulus  # noqa: E402
+from accelcal.simulate.stimulus import write_stimulus  # noqa: E402
 
 G = adafruit_lis3dh.STANDARD_GRAVITY
 

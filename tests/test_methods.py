@@ -4,7 +4,8 @@ reasons, and Gietzelt 2013's simulation (Table 4) against the paper's spread."""
 import numpy as np
 import pytest
 
-from accelcal import gietzelt, methods, simulate
+from accelcal.studies import gietzelt
+from accelcal import methods, simulate
 from accelcal.methods.base import lower_factor, upper_factor
 
 FULL = ["lsq", "de", "merayo", "minvol"]          # 9 parameters: the general ellipsoid

@@ -5,7 +5,7 @@ from acal import optimiser
 from acal.bins import Bins
 from acal.optimiser import Optimiser
 from accelcal import methods, simulate
-from accelcal.io import g_to_point, params_to_float, point_to_g
+from accelcal.fixedpoint import g_to_point, params_to_float, point_to_g
 
 
 def selected(rng, noise=1e-3, n=300):

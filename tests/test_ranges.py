@@ -1,7 +1,7 @@
 """Every intermediate of the per-sample path stays within +-2**30 (the small-int limit of 32-bit
 MicroPython ports) for any in-range input, shown by running the device code on traced ints at
 the worst case.  The optimiser goes past 2**30 by design; it stays below 2**62 (unboxed on the
-64-bit unix port) on realistic input - README "Integer ranges" gives the account."""
+64-bit unix port) on realistic input - docs/method-and-formats.md "Integer ranges" gives the account."""
 import numpy as np
 import pytest
 
@@ -9,7 +9,7 @@ from acal import fixed
 from acal.model import Calibration
 from acal.optimiser import Optimiser
 from acal.rest import RestDetector
-from accelcal.ranges import SMALL_INT_LIMIT, Tracer, traced
+from accelcal.bridge.ranges import SMALL_INT_LIMIT, Tracer, traced
 
 # The LIS3DH at +-2 g: 12-bit (1 mg), 10-bit (4 mg) and 8-bit (16 mg) digits, all reaching
 # -2.048 g .. +2.047 g, in Q10 g (device samples).
@@ -79,7 +79,7 @@ def test_apply_worst_case_at_every_range(range_g):
 def test_apply_at_larger_ranges_matches_the_float_model(rng, range_g):
     # Q(14 - e) parameters: within 1.5 LSB plus the coarser format's rounding (2^e / 2 LSB of
     # K and o, times the reading) across the range
-    from accelcal.io import params_to_float
+    from accelcal.fixedpoint import params_to_float
     from accelcal.methods import correct
     cal = Calibration(range_g=range_g)
     fs = 2097 * range_g // 2
@@ -103,7 +103,7 @@ def test_apply_rejects_parameters_outside_bounds():
 
 def test_apply_matches_float_model(rng):
     from accelcal.methods import correct
-    from accelcal.io import params_to_float
+    from accelcal.fixedpoint import params_to_float
     cal = Calibration()
     for p in corner_params():
         cal.set(p)
@@ -121,7 +121,7 @@ def test_optimiser_stays_below_2_62_on_realistic_input(rng):
     """Rest means of a sensor inside the paper's error ranges; the account for 32-bit boards
     (how many values become longs) is printed by `accelcal bench`."""
     from accelcal import simulate
-    from accelcal.io import g_to_point
+    from accelcal.fixedpoint import g_to_point
     worst = 0
     for _ in range(20):
         p, v = simulate.paper_scenario(rng, 18, 5e-3)

@@ -2,7 +2,7 @@
 import numpy as np
 
 from acal.rest import RestDetector, mean_q16
-from accelcal.io import g_to_sample
+from accelcal.fixedpoint import g_to_sample
 
 
 def expected_segments(q, length, threshold, axis):

@@ -3,7 +3,8 @@ WebAssembly port, where ints past 2^30 are heap longs) run the same device modul
 integers."""
 import numpy as np
 
-from accelcal import runtime, simulate
+from accelcal.bridge import runtime
+from accelcal import simulate
 
 
 def random_recording(rng, segments, rate):

@@ -3,7 +3,7 @@ dominates the optimiser's convergence lag: the device must match lsq on the same
 import numpy as np
 import pytest
 
-from accelcal.paper import run_table2
+from accelcal.studies.paper import run_table2
 
 
 @pytest.mark.slow

@@ -3,7 +3,7 @@ the device method within 10 % of lsq (fminunc's role) and ahead of linauto (the 
 method) on held-out error, as in the paper (3.06 vs 3.16 and 4.08 mg)."""
 import pytest
 
-from accelcal.table3 import run_table3
+from accelcal.studies.table3 import run_table3
 
 
 @pytest.mark.slow

@@ -2,7 +2,7 @@
 the Cramer-Rao bound on the same points), and centre selection beats first-come."""
 import numpy as np
 
-from accelcal.paper import PAPER_MEAN, run_table2
+from accelcal.studies.paper import PAPER_MEAN, run_table2
 
 
 def test_table2_small():

@@ -1,4 +1,4 @@
-"""The vectorised twin (accelcal.vector) against the device modules, bit for bit, on random and
+"""The vectorised twin (accelcal.bridge.twin) against the device modules, bit for bit, on random and
 adversarial streams: segment and chunk boundaries, ties at the threshold, clipping, gaps."""
 import json
 
@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 from acal.model import Calibration
 from acal.rest import RestDetector
-from accelcal import vector
+from accelcal.bridge import twin
 from conftest import run_cli
 
 
@@ -26,7 +26,7 @@ def device_segments(q, rate, seconds, threshold, axis, gaps=()):
     return out
 
 
-def as_tuples(s: vector.Segments):
+def as_tuples(s: twin.Segments):
     # the device leaves a moving segment's mean unset: compare means of still segments only
     return [(int(e), bool(st_), int(sp), *(map(int, m) if st_ else (None,) * 3)) for e, st_, sp, m in
             zip(s.end, s.still, s.spread, s.mean)]
@@ -64,7 +64,7 @@ def streams(draw):
 def test_rest_segments_equal_the_device_detector(case):
     q, rate, seconds, threshold, axis, gaps, chunk = case
     dev = device_segments(q, rate, seconds, threshold, axis, gaps)
-    vec = vector.rest_segments(q, rate, seconds, threshold, axis, gaps, chunk)
+    vec = twin.rest_segments(q, rate, seconds, threshold, axis, gaps, chunk)
     assert as_tuples(vec) == dev
     # every axis's min and max (the host's quality checks), against the segment's own samples
     length = rate * seconds
@@ -87,11 +87,11 @@ def test_noise_gauge_twin_equals_the_device_gauge(seed, n, chunk):
     for s in spread.tolist():
         dev.append(g.threshold)
         g.add(s)
-    twin = vector.NoiseGaugeTwin()
-    got = np.concatenate([twin.thresholds(spread[a:a + chunk]) for a in range(0, n, chunk)])
+    gauge = twin.NoiseGaugeTwin()
+    got = np.concatenate([gauge.thresholds(spread[a:a + chunk]) for a in range(0, n, chunk)])
     assert got.tolist() == dev
-    assert (twin.threshold, twin.level, twin.count, twin.seen) == (g.threshold, g.level, g.count, g.seen)
-    assert twin.hist.tolist() == g.hist
+    assert (gauge.threshold, gauge.level, gauge.count, gauge.seen) == (g.threshold, g.level, g.count, g.seen)
+    assert gauge.hist.tolist() == g.hist
 
 
 def test_noise_gauge_halves_its_counts():
@@ -106,11 +106,11 @@ def test_chunking_never_changes_the_segments(rng):
     q = rng.integers(-1100, 1100, (10_007, 3))
     q[2000:4500] = rng.integers(-10, 10, (2500, 3)) + [0, 0, 1024]   # a long rest
     gaps = [0, 1234, 5000, 5001, 9999]
-    whole = as_tuples(vector.rest_segments(q, 10, 5, 123, 0, gaps))
+    whole = as_tuples(twin.rest_segments(q, 10, 5, 123, 0, gaps))
     assert whole == device_segments(q, 10, 5, 123, 0, gaps)
     assert sum(s[1] for s in whole) >= 40
     for chunk in (1, 7, 49, 50, 51, 999, 10_007):
-        assert as_tuples(vector.rest_segments(q, 10, 5, 123, 0, gaps, chunk)) == whole
+        assert as_tuples(twin.rest_segments(q, 10, 5, 123, 0, gaps, chunk)) == whole
 
 
 @settings(max_examples=200, deadline=None)
@@ -127,7 +127,7 @@ def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
     cal.set(p)
     buf = q.ravel().tolist()
     cal.apply_samples(buf, 0, len(q))
-    assert (vector.apply_params(p, q, range_g=range_g) == np.array(buf).reshape(-1, 3)).all()
+    assert (twin.apply_params(p, q, range_g=range_g) == np.array(buf).reshape(-1, 3)).all()
 
 
 @st.composite
@@ -163,7 +163,7 @@ def test_composed_apply_equals_the_device_calibration(case):
         cal.temp, cal.time = a, b
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
-    assert (vector.apply_params(p, q, kinds, dT, dt) == np.array(dev)).all()
+    assert (twin.apply_params(p, q, kinds, dT, dt) == np.array(dev)).all()
 
 
 def _with_gaps(src, dst):
@@ -199,8 +199,8 @@ def test_streaming_scan_memory_does_not_grow_with_the_file(tmp_path):
     three times as long is what one block needs (tracemalloc counts numpy's buffers)."""
     import tracemalloc
 
-    from accelcal.recording import open_recording
-    from accelcal.scan import scan
+    from accelcal.files.recordings import open_recording
+    from accelcal.pipeline.scan import scan
     rng = np.random.default_rng(3)
     peaks = []
     for n in (1_000_000, 3_000_000):

@@ -14,7 +14,8 @@ from acal.gaussnewton import GaussNewton
 from acal.optimiser import Optimiser
 from acal.pipeline import Pipeline
 from acal.profile import WEAR, settings
-from accelcal import runtime, simulate
+from accelcal.bridge import runtime
+from accelcal import simulate
 from test_runtimes import random_recording
 
 
@@ -232,7 +233,7 @@ def test_composed_points_identical_under_micropython(rng, mp):
 def test_composed_gauss_newton_reaches_the_float_optimum(name):
     # The points of tests/test_composed_fit.py (72 of them): the fit's objective within 1.02x of
     # the float minimiser of the same square-root-free objective, the effect found.
-    from accelcal.effects import ModelSpec
+    from accelcal.model.effects import ModelSpec
     from test_composed_fit import points, T0
     import test_composed_fit as tcf
     old = tcf.N
@@ -263,7 +264,7 @@ def test_composed_gauss_newton_reaches_the_float_optimum(name):
 def test_paper_simulation_parameter_errors_equal_lsq_on_the_same_points():
     # Farago's Table 2 simulation through the wear profile: its errors are lsq's on the points
     # it kept (the paper profile's 50 gradient steps stop short: 1.2x at 1 mg, README Table 2)
-    from accelcal.paper import run_table2
+    from accelcal.studies.paper import run_table2
     r = run_table2(scenarios=30, noise_mg=1, profile="wear")
     assert r.failed == 0
     assert abs(r.mean().sum() / r.mean("lsq").sum() - 1) < 0.01

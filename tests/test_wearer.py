@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from accelcal import wearer
-from accelcal.stimulus import read_stimulus
+from accelcal.simulate import wearer
+from accelcal.simulate.stimulus import read_stimulus
 from acal.fixed import PARAM_NAMES
 from conftest import run_cli
 

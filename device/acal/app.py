@@ -22,7 +22,7 @@ RETRIES = 3
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
 # Q16 g: 8 mg) from the last one logged, or after REST_LOG_SECONDS; the rest segments in between
 # are counted in the next record.  Rest records also get a daily byte allowance so that 14 days
-# fit in the flash budget whatever the wearer does (README "Flash budget").
+# fit in the flash budget whatever the wearer does (docs/boards-and-logs.md "Flash budget").
 REST_LOG_DIFFER = (8 * POINT_ONE_G) // 1000
 REST_LOG_SECONDS = 600
 REST_BUDGET_BYTES = 14 * 60000  # 60 kB a day for 14 days, cumulative: a quiet day saves
@@ -42,7 +42,7 @@ class Processor:
     (the paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
 
     The fit runs in slices, FIT_STEPS_PER_FEED per block fed, so acquisition never waits for it
-    (README "Sliced fit"); the calibration in use changes when it ends.
+    (docs/method-and-formats.md "Sliced fit"); the calibration in use changes when it ends.
 
     With the paper's fit a composed model's bins hold profile.COMPOSED_MAX_COUNT points per
     subset (unless max_count is given).  A composed model's bins are kept across calibrations, so

@@ -11,10 +11,12 @@
 #   FIRST  - the paper as printed: a full subset takes nothing more (first come, first kept);
 #   CENTRE - a new point replaces the held point of that subset farthest from the subset's ideal
 #            members (the axis for n/p, the ring's diagonals for 0; see badness) when it is nearer.
-#            The selection keeps improving while rest data flows; README "Point selection".
+#            The selection keeps improving while rest data flows;
+#            docs/method-and-formats.md "Point selection".
 # Points are Q16 g ints; storage is preallocated.
 #
-# Composed models (README "Bins for composed models").  An effect's parameters are only seen in
+# Composed models (docs/model-discovery.md "Bins for composed models").  An effect's parameters are
+# only seen in
 # points that differ in temperature (temp_offset, temp_scale) or in time (drift).  With
 # temp_differ (degC) or time_differ (64 s units) set, each slot also holds its point's temperature
 # (int degC) and time (int, 64 s units), and:
@@ -32,7 +34,8 @@ from acal.fixed import POINT_ONE_G
 
 FIRST = 0
 CENTRE = 1
-# Coverage (the default profile, README "Profiles"): the n and p subsets take points from
+# Coverage (the default profile, docs/method-and-formats.md "Profiles"): the n and p subsets take
+# points from
 # COVER_LEVEL (not 0.75 g) out, so that a posture a wrist rarely holds still (the arm hanging: it
 # sways) is still represented by tilted points, which the CENTRE rule replaces by better-placed
 # ones when they come; and the bins are also ready, without nine full subsets, when the held points reach past +-COVER_LEVEL on both sides of every axis, at least

@@ -7,7 +7,7 @@
 # in-range input (tests/test_ranges.py proves it at the worst case, tests/test_heap.py under
 # heap_lock on the 32-bit MicroPython).  The paper profile's gradient descent does not: its
 # objective (below) needs ~50-bit products, unboxed on 64-bit ports (< 2**62) and longs on
-# 32-bit boards; README "Integer ranges" gives the account of what that costs.
+# 32-bit boards; docs/method-and-formats.md "Integer ranges" gives the account of what that costs.
 try:
     from micropython import const
 except ImportError:  # CPython without Blinka
@@ -55,7 +55,8 @@ F_SHIFT = const(20)
 OBJ_Q = const(40)
 # Update: p -= alpha * (f(p+h e_i) - f(p)) / h / N, where f is the *sum* over the N points and the
 # division by N makes it the paper's objective averaged over the points (the scaling under which
-# the paper's learning rates converge; README "Learning-rate scaling").  In integers:
+# the paper's learning rates converge; docs/method-and-formats.md "Learning-rate scaling").  In
+# integers:
 #   dp[LSB of Q24] = alpha * df[LSB of Q40] * 2**(PARAM_Q + H_SHIFT - OBJ_Q) / N
 #                  = alpha_tenths * df * 2 // (10 * N)
 UPDATE_MUL = const(2)  # 2**(PARAM_Q + H_SHIFT - OBJ_Q)

@@ -1,4 +1,5 @@
-# The default profile's fit (README "Profiles"): Gauss-Newton with Levenberg-Marquardt damping on
+# The default profile's fit (docs/method-and-formats.md "Profiles"): Gauss-Newton with
+# Levenberg-Marquardt damping on
 # the paper's square-root-free residuals r_i = |a_i|^2 - 1 g^2 (eq. 12), in integers, run to the
 # optimum of its points instead of a fixed 50 gradient steps; then integer outlier rejection:
 # points whose residual stands far above the others' are dropped and the fit runs again.
@@ -33,7 +34,8 @@ from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
-TRIAL_POINTS = 4          # residuals per step() of a trial (README "Sliced fit")
+# residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
+TRIAL_POINTS = 4
 SORT_POINTS = 8           # points inserted per step() of the sort
 REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)

@@ -5,7 +5,8 @@
 #   read_sample()  - the output registers: 12 bits in high-resolution mode (1 mg/digit at +-2 g).
 #   read_fifo()    - the 32-level FIFO in stream mode: fewer wake-ups, but it keeps 10 bits
 #                    (4 mg steps at +-2 g, truncated).  With ~1-2 mg of noise that quantisation
-#                    biases rest means (README "Acquisition"), so the app reads the registers.
+#                    biases rest means (docs/boards-and-logs.md "Acquisition"), so the app reads
+#                    the registers.
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:

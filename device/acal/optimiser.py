@@ -6,7 +6,8 @@
 # f is the square-root-free objective summed over the N points (model.objective); dividing the
 # gradient by N makes the step that of the objective averaged over the points, the scaling under
 # which the paper's rates alpha_s = 0.3, alpha_m = 0.8, alpha_o = 0.2 converge (with the plain sum
-# the scale step is N times too large and diverges; README "Learning-rate scaling").
+# the scale step is N times too large and diverges;
+# docs/method-and-formats.md "Learning-rate scaling").
 # Formats: fixed.py.  Failure is reported, never returned as parameters: see the status codes.
 from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)

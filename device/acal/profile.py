@@ -1,4 +1,5 @@
-# The two profiles of the one device pipeline (README "Profiles"): named settings, not two
+# The two profiles of the one device pipeline (docs/method-and-formats.md "Profiles"): named
+# settings, not two
 # implementations.
 #
 #   PAPER  Farago 2024 to the letter: rest when max - min of x stays below 0.12 g, 2 points per
@@ -25,7 +26,8 @@ WEAR_MAX_COUNT = 8
 # Why 8 per subset (72 points): the outlier test needs enough points that one bad one is a
 # minority in its neighbourhood (18 cannot outvote a point); RAM is ~5 kB of list slots at 72
 # points; a Gauss-Newton step costs 10 residuals per point, ~0.2 s on an RP2040 at 72 points,
-# sliced (README "Sliced fit").  More points than the bins' 0.1 g spacing lets a band hold
+# sliced (docs/method-and-formats.md "Sliced fit").  More points than the bins' 0.1 g spacing lets
+# a band hold
 # would sit unused.
 
 

@@ -26,7 +26,8 @@ AUTO = 0       # threshold: from the measured noise (NoiseGauge)
 # spread scatters little around its typical value (the range of n Gaussian samples), so twice the
 # quiet level, plus two digits for quantisation, admits every still segment of the sensor and
 # keeps out arm motion of more than a few mg.  Measured: LIS3DH at 12 bit, 220 ug/sqrt(Hz):
-# ~4 LSB at 10 Hz -> 10 LSB, ~10 LSB at 100 Hz -> 22 LSB (README "Profiles").  The counts
+# ~4 LSB at 10 Hz -> 10 LSB, ~10 LSB at 100 Hz -> 22 LSB (docs/method-and-formats.md "Profiles"). 
+# The counts
 # halve when they pass NOISE_HALVE, so the gauge follows a sensor whose noise changes (a range
 # or rate change; ageing) and its ints stay small.  Until the first NOISE_EVERY quiet segments
 # (80 s) no segment is judged still.

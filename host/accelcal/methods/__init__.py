@@ -1,6 +1,6 @@
 """Calibration methods of both papers in float64 (numpy/scipy), one module each, all scored with
 the same 9-parameter correction (base.py).  The device method is not here: it is the integer
-one in device/acal, run through accelcal.runtime.
+one in device/acal, run through accelcal.bridge.runtime.
 
 | --method  | module                | source |
 |-----------|-----------------------|--------|

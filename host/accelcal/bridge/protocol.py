@@ -1,0 +1,295 @@
+"""What the host hands the device pipeline and what it gets back: the settings (Config), one
+device's data (Group), its outcome (DeviceResult), and the protocol between them
+(bridge/scripts/mp_runner.py).  In one process the host calls the runner's methods with ints and
+collects ints (no text); a MicroPython child gets the same calls as text lines and answers in
+lines, read by the same collector."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import effects as deff
+from acal import fixed, optimiser, rest
+from acal import profile as dprofile
+from accelcal.bridge.scripts.mp_runner import SETTINGS
+from accelcal.errors import InputError
+from accelcal.fixedpoint import g_to_point, g_to_sample
+
+BATCH = 1000  # samples per B record
+
+
+@dataclass(frozen=True)
+class Config:
+    """Pipeline settings in physical units; `line()` gives the device's integers.  The defaults
+    are the paper profile's; Config.for_profile() gives a profile's (acal/profile.py).  Immutable:
+    a step that needs other settings makes them with dataclasses.replace."""
+    rate_hz: int = 100
+    seconds: int = rest.DEFAULT_SECONDS
+    threshold_g: float | None = 0.12   # None: from the measured noise (acal.rest.AUTO)
+    axis: int = 0                      # 3: all axes (acal.rest.ALL_AXES)
+    min_count: int = 2
+    max_count: int = 2
+    differ_g: float = 0.1
+    policy: str = "centre"
+    iterations: int = optimiser.DEFAULT_ITERATIONS
+    rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
+    kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
+    fit: int = dprofile.GRADIENT
+    profile: str = "paper"
+
+    @classmethod
+    def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
+        """A profile's settings (acal.profile.settings), then any overrides (None: not given).
+        composed: a composed model's defaults (more points and iterations for the paper's fit)."""
+        s = dprofile.settings(dprofile.parse(name), composed)
+        thr = s["threshold"]
+        fit = s["fit"]
+        if fit == dprofile.NEWTON:
+            from acal.gaussnewton import DEFAULT_ITERATIONS as iterations
+        else:
+            iterations = optimiser.COMPOSED_ITERATIONS if composed else optimiser.DEFAULT_ITERATIONS
+        cfg = cls(threshold_g=None if thr == rest.AUTO else thr / fixed.SAMPLE_ONE_G,
+                  axis=s["axis"], min_count=s["min_count"], max_count=s["max_count"],
+                  iterations=iterations, fit=fit, profile=name)
+        return replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
+
+    @property
+    def threshold_int(self) -> int:
+        """The rest threshold as the device holds it, Q10 g (0: rest.AUTO)."""
+        if self.threshold_g is None:
+            return rest.AUTO
+        return int(round(self.threshold_g * fixed.SAMPLE_ONE_G))
+
+    def values(self) -> list[int]:
+        """The settings as the device takes them (mp_runner.SETTINGS order), then the learning
+        rates and the effect ids: what the C line carries."""
+        named = {"rate_hz": self.rate_hz, "seconds": self.seconds, "threshold": self.threshold_int,
+                 "axis": self.axis, "min_count": self.min_count, "max_count": self.max_count,
+                 "differ": int(round(self.differ_g * fixed.POINT_ONE_G)),
+                 "policy": {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy],
+                 "iterations": self.iterations, "fit": self.fit}
+        return [named[k] for k in SETTINGS] + list(self.rates_tenths) + list(self.kinds)
+
+
+@dataclass
+class Group:
+    """One device's data: rest points (N x 3, g) or samples (N x 3, g) with gaps (indices
+    where a new contiguous run starts); for a composed model each point or sample's temperature
+    (degC) and time (s) - the device sees them as ints: degC rounded, 64 s units since the
+    group's first time."""
+    name: str
+    points: np.ndarray | None = None       # g; or, as found by the twin, points_q16
+    samples: np.ndarray | None = None
+    gaps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    temp: np.ndarray | None = None
+    t: np.ndarray | None = None
+    # Rest means found on the host (accelcal.bridge.twin) stand for a recording: each point's device
+    # conditions as the closing sample of its segment had them, the recording's first time,
+    # and how many samples there were.
+    cond: np.ndarray | None = None
+    t_origin: float | None = None
+    n_samples: int | None = None
+    # Sample runs [start, stop) where rest segments closing are not offered to the bins
+    # (the host's non-wear and quality checks, accelcal.pipeline.scan): the pipeline's worn = False.
+    unworn: np.ndarray | None = None
+    # Rest means as the twin found them (Q16 g ints): handed to the bins as they are, never
+    # through floats.
+    points_q16: np.ndarray | None = None
+
+    def point_ints(self) -> np.ndarray:
+        """The rest points as the device's bins take them, Q16 g ints."""
+        return self.points_q16 if self.points_q16 is not None else g_to_point(self.points)
+
+    def __len__(self) -> int:
+        """Points (or samples) in the group."""
+        if self.points_q16 is not None:
+            return len(self.points_q16)
+        return len(self.points) if self.points is not None else len(self.samples)
+
+    @property
+    def t_first(self) -> float:
+        if self.t_origin is not None:
+            return self.t_origin
+        return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
+
+    def conditions(self, n: int) -> np.ndarray:
+        if self.cond is not None:
+            return self.cond
+        return device_conditions(self.temp, self.t, self.t_first, n)
+
+
+def device_conditions(temp, t, t0: float, n: int) -> np.ndarray:
+    """(n, 2) ints: temperature (degC, rounded) and time (64 s units from t0), as the device
+    reads them; zeros where a column is missing."""
+    out = np.zeros((n, 2), dtype=np.int64)
+    if temp is not None:
+        out[:, 0] = np.rint(temp)
+    if t is not None:
+        out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
+    return out
+
+
+def condition_changes(cond: np.ndarray) -> np.ndarray:
+    """Indices where a sample's conditions differ from the previous sample's."""
+    return np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1
+
+
+@dataclass
+class DeviceResult:
+    name: str
+    status: int = -1
+    iterations: int = 0
+    objective_start: int = 0
+    objective: int = 0
+    params_int: list[int] = field(default_factory=list)
+    counts: list[int] = field(default_factory=list)
+    rest_int: list[tuple[int, ...]] = field(default_factory=list)      # x y z subset temp time
+    selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time
+    ref_temp: int = 0
+    ref_time: int = 0
+    ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
+    temp_span: int = 0       # of the held points: degC
+    time_span: int = 0       # 64 s units
+    covered: bool = False    # the held points cover every axis (bins.covered())
+    kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
+    threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
+    noise_level: int | None = None  # and the noise level it came from, Q10 g
+
+    @property
+    def status_name(self) -> str:
+        return optimiser.STATUS_NAMES[self.status]
+
+    @property
+    def rest_g(self) -> np.ndarray:
+        return np.array([r[:3] for r in self.rest_int], dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+    @property
+    def selected_g(self) -> np.ndarray:
+        return np.array([r[:3] for r in self.selected_int], dtype=np.float64).reshape(-1, 3) / fixed.POINT_ONE_G
+
+    @property
+    def fit_points_g(self) -> np.ndarray:
+        """The selected points the device's fit kept (all of them unless it rejected outliers)."""
+        sel = self.selected_g
+        return sel if self.kept is None else sel[np.asarray(self.kept, bool)]
+
+    @property
+    def rest_conditions(self) -> np.ndarray:
+        """(N, 2) ints: each rest mean's temperature (degC) and time (64 s units)."""
+        return np.array([r[4:6] for r in self.rest_int], dtype=np.int64).reshape(-1, 2)
+
+
+def protocol_items(groups: list[Group], cfg: Config):
+    """The runner's calls, in order, as (method, args): configure, then per group its points or
+    samples with their conditions, gaps and wear, and end.  All ints."""
+    yield "configure", (cfg.values(),)
+    composed = bool(cfg.kinds)
+    for g in groups:
+        yield "group", (g.name,)
+        if g.points is not None or g.points_q16 is not None:
+            q = g.point_ints()
+            cond = g.conditions(len(q)).tolist()
+            last = None
+            for (x, y, z), c in zip(q.tolist(), cond):
+                if composed and c != last:
+                    yield "conditions", (c[0], c[1])
+                    last = c
+                yield "point", (x, y, z)
+        if g.samples is not None:
+            q = g_to_sample(g.samples)
+            n = len(q)
+            gaps = {int(i) for i in g.gaps if 0 < i < n}
+            cuts = set(gaps)
+            worn = np.ones(n + 1, bool)
+            if g.unworn is not None and len(g.unworn):
+                for a, b in g.unworn.tolist():
+                    worn[a:b] = False
+                cuts.update((np.flatnonzero(np.diff(worn[:n])) + 1).tolist())
+                cuts.discard(0)
+            state = True
+            if composed:  # a new run wherever the conditions change, led by its conditions
+                cond = g.conditions(n)
+                cuts.update(condition_changes(cond).tolist())
+            bounds = [0, *sorted(cuts), n]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                if a in gaps:
+                    yield "gap", ()
+                if bool(worn[a]) != state:
+                    state = bool(worn[a])
+                    yield "worn", (state,)
+                if composed:
+                    yield "conditions", (int(cond[a, 0]), int(cond[a, 1]))
+                for s in range(a, b, BATCH):
+                    chunk = q[s:min(b, s + BATCH)]
+                    yield "samples", (chunk.ravel().tolist(), len(chunk))
+        yield "end", ()
+
+
+_LINE_TAGS = {"configure": "C", "group": "G", "conditions": "T", "point": "P", "gap": "X",
+              "worn": "W", "end": "E"}
+
+
+def protocol_lines(groups: list[Group], cfg: Config):
+    """The same calls as the text lines a MicroPython child reads (mp_runner.py's protocol)."""
+    for method, args in protocol_items(groups, cfg):
+        if method == "samples":
+            buf, n = args
+            yield f"B {n} " + " ".join(map(str, buf))
+        elif method == "configure":
+            yield "C " + " ".join(map(str, args[0]))
+        elif method == "worn":
+            yield f"W {int(args[0])}"
+        else:
+            yield " ".join([_LINE_TAGS[method], *map(str, args)])
+
+
+class Collector:
+    """The runner's records (emit(tag, values)) into one DeviceResult per group."""
+
+    def __init__(self):
+        self.results: list[DeviceResult] = []
+
+    def emit(self, tag: str, v) -> None:
+        if tag == "G":
+            self.results.append(DeviceResult(str(v[0])))
+            return
+        cur = self.results[-1]
+        if tag == "R":
+            cur.rest_int.append(tuple(v[:6]))
+        elif tag == "S":
+            cur.selected_int.append(tuple(v[:5]))
+        elif tag == "Z":
+            cur.ref_temp, cur.ref_time = v[0], v[1]
+        elif tag == "Y":
+            cur.ready, cur.temp_span, cur.time_span = v[0] == 1, v[1], v[2]
+            cur.covered = v[3] == 1
+        elif tag == "K":
+            cur.counts = list(v)
+        elif tag == "D":
+            cur.kept = list(v[1:])
+        elif tag == "N":
+            cur.threshold, cur.noise_level = v[0], v[1]
+        elif tag == "F":
+            cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
+            cur.params_int = list(v[4:])
+        else:
+            raise InputError(f"the device runner said: {tag} {' '.join(map(str, v))[:200]}")
+
+
+def parse(out_lines) -> list[DeviceResult]:
+    """A MicroPython child's output lines into results."""
+    c = Collector()
+    for line in out_lines:
+        f = line.split()
+        if not f:
+            continue
+        if f[0] == "G":
+            c.emit("G", f[1:2])
+            continue
+        try:
+            c.emit(f[0], [int(x) for x in f[1:]])
+        except (ValueError, IndexError):
+            raise InputError(f"the device runner said: {line.strip()[:200]}") from None
+    return c.results

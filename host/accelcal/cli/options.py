@@ -1,0 +1,136 @@
+"""What every command group shares: the parser whose errors are one line, option types with
+bounds (every numeric option has one; NaN and infinities are refused), and the device pipeline's
+options with the Config they make."""
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import replace
+
+from accelcal.errors import InputError
+
+
+class Parser(argparse.ArgumentParser):
+    """An option error is one line (and exit 2) like every other bad input, with the command's
+    --help named for the details."""
+
+    def error(self, message):
+        self.exit(2, f"accelcal: error: {message} (see `{self.prog} --help`)\n")
+
+
+def int_in(lo, hi):
+    """An int option within [lo, hi] (every numeric option has an upper bound)."""
+    def parse(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{s!r} is not a whole number") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{v} is outside [{lo}, {hi}]")
+        return v
+    parse.__name__ = "int"
+    return parse
+
+
+def float_in(lo, hi, lo_open=False):
+    """A finite float option within [lo, hi] ((lo, hi] with lo_open)."""
+    def parse(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{s!r} is not a number") from None
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            raise argparse.ArgumentTypeError(
+                f"{s} is outside {'(' if lo_open else '['}{lo:g}, {hi:g}]")
+        return v
+    parse.__name__ = "float"
+    return parse
+
+
+positive_int = int_in(1, 10 ** 6)
+
+
+def dask_address(s):
+    """A scheduler address: [scheme://]host:port, the port a number."""
+    import re
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):(\d{1,5})",
+                     s)
+    if not m or not 0 < int(m.group(3)) < 65536:
+        raise argparse.ArgumentTypeError(f"{s!r} is not a scheduler address such as "
+                                         "tcp://10.0.0.5:8786")
+    return s
+
+
+def rates(s):
+    try:
+        vals = [float(v) for v in s.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError("three numbers, e.g. 0.3,0.8,0.2") from None
+    if not all(math.isfinite(v) and 0 <= v <= 100 for v in vals):
+        raise argparse.ArgumentTypeError("three rates in [0, 100], e.g. 0.3,0.8,0.2")
+    tenths = [round(v * 10) for v in vals]
+    if len(vals) != 3 or any(abs(v * 10 - t) > 1e-9 or t < 0 for v, t in zip(vals, tenths)):
+        raise argparse.ArgumentTypeError("three non-negative multiples of 0.1, e.g. 0.3,0.8,0.2")
+    return tuple(tenths)
+
+
+def threshold(s):
+    if s == "auto":
+        return "auto"
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError("a number of g (e.g. 0.05) or auto") from None
+    if not 0 < v <= 2:
+        raise argparse.ArgumentTypeError("must be in (0, 2] g, or auto")
+    return v
+
+
+AXES = {"x": 0, "y": 1, "z": 2, "all": 3}  # 3: acal.rest.ALL_AXES
+
+
+def add_pipeline_args(p):
+    g = p.add_argument_group("device pipeline",
+                             "--profile sets every default below; an option given overrides it.")
+    g.add_argument("--profile", choices=["wear", "paper"], default="wear",
+                   help="wear (default): rest on all axes against a threshold from the sensor's "
+                        "measured noise, 8 points per subset, a Gauss-Newton fit to the optimum "
+                        "with outlier rejection, ready on coverage; paper: Farago 2024 to the "
+                        "letter (x axis, 0.12 g, 2 points per subset, 50 gradient steps)")
+    g.add_argument("--seconds", type=int_in(1, 3600), default=5, help="rest segment length, s (default 5)")
+    g.add_argument("--threshold", type=threshold, default=None,
+                   help="max-min rest threshold, g, or auto (from the measured noise); "
+                        "default: wear auto, paper 0.12")
+    g.add_argument("--axis", choices=["x", "y", "z", "all"], default=None,
+                   help="axis for the rest test, or all; default: wear all, paper x")
+    g.add_argument("--min-count", type=int_in(1, 64), default=None,
+                   help="points per subset to calibrate (default 2)")
+    g.add_argument("--max-count", type=int_in(1, 64), default=None,
+                   help="points kept per subset (default: wear 8; paper 2, 4 for a composed model)")
+    g.add_argument("--differ", type=float_in(0, 2), default=0.1,
+                   help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
+    g.add_argument("--select", choices=["centre", "first"], default="centre",
+                   help="point selection once a subset is full: centre (replace by better-placed points) "
+                        "or first (first come, as printed in the paper)")
+    g.add_argument("--iterations", type=int_in(1, 100000), default=None,
+                   help="optimiser iterations (default: wear up to 20 Gauss-Newton steps per "
+                        "round; paper 50, 200 for a composed model)")
+    g.add_argument("--rates", type=rates, default=(3, 8, 2), metavar="S,M,O",
+                   help="paper profile: learning rates for scale, misalignment, offset, multiples "
+                        "of 0.1 (default 0.3,0.8,0.2, the paper's)")
+
+
+def pipeline_config(args, composed=False):
+    from accelcal.bridge.runtime import Config
+    thr = None if args.threshold in (None, "auto") else args.threshold
+    cfg = Config.for_profile(args.profile, composed, threshold_g=thr,
+                             axis=None if args.axis is None else AXES[args.axis],
+                             min_count=args.min_count, max_count=args.max_count,
+                             iterations=args.iterations)
+    cfg = replace(cfg, seconds=args.seconds, differ_g=args.differ, policy=args.select,
+                  rates_tenths=args.rates)
+    if args.threshold == "auto":
+        cfg = replace(cfg, threshold_g=None)
+    if cfg.max_count < cfg.min_count:
+        raise InputError("--max-count must be >= --min-count")
+    return cfg

@@ -1,0 +1,331 @@
+"""Recordings of any size and format, read in chunks onto our recording model (docs/method-and-formats.md "Files"):
+time t in s, x/y/z in g, temperature in degC where the device records it.
+
+* CSV (header t,x,y,z[,temp]) streams through Apache Arrow's CSV reader: a C++ engine, parsed in
+  blocks on both cores, so memory stays constant whatever the file's length.
+* Axivity .cwa (AX3, AX6), GENEActiv .bin and ActiGraph .gt3x go through `actfast`, a maintained
+  reader of all three.  It reads a whole file at once (about 20 bytes a sample: a 14-day 100 Hz
+  file would need ~2.4 GB), so a .cwa, made of self-contained 512-byte blocks, goes to it in
+  pieces of a few MB (CwaRecording): constant memory.  .bin and .gt3x are read whole.  Time: seconds since the epoch (the file's
+  clock); temperature: the device's once-per-block reading, held until the next (as the devices'
+  own exporters do).  The axes are taken as they are: gyroscopes, light, buttons are dropped.
+
+Gaps: a step in t longer than 1.5 sample periods and longer than GAP_S starts a new contiguous
+run.  Real devices' timestamps jitter at block boundaries (an AX3 at 200 Hz: steps of 5 to 15 ms),
+which must not cut every rest segment; a second missing inside a 5 s segment moves its mean by
+nothing that matters.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from accelcal.errors import InputError
+from accelcal.files.checks import check_values
+
+RECORDING_HEADERS = (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])
+GAP_S = 1.0
+CHUNK = 1 << 20                      # samples per chunk handed on
+ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
+STANDARD_RANGES_G = (2, 4, 8, 16)
+
+
+@dataclass
+class Chunk:
+    """Consecutive samples: t (n,) s; xyz (n, 3) g; temp (n,) degC or None; first: the stream
+    index of the first sample."""
+    t: np.ndarray
+    xyz: np.ndarray
+    temp: np.ndarray | None
+    first: int
+
+
+def gap_limit(rate_hz: int) -> float:
+    return max(1.5 / rate_hz, GAP_S)
+
+
+class Recording:
+    """A recording opened for reading in chunks.  `format` names it; `range_g` is the full scale
+    the file declares (None: not declared); `meta` the reader's metadata (JSON-ready)."""
+
+    format = "?"
+
+    def __init__(self, path: str):
+        self.path = str(path)
+        self.range_g: float | None = None
+        self.meta: dict = {}
+        self.has_temp = False
+        self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        raise NotImplementedError
+
+
+def open_recording(path: str | Path) -> Recording:
+    """The reader for a file, chosen by its name: .cwa/.bin/.gt3x are actigraphy files,
+    anything else is CSV."""
+    path = str(path)
+    if not Path(path).is_file():
+        raise InputError(f"{path}: no such file")
+    ext = Path(path).suffix.lower()
+    if ext == ".cwa":
+        return CwaRecording(path)
+    if ext in ACTIGRAPHY:
+        return ActigraphyRecording(path)
+    return CsvRecording(path)
+
+
+class CsvRecording(Recording):
+    format = "CSV"
+
+    def __init__(self, path: str):
+        super().__init__(path)
+        header = csv_header(path)
+        if not header:
+            raise InputError(f"{path}: empty file")
+        if header not in RECORDING_HEADERS:
+            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp; found "
+                             f"{','.join(header)}")
+        self.header = header
+        self.has_temp = "temp" in header
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
+        constant; `size` is not used (Arrow's blocks are the natural unit)."""
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+        types = {h: pa.float64() for h in self.header}
+        first = 0
+        self._last_t = None
+        try:
+            reader = pacsv.open_csv(
+                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True),
+                convert_options=pacsv.ConvertOptions(column_types=types, null_values=[""]))
+            for batch in reader:
+                if batch.num_rows:
+                    yield self._chunk(batch, first)
+                    first += batch.num_rows
+        except pa.ArrowInvalid as e:
+            raise InputError(f"{self.path}: {_arrow_message(e)}") from None
+        if first == 0:
+            raise InputError(f"{self.path}: no data rows")
+
+    def _chunk(self, batch, first: int) -> Chunk:
+        cols = []
+        for i, h in enumerate(self.header):
+            c = batch.column(i)
+            if c.null_count:
+                row = first + int(np.argmax(c.is_null().to_numpy(zero_copy_only=False)))
+                raise InputError(f"{self.path}:{row + 2}: missing value in column {h}")
+            v = c.to_numpy()
+            if not np.isfinite(v).all():
+                row = first + int(np.argmax(~np.isfinite(v)))
+                raise InputError(f"{self.path}:{row + 2}: {v[row - first]} in column {h} "
+                                 "(values must be finite)")
+            cols.append(v)
+        check_values(self.path, cols[0], np.column_stack(cols[1:4]),
+                     cols[4] if self.has_temp else None, first, self._last_t)
+        self._last_t = float(cols[0][-1])
+        return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first)
+
+
+def _arrow_message(e: Exception) -> str:
+    return " ".join(str(e).split())[:300]
+
+
+def _actfast(path: str, fmt: str) -> dict:
+    import actfast
+    try:
+        return actfast.read(path)
+    except Exception as e:  # actfast raises its own errors for corrupt or unknown files
+        raise InputError(f"{path}: not a readable {fmt} file "
+                         f"({' '.join(str(e).split())[:200]})") from None
+
+
+def _group(timeseries: dict, key: str) -> dict | None:
+    # The timeseries group that holds `key`: actfast names groups by rate for GENEActiv and
+    # Axivity (high_frequency, low_frequency) and by sensor for ActiGraph (acceleration, ...).
+    for g in timeseries.values():
+        if isinstance(g, dict) and key in g and len(g[key]):
+            return g
+    return None
+
+
+def _columns(data: dict):
+    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None)."""
+    ts = data.get("timeseries", {})
+    hf = _group(ts, "acceleration")
+    if hf is None:
+        return None
+    t = hf["datetime"].astype(np.float64) / 1e9
+    lf = _group(ts, "temperature")
+    temp = None
+    if lf is not None:
+        tl = lf["datetime"].astype(np.float64) / 1e9
+        held = np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
+        temp = lf["temperature"].astype(np.float64)[held]
+    return t, hf["acceleration"], temp
+
+
+def _pygt3x_columns(path: str):
+    """ActiGraph files actfast gives no samples for (GT9X Link): pygt3x, if installed (the
+    optional extra `accelcal[gt3x]`).  Its idle-sleep rows (the device stopped sampling while
+    still and the reader repeats a sample) are left out: a gap, never rest."""
+    try:
+        from pygt3x.reader import FileReader
+    except ImportError:
+        return None
+    try:
+        with FileReader(path) as r:
+            df = r.to_pandas()
+    except Exception as e:   # pygt3x's own errors for files it cannot read
+        raise InputError(f"{path}: not a readable ActiGraph file ({' '.join(str(e).split())[:200]})"
+                         ) from None
+    if "IdleSleepMode" in df:
+        df = df[~df["IdleSleepMode"].astype(bool)]
+    return (df.index.values.astype(np.float64), df[["X", "Y", "Z"]].values.astype(np.float32),
+            None)
+
+
+class ActigraphyRecording(Recording):
+    """GENEActiv .bin, ActiGraph .gt3x: read whole by actfast, handed on in chunks."""
+
+    def __init__(self, path: str):
+        super().__init__(path)
+        self.format = ACTIGRAPHY[Path(path).suffix.lower()]
+        data = _actfast(path, self.format)
+        self.format = data.get("format", self.format)
+        cols = _columns(data)
+        if cols is None and Path(path).suffix.lower() == ".gt3x":
+            cols = _pygt3x_columns(path)
+            if cols is None:
+                raise InputError(f"{path}: actfast reads no samples from this ActiGraph file "
+                                 "(a GT9X Link?); install the optional reader: pip install "
+                                 "'accelcal[gt3x]' (pygt3x)")
+            self.meta_reader = "pygt3x"
+        if cols is None or not len(cols[0]):
+            raise InputError(f"{path}: {self.format} file holds no acceleration samples")
+        self.t, self.xyz, self.temp = cols
+        self.has_temp = self.temp is not None
+        self.meta = data.get("metadata", {})
+        self.warnings = [" ".join(str(w).split()) for w in data.get("warnings", [])]
+        self.range_g = _declared_range(self.meta)
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        n = len(self.t)
+        for a in range(0, n, size):
+            b = min(n, a + size)
+            yield Chunk(self.t[a:b], self.xyz[a:b].astype(np.float64),
+                        None if self.temp is None else self.temp[a:b], a)
+
+
+class CwaRecording(Recording):
+    """Axivity .cwa, streamed: the file is a header packet ('MD', its length in bytes 2-3) and
+    512-byte data blocks, each with its own timestamp, temperature and samples.  actfast reads a
+    piece made of the header and a run of blocks to exactly what it reads for those blocks in
+    the whole file (tests/test_formats.py), so pieces of BLOCKS blocks go through a scratch file
+    one at a time: constant memory for any length (a 14-day 100 Hz file is ~1 M blocks)."""
+
+    BLOCKS = 8192      # 4 MB of file, ~1 M samples of an AX3 (120 per packed block)
+    BLOCK = 512
+
+    def __init__(self, path: str):
+        super().__init__(path)
+        self.format = "Axivity CWA"
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+        if len(head) < 4 or head[:2] != b"MD":
+            raise InputError(f"{path}: not an Axivity CWA file (no 'MD' header packet)")
+        self.header_len = int.from_bytes(head[2:4], "little") + 4
+        size = Path(path).stat().st_size
+        self.n_blocks = max(0, (size - self.header_len) // self.BLOCK)
+        if self.n_blocks == 0:
+            raise InputError(f"{path}: {self.format} file holds no data blocks")
+        first = self._piece(0, 1)
+        self.format = first.get("format", self.format)
+        self.meta = first.get("metadata", {})
+        self.range_g = _declared_range(self.meta)
+        cols = _columns(first)
+        self.has_temp = cols is not None and cols[2] is not None
+
+    def _piece(self, a: int, b: int) -> dict:
+        import tempfile
+        with open(self.path, "rb") as fh:
+            header = fh.read(self.header_len)
+            fh.seek(self.header_len + a * self.BLOCK)
+            blocks = fh.read((b - a) * self.BLOCK)
+        scratch = "/dev/shm" if Path("/dev/shm").is_dir() else None
+        with tempfile.NamedTemporaryFile(suffix=".cwa", dir=scratch) as tmp:
+            tmp.write(header + blocks)
+            tmp.flush()
+            return _actfast(tmp.name, f"{self.format} (blocks {a}-{b - 1} of {self.path})")
+
+    def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
+        first = 0
+        held = [float("nan")]   # the last temperature reading, for a piece without one
+        for a in range(0, self.n_blocks, self.BLOCKS):
+            data = self._piece(a, min(self.n_blocks, a + self.BLOCKS))
+            self.warnings += [" ".join(str(w).split()) for w in data.get("warnings", [])]
+            cols = _columns(data)
+            if cols is None:
+                continue
+            t, xyz, temp = cols
+            if self.has_temp and temp is None:   # a piece without a reading: hold the last
+                temp = np.full(len(t), held[0])
+            yield Chunk(t, xyz.astype(np.float64), temp if self.has_temp else None, first)
+            if self.has_temp:
+                held[0] = float(temp[-1])
+            first += len(t)
+        if first == 0:
+            raise InputError(f"{self.path}: {self.format} file holds no acceleration samples")
+
+
+def _declared_range(meta: dict) -> float | None:
+    """The full scale a file's header declares: Axivity's accelerometer_range_g, GENEActiv's
+    "Accelerometer Range" ("-8 to 8")."""
+    for sec in meta.values():
+        if not isinstance(sec, dict):
+            continue
+        for k, v in sec.items():
+            if k in ("accelerometer_range_g", "Accelerometer Range"):
+                try:
+                    g = float(str(v).split()[-1])
+                except (ValueError, IndexError):
+                    return None
+                # a range no accelerometer has (nan, 0, 1e300) is not declared: None
+                return g if math.isfinite(g) and 0 < g <= 400 else None
+    return None
+
+
+def read_whole(path: str | Path):
+    """(t, xyz, temp or None, recording) of a whole recording, for what needs it in memory."""
+    rec = open_recording(path)
+    parts = list(rec.chunks())
+    t = np.concatenate([c.t for c in parts])
+    xyz = np.concatenate([c.xyz for c in parts])
+    temp = np.concatenate([c.temp for c in parts]) if rec.has_temp else None
+    return t, xyz, temp, rec
+
+
+def is_recording(path: str | Path) -> bool:
+    """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
+    header is t,x,y,z[,temp]."""
+    if Path(path).suffix.lower() in ACTIGRAPHY:
+        return True
+    return csv_header(path) in RECORDING_HEADERS
+
+
+def csv_header(path: str | Path) -> list[str]:
+    """A CSV file's header cells, stripped ([] for an empty file)."""
+    import csv
+    try:
+        with open(path, newline="") as fh:
+            return [h.strip() for h in next(csv.reader([fh.readline()]), [])]
+    except OSError as e:
+        raise InputError(f"{path}: cannot open ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a CSV text file (nor .cwa/.bin/.gt3x)") from None

@@ -1,0 +1,204 @@
+"""Physical effects beyond the paper's 9-parameter model, each declared once.
+
+An effect adds to what the sensor measures, after the 9-parameter errors (v = measured, g):
+
+    temp_offset  v += c (T - T0)             zero-g level moves with temperature (g/degC per axis)
+    temp_scale   v *= 1 + s (T - T0)         sensitivity moves with temperature (1/degC per axis)
+    drift        v += d (t - t0) / 1 day     offset moves with time (g/day per axis)
+    nonlinear    v += q v^2                  quadratic response per axis (1/g)
+
+The same declaration serves the simulator (`measure`: add the effect with true values), the
+fits (`correct`: remove it with fitted values, before the 9-parameter correction) and the reports
+(names, units, bounds, the regressor to plot residuals against, the physics in a sentence).
+T0 and t0 are references taken from the data a model is fitted on (mean temperature, first time),
+stored with the fitted parameters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import effects as deff
+from acal.fixed import PARAM_NAMES
+from accelcal.fixedpoint import params_to_float, params_to_int
+from accelcal.methods import correct as base_correct
+
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One physical effect: per axis, a parameter theta times a regressor x, entering the reading
+    as an offset (v + theta x) or a gain (v (1 + theta x)).  Its float maths (measure, correct),
+    its device integers (kind, int_scale: Q24 per normalised regressor, device/acal/effects.py)
+    and its bound live here; tests/test_effects.py holds the bound equal to the device's."""
+    name: str
+    symbol: str             # parameter prefix: c -> cx cy cz
+    unit: str               # of the parameters
+    scale: float            # report unit per SI-ish unit (e.g. 1e3: g -> mg)
+    report_unit: str
+    bound: float            # |parameter| <= bound (fit bounds; the device's BOUNDS in Q24)
+    true_range: tuple       # simulator: |true value| drawn uniformly in this range
+    needs: str | None       # "temp", "t" or None (the regressor is the reading itself)
+    regressor: str          # what residuals are plotted against
+    explanation: str
+    form: str = "offset"    # "offset": v + theta x;  "gain": v (1 + theta x)
+
+    @property
+    def param_names(self) -> list[str]:
+        return [f"{self.symbol}{a}" for a in AXES]
+
+    def x(self, v, temp, t, ref) -> np.ndarray:
+        """The regressor, per axis (broadcast against v): degC from T0, days from t0, or the
+        axis reading squared."""
+        if self.needs == "temp":
+            return (temp - ref["T0"])[:, None]
+        if self.needs == "t":
+            return ((t - ref["t0"]) / 86400.0)[:, None]
+        return v * v
+
+    def measure(self, v, theta, temp, t, ref):
+        """What the sensor reads with the effect added (simulator)."""
+        dx = np.asarray(theta) * self.x(v, temp, t, ref)
+        return v * (1 + dx) if self.form == "gain" else v + dx
+
+    def correct(self, v, theta, temp, t, ref):
+        """Remove the effect from measurements (fits, apply): first order, exactly the form the
+        device applies in integers (device/acal/effects.py)."""
+        dx = np.asarray(theta) * self.x(v, temp, t, ref)
+        return v - dx * v if self.form == "gain" else v - dx
+
+    # Device integers (device/acal/effects.py): Q24 per normalised regressor.
+    @property
+    def kind(self) -> int:
+        return {v: k for k, v in deff.NAMES.items()}[self.name]
+
+    @property
+    def int_scale(self) -> float:
+        per = {"temp": 16.0, "t": 2048 * deff.DT_UNIT_S / 86400.0, None: 1.0}[self.needs]
+        return per * (1 << 24)
+
+    def to_int(self, theta) -> list[int]:
+        return [int(round(v * self.int_scale)) for v in theta]
+
+    def from_int(self, p) -> np.ndarray:
+        return np.asarray(p, dtype=np.float64) / self.int_scale
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        lo, hi = self.true_range
+        return rng.uniform(lo, hi, 3) * rng.choice([-1.0, 1.0], 3)
+
+
+CATALOGUE: dict[str, Effect] = {e.name: e for e in (
+    Effect("temp_offset", "c", "g/degC", 1e3, "mg/degC", 0.005, (0.0004, 0.001), "temp", "temperature",
+           "The zero-g level moves with temperature (LIS3DH: +-0.5 mg/degC typical): thermal "
+           "stress in the package bends the MEMS proof mass's suspension, so rest readings shift "
+           "with the chip's temperature whatever the orientation."),
+    Effect("temp_scale", "s", "1/degC", 1e2, "%/degC", 0.002, (0.0003, 0.0006), "temp", "temperature",
+           "Sensitivity changes with temperature (LIS3DH: 0.01 %/degC typical, more on some parts): "
+           "the spring constant and the capacitive readout's gain drift, so the error grows with "
+           "the size of the reading along each axis and with the temperature change.", "gain"),
+    Effect("drift", "d", "g/day", 1e3, "mg/day", 0.02, (0.0015, 0.004), "t", "time",
+           "The offset moves with time (ageing of the package and its solder stress, supply "
+           "changes): rest readings shift steadily over days whatever the temperature."),
+    Effect("nonlinear", "q", "1/g", 1e2, "%/g", 0.05, (0.004, 0.01), None, "axis reading",
+           "The response is not linear: each axis reads a little more (or less) than "
+           "proportionally at larger accelerations (LIS3DH: +-0.5 % of full scale), so the error "
+           "depends on the squared reading of that axis, and on which side of zero it is."),
+)}
+
+
+@dataclass
+class ModelSpec:
+    """'base' or 'base+NAME+NAME...'."""
+    effects: tuple[str, ...]
+
+    @staticmethod
+    def parse(spec: str) -> "ModelSpec":
+        parts = [p.strip() for p in spec.split("+")]
+        if not parts or parts[0] != "base":
+            raise ValueError(f"model spec {spec!r} must start with 'base' (e.g. base+temp_offset)")
+        names = parts[1:]
+        for n in names:
+            if n not in CATALOGUE:
+                raise ValueError(f"unknown effect {n!r} in model spec {spec!r}: known effects are "
+                                 f"{', '.join(CATALOGUE)}")
+        if len(set(names)) != len(names):
+            raise ValueError(f"model spec {spec!r} names an effect twice")
+        return ModelSpec(tuple(names))
+
+    def __str__(self):
+        return "+".join(("base",) + self.effects)
+
+    def with_effect(self, name: str) -> "ModelSpec":
+        return ModelSpec(self.effects + (name,))
+
+    @property
+    def param_names(self) -> list[str]:
+        return list(PARAM_NAMES) + [p for n in self.effects for p in CATALOGUE[n].param_names]
+
+    @property
+    def kinds(self) -> tuple[int, ...]:
+        """The device's effect ids (acal.effects), in order."""
+        return tuple(CATALOGUE[n].kind for n in self.effects)
+
+    def to_int(self, theta) -> list[int]:
+        """Float parameters (9 + 3 per effect) -> the device's Q24 integers."""
+        out = params_to_int(theta[:9])
+        for k, n in enumerate(self.effects):
+            out += CATALOGUE[n].to_int(theta[9 + 3 * k: 12 + 3 * k])
+        return out
+
+    def from_int(self, p_int) -> np.ndarray:
+        """The device's integers -> float parameters (g, 1/degC, g/day, 1/g)."""
+        parts = [params_to_float(p_int[:9])]
+        for k, n in enumerate(self.effects):
+            parts.append(CATALOGUE[n].from_int(p_int[9 + 3 * k: 12 + 3 * k]))
+        return np.concatenate(parts)
+
+    def check_data(self, temp, t, source: str) -> None:
+        """ValueError, one line, when the data cannot support the model: a temperature effect
+        without temperatures or with too little spread, a drift over too short a span.  The
+        thresholds are the device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
+        need_temp = dbins.TEMP_DIFFER
+        need_h = dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600
+        for n in self.effects:
+            e = CATALOGUE[n]
+            if e.needs == "temp":
+                if temp is None:
+                    raise ValueError(f"{n} needs a temperature column; {source} has none")
+                spread = float(np.ptp(temp)) if len(temp) else 0.0
+                if spread < need_temp:
+                    raise ValueError(f"{n} needs >= {need_temp:g} degC of temperature spread across "
+                                     f"rest points; {source} has {spread:.1f} degC")
+            if e.needs == "t":
+                span = float(np.ptp(t)) / 3600 if t is not None and len(t) else 0.0
+                if span < need_h:
+                    raise ValueError(f"{n} needs rest points spanning >= {need_h:g} h; "
+                                     f"{source} spans {span:.1f} h")
+
+    def correct(self, theta, v, temp, t, ref):
+        """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect)."""
+        w = v
+        for k in reversed(range(len(self.effects))):  # undo in the reverse order of measure
+            w = CATALOGUE[self.effects[k]].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref)
+        return base_correct(theta[:9], w)
+
+
+class TrueEffect:
+    """An effect with true values, as the simulated sensor has it (wearer.Sensor.effects)."""
+    REF = {"T0": 25.0, "t0": 0.0}
+
+    def __init__(self, name: str, theta):
+        self.effect = CATALOGUE[name]
+        self.theta = np.asarray(theta, dtype=np.float64)
+
+    def apply(self, v, temp_c, t_s):
+        return self.effect.measure(v, self.theta, temp_c, t_s, self.REF)
+
+    def truth(self) -> dict:
+        e = self.effect
+        return {"effect": e.name, "unit": e.unit, "reference": self.REF,
+                "params": dict(zip(e.param_names, map(float, self.theta)))}

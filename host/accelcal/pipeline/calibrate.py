@@ -1,0 +1,373 @@
+"""`accelcal calibrate` and `apply`: the device pipeline on files, with the host's reference
+methods fitted on the very points the device's bins selected."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from acal import bins as dbins
+from acal import effects as deff
+from acal import fixed, optimiser
+from acal import profile as dprofile
+from acal.model import Calibration
+from accelcal import methods
+from accelcal.bridge import runtime, twin
+from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.errors import InputError
+from accelcal.files.table import Table
+from accelcal.fixedpoint import g_to_sample, params_to_float, params_to_int, sample_to_g
+from accelcal.files.params import params_record
+from accelcal.files.outputs import atomic
+from accelcal.pipeline.results import CalibrationResult
+
+
+def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
+    """Split a points file into device groups (recordings stream: calibrate_recording)."""
+    if table.kind == "recording":
+        raise InputError(f"{table.path}: a recording goes through calibrate_recording")
+    temp = table.columns.get("temp")
+    t = table.columns.get("t")
+    if not by:
+        return [runtime.Group("points", points=table.xyz, temp=temp, t=t)]
+    if by in table.text_columns:
+        keys = table.text_columns[by]
+    elif by in table.columns:
+        keys = np.array([f"{v:g}" for v in table.columns[by]], dtype=object)
+    else:
+        raise InputError(f"{table.path}: no column {by!r} to group by")
+    groups = []
+    for k in dict.fromkeys(keys.tolist()):
+        if not k or any(c.isspace() for c in k):
+            raise InputError(f"{table.path}: {by} value {k!r} must be non-empty without spaces")
+        sel = keys == k
+        groups.append(runtime.Group(k, points=table.xyz[sel], temp=None if temp is None else temp[sel],
+                                    t=None if t is None else t[sel]))
+    return groups
+
+
+def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
+    return " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts)) + f" (need >= {min_count} each)"
+
+
+def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
+    """Why the bins are not ready by their counts (the wear profile: nor by coverage), or None."""
+    if min(r.counts) >= cfg.min_count or (cfg.fit == dprofile.NEWTON and r.covered):
+        return None
+    cover = (f" and the held points do not cover every axis (>= {dbins.COVER_SIDE} beyond "
+             f"+-0.3 g on each side, >= {dbins.COVER_POINTS} points)"
+             if cfg.fit == dprofile.NEWTON else "")
+    return f"bins did not fill: {fill_report(r, cfg.min_count)}{cover}"
+
+
+def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
+    """Why the bins, full in counts, are not ready for a composed model (their spread rule,
+    decided on the device), or None."""
+    if r.ready:
+        return None
+    for n in spec.effects:
+        need = CATALOGUE[n].needs
+        if need == "temp" and r.temp_span < dbins.TEMP_DIFFER:
+            return (f"{n}: the held points span {r.temp_span} degC of temperature, the fit needs "
+                    f">= {dbins.TEMP_DIFFER}")
+        if need == "t" and r.time_span < dbins.TIME_DIFFER:
+            return (f"{n}: the held points span {r.time_span * deff.DT_UNIT_S / 3600:.1f} h, the fit needs "
+                    f">= {dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600:g} h")
+    return "the bins are not ready"
+
+
+def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
+                     runtime_name: str, spec: ModelSpec | None = None,
+                     points: str = "bins") -> list[CalibrationResult]:
+    """A points file: one record per group (result_record: status and a one-line reason).
+    spec: a composed model (fitted by the device method or lsq); None is the paper's.
+    points: what a float method is fitted on (result_record)."""
+    spec, cfg = _device_spec(spec, method, cfg)
+    groups = groups_from_table(table, by)
+    for g in groups:
+        try:
+            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
+        except ValueError as e:
+            raise InputError(str(e)) from None
+    results = runtime.run(groups, cfg, runtime_name)
+    out = []
+    for g, r in zip(groups, results):
+        rec = CalibrationResult(model=str(spec), method=method, runtime=runtime_name)
+        if by:
+            rec[by] = g.name
+        out.append(result_record(rec, g, r, cfg, spec, method, points))
+    return out
+
+
+def _device_spec(spec: ModelSpec | None, method: str,
+                 cfg: runtime.Config) -> tuple[ModelSpec, runtime.Config]:
+    """The model for the device pipeline (None: the paper's), and the settings with its effects."""
+    spec = spec or ModelSpec(())
+    if spec.effects and method not in ("device", "lsq"):
+        raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
+    return spec, replace(cfg, kinds=spec.kinds)
+
+
+def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: runtime.Config,
+                  spec: ModelSpec, method: str, points: str = "bins") -> dict:
+    """Fill rec with one group's outcome: status calibrated, not_enough_data (bins not filled,
+    or a composed model's spread not reached) or failed (the fit), with a one-line reason.
+    A float method is fitted on points "bins" (the points the device's bins selected and its
+    fit kept) or "all" (every usable rest point: |v| within 0.5-1.5 g, the bins' own gate;
+    the bins' readiness does not matter then)."""
+    rest = r.rest_g
+    rec["profile"] = cfg.profile
+    rec["rest_points"] = int(len(rest))
+    if r.threshold is not None:
+        rec["rest_threshold_g"] = r.threshold / fixed.SAMPLE_ONE_G
+        rec["noise_level_g"] = r.noise_level / fixed.SAMPLE_ONE_G
+    rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
+    rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
+    rec["points"] = len(r.selected_int)
+    # no rest points: no figure (null in JSON, never NaN)
+    rec["error_before_mg"] = methods.calibration_error_mg(None, rest) if len(rest) else None
+    if method != "device":
+        rec["points_from"] = points
+        if points == "all":
+            return _float_fit_record(rec, g, r, spec, method, rest, r.rest_conditions)
+    why = fill_reason(r, cfg)
+    if why:
+        n_samples = len(g.samples) if g.samples is not None else g.n_samples
+        what = (f"{n_samples} samples gave {len(rest)} rest segments"
+                if n_samples is not None else f"{len(g)} points")
+        rec.update(status="not_enough_data", reason=f"{why}; {what}")
+        return rec
+    why = spread_report(spec, r)
+    if why:
+        rec.update(status="not_enough_data", reason=f"bins filled but {why}")
+        return rec
+    if r.kept is not None:
+        rec["points"] = int(sum(r.kept))
+        rec["outliers"] = len(r.kept) - rec["points"]
+    if method == "device":
+        if not optimiser.usable(r.status):
+            rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
+                       "iterations; no parameters returned")
+            return rec
+        p_int = r.params_int
+        if r.status != optimiser.OK:  # a composed fit refused, the base fit kept
+            rec["note"] = r.status_name
+        rec["iterations"] = r.iterations
+        rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
+    else:
+        sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 5)
+        if r.kept is not None:
+            sel = sel[np.asarray(r.kept, bool)]
+        return _float_fit_record(rec, g, r, spec, method, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:5])
+    return _params_record(rec, g, r, spec, method, p_int)
+
+
+def _float_fit_record(rec, g, r, spec, method, v, cond):
+    """A float method fitted on points v (g) seen at cond (int degC, 64 s units): the paper's
+    model by any method, a composed one by lsq (diagnose.fit) with the device's references."""
+    mag = np.linalg.norm(v, axis=1)
+    ok = (mag > 0.5) & (mag < 1.5)
+    v, cond = v[ok], cond[ok]
+    rec["points"] = int(len(v))
+    rec["iterations"] = None
+    ref = None
+    try:
+        if not spec.effects:
+            p_int = params_to_int(methods.METHODS[method](v))
+        else:
+            from accelcal.pipeline.restpoints import RestPoints
+            from accelcal.pipeline.composed_lsq import fit
+            methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
+            pts = RestPoints(v, g.t_first + cond[:, 1] * float(deff.DT_UNIT_S),
+                             cond[:, 0].astype(float), np.zeros(len(v)), "points")
+            # the references: the middle of the points' ranges, as the device takes them
+            ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
+                   "t0": g.t_first + ((int(cond[:, 1].min()) + int(cond[:, 1].max())) >> 1)
+                   * float(deff.DT_UNIT_S)}
+            p_int = spec.to_int(fit(spec, pts, ref))
+    except methods.FitError as e:
+        rec.update(status="failed", reason=str(e))
+        return rec
+    return _params_record(rec, g, r, spec, method, p_int, ref)
+
+
+def _params_record(rec, g, r, spec, method, p_int, ref=None):
+    """rec with the parameters (decoded and Q24) and the error after; ref: a composed model's
+    references (None: the device fit's)."""
+    if spec.effects:
+        ref = ref or {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+        rec.update(model=str(spec), method=method,
+                   scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                         "g, 1/degC, g/day, 1/g",
+                   params_int=dict(zip(spec.param_names, map(int, p_int))),
+                   params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())), reference=ref)
+    else:
+        rec.update(params_record(p_int, "base", method))
+    rec["status"] = "calibrated"
+    rec["error_after_mg"] = error_after_mg(spec, p_int, rec.get("reference"), g, r)
+    return rec
+
+
+def error_after_mg(spec: ModelSpec, p_int, ref: dict | None, g: runtime.Group,
+                   r: runtime.DeviceResult) -> float:
+    """The calibration error (mean | |a| - 1 g |, mg) of parameters over the group's rest
+    points, composed models at each point's conditions as the device saw them."""
+    rest = r.rest_g
+    if not spec.effects:
+        return methods.calibration_error_mg(params_to_float(p_int), rest)
+    cond = r.rest_conditions  # int degC, 64 s units
+    a = spec.correct(spec.from_int(p_int), rest, cond[:, 0].astype(float),
+                     g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref)
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,
+                        spec: ModelSpec | None = None, engine: str = "vector",
+                        progress=None, fallback: str | None = None,
+                        points: str = "bins") -> CalibrationResult:
+    """A recording of any size or format (accelcal.files.recordings) through the device pipeline, with
+    its quality report (docs/real-recordings.md "False rest kept out").  engine "vector": one
+    streaming pass of the numpy twin, constant memory; "device": every sample through the
+    device modules (the whole recording in memory).  The same record either way."""
+    from accelcal.files.recordings import open_recording
+    from accelcal.pipeline.scan import scan
+    spec, cfg = _device_spec(spec, method, cfg)
+    rec_in = open_recording(path)
+    out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
+               progress=progress)
+    sc, whole = out if engine == "device" else (out, None)
+    cfg = replace(cfg, rate_hz=sc.rate_hz)
+    m = sc.masks()
+    kept = m["kept"]
+    temp = None if sc.seg_temp is None else sc.seg_temp[kept]
+    try:
+        spec.check_data(temp, sc.seg_t[kept], path)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if engine == "vector":
+        cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()))
+        g = runtime.Group("recording", points_q16=sc.segments.mean[kept],
+                          temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
+                          n_samples=sc.n_samples)
+    else:
+        t, q, temp_s = whole
+        g = runtime.Group("recording", samples=q / fixed.SAMPLE_ONE_G,
+                          gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s, t=t,
+                          unworn=sc.excluded_runs(kept))
+    r = runtime.run([g], cfg, runtime_name)[0]
+    if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
+        r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level
+    rec = CalibrationResult(file=path, format=sc.format, model=str(spec), method=method,
+                            runtime=runtime_name)
+    rec.update(quality(sc, m))
+    if rec_in.warnings:
+        rec["reader_warnings"] = rec_in.warnings
+    rec = result_record(rec, g, r, cfg, spec, method, points)
+    rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
+    if rec["status"] != "calibrated" and fallback:
+        use_fallback(rec, fallback, r.rest_g)
+    return rec
+
+
+def quality(sc, m: dict) -> dict:
+    """The per-file figures researchers' tools report (GGIR, actipy, scikit-digital-health)."""
+    seg_h = sc.length / sc.rate_hz / 3600.0
+    nonwear_h = float(m["nonwear"].sum() * seg_h)
+    return {
+        "rate_hz": sc.rate_hz,
+        "hours": round(sc.hours, 4),
+        "hours_used": round(sc.hours - nonwear_h, 4),
+        "gaps": len(sc.gap_starts),
+        "still_windows": int(m["kept"].sum()),
+        "excluded": {k: int(m[k].sum()) for k in ("nonwear", "imputed", "clipped")},
+        "nonwear_hours": round(nonwear_h, 4),
+        "temp_range_c": None if sc.temp_min is None else [round(sc.temp_min, 3), round(sc.temp_max, 3)],
+        "full_scale_g": sc.full_scale_g,
+        "clipped_pct": round(100.0 * sc.clipped_samples / max(1, sc.n_samples), 4),
+    }
+
+
+def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
+    """A file that did not calibrate takes a device's last good calibration, said so in the
+    record: calibration "fallback", the file it came from, its error on this file's rest
+    points.  The record's own status (why it did not calibrate) stays."""
+    from accelcal.files.params import load_params
+    model, p_int, ref = load_params(params_path)
+    spec = ModelSpec.parse(model)
+    if spec.effects:
+        raise InputError(f"{params_path}: --fallback takes the paper's model (base); this is {model}")
+    rec["calibration"] = "fallback"
+    rec["fallback"] = params_path
+    rec.update({k: v for k, v in params_record(p_int, model, "fallback").items()
+                if k in ("scale", "params_int", "params")})
+    if len(rest_g):
+        rec["error_after_mg"] = methods.calibration_error_mg(params_to_float(p_int), rest_g)
+    return rec
+
+
+def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
+                     ref: dict | None = None, source: str = "recording", range_g: int = 2) -> np.ndarray:
+    """Calibrate samples with the vectorised twin of the device's per-sample code
+    (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
+    model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
+    the device sees them as int degC and 64 s units from t0."""
+    spec = ModelSpec.parse(model)
+    if spec.effects and range_g != 2:
+        raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
+                         f"{source} is at +-{range_g} g")
+    cal = Calibration(spec.kinds, range_g)
+    ref_temp = int(round(ref["T0"])) if spec.effects else 0
+    try:
+        cal.set(p_int, ref_temp, 0)
+    except ValueError:
+        raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
+                         "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
+                         "bounds)") from None
+    q = g_to_sample(xyz_g)
+    if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
+        return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
+    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+        raise InputError(f"model {spec} needs a temperature column; {source} has none")
+    cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
+    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1]))
+
+
+def apply_range(declared, given: int | None) -> int:
+    """The full scale the device's apply takes for a file: given (apply --range), else the
+    file's declared range (rounded up to 2, 4, 8 or 16 g), else 2 g."""
+    if given:
+        return given
+    if declared:
+        for r in (2, 4, 8, 16):
+            if declared <= r:
+                return r
+    return 2
+
+
+def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
+               range_g: int | None = None) -> tuple[int, int, int]:
+    """Calibrate a recording of any format and length chunk by chunk (accelcal.files.recordings) with
+    the device's per-sample code at the full scale apply_range() picks (readings past it are
+    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3).
+    Returns (samples, samples clipped, full scale in g)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    from accelcal.files.recordings import open_recording
+    rec = open_recording(path)
+    rng = apply_range(rec.range_g, range_g)
+    limit = (fixed.APPLY_IN_MAX << fixed.apply_range_shift(rng)) / fixed.SAMPLE_ONE_G
+    clipped = 0
+    names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
+    schema = pa.schema([(n, pa.float64()) for n in names])
+    n = 0
+    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
+    # written whole or not at all: a killed run leaves no partial file that looks like a recording
+    with atomic(output, "wb") as sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
+        sink.write((",".join(names) + "\n").encode())
+        for ch in rec.chunks():
+            clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
+            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng), 6)
+            cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else [])
+            writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
+            n += len(ch.t)
+    return n, clipped, rng

@@ -1,0 +1,227 @@
+"""`accelcal compare`: every calibration method on the same data, scored the same way.
+
+Rest points come from the device's own rest detector (as `diagnose`); they are split into a
+training part and a held-out part (recordings: 2-hour blocks, even train, odd held out, as
+`diagnose`; points files without a time column: alternate points).  The device's bins and
+integer optimiser run on the training part in stream order; by default every float method is
+fitted on the very points those bins selected (Farago 2024: "we used our method to collect and
+select the calibration points for each of the compared calibration algorithms"), or with
+--train all on every training rest point.  All are scored on the held-out part with the Table 3
+metric, mean | |a| - 1 g | in mg, before and after, and the improvement R (eq. 21).  Fit times
+are measured in this run, one fit each.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from acal import fixed, optimiser
+from accelcal import methods
+from accelcal.bridge import runtime
+from accelcal.pipeline.results import CompareResult
+from accelcal.pipeline.restpoints import RestPoints, check_coverage, rest_points, split, usable
+from accelcal.errors import InputError
+from accelcal.fixedpoint import params_to_float
+from accelcal.files.table import read_table
+from accelcal.files.outputs import check_output_dir, save_figure
+from accelcal.files.recordings import is_recording
+
+ALL = ["device"] + methods.ORDER
+CURVE_MAX = 1000   # training vectors: Gietzelt's figure 3 goes to ~300; de costs O(n) per step
+
+
+def parse_methods(text: str | None) -> list[str]:
+    if not text:
+        return list(ALL)
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n not in ALL]
+    if bad or not names:
+        raise InputError(f"unknown method {','.join(bad) or repr(text)}; choose from {','.join(ALL)}")
+    return list(dict.fromkeys(names))
+
+
+@dataclass
+class Split:
+    train: RestPoints
+    test: RestPoints
+    how: str
+
+
+def split_points(path: str, cfg: runtime.Config | None = None) -> Split:
+    """The rest points (by cfg's rest test; None: the paper's) split into train and held out."""
+    seconds, thr, axis = (5, 123, 0) if cfg is None else (cfg.seconds, cfg.threshold_int, cfg.axis)
+    if is_recording(path):
+        p, timed = usable(rest_points(path, seconds, thr, axis)), True
+    else:
+        table = read_table(path)
+        p, timed = usable(rest_points(table)), "t" in table.columns
+    check_coverage(p)
+    if timed:
+        train, test, _ = split(p)
+        how = "2-hour blocks: even train, odd held out"
+    else:
+        idx = np.arange(len(p))
+        train, test = p.take(idx % 2 == 0), p.take(idx % 2 == 1)
+        how = "alternate points: even train, odd held out"
+    if len(test) == 0 or len(train) == 0:
+        raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
+                         "both parts need points (a longer recording)")
+    return Split(train, test, how)
+
+
+def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"):
+    """The device's bins and optimiser on points in stream order: (params or None, selected
+    points, reason or None)."""
+    from accelcal.pipeline.calibrate import fill_reason
+    r = runtime.run([runtime.Group("train", points=v)], cfg, runtime_name)[0]
+    sel = r.fit_points_g
+    why = fill_reason(r, cfg)
+    if why:
+        return None, sel, why
+    if r.status != optimiser.OK:
+        return None, sel, f"device fit {r.status_name} after {r.iterations} iterations"
+    return params_to_float(r.params_int), sel, None
+
+
+def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str):
+    """(params or None, seconds, reason or None)."""
+    t0 = time.perf_counter()
+    if name == "device":
+        p, _, why = device_fit(v, cfg, runtime_name)
+        return p, time.perf_counter() - t0, why
+    try:
+        p = methods.METHODS[name](v)
+    except methods.FitError as e:
+        return None, time.perf_counter() - t0, str(e)
+    return p, time.perf_counter() - t0, None
+
+
+def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
+            runtime_name: str = "cpython", say=lambda m: None) -> tuple[CompareResult, Split]:
+    """The comparison (JSON-ready) and the split it was made on."""
+    say(f"{path}: rest detection (the device's detector, {cfg.profile} profile)")
+    sp = split_points(path, cfg)
+    before = methods.calibration_error_mg(None, sp.test.v)
+    _, selected, dev_why = device_fit(sp.train.v, cfg, runtime_name)
+    if train == "selected" and dev_why is None:
+        fit_on, training = selected, "the points the device's bins selected from the training part"
+    elif train == "all":
+        fit_on, training = sp.train.v, "every training rest point"
+    else:
+        fit_on = sp.train.v[thin_by_direction(sp.train.v)]
+        training = "the training rest points, at most 10 per direction (Gietzelt 2.4)" + (
+            f"; the device's bins could not select: {dev_why}" if train == "selected" else "")
+    rows = []
+    for name in names:
+        say(f"  fitting {name}")
+        v = sp.train.v if name == "device" else fit_on
+        p, secs, why = fit_method(name, v, cfg, runtime_name)
+        row = {"method": name,
+               "role": "the integer device method (Farago 2024)" if name == "device"
+               else methods.METHODS[name].role,
+               "points": int(len(selected) if name == "device" else len(v)),
+               "fit_ms": secs * 1e3, "error_before_mg": before}
+        if p is None:
+            row.update(status="failed", reason=why, error_after_mg=None, improvement_pct=None,
+                       params=None)
+        else:
+            after = methods.calibration_error_mg(p, sp.test.v)
+            row.update(status="calibrated", reason=None, error_after_mg=after,
+                       improvement_pct=100 * before / after if after > 0 else None,
+                       params=dict(zip(fixed.PARAM_NAMES, np.round(p, 7).tolist())))
+        rows.append(row)
+    return CompareResult(input=path, profile=cfg.profile, split=sp.how, training=training,
+                         rest_points={"train": len(sp.train), "heldout": len(sp.test)},
+                         heldout="every held-out rest point",
+                         metric="mean | |a| - 1 g |, mg (Farago Table 3)", rows=rows), sp
+
+
+def thin_by_direction(v: np.ndarray, per_direction: int = 10, near_g: float = 0.1) -> np.ndarray:
+    """Indices of the points kept, in order, when at most `per_direction` points may lie within
+    near_g (max-norm) of each other: Gietzelt 2.4, "only up to ten measurements of a certain
+    direction were included", so a night in one posture does not outweigh the rest."""
+    kept: list[int] = []
+    for i, p in enumerate(v):
+        if not kept or np.sum(np.abs(v[kept] - p).max(axis=1) < near_g) < per_direction:
+            kept.append(i)
+    return np.array(kept, dtype=int)
+
+
+def training_curve(sp: Split, names: list[str], cfg: runtime.Config, runtime_name: str,
+                   sizes=None) -> dict:
+    """Held-out error against the number of training vectors, each method fed the first n of
+    the training rest points in time order, at most ten per direction (Gietzelt 2013 figure 3
+    and section 2.4).  NaN where a method fails."""
+    train = sp.train.v[thin_by_direction(sp.train.v)][:CURVE_MAX]
+    if sizes is None:
+        sizes = np.unique(np.geomspace(6, len(train), 14).astype(int))
+    curve = {n: [] for n in names}
+    for k in sizes:
+        v = train[:k]
+        for n in names:
+            p, _, _ = fit_method(n, v, cfg, runtime_name)
+            curve[n].append(methods.calibration_error_mg(p, sp.test.v) if p is not None else np.nan)
+    return {"sizes": [int(s) for s in sizes], "error_mg": curve,
+            "training": "first n training rest points in time order, at most 10 per direction"}
+
+
+def plot_curve(curve: dict, path: Path, title: str) -> None:
+    from accelcal.report.figures import pyplot
+    plt = pyplot()
+    names = list(curve["error_mg"])
+    cols = 4
+    rows = (len(names) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), sharex=True, sharey=True,
+                             squeeze=False)
+    for ax, n in zip(axes.ravel(), names):
+        y = np.array(curve["error_mg"][n], dtype=float)
+        ax.set_title(n, fontsize=10)
+        ax.set_xscale("log")
+        if np.isfinite(y).any():
+            ax.plot(curve["sizes"], y, "o-", ms=3)
+            ax.set_yscale("log")
+        else:
+            ax.text(0.5, 0.5, "no fit at any size", ha="center", va="center", transform=ax.transAxes)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.ravel()[len(names):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("training vectors")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("held-out error, mg")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_figure(fig, path, dpi=110)
+    plt.close(fig)
+
+
+def compare_main(cfg: runtime.Config, *, path: str, methods_list: str | None,
+                 train: str = "selected", runtime_name: str = "cpython", plots: str | None,
+                 as_json: bool = False) -> int:
+    names = parse_methods(methods_list)
+    if plots:
+        check_output_dir(plots, [path], "--plots")
+    # progress for a person watching (a terminal); errors stay one line for scripts
+    quiet = as_json or not sys.stderr.isatty()
+    say = (lambda m: None) if quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    out, sp = compare(path, names, cfg, train, runtime_name, say)
+    if plots:
+        say("training curve: every method on growing training sets (Gietzelt figure 3)")
+        curve = training_curve(sp, names, cfg, runtime_name)
+        png = Path(plots) / "training_curve.png"
+        plot_curve(curve, png, f"{Path(path).name}: held-out error against training vectors "
+                               "(first n in time order)")
+        out["training_curve"] = curve
+        out["plots"] = [str(png)]
+    if as_json:
+        print(out.to_json())
+    else:
+        print(out.table())
+        if plots:
+            print(f"\nplot: {out['plots'][0]}")
+    return 0 if out.any_calibrated else 2

@@ -1,0 +1,185 @@
+"""`accelcal diagnose`: compare the model with measurements, show where it fails, name the missing
+effect.
+
+Rest points and the split into training and held-out blocks: pipeline/restpoints.py.  Each model
+and candidate is fitted in float by pipeline/composed_lsq.py on the training blocks and scored on
+the held-out ones.
+
+Metric: the paper's Table 3 calibration error, mean | |a| - 1 g | over held-out rest points, in mg.
+Noise floor: what the data implies a perfect model would still show: the radial noise of each
+held-out mean, sqrt(2/pi) sd(|v|) / sqrt(n), averaged.
+
+Naming rule (does not cry wolf on clean data): the candidate with the lowest held-out error is
+named when (1) it lowers the held-out error by at least MIN_IMPROVEMENT_PCT and (2) it lowers it
+in at least MIN_BLOCK_SHARE of the held-out blocks (an effect is systematic; a fit that only
+bends to a few blocks' noise is not).  Thresholds: docs/model-discovery.md "Model discovery", chosen on clean and
+effect recordings of seeds that the tests do not use.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from accelcal.errors import InputError
+from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
+from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.pipeline.composed_lsq import check_model, fit, prepare, refs, residuals
+from accelcal.pipeline.history import append_history, read_history
+from accelcal.pipeline.restpoints import rest_points, split, usable
+from accelcal.pipeline.results import DiagnoseResult
+
+MIN_IMPROVEMENT_PCT = 10.0
+MIN_BLOCK_SHARE = 0.7
+
+
+def diagnose(path: str, model: str = "base", plots: str | None = None) -> DiagnoseResult:
+    spec, p = prepare(path, model)
+    train, test, test_block = split(p)
+    if len(train) < 30 or len(test) < 30:
+        raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
+                         "need >= 30 each (a longer recording)")
+    ref = refs(train)
+    theta = fit(spec, train, ref)
+    _, r = residuals(spec, theta, test, ref)
+    err = float(np.mean(np.abs(r)) * 1e3)
+    floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
+    where = where_it_fails(spec, theta, test, ref, r)
+    cands = []
+    for name, e in CATALOGUE.items():
+        if name in spec.effects:
+            continue
+        cspec = spec.with_effect(name)
+        try:
+            check_model(cspec, p)
+        except InputError as why:
+            cands.append({"effect": name, "heldout_error_mg": None, "improvement_pct": None,
+                          "blocks_improved_pct": None, "untestable": str(why)})
+            continue
+        th = fit(cspec, train, ref)
+        _, rc = residuals(cspec, th, test, ref)
+        ec = float(np.mean(np.abs(rc)) * 1e3)
+        gain = np.abs(r) - np.abs(rc)
+        blocks = np.unique(test_block)
+        share = float(np.mean([gain[test_block == b].mean() > 0 for b in blocks]))
+        cands.append({"effect": name, "heldout_error_mg": ec, "improvement_pct": 100 * (err - ec) / err,
+                      "blocks_improved_pct": 100 * share,
+                      "params": dict(zip(e.param_names, (th[9 + 3 * len(spec.effects):] * e.scale).round(4).tolist())),
+                      "param_unit": e.report_unit})
+    testable = [c for c in cands if c["heldout_error_mg"] is not None]
+    best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
+    named = None
+    if best and best["improvement_pct"] >= MIN_IMPROVEMENT_PCT and \
+            best["blocks_improved_pct"] >= 100 * MIN_BLOCK_SHARE:
+        named = best["effect"]
+    if named:
+        explanation = (f"{named}: {CATALOGUE[named].explanation} Adding it lowers the held-out error "
+                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg "
+                       f"(noise floor {floor:.2f} mg). Next: accelcal calibrate --model {spec.with_effect(named)}")
+    elif best:
+        explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
+                       f"the held-out error by {best['improvement_pct']:.1f} % in "
+                       f"{best['blocks_improved_pct']:.0f} % of held-out blocks (naming needs >= "
+                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %). Error "
+                       f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
+    else:
+        explanation = "Every catalogue effect is in the model or cannot be tested on this file."
+    out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
+                         rest_points={"train": len(train), "heldout": len(test)},
+                         heldout_error_mg=err, noise_floor_mg=floor, missing_effect=named,
+                         candidates=cands, explanation=explanation, where_it_fails=where,
+                         params=dict(zip(spec.param_names, theta.round(6).tolist())), reference=ref)
+    if plots:
+        out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor,
+                                  train)
+    return out
+
+
+def where_it_fails(spec, theta, test, ref, r) -> dict:
+    """Held-out residuals against each regressor: correlation and the residual's spread across
+    the regressor's quintiles (mg) - a flat line is a model that does not fail there."""
+    a, _ = residuals(spec, theta, test, ref)
+    regs = {"time_h": (test.t - test.t.min()) / 3600, "ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2],
+            "abs_a": np.linalg.norm(test.v, axis=1)}
+    if test.temp is not None:
+        regs["temp_c"] = test.temp
+    out = {}
+    for k, x in regs.items():
+        if np.ptp(x) == 0:
+            continue
+        q = np.quantile(x, [0, .2, .4, .6, .8, 1])
+        binned = [float(np.mean(r[(x >= lo) & (x <= hi)]) * 1e3) for lo, hi in zip(q[:-1], q[1:])]
+        out[k] = {"corr": float(np.corrcoef(x, r)[0, 1]), "quintile_mean_residual_mg": [round(b, 3) for b in binned],
+                  "range_mg": round(max(binned) - min(binned), 3)}
+    return out
+
+
+def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None) -> list[str]:
+    """residuals.png (where the model fails: accelcal.report.figures), candidates.png (each catalogue
+    effect's held-out error) and, for a composed model, step.png: the residuals before and after
+    its last effect, side by side on one y-range."""
+    from accelcal.report import figures
+    plt = figures.pyplot()
+    d.mkdir(parents=True, exist_ok=True)
+    a, _ = residuals(spec, theta, test, ref)
+    fig, _ = figures.residual_figure(test, a, r * 1e3, floor,
+                                     f"model {spec}: held-out error {err:.2f} mg, noise floor "
+                                     f"{floor:.2f} mg")
+    f1 = d / "residuals.png"
+    save_figure(fig, f1, dpi=80)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    names = [c["effect"] for c in cands if c["heldout_error_mg"] is not None]
+    vals = [c["heldout_error_mg"] for c in cands if c["heldout_error_mg"] is not None]
+    ax.barh([str(spec)] + [f"+{n}" for n in names], [err] + vals)
+    ax.axvline(floor, color="r", ls="--", label=f"noise floor {floor:.2f} mg")
+    ax.set_xlabel("held-out calibration error (mg): mean | |a| − 1 g | over held-out rest points")
+    ax.set_title(f"model {spec} and each catalogue effect added to it", fontsize=10)
+    ax.legend()
+    fig.tight_layout()
+    f2 = d / "candidates.png"
+    save_figure(fig, f2, dpi=80)
+    plt.close(fig)
+    out = [str(f1), str(f2)]
+    if spec.effects and train is not None:
+        before = ModelSpec(spec.effects[:-1])
+        th0 = fit(before, train, ref)
+        a0, r0 = residuals(before, th0, test, ref)
+        fig = figures.before_after_figure(test, a0, r0 * 1e3, a, r * 1e3, floor, str(before),
+                                          str(spec))
+        f3 = d / "step.png"
+        save_figure(fig, f3, dpi=70)
+        plt.close(fig)
+        out.append(str(f3))
+    return out
+
+
+def diagnose_main(*, path: str, model: str, history: str | None, plots: str | None,
+                  report_dir: str | None, force: bool = False, as_json: bool = False) -> int:
+    if history:   # appended to: checked here, before the analysis, not replaced
+        check_output(history, [path], True, "--history")
+    if plots:
+        check_output_dir(plots, [path], "--plots")
+    page = None
+    if report_dir:
+        rdir = check_output_dir(report_dir, [path], "--report")
+        page = check_output(rdir / "report.html", [path], force, "--report")
+    out = diagnose(path, model, plots or report_dir)
+    if history:
+        append_history(history, out.history_step())
+    if page is not None:
+        from accelcal.report import pages
+        pngs = {Path(f).name: Path(f).read_bytes() for f in out["plots"]}
+        steps = read_history(history) if history else None
+        write_text(page, pages.diagnose_page(out, pngs, steps))
+        out["report"] = str(page)
+    print(out.to_json() if as_json else out.report())
+    return 0
+
+
+def heldout_error_of(path: str, model: str, theta, ref: dict) -> float:
+    """The held-out error (mg, same split as diagnose) of given parameters: for the truth."""
+    spec = ModelSpec.parse(model)
+    _, test, _ = split(usable(rest_points(path)))
+    _, r = residuals(spec, np.asarray(theta, dtype=np.float64), test, ref)
+    return float(np.mean(np.abs(r)) * 1e3)

@@ -1,0 +1,104 @@
+"""A diagnose history: one JSON line per model step (model, held-out error, noise floor, the
+effect named next), appended whole by `diagnose --history`, read back checked line by line, and
+shown by `report HISTORY` as a table, a figure and a page."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from accelcal.errors import InputError
+from accelcal.files.outputs import check_output, save_figure, write_text
+
+
+def append_history(path: str, step: dict) -> None:
+    """Append one step (DiagnoseResult.history_step) to the history at path."""
+    rec = step
+    # the old steps and the new one, written whole: a cut leaves the old history or the new one
+    try:
+        old = Path(path).read_text() if Path(path).exists() else ""
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{path}: cannot read the history to append to ({e})") from None
+    if old and not old.endswith("\n"):
+        old += "\n"
+    write_text(path, old + json.dumps(rec) + "\n")
+
+
+def _history_step(path, i, line):
+    # One line of a diagnose history, checked: model, held-out and floor mg, named, input.
+    bad = f"{path}:{i}: not a diagnose history line"
+    try:
+        rec = json.loads(line, parse_constant=lambda c: float("nan"))
+    except ValueError:
+        raise InputError(bad + " (not JSON)") from None
+    if not isinstance(rec, dict):
+        raise InputError(bad + " (not a JSON object)")
+    model = rec.get("model")
+    if not isinstance(model, str) or not model:
+        raise InputError(f"{path}:{i}: 'model' must be a model name, found {model!r:.40}")
+    vals = []
+    for k, lo in (("heldout_error_mg", 0.0), ("noise_floor_mg", 0.0)):
+        v = rec.get(k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or v < lo or (k == "heldout_error_mg" and v == 0):
+            raise InputError(f"{path}:{i}: {k} must be a finite number of mg"
+                             + (" above 0" if k == "heldout_error_mg" else " >= 0")
+                             + f", found {v!r:.40}")
+        vals.append(float(v))
+    named = rec.get("missing_effect")
+    if named is not None and not isinstance(named, str):
+        raise InputError(f"{path}:{i}: missing_effect must be an effect name or null")
+    return {"model": model, "heldout_error_mg": vals[0], "noise_floor_mg": vals[1],
+            "missing_effect": named, "input": str(rec.get("input", ""))}
+
+
+def read_history(path) -> list[dict]:
+    """The steps of a diagnose history, each line checked (_history_step)."""
+    try:
+        lines = Path(path).read_bytes().decode("utf-8").splitlines()
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a diagnose history (not UTF-8 text)") from None
+    return [_history_step(path, i, line) for i, line in enumerate(lines, 1) if line.strip()]
+
+
+def history_report(*, history: str, plot: str | None, html: str | None, force: bool = False,
+                   as_json: bool = False) -> int:
+    """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
+    if html:
+        check_output(html, [history], force, "--html")
+    steps = read_history(history)
+    if not steps:
+        raise InputError(f"{history}: no steps (run diagnose --history {history})")
+    if as_json:
+        print(json.dumps(steps))
+    else:
+        print(f"{'step':<5}{'model':<36}{'held-out mg':>12}{'floor mg':>10}{'change':>9}  named next")
+        prev = None
+        for k, st in enumerate(steps, 1):
+            e = st["heldout_error_mg"]
+            ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
+            print(f"{k:<5}{st['model']:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
+                  f"{st['missing_effect'] or '-'}")
+            prev = e
+    if plot or html:
+        import io
+
+        import matplotlib.pyplot as plt
+
+        from accelcal.report.figures import steps_figure
+        fig = steps_figure(steps)
+        if plot:
+            save_figure(fig, plot, dpi=90)
+            print(f"plot: {plot}", file=sys.stderr)
+        if html:
+            from accelcal.report import pages
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=80)
+            write_text(html, pages.history_page(history, steps,
+                                                           {"steps.png": buf.getvalue()}))
+            print(f"report: {html}", file=sys.stderr)
+        plt.close(fig)
+    return 0

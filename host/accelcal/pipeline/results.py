@@ -1,0 +1,195 @@
+"""What a calibration gives: one CalibrationResult per device or file, built by pipeline/calibrate.py
+(and batch.py for a file that could not be read), printed, saved and summarised by its own methods,
+as lmfit's ModelResult is.
+
+A result is the JSON record of docs/method-and-formats.md "Calibration records" (a dict: `r["status"]`,
+`json.dumps(r)`), with the methods a person and a batch need.  Fields by status:
+  calibrated       params, params_int (Q24), error_before_mg / error_after_mg, points, ...
+  not_enough_data  reason (the bins did not fill, or a composed model's spread was not reached)
+  failed           reason (the fit, or the file)
+A recording's result also carries its quality (hours, gaps, still windows, exclusions, clipping).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+
+from acal.fixed import PARAM_NAMES
+from accelcal.files.outputs import atomic
+
+SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
+                   "hours_used", "gaps", "still_windows", "nonwear_excluded", "imputed_excluded",
+                   "clipped_excluded", "bins_filled", "temp_min_c", "temp_max_c", "clipped_pct",
+                   "error_before_mg", "error_after_mg", "iterations", "seconds", *PARAM_NAMES)
+
+
+class CalibrationResult(dict):
+    """One device's (or file's) calibration: its JSON record, and how it reads."""
+
+    @classmethod
+    def failed(cls, path: str, reason: str) -> "CalibrationResult":
+        """A file that could not be calibrated at all (unreadable, a worker lost)."""
+        return cls(file=path, status="failed", calibration="none", reason=reason)
+
+    @property
+    def ok(self) -> bool:
+        return self["status"] == "calibrated"
+
+    @property
+    def usable(self) -> bool:
+        """Calibrated, or given its fallback calibration (said so in the record)."""
+        return self.ok or self.get("calibration") == "fallback"
+
+    def to_json(self) -> str:
+        return json.dumps(self)
+
+    def report(self, by: str | None = None) -> str:
+        """The lines `calibrate` prints: the quality of a recording first, then the outcome."""
+        r = self
+        head = f"{by} {r[by]}: " if by else ""
+        lines = []
+        if "hours" in r:
+            ex = r["excluded"]
+            tr = r["temp_range_c"]
+            lines.append(
+                f"{head}{r['file']} ({r['format']}, {r['rate_hz']} Hz): {r['hours']:.2f} h, "
+                f"{r['gaps']} gaps, {r['still_windows']} still windows kept (excluded: "
+                f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
+                f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
+                + (f", {tr[0]:.1f}..{tr[1]:.1f} degC" if tr else ", no temperature"))
+        if not self.ok:
+            label = "NOT ENOUGH DATA" if r["status"] == "not_enough_data" else "FAILED"
+            lines.append(f"{head}{label}: {r['reason']}")
+            if r.get("calibration") == "fallback":
+                lines.append(f"  using the fallback calibration {r['fallback']} (not this file's): "
+                             + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
+                if r.get("error_after_mg") is not None and r.get("error_before_mg") is not None:
+                    lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
+                                 f"{r['error_after_mg']:.2f} mg with the fallback")
+            return "\n".join(lines)
+        it = f", {r['iterations']} iterations" if r.get("iterations") else ""
+        lines.append(f"{head}calibrated {r['model']} by {r['method']} ({r['runtime']}) on "
+                     f"{r['points']} points of {r['rest_points']} rest points{it}")
+        lines.append("  " + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
+        if "reference" in r:
+            lines.append(f"  reference: {r['reference']['T0']:g} degC, t = {r['reference']['t0']:g} s")
+        lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
+                     f"{r['error_after_mg']:.2f} mg after")
+        return "\n".join(lines)
+
+    def summary_row(self) -> dict:
+        """The batch summary's row (SUMMARY_COLUMNS; None where a figure does not apply)."""
+        ex = self.get("excluded") or {}
+        tr = self.get("temp_range_c") or [None, None]
+        row = {k: self.get(k) for k in SUMMARY_COLUMNS}
+        row.update(nonwear_excluded=ex.get("nonwear"), imputed_excluded=ex.get("imputed"),
+                   clipped_excluded=ex.get("clipped"), temp_min_c=tr[0], temp_max_c=tr[1])
+        for k, v in (self.get("params") or {}).items():
+            if k in row:
+                row[k] = v
+        return row
+
+
+def save_summary(path: str, results: list[CalibrationResult]) -> None:
+    """The batch summary CSV, one row per file, written whole or not at all."""
+    with atomic(path, newline="") as fh:
+        w = csv.DictWriter(fh, SUMMARY_COLUMNS)
+        w.writeheader()
+        for r in results:
+            w.writerow({k: ("" if v is None else v) for k, v in r.summary_row().items()})
+
+
+def summary_table(results: list[CalibrationResult]) -> str:
+    """A batch as a table a person reads: one line per file, then the count calibrated."""
+    out = io.StringIO()
+    name_w = max(12, *(len(os.path.basename(r["file"])) for r in results))
+    print(f"{'file':<{name_w}}  {'status':<15} {'hours':>7} {'still':>6} {'bins':>4} "
+          f"{'before mg':>9} {'after mg':>8}  reason", file=out)
+    for r in results:
+        def num(k, fmt):
+            v = r.get(k)
+            width = int(fmt.split(".")[0].rstrip("dfg"))
+            return format(v, fmt) if isinstance(v, (int, float)) else "-".rjust(width)
+        status = r["status"] + ("*" if r.get("calibration") == "fallback" else "")
+        bins = f"{r['bins_filled']}/9" if "bins_filled" in r else "-"
+        print(f"{os.path.basename(r['file']):<{name_w}}  {status:<15} {num('hours', '7.1f')} "
+              f"{num('still_windows', '6d')} {bins:>4} {num('error_before_mg', '9.2f')} "
+              f"{num('error_after_mg', '8.2f')}  {r.get('reason') or ''}", file=out)
+    n_ok = sum(r.ok for r in results)
+    n_fb = sum(r.get("calibration") == "fallback" for r in results)
+    print(f"{n_ok} of {len(results)} files calibrated"
+          + (f"; {n_fb} use their fallback calibration (*)" if n_fb else ""), file=out, end="")
+    return out.getvalue()
+
+
+class DiagnoseResult(dict):
+    """`diagnose`'s finding on one file (docs/model-discovery.md): the model's held-out error
+    beside the noise floor, where it fails, each catalogue candidate's held-out error and the
+    effect named (or none), with why."""
+
+    HISTORY_FIELDS = ("model", "input", "heldout_error_mg", "noise_floor_mg", "missing_effect")
+
+    def to_json(self) -> str:
+        return json.dumps(self)
+
+    def history_step(self) -> dict:
+        """The line `diagnose --history` appends (pipeline/history.py)."""
+        return {k: self[k] for k in self.HISTORY_FIELDS}
+
+    def report(self) -> str:
+        """The lines `diagnose` prints."""
+        rp = self["rest_points"]
+        lines = [f"{self['input']}: model {self['model']}, {rp['train']} training / "
+                 f"{rp['heldout']} held-out rest points ({self['split']})",
+                 f"held-out calibration error {self['heldout_error_mg']:.2f} mg, noise floor "
+                 f"{self['noise_floor_mg']:.2f} mg",
+                 "where the model fails (held-out residual, mean per quintile of each regressor, mg):"]
+        for k, w in self["where_it_fails"].items():
+            lines.append(f"  {k:<8} corr {w['corr']:+.2f}  spread {w['range_mg']:6.2f}  "
+                         + " ".join(f"{b:+6.2f}" for b in w["quintile_mean_residual_mg"]))
+        lines.append("candidates:")
+        for c in self["candidates"]:
+            if c["heldout_error_mg"] is None:
+                lines.append(f"  +{c['effect']:<12} not testable: {c['untestable']}")
+            else:
+                lines.append(f"  +{c['effect']:<12} {c['heldout_error_mg']:6.2f} mg  "
+                             f"{c['improvement_pct']:+6.1f} %  better in "
+                             f"{c['blocks_improved_pct']:3.0f} % of blocks")
+        lines.append(f"missing effect: {self['missing_effect'] or 'none'}")
+        lines.append(self["explanation"])
+        lines += [f"plot: {f}" for f in self.get("plots", [])]
+        if self.get("report"):
+            lines.append(f"report: {self['report']}")
+        return "\n".join(lines)
+
+
+class CompareResult(dict):
+    """`compare`'s table: every method fitted on the same training points and scored on the same
+    held-out ones (rows: method, points, fit time, error before and after, status)."""
+
+    def to_json(self) -> str:
+        return json.dumps(self)
+
+    @property
+    def any_calibrated(self) -> bool:
+        return any(r["status"] == "calibrated" for r in self["rows"])
+
+    def table(self) -> str:
+        """The table `compare` prints."""
+        rp = self["rest_points"]
+        hdr = (f"{'method':<10}{'points':>7}{'fit ms':>9}{'before mg':>11}{'after mg':>10}"
+               f"{'R (eq.21)':>11}  status")
+        lines = [f"{self['input']}: {rp['train']} training / {rp['heldout']} held-out rest points "
+                 f"({self['split']})",
+                 f"fitted on {self['training']}; scored on {self['heldout']}: {self['metric']}\n",
+                 hdr, "-" * (len(hdr) + 20)]
+        for r in self["rows"]:
+            head = f"{r['method']:<10}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
+            if r["status"] == "calibrated":
+                imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
+                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  ok")
+            else:
+                lines.append(f"{head}{'-':>10}{'-':>11}  FAILED: {r['reason']}")
+        return "\n".join(lines)

@@ -1,0 +1,173 @@
+"""`make bench`, files part: measured in one run on this machine.
+
+* throughput of the vectorised path, one core: floats in g -> the device's Q10 samples, the rest
+  detector's twin, the apply twin (samples per second, best of 3 over 20 M samples);
+* a 14-day 100 Hz simulated wrist recording (CSV, made once under build/bench/) calibrated end to
+  end by `accelcal calibrate` in its own process: wall time and peak RSS (the kernel's count for
+  that process, os.wait4);
+* the same file through scikit-digital-health's CalibrateAccelerometer and actipy's
+  calibrate_gravity (each in its own process in .venv-bench, their defaults), scored on the same
+  still windows (accelcal.studies.bench_others).
+
+    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--others PYTHON] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from accelcal.bridge import twin
+from accelcal.locations import checkout
+
+ROOT = checkout() or Path.cwd()   # build/bench and .venv-bench live in the checkout
+
+
+def throughput(n: int = 20_000_000) -> dict:
+    rng = np.random.default_rng(5)
+    x, y = rng.normal(0, 0.3, n), rng.normal(0, 0.3, n)
+    z = rng.normal(1, 0.01, n)
+    chunk = 1 << 20
+
+    def best(f):
+        b = float("inf")
+        for _ in range(3):
+            t0 = time.perf_counter()
+            f()
+            b = min(b, time.perf_counter() - t0)
+        return n / b
+
+    planar = twin.samples_planar(x, y, z)
+
+    def convert():
+        for a in range(0, n, chunk):
+            twin.samples_planar(x[a:a + chunk], y[a:a + chunk], z[a:a + chunk])
+
+    def rest():
+        rs = twin.RestStream(100)
+        for a in range(0, n, chunk):
+            rs.feed_planar(planar[:, a:a + chunk])
+
+    q = np.ascontiguousarray(planar.T[: n // 4], dtype=np.int64)
+    p = [int(v * (1 << 24)) for v in (1.01, 0.99, 1.02, 0.01, -0.01, 0.02, 0.01, -0.02, 0.03)]
+
+    def apply():
+        for a in range(0, len(q), chunk):
+            twin.apply_params(p, q[a:a + chunk])
+    conv, det = best(convert), best(rest)
+    return {"convert_samples_per_s": conv, "rest_samples_per_s": det,
+            "convert_and_rest_samples_per_s": 1.0 / (1.0 / conv + 1.0 / det),
+            "apply_samples_per_s": best(apply) * len(q) / n}
+
+
+def measured(cmd: list[str], env=None) -> tuple[float, float, str, str]:
+    """(wall s, peak RSS MB, stdout, stderr) of a command, its RSS from the kernel (wait4)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    out, err = proc.communicate()
+    wall = time.perf_counter() - t0
+    # communicate() reaped it; ru_maxrss of all children is the largest child's peak so far,
+    # so each measured command runs before any larger one (ours first).
+    import resource
+    rss_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    if proc.returncode not in (0, 2):
+        raise RuntimeError(f"{cmd[:3]} failed ({proc.returncode}): {err[-2000:]}")
+    return wall, rss_kb / 1024.0, out, err
+
+
+def measured_alone(cmd: list[str]) -> tuple[float, float, str, str]:
+    """As measured, in a fresh helper process so that RUSAGE_CHILDREN holds this command only."""
+    helper = ("import json,sys;from accelcal.studies.bench_files import measured;"
+              "print(json.dumps(measured(json.loads(sys.argv[1]))))")
+    r = subprocess.run([sys.executable, "-c", helper, json.dumps(cmd)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr[-2000:])
+    return tuple(json.loads(r.stdout))
+
+
+def ensure_recording(days: float, rate: int, seed: int = 14) -> Path:
+    d = ROOT / "build" / "bench"
+    d.mkdir(parents=True, exist_ok=True)
+    f = d / f"wrist-{days:g}d-{rate}hz-s{seed}.csv"
+    if not f.exists():
+        print(f"simulating {days:g} days at {rate} Hz into {f} (once) ...", file=sys.stderr, flush=True)
+        tmp = f.with_suffix(".part.csv")
+        subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", str(days),
+                        "--rate", str(rate), "--seed", str(seed), "-o", str(tmp), "--force"], check=True)
+        tmp.with_suffix(".truth.json").rename(f.with_suffix(".truth.json"))
+        tmp.rename(f)
+    return f
+
+
+def still_windows(path: Path) -> Path:
+    """accelcal's kept still windows of the file (first sample, length), for scoring the others."""
+    from accelcal.files.recordings import open_recording
+    from accelcal.pipeline.scan import scan
+    sc = scan(open_recording(path), 5, 123, 0)
+    kept = sc.masks()["kept"]
+    out = path.with_suffix(".windows.npz")
+    np.savez(out, starts=sc.segments.end[kept] - sc.length + 1, length=sc.length)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.bench_files", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--days", type=float, default=14)
+    ap.add_argument("--rate", type=int, default=100)
+    ap.add_argument("--others", metavar="PYTHON", help="interpreter with scikit-digital-health and "
+                                                        "actipy (default: .venv-bench/bin/python)")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    res: dict = {"throughput": throughput()}
+    tp = res["throughput"]
+    print(f"vectorised path, one core: g -> Q10 {tp['convert_samples_per_s'] / 1e6:.0f} M samples/s, "
+          f"rest twin {tp['rest_samples_per_s'] / 1e6:.0f} M/s, both {tp['convert_and_rest_samples_per_s'] / 1e6:.0f} M/s, "
+          f"apply {tp['apply_samples_per_s'] / 1e6:.0f} M/s", flush=True)
+    f = ensure_recording(a.days, a.rate)
+    n = a.days * 86400 * a.rate
+    size_gb = f.stat().st_size / 1e9
+    wall, rss, out, err = measured_alone([sys.executable, "-m", "accelcal.cli", "calibrate", str(f),
+                                          "--json", "--quiet"])
+    rec = json.loads(out)
+    res["accelcal"] = {"wall_s": wall, "peak_rss_mb": rss, "status": rec["status"],
+                       "error_before_mg": rec["error_before_mg"],
+                       "error_after_mg": rec.get("error_after_mg"), "still_windows": rec["still_windows"],
+                       "samples_per_s": n / wall}
+    print(f"{a.days:g} days at {a.rate} Hz ({n / 1e6:.0f} M samples, {size_gb:.1f} GB of CSV), end to "
+          f"end: accelcal {wall:.1f} s ({n / wall / 1e6:.1f} M samples/s), peak RSS {rss:.0f} MB, "
+          f"{rec['status']}, calibration error {rec['error_before_mg']:.2f} -> "
+          f"{rec.get('error_after_mg', float('nan')):.2f} mg on {rec['still_windows']} still windows", flush=True)
+    py = a.others or str(ROOT / ".venv-bench" / "bin" / "python")
+    if Path(py).exists():
+        win = still_windows(f)
+        for tool in ("skdh", "actipy"):
+            try:
+                wall_o, rss_o, out_o, _ = measured_alone([py, "-m", "accelcal.studies.bench_others", tool, str(f),
+                                                          str(win)])
+                o = json.loads(out_o.strip().splitlines()[-1])
+                o.update(wall_s=wall_o, peak_rss_mb=rss_o)
+            except (RuntimeError, ValueError, IndexError) as e:
+                o = {"tool": tool, "error": " ".join(str(e).split())[-300:]}
+            res[tool] = o
+            if "error" in o:
+                print(f"  {tool}: FAILED {o['error']}", flush=True)
+            else:
+                print(f"  {tool}: {o['wall_s']:.1f} s ({wall_o / wall:.1f}x accelcal; read {o['read_s']:.1f} s, "
+                      f"calibrate {o['calibrate_s']:.1f} s), peak RSS {o['peak_rss_mb']:.0f} MB, "
+                      f"calibration error {o['error_before_mg']:.2f} -> {o['error_after_mg']:.2f} mg "
+                      "on the same windows", flush=True)
+    else:
+        print(f"  (skdh/actipy skipped: {py} not found; `make bench` creates it)")
+    if a.json:
+        print(json.dumps(res))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""The host package's shape (README "Layout"): folders whose imports run one way, no import
+circle, modules and functions a person can read, one version number, and every cross-reference in
+the code and the docs pointing at a heading that exists."""
+import ast
+import json
+import re
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+HOST = ROOT / "host" / "accelcal"
+# Each layer imports only from the layers before it (within a folder, modules may import each other
+# as long as no circle forms).
+LAYERS = [{"errors", "fixedpoint", "locations"}, {"methods"}, {"model"}, {"files"},
+          {"bridge", "report", "simulate"}, {"pipeline"}, {"board"}, {"studies"}, {"cli"}]
+MAX_MODULE_LINES = 450      # "about 400"
+MAX_FUNCTION_LINES = 90     # "about 80"
+
+
+def host_modules() -> dict[str, Path]:
+    """Host modules imported by CPython (the MicroPython-side scripts and chip are not)."""
+    out = {}
+    for p in HOST.rglob("*.py"):
+        rel = p.relative_to(HOST.parent)
+        if {"scripts", "chip"} & set(rel.parts):
+            continue
+        name = ".".join(rel.with_suffix("").parts)
+        out[name.removesuffix(".__init__")] = p
+    return out
+
+
+def imports(path: Path, mods: dict) -> set[str]:
+    """Every accelcal module a file imports, at its top or inside a function."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("accelcal"):
+            for a in node.names:
+                sub = f"{node.module}.{a.name}"
+                found.add(sub if sub in mods else node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("accelcal")}
+    return found
+
+
+def folder(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def test_imports_run_one_way_between_folders():
+    mods = host_modules()
+    rank = {f: k for k, layer in enumerate(LAYERS) for f in layer}
+    assert set(folder(m) for m in mods) - {""} <= set(rank), "a folder the layers do not place"
+    wrong = []
+    for m, p in mods.items():
+        for dep in imports(p, mods):
+            a, b = folder(m), folder(dep)
+            if a and b and a != b and rank[b] >= rank[a]:
+                wrong.append(f"{m} -> {dep}")
+    assert not wrong
+
+
+def test_no_import_circle():
+    mods = host_modules()
+    graph = {m: {d for d in imports(p, mods) if d in mods and d != m} for m, p in mods.items()}
+    for start in graph:
+        seen, todo = set(), list(graph[start])
+        while todo:
+            m = todo.pop()
+            assert m != start, f"an import circle through {start}"
+            if m not in seen:
+                seen.add(m)
+                todo.extend(graph[m])
+
+
+def test_modules_and_functions_stay_readable():
+    long_modules, long_functions = [], []
+    for p in HOST.rglob("*.py"):
+        text = p.read_text()
+        if text.count("\n") > MAX_MODULE_LINES:
+            long_modules.append(str(p.relative_to(ROOT)))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
+                    node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                long_functions.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}")
+    assert not long_modules and not long_functions
+
+
+def test_one_version_number():
+    import acal
+    pkg = json.loads((ROOT / "package.json").read_text())
+    assert pkg["version"] == acal.__version__ == metadata.version("accelcal")
+
+
+def headings(path: Path) -> list[str]:
+    return [ln.lstrip("#").strip() for ln in path.read_text().splitlines() if ln.startswith("#")]
+
+
+def anchor(heading: str) -> str:
+    """GitHub's anchor for a heading."""
+    h = re.sub(r"[^\w\- ]", "", heading.lower())
+    return h.replace(" ", "-")
+
+
+def sources() -> list[Path]:
+    return [*(ROOT / "device").rglob("*.py"), *(ROOT / "host").rglob("*.py"),
+            *(ROOT / "host").rglob("*.mjs"), *(ROOT / "boards").glob("*.py"),
+            *(ROOT / "tests").glob("*.py"), ROOT / "Makefile", ROOT / "README.md",
+            *(ROOT / "docs").glob("*.md")]
+
+
+def test_every_cited_section_is_a_heading():
+    """A section cited in a comment or a page (README then a quoted heading, or a docs/ page then a
+    quoted heading) is a heading of that file; its start is enough: "Profiles" for "Profiles:
+    paper and wear"."""
+    cite = re.compile(r'(README|docs/[\w-]+\.md)\s+\\?"([^"\\]+)\\?"')
+    bad = []
+    for src in sources():
+        text = src.read_text()
+        assert "DESIGN.md" not in text or src.name == "test_layout.py", \
+            f"{src}: cites DESIGN.md, which the project does not have"
+        for m in cite.finditer(text):
+            target = ROOT / ("README.md" if m.group(1) == "README" else m.group(1))
+            if not target.exists() or not any(h.startswith(m.group(2)) for h in headings(target)):
+                bad.append(f"{src.relative_to(ROOT)}: {m.group(0)}")
+    assert not bad
+
+
+def test_every_link_between_pages_resolves():
+    bad = []
+    pages = [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]
+    for page in pages:
+        for m in re.finditer(r"\]\(([^)#\s]*)(#[^)\s]*)?\)", page.read_text()):
+            target, frag = m.group(1), m.group(2)
+            if target.startswith("http"):
+                continue
+            path = (page.parent / target) if target else page
+            if not path.exists():
+                bad.append(f"{page.name}: {m.group(0)}")
+            elif frag and path.suffix == ".md" and frag[1:] not in {anchor(h) for h in headings(path)}:
+                bad.append(f"{page.name}: {m.group(0)}")
+    assert not bad
+
+
+@pytest.mark.parametrize("path", ["README.md"])
+def test_the_readme_is_a_map(path):
+    text = (ROOT / path).read_text()
+    assert len(text.encode()) < 10_000
+    for folder_name in ("device/acal/", "boards/", *(f"host/accelcal/{d}/" for d in
+                        ("methods", "model", "files", "bridge", "report", "simulate", "pipeline",
+                         "board", "studies", "cli"))):
+        assert f"`{folder_name}" in text, f"the layout table leaves out {folder_name}"
