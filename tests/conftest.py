@@ -13,6 +13,23 @@ def rng():
     return np.random.default_rng(12345)
 
 
+def simulate_wrists(folder, cases: dict, days, rate) -> dict:
+    """Simulated wrist recordings, name -> (seed, hidden effects), made in parallel (both cores);
+    name -> path."""
+    out, procs = {}, []
+    for name, (seed, effects) in cases.items():
+        path = folder / f"{name}.csv"
+        args = ["simulate", "wrist", "--days", days, "--rate", rate, "--seed", seed, "-o", path]
+        for e in effects:
+            args += ["--effect", e]
+        procs.append(subprocess.Popen([sys.executable, "-m", "accelcal.cli", *map(str, args)],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
+        out[name] = path
+    for pr in procs:
+        assert pr.wait() == 0, pr.stderr.read()
+    return out
+
+
 def run_cli(*args, cwd=None):
     """Run the installed CLI as a user does; returns CompletedProcess."""
     return subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, args)],

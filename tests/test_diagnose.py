@@ -3,15 +3,13 @@ thresholds): diagnose names the effect, adding it brings the held-out error with
 the true sensor model achieves on the same points; on clean recordings it names nothing; two
 effects are found one after the other.  Bad model specs and unsupported data: exit 2, one line."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from accelcal.pipeline.diagnose import heldout_error_of
 from acal.fixed import PARAM_NAMES
-from conftest import run_cli
+from conftest import run_cli, simulate_wrists
 
 DAYS, RATE = 3, 10
 EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear")
@@ -22,18 +20,7 @@ def recordings(tmp_path_factory):
     d = tmp_path_factory.mktemp("discovery")
     cases = {"clean31": (31, ()), "clean32": (32, ()), "two": (33, ("temp_offset", "drift"))}
     cases.update({e: (31, (e,)) for e in EFFECTS})
-    out, procs = {}, []
-    for name, (seed, effects) in cases.items():  # in parallel: both cores
-        path = d / f"{name}.csv"
-        args = ["simulate", "wrist", "--days", DAYS, "--rate", RATE, "--seed", seed, "-o", path]
-        for e in effects:
-            args += ["--effect", e]
-        procs.append(subprocess.Popen([sys.executable, "-m", "accelcal.cli", *map(str, args)],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
-        out[name] = path
-    for pr in procs:
-        assert pr.wait() == 0, pr.stderr.read()
-    return out
+    return simulate_wrists(d, cases, DAYS, RATE)
 
 
 def diagnose(path, model="base", *extra):

@@ -4,6 +4,7 @@
 #
 # An effect is removed from a reading v (g) before the 9-parameter correction a = K (w + o):
 #   TEMP_OFFSET  w = v - c dT          dT: degC from the model's reference temperature
+#   TEMP_OFFSET2 w = v - e dT^2        the zero-g level's curvature in temperature
 #   TEMP_SCALE   w = v - s dT v        (first order: (s dT)^2 < 1e-4 of the reading)
 #   DRIFT        w = v - d dt          dt: time from the model's reference time
 #   NONLINEAR    w = v - q v^2         per axis, v^2 with its sign lost (a quadratic response)
@@ -11,12 +12,13 @@
 #
 # Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).
 #   Fit (Q24 g readings u, model.objective): every parameter in Q24 per its normalised regressor -
-#   c and s per 16 degC, d per 2048 dt units (131 072 s, 1.52 days), q per g - so that each is of
-#   the size of an offset and takes the offsets' learning rate.
-#     c: (c * dT) >> 4;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;  q: (q * ((u*u) >> 24)) >> 24
-#   Apply (per sample, Q14 g readings, model.Calibration): c and d in Q14 (param >> 10), s and q in
-#   Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days; both
-#   clamped)
+#   c and s per 16 degC, e per 64 degC^2, d per 2048 dt units (131 072 s, 1.52 days), q per g - so
+#   that each is of the size of an offset and takes the offsets' learning rate.
+#     c: (c * dT) >> 4;  e: (e * dT^2) >> 6;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;
+#     q: (q * ((u*u) >> 24)) >> 24
+#   Apply (per sample, Q14 g readings, model.Calibration): c, e and d in Q14 (param >> 10), s and q
+#   in Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days;
+#   both clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
 #   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
@@ -34,17 +36,20 @@ TEMP_OFFSET = const(1)
 TEMP_SCALE = const(2)
 DRIFT = const(3)
 NONLINEAR = const(4)
-NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear"}
+TEMP_OFFSET2 = const(5)
+NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear",
+         TEMP_OFFSET2: "temp_offset2"}
 DT_UNIT_S = const(64)
 APPLY_DT_MAX = const(32)          # degC either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
 FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
 # |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
-# d 20 mg/day, q 5 %/g.
+# d 20 mg/day, q 5 %/g, e 1 mg/degC^2.
 BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
           DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
-          NONLINEAR: const(838861)}      # 0.05 * 2**24
+          NONLINEAR: const(838861),      # 0.05 * 2**24
+          TEMP_OFFSET2: const(1073742)}  # 0.001 * 64 * 2**24
 
 
 def parse_model(spec):
@@ -85,7 +90,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
     place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
     see the formats above); every intermediate stays below 2**30 (acal/wide.py)."""
-    if kind == TEMP_OFFSET or kind == TEMP_SCALE:
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX
         elif dT < -APPLY_DT_MAX:
@@ -107,11 +112,15 @@ def correct_u(kind, p, j, u, dT, dt, at=0):
         for i in range(3):
             v = u[at + i]
             u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
+    elif kind == TEMP_OFFSET2:
+        sq = (dT * dT) << 10     # <= 2**20: (e dT^2) >> 6 as an exact wide floor
+        for i in range(3):
+            u[at + i] -= mul_shift(p[j + i], sq, 16)
 
 
 def apply_params(kind, p, j, k, m):
     """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
-    shift = 10 if kind == TEMP_OFFSET or kind == DRIFT else 6
+    shift = 10 if kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2 else 6
     half = 1 << (shift - 1)
     for i in range(3):
         k[m + i] = (p[j + i] + half) >> shift
@@ -120,7 +129,7 @@ def apply_params(kind, p, j, k, m):
 def correct_sample(kind, k, m, w, x, y, z, dT, dt):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
     accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result)."""
-    if kind == TEMP_OFFSET or kind == TEMP_SCALE:
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX
         elif dT < -APPLY_DT_MAX:
@@ -146,3 +155,7 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt):
             elif i == 2:
                 s = z
             w[i] -= (k[m + i] * ((s * s) >> 10)) >> 14
+    elif kind == TEMP_OFFSET2:
+        sq = dT * dT             # <= 1024; |k| <= 2**11 at 2x the bound: the product < 2**22
+        for i in range(3):
+            w[i] -= (k[m + i] * sq) >> 6

@@ -47,7 +47,7 @@ class Pipeline:
         temp_differ = 0
         time_differ = 0
         for k in self.kinds:
-            if k == effects.TEMP_OFFSET or k == effects.TEMP_SCALE:
+            if k == effects.TEMP_OFFSET or k == effects.TEMP_SCALE or k == effects.TEMP_OFFSET2:
                 temp_differ = TEMP_DIFFER
             elif k == effects.DRIFT:
                 time_differ = TIME_DIFFER

@@ -36,6 +36,8 @@ class Config:
     iterations: int = optimiser.DEFAULT_ITERATIONS
     rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
     kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
+    conditions: bool = False     # hand the device each point's temperature and time even without
+    # kinds: a model whose effects the host fits (ModelSpec.host_only) needs them on the points
     fit: int = dprofile.GRADIENT
     profile: str = "paper"
 
@@ -185,7 +187,7 @@ def protocol_items(groups: list[Group], cfg: Config):
     """The runner's calls, in order, as (method, args): configure, then per group its points or
     samples with their conditions, gaps and wear, and end.  All ints."""
     yield "configure", (cfg.values(),)
-    composed = bool(cfg.kinds)
+    composed = bool(cfg.kinds) or cfg.conditions
     for g in groups:
         yield "group", (g.name,)
         if g.points is not None or g.points_q16 is not None:

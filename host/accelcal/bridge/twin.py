@@ -237,7 +237,7 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
                      -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)[:, None]
         for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
             kind = kinds[j]
-            shift = 10 if kind in (deff.TEMP_OFFSET, deff.DRIFT) else 6
+            shift = 10 if kind in (deff.TEMP_OFFSET, deff.DRIFT, deff.TEMP_OFFSET2) else 6
             ke = np.array([(int(v) + (1 << (shift - 1))) >> shift for v in p_int[9 + 3 * j:12 + 3 * j]],
                           dtype=np.int64)
             if kind == deff.TEMP_OFFSET:
@@ -248,6 +248,8 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
                 w -= (ke * dt) >> 11
             elif kind == deff.NONLINEAR:
                 w -= (ke * ((q * q) >> 10)) >> 14
+            elif kind == deff.TEMP_OFFSET2:
+                w -= (ke * (dT * dT)) >> 6
             np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
         u = w + off
     else:

@@ -29,7 +29,9 @@ def _app_settings(args) -> dict:
     if args.model != "base":
         from accelcal.model.effects import ModelSpec
         try:
-            s["model"] = str(ModelSpec.parse(args.model))
+            spec = ModelSpec.parse(args.model)
+            spec.kinds   # ValueError: an effect the board does not have
+            s["model"] = str(spec)
         except ValueError as e:
             raise InputError(str(e)) from None
     return s

@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from accelcal.cli.options import add_pipeline_args, dask_address, int_in, pipeline_config
+from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
+                                  pipeline_config, register_effects)
 from accelcal.errors import InputError
 from accelcal.files.outputs import FORCE_HELP, check_output
 
@@ -31,6 +32,7 @@ Exit status: one input: 2 when it did not calibrate (reason on stderr and in the
 def cmd_calibrate(args) -> int:
     from accelcal.pipeline.calibrate import calibrate_groups
     from accelcal.model.effects import ModelSpec
+    register_effects(args)
     from accelcal.files.table import read_table
     from accelcal.files.params import save_params
     try:
@@ -89,7 +91,7 @@ def _calibrate_batch(args, spec, engine) -> int:
     summary = args.summary or "accelcal-summary.csv"
     check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
     job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
-                    args.fallback, args.points or "bins")
+                    args.fallback, args.points or "bins", args.effects)
     if args.fallback:
         from accelcal.files.params import load_params
         load_params(args.fallback)  # a bad fallback is bad input, before any file is read
@@ -115,6 +117,7 @@ def _calibrate_batch(args, spec, engine) -> int:
 def cmd_apply(args) -> int:
     from accelcal.pipeline.calibrate import apply_file
     from accelcal.files.params import load_params
+    register_effects(args)
     from accelcal.files.recordings import is_recording
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
@@ -138,10 +141,12 @@ def add_parsers(sub) -> None:
                         ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default="base",
                    help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
-                        "(temp_offset, temp_scale, drift, nonlinear; with --method device or lsq). "
+                        "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
+                        "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "
                         "(>= 12 h): wear profile 8 per subset, the base fit first and kept if the "
                         "composed one fails or is worse; paper profile 4 per subset, 200 iterations")
+    add_effects_arg(p)
     from accelcal.methods import METHODS
     p.add_argument("--method", choices=["device", *METHODS], default="device",
                    help="device: the integer optimiser (default); the float reference methods, "
@@ -197,6 +202,7 @@ def add_parsers(sub) -> None:
                    help="output CSV (written whole or not at all; never one of the inputs)")
     p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
+    add_effects_arg(p)
     p.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=None,
                    help="full scale of the device's apply, g: its fixed-point format (Q14 at 2 g, "
                         "one bit less per doubling) and where readings are clipped (default: the "

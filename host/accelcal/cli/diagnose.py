@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from accelcal.cli.options import add_pipeline_args, pipeline_config
+from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
 from accelcal.files.outputs import FORCE_HELP, check_output
 
 
 def cmd_diagnose(args) -> int:
     from accelcal.pipeline.diagnose import diagnose_main
+    register_effects(args)
     return diagnose_main(path=args.input, model=args.model, history=args.history,
                          plots=args.plots, report_dir=args.report, force=args.force,
                          as_json=args.json)
@@ -44,6 +45,7 @@ def add_parsers(sub) -> None:
                                    "error with it added; names the missing effect, or none.")
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
+    add_effects_arg(p)
     p.add_argument("--report", metavar="DIR",
                    help="write DIR/report.html: one self-contained file (figures inside, no "
                         "network needed) with the held-out table, the candidates, the named "

@@ -134,3 +134,20 @@ def pipeline_config(args, composed=False):
     if cfg.max_count < cfg.min_count:
         raise InputError("--max-count must be >= --min-count")
     return cfg
+
+
+EFFECTS_HELP = ("a Python file declaring effects of your own (EFFECTS = [dict(name=..., regressor="
+                "'temperature'|'time'|'reading', power=..., form='offset'|'gain', unit=..., "
+                "bound=..., explanation=...)]): they join the catalogue for this command "
+                "(docs/model-discovery.md \"Effects you declare\")")
+
+
+def add_effects_arg(p) -> None:
+    p.add_argument("--effects", metavar="FILE.py", help=EFFECTS_HELP)
+
+
+def register_effects(args) -> None:
+    """The user's declared effects into the catalogue, checked (one line, exit 2, if bad)."""
+    if getattr(args, "effects", None):
+        from accelcal.model.declared import register
+        register(args.effects)

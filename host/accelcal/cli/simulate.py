@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from accelcal.cli.options import float_in, int_in
+from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
+from accelcal.errors import InputError
 from accelcal.files.outputs import FORCE_HELP, atomic, check_output, write_text
 
 
@@ -39,7 +40,15 @@ def cmd_simulate_paper(args) -> int:
 
 
 def cmd_simulate_wrist(args) -> int:
+    from accelcal.model.effects import CATALOGUE
     from accelcal.simulate import wearer
+    register_effects(args)
+    for name in args.effect:
+        if name not in CATALOGUE:
+            raise InputError(f"--effect {name!r}: not an effect (one of {', '.join(CATALOGUE)}, "
+                             "or one --effects FILE declares)")
+    if len(set(args.effect)) != len(args.effect):
+        raise InputError("--effect: the same effect twice")
     out = check_output(args.output, (), args.force, "-o/--output")
     check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
     if args.stimulus:
@@ -89,9 +98,10 @@ def add_parsers(sub) -> None:
     q.add_argument("--seed", type=int_in(0, 2 ** 32 - 1), default=1)
     q.add_argument("--stimulus", metavar="FILE.bin", help="also write the stimulus for `board virtual`")
     from accelcal.model.effects import CATALOGUE
-    q.add_argument("--effect", action="append", default=[], choices=list(CATALOGUE),
+    q.add_argument("--effect", action="append", default=[], metavar="NAME",
                    help="add a hidden physical effect (repeatable): " + ", ".join(CATALOGUE)
-                   + "; its true values go to the truth JSON")
+                   + ", or one --effects declares; its true values go to the truth JSON")
+    add_effects_arg(q)
     q.add_argument("-o", "--output", required=True, help="recording CSV to write")
     q.add_argument("--force", action="store_true", help=FORCE_HELP)
     q.set_defaults(func=cmd_simulate_wrist)

@@ -12,7 +12,7 @@ from acal import model as dmodel
 from accelcal.errors import InputError
 from accelcal.files.outputs import write_text
 from accelcal.fixedpoint import params_to_float
-from accelcal.model.effects import ModelSpec
+from accelcal.model.effects import CATALOGUE, ModelSpec
 
 
 def params_record(p_int, model="base", method="device", **extra) -> dict:
@@ -35,6 +35,20 @@ def save_params(path: str, record: dict) -> None:
 
 def _reject_constant(name):
     raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _effects_within(spec: ModelSpec, p_int) -> bool:
+    """Every effect parameter inside its bound: the device's test where the device has the
+    effect, the catalogue's bound in the same Q24 units where only the host does."""
+    if not spec.host_only:
+        kinds = tuple(deffects.parse_model(str(spec)))
+        return not kinds or dmodel.effects_within(p_int, kinds, 1)
+    for k, name in enumerate(spec.effects):
+        e = CATALOGUE[name]
+        b = e.to_int([e.bound])[0]
+        if any(abs(v) > b for v in p_int[9 + 3 * k: 12 + 3 * k]):
+            return False
+    return True
 
 
 def load_params(path: str, device: str | None = None) -> tuple[str, list[int], dict]:
@@ -101,8 +115,13 @@ def load_params(path: str, device: str | None = None) -> tuple[str, list[int], d
         if not -100 <= ref["T0"] <= 200:
             raise InputError(f"{path}: reference.T0 {ref['T0']:g} degC is not a temperature a "
                              "sensor works at")
-    kinds = tuple(deffects.parse_model(str(spec)))
-    if not dmodel.in_bounds(p_int) or (kinds and not dmodel.effects_within(p_int, kinds, 1)):
+        if spec.change_point:
+            ts = r.get("ts")
+            if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts):
+                raise InputError(f"{path}: model {spec} needs reference.ts, the step's time in s "
+                                 "(finite)")
+            ref["ts"] = float(ts)
+    if not dmodel.in_bounds(p_int) or not _effects_within(spec, p_int):
         raise InputError(f"{path}: parameters outside the calibration bounds (docs/method-and-formats.md \"Fixed-"
                          "point formats\"): no fit writes these")
     return str(spec), p_int, ref

@@ -3,15 +3,19 @@
 An effect adds to what the sensor measures, after the 9-parameter errors (v = measured, g):
 
     temp_offset  v += c (T - T0)             zero-g level moves with temperature (g/degC per axis)
+    temp_offset2 v += e (T - T0)^2           ... and curves with it (g/degC^2 per axis)
     temp_scale   v *= 1 + s (T - T0)         sensitivity moves with temperature (1/degC per axis)
     drift        v += d (t - t0) / 1 day     offset moves with time (g/day per axis)
+    step         v += j [t >= ts]            offset jumps once, at ts (a shock; g per axis)
     nonlinear    v += q v^2                  quadratic response per axis (1/g)
 
 The same declaration serves the simulator (`measure`: add the effect with true values), the
 fits (`correct`: remove it with fitted values, before the 9-parameter correction) and the reports
 (names, units, bounds, the regressor to plot residuals against, the physics in a sentence).
 T0 and t0 are references taken from the data a model is fitted on (mean temperature, first time),
-stored with the fitted parameters.
+stored with the fitted parameters; ts, a step's time, is found by a change-point search
+(pipeline/composed_lsq.py) and stored beside them.  Effects without a device form (`kind` None)
+are fitted and applied on the host only.
 """
 from __future__ import annotations
 
@@ -45,19 +49,25 @@ class Effect:
     regressor: str          # what residuals are plotted against
     explanation: str
     form: str = "offset"    # "offset": v + theta x;  "gain": v (1 + theta x)
+    power: int = 1          # of the temperature regressor: (T - T0)^power
+    change_point: bool = False   # the time regressor is a step at ts, found by the fit
+    sim_reference: tuple = ()    # simulator: the truth's own reference, e.g. (("T0", 33.0),)
+    declared_in: str | None = None   # a user's effects file (model/declared.py); None: built in
 
     @property
     def param_names(self) -> list[str]:
         return [f"{self.symbol}{a}" for a in AXES]
 
     def x(self, v, temp, t, ref) -> np.ndarray:
-        """The regressor, per axis (broadcast against v): degC from T0, days from t0, or the
-        axis reading squared."""
+        """The regressor, per axis (broadcast against v): degC from T0 (to the effect's power),
+        days from t0, 1 from ts on (a step), or the axis reading squared."""
         if self.needs == "temp":
-            return (temp - ref["T0"])[:, None]
+            return ((temp - ref["T0"]) ** self.power)[:, None]
         if self.needs == "t":
-            return ((t - ref["t0"]) / 86400.0)[:, None]
-        return v * v
+            if self.change_point:
+                return (t >= ref["ts"]).astype(np.float64)[:, None]
+            return (((t - ref["t0"]) / 86400.0) ** self.power)[:, None]
+        return v ** self.power
 
     def measure(self, v, theta, temp, t, ref):
         """What the sensor reads with the effect added (simulator)."""
@@ -72,12 +82,18 @@ class Effect:
 
     # Device integers (device/acal/effects.py): Q24 per normalised regressor.
     @property
-    def kind(self) -> int:
-        return {v: k for k, v in deff.NAMES.items()}[self.name]
+    def kind(self) -> int | None:
+        """The device's id for the effect, None for an effect fitted and applied on the host."""
+        return {v: k for k, v in deff.NAMES.items()}.get(self.name)
 
     @property
     def int_scale(self) -> float:
-        per = {"temp": 16.0, "t": 2048 * deff.DT_UNIT_S / 86400.0, None: 1.0}[self.needs]
+        if self.needs == "temp":   # per 16 degC, per 64 degC^2 (device/acal/effects.py)
+            per = {1: 16.0, 2: 64.0}.get(self.power, 16.0 ** self.power)
+        elif self.needs == "t":
+            per = 1.0 if self.change_point else (2048 * deff.DT_UNIT_S / 86400.0) ** self.power
+        else:
+            per = 1.0
         return per * (1 << 24)
 
     def to_int(self, theta) -> list[int]:
@@ -90,12 +106,26 @@ class Effect:
         lo, hi = self.true_range
         return rng.uniform(lo, hi, 3) * rng.choice([-1.0, 1.0], 3)
 
+    def draw_reference(self, rng: np.random.Generator, span_s: float) -> dict:
+        """The simulator's reference for this effect beyond TrueEffect.REF: its own (a curve's
+        T0), and a step's time, uniform in the middle half of the recording."""
+        ref = dict(self.sim_reference)
+        if self.change_point:
+            ref["ts"] = float(rng.uniform(0.25, 0.75) * span_s)
+        return ref
+
 
 CATALOGUE: dict[str, Effect] = {e.name: e for e in (
     Effect("temp_offset", "c", "g/degC", 1e3, "mg/degC", 0.005, (0.0004, 0.001), "temp", "temperature",
            "The zero-g level moves with temperature (LIS3DH: +-0.5 mg/degC typical): thermal "
            "stress in the package bends the MEMS proof mass's suspension, so rest readings shift "
            "with the chip's temperature whatever the orientation."),
+    Effect("temp_offset2", "e", "g/degC^2", 1e3, "mg/degC^2", 0.001, (0.00008, 0.0002), "temp",
+           "temperature",
+           "The zero-g level curves with temperature: the package's thermal stress is not linear "
+           "in temperature (a bimetal-like bending of the die on its substrate), so rest readings "
+           "bow away from a straight line as the chip warms and cools - a curvature a linear "
+           "temperature offset leaves behind.", power=2),
     Effect("temp_scale", "s", "1/degC", 1e2, "%/degC", 0.002, (0.0003, 0.0006), "temp", "temperature",
            "Sensitivity changes with temperature (LIS3DH: 0.01 %/degC typical, more on some parts): "
            "the spring constant and the capacitive readout's gain drift, so the error grows with "
@@ -103,11 +133,22 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
     Effect("drift", "d", "g/day", 1e3, "mg/day", 0.02, (0.0015, 0.004), "t", "time",
            "The offset moves with time (ageing of the package and its solder stress, supply "
            "changes): rest readings shift steadily over days whatever the temperature."),
+    Effect("step", "j", "g", 1e3, "mg", 0.05, (0.003, 0.008), "t", "time",
+           "The offset jumps once and stays: a shock (a knock or a drop) shifts the proof mass's "
+           "rest position or cracks a solder joint's stress, so rest readings before and after "
+           "one moment differ by a constant whatever the orientation - a step, not a trend.",
+           change_point=True),
     Effect("nonlinear", "q", "1/g", 1e2, "%/g", 0.05, (0.004, 0.01), None, "axis reading",
            "The response is not linear: each axis reads a little more (or less) than "
            "proportionally at larger accelerations (LIS3DH: +-0.5 % of full scale), so the error "
-           "depends on the squared reading of that axis, and on which side of zero it is."),
+           "depends on the squared reading of that axis, and on which side of zero it is.",
+           power=2),
 )}
+
+
+def device_effects() -> list[str]:
+    """The catalogue's effects the device has a form for (acal.effects), in catalogue order."""
+    return [n for n, e in CATALOGUE.items() if e.kind is not None]
 
 
 @dataclass
@@ -124,9 +165,12 @@ class ModelSpec:
         for n in names:
             if n not in CATALOGUE:
                 raise ValueError(f"unknown effect {n!r} in model spec {spec!r}: known effects are "
-                                 f"{', '.join(CATALOGUE)}")
+                                 f"{', '.join(CATALOGUE)} (one you declared? pass its "
+                                 "--effects FILE)")
         if len(set(names)) != len(names):
             raise ValueError(f"model spec {spec!r} names an effect twice")
+        if sum(CATALOGUE[n].change_point for n in names) > 1:
+            raise ValueError(f"model spec {spec!r} has two steps; a model holds one")
         return ModelSpec(tuple(names))
 
     def __str__(self):
@@ -140,9 +184,27 @@ class ModelSpec:
         return list(PARAM_NAMES) + [p for n in self.effects for p in CATALOGUE[n].param_names]
 
     @property
+    def host_only(self) -> tuple[str, ...]:
+        """The effects with no device form: fitted (lsq) and applied on the host."""
+        return tuple(n for n in self.effects if CATALOGUE[n].kind is None)
+
+    @property
     def kinds(self) -> tuple[int, ...]:
-        """The device's effect ids (acal.effects), in order."""
+        """The device's effect ids (acal.effects), in order; ValueError for a model with an
+        effect the device does not have."""
+        if self.host_only:
+            raise ValueError(f"model {self}: {', '.join(self.host_only)} has no device form yet; "
+                             "it is fitted and applied on the host (calibrate --method lsq "
+                             "--points all)")
         return tuple(CATALOGUE[n].kind for n in self.effects)
+
+    @property
+    def change_point(self) -> str | None:
+        """The effect whose time (ts) the fit finds, if any (one per model)."""
+        return next((n for n in self.effects if CATALOGUE[n].change_point), None)
+
+    def without(self, name: str) -> "ModelSpec":
+        return ModelSpec(tuple(n for n in self.effects if n != name))
 
     def to_int(self, theta) -> list[int]:
         """Float parameters (9 + 3 per effect) -> the device's Q24 integers."""
@@ -191,14 +253,15 @@ class TrueEffect:
     """An effect with true values, as the simulated sensor has it (wearer.Sensor.effects)."""
     REF = {"T0": 25.0, "t0": 0.0}
 
-    def __init__(self, name: str, theta):
+    def __init__(self, name: str, theta, reference: dict | None = None):
         self.effect = CATALOGUE[name]
         self.theta = np.asarray(theta, dtype=np.float64)
+        self.ref = {**self.REF, **(reference or {})}
 
     def apply(self, v, temp_c, t_s):
-        return self.effect.measure(v, self.theta, temp_c, t_s, self.REF)
+        return self.effect.measure(v, self.theta, temp_c, t_s, self.ref)
 
     def truth(self) -> dict:
         e = self.effect
-        return {"effect": e.name, "unit": e.unit, "reference": self.REF,
+        return {"effect": e.name, "unit": e.unit, "reference": self.ref,
                 "params": dict(zip(e.param_names, map(float, self.theta)))}

@@ -23,6 +23,7 @@ class Job:
     engine: str = "vector"
     fallback: str | None = None
     points: str = "bins"
+    effects: str | None = None     # a user's effects file, registered in each worker
 
 
 def calibrate_file(path: str, job: Job) -> CalibrationResult:
@@ -31,9 +32,11 @@ def calibrate_file(path: str, job: Job) -> CalibrationResult:
     from accelcal.model.effects import ModelSpec
     from accelcal.files.table import read_table
     from accelcal.files.recordings import is_recording
+    from accelcal.model.declared import register
     t0 = time.perf_counter()
     cfg = job.cfg   # immutable: each step makes its own (dataclasses.replace)
     try:
+        register(job.effects)   # a worker process starts with the built-in catalogue
         spec = ModelSpec.parse(job.model)
         if is_recording(path):
             rec = calibrate_recording(path, cfg, job.method, job.runtime_name, spec, job.engine,

@@ -82,7 +82,7 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
     """A points file: one record per group (result_record: status and a one-line reason).
     spec: a composed model (fitted by the device method or lsq); None is the paper's.
     points: what a float method is fitted on (result_record)."""
-    spec, cfg = _device_spec(spec, method, cfg)
+    spec, cfg = _device_spec(spec, method, cfg, points)
     groups = groups_from_table(table, by)
     for g in groups:
         try:
@@ -99,12 +99,19 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
     return out
 
 
-def _device_spec(spec: ModelSpec | None, method: str,
-                 cfg: runtime.Config) -> tuple[ModelSpec, runtime.Config]:
-    """The model for the device pipeline (None: the paper's), and the settings with its effects."""
+def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config,
+                 points: str = "bins") -> tuple[ModelSpec, runtime.Config]:
+    """The model for the device pipeline (None: the paper's), and the settings with its effects.
+    A model with an effect the device does not have is fitted by lsq on every rest point, the
+    device handing over each point's conditions."""
     spec = spec or ModelSpec(())
     if spec.effects and method not in ("device", "lsq"):
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
+    if spec.host_only:
+        if method != "lsq" or points != "all":
+            raise InputError(f"model {spec}: {', '.join(spec.host_only)} has no device form yet; "
+                             "fit it on the host with --method lsq --points all")
+        return spec, replace(cfg, kinds=(), conditions=True)
     return spec, replace(cfg, kinds=spec.kinds)
 
 
@@ -176,15 +183,18 @@ def _float_fit_record(rec, g, r, spec, method, v, cond):
             p_int = params_to_int(methods.METHODS[method](v))
         else:
             from accelcal.pipeline.restpoints import RestPoints
-            from accelcal.pipeline.composed_lsq import fit
+            from accelcal.pipeline.composed_lsq import fit_with_reference, refs
             methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
             pts = RestPoints(v, g.t_first + cond[:, 1] * float(deff.DT_UNIT_S),
                              cond[:, 0].astype(float), np.zeros(len(v)), "points")
-            # the references: the middle of the points' ranges, as the device takes them
-            ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
-                   "t0": g.t_first + ((int(cond[:, 1].min()) + int(cond[:, 1].max())) >> 1)
-                   * float(deff.DT_UNIT_S)}
-            p_int = spec.to_int(fit(spec, pts, ref))
+            if spec.host_only:   # the host's references, as diagnose takes them
+                ref = refs(pts)
+            else:   # the middle of the points' ranges, as the device takes them
+                ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
+                       "t0": g.t_first + ((int(cond[:, 1].min()) + int(cond[:, 1].max())) >> 1)
+                       * float(deff.DT_UNIT_S)}
+            theta, ref = fit_with_reference(spec, pts, ref)
+            p_int = spec.to_int(theta)
     except methods.FitError as e:
         rec.update(status="failed", reason=str(e))
         return rec
@@ -231,7 +241,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     device modules (the whole recording in memory).  The same record either way."""
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline.scan import scan
-    spec, cfg = _device_spec(spec, method, cfg)
+    spec, cfg = _device_spec(spec, method, cfg, points)
     rec_in = open_recording(path)
     out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
                progress=progress)
@@ -312,6 +322,8 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them as int degC and 64 s units from t0."""
     spec = ModelSpec.parse(model)
+    if spec.host_only:
+        return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source)
     if spec.effects and range_g != 2:
         raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
                          f"{source} is at +-{range_g} g")
@@ -330,6 +342,16 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
     return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1]))
+
+
+def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str) -> np.ndarray:
+    """A model with an effect the device does not have, applied in float64 (the fit's own
+    correction, spec.correct) to the samples as read."""
+    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+        raise InputError(f"model {spec} needs a temperature column; {source} has none")
+    temp = np.zeros(len(xyz_g)) if temp is None else np.asarray(temp, dtype=np.float64)
+    return spec.correct(spec.from_int(p_int), np.asarray(xyz_g, dtype=np.float64), temp,
+                        np.asarray(t, dtype=np.float64), ref)
 
 
 def apply_range(declared, given: int | None) -> int:

@@ -57,6 +57,45 @@ def fit(spec: ModelSpec, p: RestPoints, ref: dict) -> np.ndarray:
     return least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf").x
 
 
+MIN_SIDE = 0.1   # a step's time leaves at least this share of the points on either side
+
+
+def change_point(r: np.ndarray, n: np.ndarray, t: np.ndarray) -> float:
+    """Where one offset step best explains residuals r (| |a| - 1 |, g) of points with unit
+    directions n (N, 3) at times t: for a step d from ts on, r ~ n . d after ts (first order),
+    so every split k of the time-sorted points is scored by the least-squares reduction
+    b_k^T S_k^-1 b_k, with S_k = sum n n^T and b_k = sum n r over the points after it - all splits
+    at once from reverse cumulative sums.  Returns ts halfway between the two points of the best
+    split (MIN_SIDE of the points kept on each side)."""
+    order = np.argsort(t, kind="stable")
+    r, n, t = r[order], n[order], t[order]
+    outer = np.einsum("ni,nj->nij", n, n)
+    S = np.cumsum(outer[::-1], axis=0)[::-1]             # S[k]: points k.. N-1
+    b = np.cumsum((n * r[:, None])[::-1], axis=0)[::-1]
+    lo, hi = max(1, int(MIN_SIDE * len(t))), min(len(t) - 1, int((1 - MIN_SIDE) * len(t)))
+    ks = np.arange(lo, hi)
+    ks = ks[t[ks] > t[ks - 1]]                           # a split between distinct times
+    if not len(ks):
+        raise InputError("a step needs rest points at more than a few distinct times")
+    Sk = S[ks] + 1e-9 * np.eye(3)
+    gain = np.einsum("ki,ki->k", b[ks], np.linalg.solve(Sk, b[ks][:, :, None])[:, :, 0])
+    k = int(ks[np.argmax(gain)])
+    return float(0.5 * (t[k - 1] + t[k]))
+
+
+def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict) -> tuple[np.ndarray, dict]:
+    """fit(), first finding what the reference lacks: a step's time (change_point on the
+    residuals of the model without the step), then the whole model at that time."""
+    name = spec.change_point
+    if name is None or "ts" in ref:
+        return fit(spec, p, ref), ref
+    rest = spec.without(name)
+    a, r = residuals(rest, fit(rest, p, ref), p, ref)
+    n = a / np.linalg.norm(a, axis=1)[:, None]
+    ref = {**ref, "ts": change_point(r, n, p.t)}
+    return fit(spec, p, ref), ref
+
+
 def residuals(spec, theta, p, ref):
     temp = p.temp if p.temp is not None else np.zeros(len(p.t))
     a = spec.correct(theta, p.v, temp, p.t, ref)
@@ -67,8 +106,7 @@ def calibrate_model(path: str, model: str) -> CalibrationResult:
     """`calibrate --model SPEC --method lsq`: the composed model fitted (float) on every usable
     rest point of the file; error before/after on the same points."""
     spec, p = prepare(path, model)
-    ref = refs(p)
-    theta = fit(spec, p, ref)
+    theta, ref = fit_with_reference(spec, p, refs(p))
     a, r = residuals(spec, theta, p, ref)
     p_int = spec.to_int(theta)  # the device's integers (device/acal/effects.py)
     return CalibrationResult(model=str(spec), method="lsq", status="calibrated",

@@ -12,8 +12,10 @@ held-out mean, sqrt(2/pi) sd(|v|) / sqrt(n), averaged.
 Naming rule (does not cry wolf on clean data): the candidate with the lowest held-out error is
 named when (1) it lowers the held-out error by at least MIN_IMPROVEMENT_PCT and (2) it lowers it
 in at least MIN_BLOCK_SHARE of the held-out blocks (an effect is systematic; a fit that only
-bends to a few blocks' noise is not).  Thresholds: docs/model-discovery.md "Model discovery", chosen on clean and
-effect recordings of seeds that the tests do not use.
+bends to a few blocks' noise is not); a step (its time searched) gives way to an effect without
+one that comes within STEP_PARSIMONY of it.  Thresholds:
+docs/model-discovery.md "Model discovery", chosen on clean and effect recordings of seeds that the
+tests do not use.
 """
 from __future__ import annotations
 
@@ -24,13 +26,20 @@ import numpy as np
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
 from accelcal.model.effects import CATALOGUE, ModelSpec
-from accelcal.pipeline.composed_lsq import check_model, fit, prepare, refs, residuals
+from accelcal.pipeline.composed_lsq import (check_model, fit, fit_with_reference, prepare, refs,
+                                            residuals)
 from accelcal.pipeline.history import append_history, read_history
+from accelcal.pipeline.remains import WELL_ABOVE, what_remains
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
 
 MIN_IMPROVEMENT_PCT = 10.0
 MIN_BLOCK_SHARE = 0.7
+# A step's time is searched over every split of the training points, and the 2-hour held-out
+# blocks sit between training ones: a step can pass for a drift or a temperature pattern there.
+# So a change-point effect is preferred only when it beats the best effect without one by this
+# factor in held-out error.
+STEP_PARSIMONY = 1.5
 
 
 def diagnose(path: str, model: str = "base", plots: str | None = None) -> DiagnoseResult:
@@ -39,43 +48,31 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
                          "need >= 30 each (a longer recording)")
-    ref = refs(train)
-    theta = fit(spec, train, ref)
+    theta, ref = fit_with_reference(spec, train, refs(train))
     _, r = residuals(spec, theta, test, ref)
     err = float(np.mean(np.abs(r)) * 1e3)
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
     where = where_it_fails(spec, theta, test, ref, r)
-    cands = []
-    for name, e in CATALOGUE.items():
-        if name in spec.effects:
-            continue
-        cspec = spec.with_effect(name)
-        try:
-            check_model(cspec, p)
-        except InputError as why:
-            cands.append({"effect": name, "heldout_error_mg": None, "improvement_pct": None,
-                          "blocks_improved_pct": None, "untestable": str(why)})
-            continue
-        th = fit(cspec, train, ref)
-        _, rc = residuals(cspec, th, test, ref)
-        ec = float(np.mean(np.abs(rc)) * 1e3)
-        gain = np.abs(r) - np.abs(rc)
-        blocks = np.unique(test_block)
-        share = float(np.mean([gain[test_block == b].mean() > 0 for b in blocks]))
-        cands.append({"effect": name, "heldout_error_mg": ec, "improvement_pct": 100 * (err - ec) / err,
-                      "blocks_improved_pct": 100 * share,
-                      "params": dict(zip(e.param_names, (th[9 + 3 * len(spec.effects):] * e.scale).round(4).tolist())),
-                      "param_unit": e.report_unit})
+    cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err)
+             for name in CATALOGUE if name not in spec.effects]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
     best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
+    plain = [c for c in testable if not CATALOGUE[c["effect"]].change_point]
+    if best and CATALOGUE[best["effect"]].change_point and plain:
+        alt = min(plain, key=lambda c: c["heldout_error_mg"])
+        if alt["heldout_error_mg"] <= STEP_PARSIMONY * best["heldout_error_mg"]:
+            best = alt
     named = None
     if best and best["improvement_pct"] >= MIN_IMPROVEMENT_PCT and \
             best["blocks_improved_pct"] >= 100 * MIN_BLOCK_SHARE:
         named = best["effect"]
     if named:
+        host = " --method lsq --points all (it runs on the host only)" \
+            if CATALOGUE[named].kind is None else ""
         explanation = (f"{named}: {CATALOGUE[named].explanation} Adding it lowers the held-out error "
                        f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg "
-                       f"(noise floor {floor:.2f} mg). Next: accelcal calibrate --model {spec.with_effect(named)}")
+                       f"(noise floor {floor:.2f} mg). Next: accelcal calibrate --model "
+                       f"{spec.with_effect(named)}{host}")
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
@@ -84,25 +81,64 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
                        f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
     else:
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
+    remains = None
+    if named is None and err > WELL_ABOVE * floor:
+        remains = what_remains(regressors(spec, theta, test, ref), r * 1e3)
+        if remains:
+            explanation += " " + remains["text"]
     out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
                          rest_points={"train": len(train), "heldout": len(test)},
                          heldout_error_mg=err, noise_floor_mg=floor, missing_effect=named,
                          candidates=cands, explanation=explanation, where_it_fails=where,
-                         params=dict(zip(spec.param_names, theta.round(6).tolist())), reference=ref)
+                         params=dict(zip(spec.param_names, theta.round(6).tolist())), reference=ref,
+                         what_remains=remains)
     if plots:
         out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor,
                                   train)
     return out
 
 
-def where_it_fails(spec, theta, test, ref, r) -> dict:
-    """Held-out residuals against each regressor: correlation and the residual's spread across
-    the regressor's quintiles (mg) - a flat line is a model that does not fail there."""
+def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: float) -> dict:
+    """The model with one more effect (the last of cspec), fitted on the training blocks and
+    scored on the held-out ones: its error, how much lower than err, in how many blocks."""
+    name = cspec.effects[-1]
+    e = CATALOGUE[name]
+    try:
+        ModelSpec.parse(str(cspec))   # one step per model
+        check_model(cspec, p)
+    except (InputError, ValueError) as why:
+        return {"effect": name, "heldout_error_mg": None, "improvement_pct": None,
+                "blocks_improved_pct": None, "untestable": str(why)}
+    th, cref = fit_with_reference(cspec, train, ref)
+    _, rc = residuals(cspec, th, test, cref)
+    ec = float(np.mean(np.abs(rc)) * 1e3)
+    gain = np.abs(r) - np.abs(rc)
+    blocks = np.unique(test_block)
+    share = float(np.mean([gain[test_block == b].mean() > 0 for b in blocks]))
+    out = {"effect": name, "heldout_error_mg": ec, "improvement_pct": 100 * (err - ec) / err,
+           "blocks_improved_pct": 100 * share,
+           "params": dict(zip(e.param_names, (th[-3:] * e.scale).round(4).tolist())),
+           "param_unit": e.report_unit}
+    if "ts" in cref and "ts" not in ref:
+        out["step_time_s"] = cref["ts"]
+    return out
+
+
+def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:
+    """What a held-out residual is looked at against: time (h), each corrected axis, |v|, and
+    temperature where the file has it."""
     a, _ = residuals(spec, theta, test, ref)
     regs = {"time_h": (test.t - test.t.min()) / 3600, "ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2],
             "abs_a": np.linalg.norm(test.v, axis=1)}
     if test.temp is not None:
         regs["temp_c"] = test.temp
+    return regs
+
+
+def where_it_fails(spec, theta, test, ref, r) -> dict:
+    """Held-out residuals against each regressor: correlation and the residual's spread across
+    the regressor's quintiles (mg) - a flat line is a model that does not fail there."""
+    regs = regressors(spec, theta, test, ref)
     out = {}
     for k, x in regs.items():
         if np.ptp(x) == 0:

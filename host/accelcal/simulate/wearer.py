@@ -318,7 +318,8 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
     sensor = Sensor.lis3dh(rng, rate_hz)
     # Effects draw from their own stream: the same seed gives the same day with or without them.
     erng = np.random.default_rng([seed, 1])
-    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng)) for n in effects]
+    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng), CATALOGUE[n].draw_reference(erng, days * 86400))
+                      for n in effects]
     wearer = Wearer(rng, rate_hz)
     out_csv = Path(out_csv)
     n_days = int(np.ceil(days))

@@ -102,9 +102,10 @@ def _replayed_params(d: Path) -> np.ndarray:
 def discovery_loop(work: Path, seed: int | None = None) -> bool:
     """The model-discovery loop on a 3-day recording with a hidden effect chosen at random."""
     import random
-    from accelcal.model.effects import CATALOGUE
+    from accelcal.model.effects import device_effects
     seed = random.SystemRandom().randrange(1000, 10000) if seed is None else seed
-    hidden = list(CATALOGUE)[seed % len(CATALOGUE)]
+    on_board = device_effects()   # the board fits them too
+    hidden = on_board[seed % len(on_board)]
     rec = work / "hidden.csv"
     hist = work / "steps.jsonl"
     hist.unlink(missing_ok=True)

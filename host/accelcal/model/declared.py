@@ -1,0 +1,117 @@
+"""Effects a user declares (`--effects FILE`): a small Python file whose EFFECTS list holds one
+dict per effect, checked field by field and added to the catalogue, so that diagnose tries it as
+a candidate like the built-in ones and calibrate (lsq) and apply fit and apply it.
+
+    EFFECTS = [
+        dict(name="ageing2",                 # a new name: letters, digits, _
+             regressor="time",               # "temperature", "time" or "reading"
+             power=2,                        # the regressor to this power (1..4); default 1
+             step=False,                     # time only: a step at a time the fit finds instead
+             form="offset",                  # "offset": v + p x;  "gain": v (1 + p x)
+             unit="g/day^2", bound=0.001,    # of the parameters (one per axis): |p| <= bound
+             explanation="The offset ages faster as the package's stress relaxes ..."),
+    ]
+
+The regressor x per axis is (T - T0)^power with T0 the mean temperature, ((t - t0) / 1 day)^power
+with t0 the first time, [t >= ts] for a step, or the axis's own reading^power.  Such effects are
+linear in their parameters; the device has no generic form for them yet, so they are fitted and
+applied on the host (docs/model-discovery.md "Effects you declare")."""
+from __future__ import annotations
+
+import math
+import re
+import runpy
+from pathlib import Path
+
+from accelcal.errors import InputError
+from accelcal.model.effects import CATALOGUE, Effect
+
+REGRESSORS = {"temperature": "temp", "time": "t", "reading": None}
+REQUIRED = ("name", "regressor", "unit", "bound", "explanation")
+OPTIONAL = ("power", "step", "form")
+# how a regressor reads in a report
+REGRESSOR_LABEL = {"temperature": "temperature", "time": "time", "reading": "axis reading"}
+
+
+def _check(path: str, i: int, d) -> Effect:
+    where = f"{path}: EFFECTS[{i}]"
+    if not isinstance(d, dict):
+        raise InputError(f"{where} must be a dict (name=..., regressor=..., ...), found "
+                         f"{type(d).__name__}")
+    missing = [k for k in REQUIRED if k not in d]
+    if missing:
+        raise InputError(f"{where} lacks {', '.join(missing)} (needs {', '.join(REQUIRED)})")
+    unknown = sorted(set(d) - set(REQUIRED) - set(OPTIONAL))
+    if unknown:
+        raise InputError(f"{where}: unknown field {unknown[0]!r} (fields: "
+                         f"{', '.join(REQUIRED + OPTIONAL)})")
+    name = d["name"]
+    if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_]{0,23}", name) or name == "base":
+        raise InputError(f"{where}: name must be lower-case letters, digits and _ (a model spec "
+                         f"part), found {name!r:.40}")
+    if name in CATALOGUE:
+        raise InputError(f"{where}: {name!r} is already an effect; choose another name")
+    reg = d["regressor"]
+    if reg not in REGRESSORS:
+        raise InputError(f"{where}: regressor must be one of {', '.join(REGRESSORS)} (a recording "
+                         f"column is not supported yet), found {reg!r:.40}")
+    power = d.get("power", 1)
+    if isinstance(power, bool) or not isinstance(power, int) or not 1 <= power <= 4:
+        raise InputError(f"{where}: power must be a whole number 1..4, found {power!r:.40}")
+    step = d.get("step", False)
+    if not isinstance(step, bool) or (step and reg != "time"):
+        raise InputError(f"{where}: step is True or False, and only for the time regressor")
+    form = d.get("form", "offset")
+    if form not in ("offset", "gain"):
+        raise InputError(f"{where}: form must be 'offset' or 'gain', found {form!r:.40}")
+    bound = d["bound"]
+    if isinstance(bound, bool) or not isinstance(bound, (int, float)) or \
+            not math.isfinite(bound) or not 0 < bound <= 1:
+        raise InputError(f"{where}: bound must be a number in (0, 1] (the parameters' largest "
+                         f"magnitude, in its unit), found {bound!r:.40}")
+    for k in ("unit", "explanation"):
+        if not isinstance(d[k], str) or not d[k].strip():
+            raise InputError(f"{where}: {k} must be text")
+    return Effect(name, f"{name}_", d["unit"], 1.0, d["unit"], float(bound),
+                  (bound / 10, bound / 4), REGRESSORS[reg], REGRESSOR_LABEL[reg],
+                  d["explanation"].strip(), form=form, power=power, change_point=step,
+                  declared_in=str(path))
+
+
+def load_effects(path: str) -> list[Effect]:
+    """The effects a file declares, checked; InputError (one line) for a file that cannot be
+    one: missing, a syntax error, an error running it, no EFFECTS list, a bad field."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{path}: no such effects file")
+    try:
+        ns = runpy.run_path(str(p), run_name="accelcal_effects")
+    except SyntaxError as e:
+        raise InputError(f"{path}:{e.lineno}: syntax error ({e.msg})") from None
+    except Exception as e:  # the user's code: whatever it raises is its message, on one line
+        raise InputError(f"{path}: running it failed: {type(e).__name__}: "
+                         f"{' '.join(str(e).split())[:160]}") from None
+    effects = ns.get("EFFECTS")
+    if not isinstance(effects, (list, tuple)) or not effects:
+        raise InputError(f"{path}: must define EFFECTS, a non-empty list of effect dicts")
+    out = [_check(path, i, d) for i, d in enumerate(effects)]
+    names = [e.name for e in out]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: an effect name is declared twice")
+    return out
+
+
+def register(path: str | None) -> list[str]:
+    """Add a file's effects to the catalogue (this process); their names.  The same file again is
+    a no-op, so workers and repeated calls may register freely."""
+    if not path:
+        return []
+    names = []
+    for e in load_effects(path):
+        old = CATALOGUE.get(e.name)
+        if old is not None and old.declared_in == e.declared_in:
+            names.append(e.name)
+            continue
+        CATALOGUE[e.name] = e
+        names.append(e.name)
+    return names
