@@ -154,12 +154,13 @@ def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
 FIT_32 = r'''
 import micropython
 from acal.gaussnewton import GaussNewton
-from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR
+from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2
 
 PTS = %s
 AUX = %s
 fits = [(GaussNewton(18), 18, None), (GaussNewton(72), 72, None),
-        (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX)]
+        (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX),
+        (GaussNewton(72, (TEMP_OFFSET, TEMP_OFFSET2)), 72, AUX)]
 res = []
 for gn, n, aux in fits:
     micropython.heap_lock()
@@ -177,8 +178,9 @@ print(" ".join(res))
 def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     """The default profile's Gauss-Newton fit, with outlier rejection, under heap_lock where
     ints past 2^30 allocate: 18 points, its largest point count (72, the wear profile's 8 per
-    subset), and a composed model of all four effects over 72 points with temperatures and
-    times spread across the clamps.  Each runs to OK, bit-identical to CPython."""
+    subset), a composed model of all four first effects and one with the curved temperature
+    response over 72 points with temperatures and times spread across the clamps.  Each runs to
+    OK, bit-identical to CPython."""
     from acal import effects
     from acal.gaussnewton import GaussNewton
     from accelcal import simulate
@@ -197,7 +199,8 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     out = mp32(str(f)).split()
     kinds = (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)
     expect = []
-    for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux)):
+    curve = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2)
+    for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux), (curve, 72, aux)):
         gn = GaussNewton(n, kind)
         gn.run(pts, n, 20, a)
         expect.append("%d:%d:%d:%d" % (gn.status, gn.iterations, gn.rejected, gn.p[6]))
