@@ -30,6 +30,18 @@ def simulate_wrists(folder, cases: dict, days, rate) -> dict:
     return out
 
 
+def run_main(capsys, argv):
+    """The CLI's main(argv) in this process (bad-input corpora: hundreds of cases in seconds):
+    (exit status, stdout, stderr)."""
+    from accelcal import cli
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as e:   # argparse exits
+        code = e.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
 def run_cli(*args, cwd=None):
     """Run the installed CLI as a user does; returns CompletedProcess."""
     return subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, args)],

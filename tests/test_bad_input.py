@@ -10,18 +10,9 @@ import sys
 import numpy as np
 import pytest
 
-from accelcal import cli
+from conftest import run_main
 
 BAD_NUMBERS = ["nan", "inf", "-inf", "1e300", "-1", "abc", "", "0x10", "1e400", "10000000000"]
-
-
-def run_main(capsys, argv):
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as e:   # argparse exits
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from accelcal.model.effects import CATALOGUE
 from accelcal.methods import correct as base_correct
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from acal.fixed import PARAM_NAMES
-from conftest import run_cli, simulate_wrists
+from conftest import run_cli, run_main, simulate_wrists
 
 DAYS, RATE = 3, 10
 CASES = {"step": (31, "step"), "curve31": (31, "temp_offset2")}
@@ -199,13 +199,14 @@ def test_without_the_declaration_the_loop_says_what_remains(declared):
      "explanation='x')]", "only for the time regressor"),
     ("raise RuntimeError('no')", "running it failed: RuntimeError: no"),
 ])
-def test_a_bad_effects_file_is_one_line(recordings, tmp_path, body, says):
+def test_a_bad_effects_file_is_one_line(recordings, tmp_path, capsys, body, says):
     f = tmp_path / "bad.py"
     f.write_text(body)
-    for cmd in (["diagnose", recordings["step"]], ["calibrate", recordings["step"]]):
-        r = run_cli(*cmd, "--effects", f)
-        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-        assert says in r.stderr and "Traceback" not in r.stderr
+    for cmd in (["diagnose", recordings["step"]], ["calibrate", recordings["step"]],
+                ["apply", tmp_path / "none.json", recordings["step"], "-o", tmp_path / "out.csv"]):
+        code, _, err = run_main(capsys, [*cmd, "--effects", f])
+        assert code == 2 and err.count("\n") == 1, err
+        assert says in err and "Traceback" not in err
 
 
 def test_a_regressor_the_recording_lacks_is_one_line(tmp_path):

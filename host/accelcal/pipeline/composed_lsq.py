@@ -83,14 +83,18 @@ def change_point(r: np.ndarray, n: np.ndarray, t: np.ndarray) -> float:
     return float(0.5 * (t[k - 1] + t[k]))
 
 
-def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict) -> tuple[np.ndarray, dict]:
+def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict,
+                       rest_theta: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """fit(), first finding what the reference lacks: a step's time (change_point on the
-    residuals of the model without the step), then the whole model at that time."""
+    residuals of the model without the step - rest_theta, when the caller has fitted it
+    already), then the whole model at that time."""
     name = spec.change_point
     if name is None or "ts" in ref:
         return fit(spec, p, ref), ref
     rest = spec.without(name)
-    a, r = residuals(rest, fit(rest, p, ref), p, ref)
+    if rest_theta is None:
+        rest_theta = fit(rest, p, ref)
+    a, r = residuals(rest, rest_theta, p, ref)
     n = a / np.linalg.norm(a, axis=1)[:, None]
     ref = {**ref, "ts": change_point(r, n, p.t)}
     return fit(spec, p, ref), ref

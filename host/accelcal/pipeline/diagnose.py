@@ -53,7 +53,7 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     err = float(np.mean(np.abs(r)) * 1e3)
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
     where = where_it_fails(spec, theta, test, ref, r)
-    cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err)
+    cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err, theta)
              for name in CATALOGUE if name not in spec.effects]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
     best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
@@ -98,9 +98,11 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     return out
 
 
-def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: float) -> dict:
+def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: float,
+              theta) -> dict:
     """The model with one more effect (the last of cspec), fitted on the training blocks and
-    scored on the held-out ones: its error, how much lower than err, in how many blocks."""
+    scored on the held-out ones: its error, how much lower than err (that of the model without
+    it, fitted as theta), in how many blocks."""
     name = cspec.effects[-1]
     e = CATALOGUE[name]
     try:
@@ -109,7 +111,7 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
     except (InputError, ValueError) as why:
         return {"effect": name, "heldout_error_mg": None, "improvement_pct": None,
                 "blocks_improved_pct": None, "untestable": str(why)}
-    th, cref = fit_with_reference(cspec, train, ref)
+    th, cref = fit_with_reference(cspec, train, ref, rest_theta=theta)
     _, rc = residuals(cspec, th, test, cref)
     ec = float(np.mean(np.abs(rc)) * 1e3)
     gain = np.abs(r) - np.abs(rc)
