@@ -101,6 +101,7 @@ def test_host_effects_calibrate_save_and_apply(recordings, tmp_path):
     out = tmp_path / "calibrated.csv"
     r = run_cli("apply", params, path, "-o", out)
     assert r.returncode == 0, r.stderr
+    assert "applied on the host in float64" in r.stderr
     # the applied recording's rest points: the step is gone, nothing left to name
     after = diagnose(out, "base")
     assert after["missing_effect"] is None, after["explanation"]

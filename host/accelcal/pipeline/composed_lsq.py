@@ -41,8 +41,10 @@ def refs(p: RestPoints) -> dict:
             "t0": float(p.t.min())}
 
 
-def fit(spec: ModelSpec, p: RestPoints, ref: dict) -> np.ndarray:
-    """Float least squares of | |a| - 1 | over the points for a composed model."""
+def fit(spec: ModelSpec, p: RestPoints, ref: dict, start: np.ndarray | None = None) -> np.ndarray:
+    """Float least squares of | |a| - 1 | over the points for a composed model.  start: the
+    fitted parameters of the model without its last effect (that effect starts at 0), where the
+    caller has them: the same optimum, reached in fewer steps."""
     n_eff = len(spec.effects)
     x0 = np.r_[1, 1, 1, 0, 0, 0, 0, 0, 0, np.zeros(3 * n_eff)]
     lo = np.r_[[0.5] * 3, [-0.5] * 3, [-0.5] * 3]
@@ -50,6 +52,9 @@ def fit(spec: ModelSpec, p: RestPoints, ref: dict) -> np.ndarray:
     for name in spec.effects:
         b = CATALOGUE[name].bound
         lo, hi = np.r_[lo, [-b] * 3], np.r_[hi, [b] * 3]
+    if start is not None:
+        x0[:len(start)] = start
+        x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
     temp = p.temp if p.temp is not None else np.zeros(len(p.t))
 
     def resid(th):
@@ -86,18 +91,18 @@ def change_point(r: np.ndarray, n: np.ndarray, t: np.ndarray) -> float:
 def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict,
                        rest_theta: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """fit(), first finding what the reference lacks: a step's time (change_point on the
-    residuals of the model without the step - rest_theta, when the caller has fitted it
-    already), then the whole model at that time."""
+    residuals of the model without the step), then the whole model at that time.  rest_theta:
+    the fitted parameters of spec without its last effect, where the caller has them (diagnose's
+    candidates): the fit starts there, and a step that is that last effect searches its time on
+    that model's residuals."""
     name = spec.change_point
-    if name is None or "ts" in ref:
-        return fit(spec, p, ref), ref
-    rest = spec.without(name)
-    if rest_theta is None:
-        rest_theta = fit(rest, p, ref)
-    a, r = residuals(rest, rest_theta, p, ref)
-    n = a / np.linalg.norm(a, axis=1)[:, None]
-    ref = {**ref, "ts": change_point(r, n, p.t)}
-    return fit(spec, p, ref), ref
+    if name is not None and "ts" not in ref:
+        rest = spec.without(name)
+        th = rest_theta if rest_theta is not None and spec.effects[-1] == name else fit(rest, p, ref)
+        a, r = residuals(rest, th, p, ref)
+        n = a / np.linalg.norm(a, axis=1)[:, None]
+        ref = {**ref, "ts": change_point(r, n, p.t)}
+    return fit(spec, p, ref, rest_theta), ref
 
 
 def residuals(spec, theta, p, ref):
