@@ -101,3 +101,19 @@ def run_both(script, tmp_path, micropython="micropython"):
     with contextlib.redirect_stdout(buf):
         exec(compile(text, str(f), "exec"), {"__name__": "both"})
     return mp, buf.getvalue()
+
+
+def effect_orders():
+    """The compositions of the device's effects a worst case runs over: every order of every
+    subset of the five specific forms (kinds 1-5), and every ordered pair that holds a generic
+    offset (kinds 6-11).  Each effect's output is clamped to +-2.048 g before the next, so an
+    effect meets at worst a clamped reading whatever came before it: the pairs cover all a
+    generic offset can meet or hand on."""
+    import itertools
+    from acal import effects
+    specific = [k for k in effects.NAMES if k not in effects.SHAPES]
+    orders = [o for n in range(1, len(specific) + 1) for o in itertools.permutations(specific, n)]
+    orders += [o for o in itertools.permutations(effects.NAMES, 2)
+               if o[0] in effects.SHAPES or o[1] in effects.SHAPES]
+    orders += [(k,) for k in effects.SHAPES]
+    return orders

@@ -127,26 +127,27 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
 APPLY_SCRIPT = r'''
 from acal import effects
 from acal.model import Calibration
-kinds = (1, 3, 4)
-cal = Calibration(kinds)
-p = [16777216 + rnd(800000), 16777216 + rnd(800000), 16777216 + rnd(800000),
-     rnd(200000), rnd(200000), rnd(200000), rnd(900000), rnd(900000), rnd(900000)]
-for k in kinds:
-    p += [rnd(effects.BOUNDS[k]) for _ in range(3)]
-cal.set(p, 30, 5000)
-buf = [rnd(2097) for _ in range(3 * 500)]
-for j in range(10):
-    cal.temp = rnd(60) + 30
-    cal.time = 5000 + rnd(1 << 21)
-    if micropython:  # MicroPython: a MemoryError if the per-sample path allocates
-        micropython.heap_lock()
-    cal.apply_samples(buf, 50 * j, 50)
-    if micropython:
-        micropython.heap_unlock()
+buf = [rnd(2097) for _ in range(3 * 1000)]
+# the first effects; then a step and two generic offsets (time^4, temperature^4)
+for m, kinds in enumerate(((1, 3, 4), (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4))):
+    cal = Calibration(kinds)
+    p = [16777216 + rnd(800000), 16777216 + rnd(800000), 16777216 + rnd(800000),
+         rnd(200000), rnd(200000), rnd(200000), rnd(900000), rnd(900000), rnd(900000)]
+    for k in kinds:
+        p += [rnd(effects.BOUNDS[k]) for _ in range(3)]
+    cal.set(p, 30, 5000, 2000)
+    for j in range(10):
+        cal.temp = rnd(60) + 30
+        cal.time = 5000 + (rnd(1 << 21) if m == 0 else rnd(1 << 15))
+        if micropython:  # MicroPython: a MemoryError if the per-sample path allocates
+            micropython.heap_lock()
+        cal.apply_samples(buf, 500 * m + 50 * j, 50)
+        if micropython:
+            micropython.heap_unlock()
 print(" ".join([str(v) for v in buf]))
 '''
 
 
 def test_composed_apply_is_allocation_free_and_identical_under_micropython(tmp_path, mp):
     got, host = run_both(APPLY_SCRIPT, tmp_path, mp)   # both ports, the 32-bit one too
-    assert got.split() == host.split() and len(got.split()) == 1500
+    assert got.split() == host.split() and len(got.split()) == 3000

@@ -154,13 +154,18 @@ def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
 FIT_32 = r'''
 import micropython
 from acal.gaussnewton import GaussNewton
-from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2
+from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2, STEP
+from acal.effects import TIME_OFFSET2, TEMP_OFFSET4
+from acal.changepoint import ChangePoint
 
 PTS = %s
 AUX = %s
 fits = [(GaussNewton(18), 18, None), (GaussNewton(72), 72, None),
         (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX),
-        (GaussNewton(72, (TEMP_OFFSET, TEMP_OFFSET2)), 72, AUX)]
+        (GaussNewton(72, (TEMP_OFFSET, TEMP_OFFSET2)), 72, AUX),
+        (GaussNewton(72, (TIME_OFFSET2, TEMP_OFFSET4)), 72, AUX)]
+search = ChangePoint(72)
+step = GaussNewton(72, (TEMP_OFFSET, STEP))
 res = []
 for gn, n, aux in fits:
     micropython.heap_lock()
@@ -171,6 +176,16 @@ for gn, n, aux in fits:
     except MemoryError:
         micropython.heap_unlock()
         res.append("ALLOCATED")
+micropython.heap_lock()
+try:    # a step: searched on the four-effect fit's points, then fitted at its time
+    search.run(fits[2][0])
+    step.ts = search.ts
+    step.run(PTS, 72, 20, AUX)
+    micropython.heap_unlock()
+    res.append("%%d:%%d:%%d:%%d:%%d" %% (search.ts, search.at, step.status, step.iterations, step.p[12]))
+except MemoryError:
+    micropython.heap_unlock()
+    res.append("ALLOCATED")
 print(" ".join(res))
 '''
 
@@ -178,9 +193,10 @@ print(" ".join(res))
 def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     """The default profile's Gauss-Newton fit, with outlier rejection, under heap_lock where
     ints past 2^30 allocate: 18 points, its largest point count (72, the wear profile's 8 per
-    subset), a composed model of all four first effects and one with the curved temperature
-    response over 72 points with temperatures and times spread across the clamps.  Each runs to
-    OK, bit-identical to CPython."""
+    subset), a composed model of all four first effects, one with the curved temperature
+    response and one of two generic offsets over 72 points with temperatures and times spread
+    across the clamps, and a step: its time searched (acal/changepoint.py) on the four-effect
+    fit, then fitted.  Each runs bit-identical to CPython."""
     from acal import effects
     from acal.gaussnewton import GaussNewton
     from accelcal import simulate
@@ -200,10 +216,21 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     kinds = (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)
     expect = []
     curve = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2)
-    for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux), (curve, 72, aux)):
+    generic = (effects.TIME_OFFSET2, effects.TEMP_OFFSET4)
+    fits = []
+    for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux), (curve, 72, aux),
+                       (generic, 72, aux)):
         gn = GaussNewton(n, kind)
         gn.run(pts, n, 20, a)
+        fits.append(gn)
         expect.append("%d:%d:%d:%d" % (gn.status, gn.iterations, gn.rejected, gn.p[6]))
+    from acal.changepoint import ChangePoint
+    search = ChangePoint(72)
+    assert search.run(fits[2])
+    step = GaussNewton(72, (effects.TEMP_OFFSET, effects.STEP))
+    step.ts = search.ts
+    step.run(pts, 72, 20, aux)
+    expect.append("%d:%d:%d:%d:%d" % (search.ts, search.at, step.status, step.iterations, step.p[12]))
     assert out == expect, (out, expect)
     print(expect)
     assert expect[1].startswith("0:") and int(expect[1].split(":")[2]) >= 2

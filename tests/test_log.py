@@ -67,8 +67,10 @@ def test_truncation_at_every_byte(tmp_path):
 
 
 def test_torn_record_then_reboot_appends(tmp_path):
-    """A cut inside record i; the device reboots, opens its log and appends more records."""
-    recs = make_log(1000, seed=8)
+    """A cut at every byte inside every record of a 400-record log (all record types; the
+    1000-record cut above covers the length); the device reboots, opens its log and appends
+    more records."""
+    recs = make_log(400, seed=8)
     data, spans = write_with_device_log(tmp_path / "r.log", recs)
     after = recs[-3:]
     path = tmp_path / "torn.log"
@@ -91,7 +93,7 @@ def test_torn_record_then_reboot_appends(tmp_path):
                 assert decoded(got) == recs[:i] + after, (i, cut)
                 assert dropped == [(a, cut - a + log.PAD)]  # the torn bytes and the pad
             checked += 1
-    assert checked > 15000 and padded == checked
+    assert checked > 6000 and padded == checked
     # a cut on a record boundary needs no pad
     path.write_bytes(data[:spans[10][1]])
     assert not log.Log(str(path)).padded

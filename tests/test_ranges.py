@@ -10,6 +10,7 @@ from acal.model import Calibration
 from acal.optimiser import Optimiser
 from acal.rest import RestDetector
 from accelcal.bridge.ranges import SMALL_INT_LIMIT, Tracer, traced
+from conftest import effect_orders
 
 # The LIS3DH at +-2 g: 12-bit (1 mg), 10-bit (4 mg) and 8-bit (16 mg) digits, all reaching
 # -2.048 g .. +2.047 g, in Q10 g (device samples).
@@ -167,7 +168,8 @@ def test_gauss_newton_rows_stay_small_at_the_fit_region_corners():
 def test_effects_fit_form_stays_small_at_its_clamps():
     """effects.correct_u (the fit's form) for every effect with parameters at 4x their bounds
     (the fit region) and at the Jacobian rows' 2^22, readings at +-2.048 g, dT and dt at and far
-    past their clamps; and model.remove_effects over all four effects in every order."""
+    past their clamps; and model.remove_effects over the effects in every order
+    (conftest.effect_orders)."""
     import itertools
     from acal import effects, model
     tr = Tracer()
@@ -182,13 +184,13 @@ def test_effects_fit_form_stays_small_at_its_clamps():
                     for dT in (-1000, -32, 0, 32, 1000):
                         for dt in (-(1 << 28), -effects.FIT_TIME_MAX, 0, effects.FIT_TIME_MAX, 1 << 28):
                             u = [T(u0), T(-u0), T(w)]
-                            effects.correct_u(kind, p, 0, u, T(dT), T(dt))
-    for order in itertools.permutations(kinds):
+                            effects.correct_u(kind, p, 0, u, T(dT), T(dt), 0, T(0))
+    for order in effect_orders():
         for sgn in (-1, 1):
             p = [0] * 9 + [T(sgn * 4 * effects.BOUNDS[k]) for k in order for _ in range(3)]
             for u0 in (-w, w):
                 u = [T(u0), T(-u0), T(u0)]
-                model.remove_effects(p, order, u, 0, T(sgn * 1000), T(-sgn * (1 << 28)))
+                model.remove_effects(p, order, u, 0, T(sgn * 1000), T(-sgn * (1 << 28)), T(0))
                 assert max(abs(int(v)) for v in u) <= w
     assert tr.big == 0, (tr.big, np.log2(tr.max_abs))
 
@@ -244,10 +246,71 @@ def test_default_fit_stays_small_on_hostile_points(rng):
     pts = [int(c) for c in np.round(v * 65536).astype(np.int64).ravel()]
     aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=144)]
     aux[0::2] = [int(x) for x in rng.integers(-200, 200, size=72)]
-    kinds = tuple(effects.NAMES)
-    for k, a in (((), None), (kinds, aux)):
+    specific = tuple(k for k in effects.NAMES if k not in effects.SHAPES)
+    generic = (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4, effects.TIME_OFFSET2)
+    for k, a in (((), None), (specific, aux), (generic, aux)):
         tr = Tracer()
         T = traced(tr)
         gn = GaussNewton(72, k)
+        gn.ts = T(0)
         gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
+
+
+class _HeldFit:
+    """What acal/changepoint.py reads of a finished fit: points, their times, their residuals."""
+
+    def __init__(self, T, w, r, t):
+        self.n_given = len(r)
+        self.keep = [1] * len(r)
+        self.aux = [T(0) if k % 2 == 0 else T(t[k // 2]) for k in range(2 * len(r))]
+        self._w, self._r, self._T = w, r, T
+
+    def point(self, i, w):
+        for c in range(3):
+            w[c] = self._T(self._w[i][c])
+        return self._T(self._r[i])
+
+
+def test_change_point_search_stays_small_at_the_worst_case(rng):
+    """The step's search (acal/changepoint.py) over 128 points at +-2.048 g per axis (the fit's
+    clamp), residuals at and past their clamp, all of one sign or alternating, directions all
+    alike (a singular split, skipped), on the axes, or random: no intermediate reaches 2^30; and
+    a step put in noisy residuals is found as well as the host's float search finds it."""
+    from acal import model
+    from acal.changepoint import ChangePoint
+    from accelcal.pipeline.composed_lsq import change_point
+    tr = Tracer()
+    T = traced(tr)
+    w = model.FIT_W_MAX
+    big_r = 1 << 31                      # past any residual the fit makes (Q22 g^2)
+    n = 128
+    t = sorted(int(x) for x in rng.integers(-(1 << 20), 1 << 20, n))
+    cases = []
+    for sign in (1, -1):
+        cases.append(([(w, w, w)] * n, [sign * big_r] * n))
+        cases.append(([(w, w, w)] * n, [big_r * (-1) ** i for i in range(n)]))
+        axes = [tuple(w * sign * (c == i % 3) for c in range(3)) for i in range(n)]
+        cases.append((axes, [sign * big_r] * n))
+        corners = [tuple(int(c) for c in rng.choice([-w, w], 3)) for _ in range(n)]
+        cases.append((corners, [int(x) for x in rng.choice([-big_r, big_r], n)]))
+    for pts, r in cases:
+        ChangePoint(n).run(_HeldFit(T, pts, r, t))
+    assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
+    # a step in the residuals after point 80, seen through random directions: found there
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    jump = np.array([0.004, -0.003, 0.002])
+    res = 2 * (d @ jump) * (np.arange(n) >= 80) + rng.normal(scale=2e-4, size=n)
+    pts = [tuple(int(c) for c in row) for row in np.round(d * (1 << 24))]
+    cp = ChangePoint(n)
+    assert cp.run(_HeldFit(int, pts, [int(x) for x in np.round(res * (1 << 22))], t))
+    # the float search of the host (composed_lsq.change_point) on the same points finds the step;
+    # the device's split is one of the same worth, in float, to 1 % (its sums keep 9 bits)
+    k = int(np.searchsorted(t, change_point(res, d, np.array(t, dtype=float))))
+
+    def gain(k):
+        S, b = d[k:].T @ d[k:], d[k:].T @ res[k:]
+        return b @ np.linalg.solve(S, b)
+    assert abs(k - 80) <= 1 and cp.ts == t[cp.at], (cp.at, k)
+    assert gain(cp.at) >= 0.99 * gain(k), (cp.at, k, gain(cp.at), gain(k))

@@ -132,11 +132,10 @@ def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
 
 @st.composite
 def composed_cases(draw):
-    """A composed model inside the calibration bounds, samples to the extremes, dT and dt past
-    the device's clamps."""
+    """A composed model of any of the device's effects inside the calibration bounds, samples to
+    the extremes, dT and dt past the device's clamps, a step's time anywhere."""
     from acal import effects as deff
-    kinds = draw(st.lists(st.sampled_from([deff.TEMP_OFFSET, deff.TEMP_SCALE, deff.DRIFT,
-                                           deff.NONLINEAR]), min_size=1, max_size=4, unique=True))
+    kinds = draw(st.lists(st.sampled_from(sorted(deff.NAMES)), min_size=1, max_size=4, unique=True))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
     one = 1 << 24
     p = [int(v) for v in rng.integers(3 * one // 4, 5 * one // 4, 3)]
@@ -149,21 +148,23 @@ def composed_cases(draw):
     q[:8] = rng.choice([-16383, -2048, 2047, 16383], (8, 3))
     dT = rng.integers(-50, 51, n)
     dt = rng.integers(-(1 << 21), 1 << 21, n)
-    return tuple(kinds), p, q.astype(np.int64), dT, dt
+    dt[n // 2:] = rng.integers(-(1 << 15), 1 << 15, n - n // 2)   # inside the generic clamp too
+    step_time = int(rng.integers(-(1 << 15), 1 << 15))
+    return tuple(kinds), p, q.astype(np.int64), dT, dt, step_time
 
 
 @settings(max_examples=150, deadline=None)
 @given(composed_cases())
 def test_composed_apply_equals_the_device_calibration(case):
-    kinds, p, q, dT, dt = case
+    kinds, p, q, dT, dt, step_time = case
     cal = Calibration(kinds)
-    cal.set(p)
+    cal.set(p, 0, 0, step_time)
     dev = []
     for (x, y, z), a, b in zip(q.tolist(), dT.tolist(), dt.tolist()):
         cal.temp, cal.time = a, b
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
-    assert (twin.apply_params(p, q, kinds, dT, dt) == np.array(dev)).all()
+    assert (twin.apply_params(p, q, kinds, dT, dt, step_time=step_time) == np.array(dev)).all()
 
 
 def _with_gaps(src, dst):

@@ -113,15 +113,20 @@ class Processor:
             return   # a record the checksum passed but no fit could have made: not applied
         ref_temp = 0
         ref_time = 0
+        step_at = 0
         for j in range(len(self.kinds)):
             e = store.effects[j]
             ref_temp = e[2]
-            ref_time = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
+            at = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
+            if self.kinds[j] == effects.STEP:
+                step_at = at     # a step's record holds its time, not the reference
+            else:
+                ref_time = at
             for i in range(3):
                 self.params[N_PARAMS + 3 * j + i] = e[4 + i]
         for i in range(N_PARAMS):
             self.params[i] = rec[7 + i]
-        self.calibration.set(self.params, ref_temp, ref_time)
+        self.calibration.set(self.params, ref_temp, ref_time, step_at - ref_time)
 
     def _on_rest(self, x, y, z, subset):
         index = self.batch_start + self.pipe.position
@@ -224,14 +229,17 @@ class Processor:
         extra = []
         for j in range(len(self.kinds)):
             e = N_PARAMS + 3 * j
-            extra.append((self.index, self.kinds[j], pipe.ref_temp, pipe.ref_time,
+            at = pipe.ref_time   # a step's record holds the step's time instead
+            if self.kinds[j] == effects.STEP:
+                at += pipe.step_time
+            extra.append((self.index, self.kinds[j], pipe.ref_temp, at,
                           o.p[e], o.p[e + 1], o.p[e + 2]))
             self.log.write(log.EFFECT, *extra[j])
         if usable(status):
             self.calibrations = number
             for i in range(len(self.params)):
                 self.params[i] = o.p[i]
-            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time)
+            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time)
             if self.store is not None:
                 self.store.save(values, extra)
         if not self.kinds and pipe.fit == profiles.GRADIENT:

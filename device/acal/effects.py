@@ -8,6 +8,11 @@
 #   TEMP_SCALE   w = v - s dT v        (first order: (s dT)^2 < 1e-4 of the reading)
 #   DRIFT        w = v - d dt          dt: time from the model's reference time
 #   NONLINEAR    w = v - q v^2         per axis, v^2 with its sign lost (a quadratic response)
+# and the generic offsets, w = v - p x with a regressor x the device computes (SHAPES below):
+#   STEP         x = [dt >= ts]        the offsets jump once, at ts (a shock); ts is found by
+#                                      acal/changepoint.py and kept beside the parameters
+#   TIME_OFFSET2..4   x = (dt / 2**13)^2..4     the offset ageing along a curve in time
+#   TEMP_OFFSET3..4   x = (dT / 16)^3..4        higher powers of temperature
 # Three parameters per effect (x, y, z), in this order.
 #
 # Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).
@@ -20,6 +25,10 @@
 #   in Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days;
 #   both clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
+#   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (x <= 2**20 for
+#   (dT/16)^4) or dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16);
+#   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
+#   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> 14, k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
 #   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
 #   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region) - or, for the Jacobian rows of
@@ -37,8 +46,28 @@ TEMP_SCALE = const(2)
 DRIFT = const(3)
 NONLINEAR = const(4)
 TEMP_OFFSET2 = const(5)
+STEP = const(6)
+TIME_OFFSET2 = const(7)
+TIME_OFFSET3 = const(8)
+TIME_OFFSET4 = const(9)
+TEMP_OFFSET3 = const(10)
+TEMP_OFFSET4 = const(11)
 NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear",
-         TEMP_OFFSET2: "temp_offset2"}
+         TEMP_OFFSET2: "temp_offset2", STEP: "step", TIME_OFFSET2: "time_offset2",
+         TIME_OFFSET3: "time_offset3", TIME_OFFSET4: "time_offset4", TEMP_OFFSET3: "temp_offset3",
+         TEMP_OFFSET4: "temp_offset4"}
+# The generic offsets' regressors: (source, power).  A declared effect of one of these shapes
+# runs on the board as this kind (host: model/effects.py device_kind).
+SOURCE_TEMP = const(1)
+SOURCE_TIME = const(2)
+SOURCE_STEP = const(3)
+SHAPES = {STEP: (SOURCE_STEP, 1), TIME_OFFSET2: (SOURCE_TIME, 2), TIME_OFFSET3: (SOURCE_TIME, 3),
+          TIME_OFFSET4: (SOURCE_TIME, 4), TEMP_OFFSET3: (SOURCE_TEMP, 3),
+          TEMP_OFFSET4: (SOURCE_TEMP, 4)}
+X_Q = const(12)                   # the generic regressor's format
+GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
+GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
+GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
 DT_UNIT_S = const(64)
 APPLY_DT_MAX = const(32)          # degC either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
@@ -49,7 +78,19 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
           DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
           NONLINEAR: const(838861),      # 0.05 * 2**24
-          TEMP_OFFSET2: const(1073742)}  # 0.001 * 64 * 2**24
+          TEMP_OFFSET2: const(1073742),  # 0.001 * 64 * 2**24
+          STEP: GENERIC_BOUND, TIME_OFFSET2: GENERIC_BOUND, TIME_OFFSET3: GENERIC_BOUND,
+          TIME_OFFSET4: GENERIC_BOUND, TEMP_OFFSET3: GENERIC_BOUND, TEMP_OFFSET4: GENERIC_BOUND}
+
+
+def time_from_first(kinds):
+    """True when a model's reference time is its earliest point's rather than the middle of
+    their range: a power of time above 1 has an origin (ageing since the recording began) that
+    moving the reference would turn into a linear part the model may lack."""
+    for k in kinds:
+        if k in SHAPES and SHAPES[k][0] == SOURCE_TIME:
+            return True
+    return False
 
 
 def parse_model(spec):
@@ -86,10 +127,41 @@ def model_kinds(code):
     return tuple(kinds)
 
 
-def correct_u(kind, p, j, u, dT, dt, at=0):
+def regressor(kind, dT, dt, ts):
+    """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (degC), dt (64 s units), with a
+    step at ts (64 s units, as dt): SHAPES, clamped as the formats above say; each power an
+    exact floor (acal/wide.py)."""
+    source, power = SHAPES[kind]
+    if source == SOURCE_STEP:
+        return 65536 if dt >= ts else 0
+    if source == SOURCE_TEMP:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+        base = dT << 12                   # dT / 16 in Q16, <= 2**17
+    else:
+        if dt > GENERIC_TIME_MAX:
+            dt = GENERIC_TIME_MAX
+        elif dt < -GENERIC_TIME_MAX:
+            dt = -GENERIC_TIME_MAX
+        base = dt << 3                    # dt / 2**13 in Q16, <= 2**17
+    x = base
+    for _ in range(power - 1):
+        x = mul_shift(x, base, 16)        # <= 2**20
+    return x
+
+
+def correct_u(kind, p, j, u, dT, dt, at=0, ts=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
     place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
-    see the formats above); every intermediate stays below 2**30 (acal/wide.py)."""
+    see the formats above); ts: a step's time (as dt).  Every intermediate stays below 2**30
+    (acal/wide.py)."""
+    if kind >= STEP:
+        x = regressor(kind, dT, dt, ts)
+        for i in range(3):
+            u[at + i] -= mul_shift(p[j + i], x, 16)
+        return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX
@@ -120,15 +192,26 @@ def correct_u(kind, p, j, u, dT, dt, at=0):
 
 def apply_params(kind, p, j, k, m):
     """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
-    shift = 10 if kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2 else 6
+    if kind >= STEP:
+        shift = 8
+    elif kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2:
+        shift = 10
+    else:
+        shift = 6
     half = 1 << (shift - 1)
     for i in range(3):
         k[m + i] = (p[j + i] + half) >> shift
 
 
-def correct_sample(kind, k, m, w, x, y, z, dT, dt):
+def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
-    accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result)."""
+    accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result);
+    ts: a step's time (as dt)."""
+    if kind >= STEP:
+        r = regressor(kind, dT, dt, ts) >> 4     # Q12, <= 2**16
+        for i in range(3):
+            w[i] -= (k[m + i] * r) >> 14
+        return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX

@@ -136,6 +136,7 @@ class GaussNewton:
         self.rl = 0
         self.row_ready = False
         self.first = True
+        self.ts = 0                     # a step's time (as aux's dt), set before begin()
 
     # -- the fit as a whole ---------------------------------------------------------------------
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
@@ -147,8 +148,8 @@ class GaussNewton:
 
     def begin(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None, start=None):
         """Load n points (and for a composed model their dT, dt in aux) and start from p0, or
-        from the 9 parameters of start (a base fit's: a composed fit then starts where the
-        base model is best, effects at zero)."""
+        from start: its 9 parameters (a base fit's: a composed fit then starts where the base
+        model is best, effects at zero), or all of them when it holds as many as this fit."""
         if n > self.max_points:
             raise ValueError("more points than the optimiser was sized for")
         self.n = n
@@ -174,15 +175,15 @@ class GaussNewton:
         for i in range(n):
             index[i] = i
             keep[i] = 1
-        if self.kinds:
+        if aux is not None:   # the effects' regressors (and the points' times a step search reads)
             for i in range(2 * n):
                 self.aux[i] = aux[i]
         model.identity(self.p)
-        if start is not None:
-            for i in range(N_PARAMS):
-                self.p[i] = start[i]
         for i in range(N_PARAMS, self.n_params):
             self.p[i] = 0
+        if start is not None:
+            for i in range(N_PARAMS if len(start) < self.n_params else self.n_params):
+                self.p[i] = start[i]
         for k in range(self.n_params):
             self.sh[k] = 12 if k < N_PARAMS else 4   # ~1 g rows: 2**24, 2**16 -> 2**11
         self.tau = 0
@@ -238,9 +239,23 @@ class GaussNewton:
         at = 3 * i
         if self.kinds:
             return model.residual_effects(p, self.u, at, self.aux[2 * i], self.aux[2 * i + 1],
-                                          self.kinds, self.w)
+                                          self.kinds, self.w, self.ts)
         u = self.u
         return model.residual(p, u[at], u[at + 1], u[at + 2])
+
+    def point(self, i, w):
+        """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
+        (a list of 3, Q24 g): what acal/changepoint.py reads."""
+        at = 3 * i
+        if self.kinds:
+            r = self._res(self.p, i)
+            for c in range(3):
+                w[c] = self.w[c]
+            return r
+        u = self.u
+        for c in range(3):
+            w[c] = u[at + c]
+        return model.residual(self.p, u[at], u[at + 1], u[at + 2])
 
     def _row(self, i):
         # Residual of point i at p, its raw Jacobian row into d.
@@ -258,7 +273,7 @@ class GaussNewton:
         dt = self.aux[2 * i + 1]
         for c in range(3):
             w[c] = u[at + c]
-        model.remove_effects(p, kinds, w, 0, dT, dt)
+        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts)
         r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
         for c in range(3):
             q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
@@ -267,7 +282,7 @@ class GaussNewton:
             # parameters
             for c in range(3):
                 z[c] = u[at + c]
-            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0)
+            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts)
             j = N_PARAMS + 3 * k
             for c in range(3):
                 d[j + c] = z[c] - u[at + c]

@@ -19,7 +19,8 @@
 #                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
 #   EFFECT   <IBbI3i        after a CAL, one per effect of a composed model: sample index (the
 #                          CAL's), effect id (effects.py), reference temperature (degC) and time
-#                          (64 s units of running time), 3 parameters (Q24, effects.py fit form)
+#                          (64 s units of running time; a step's record: the step's time), 3
+#                          parameters (Q24, effects.py fit form)
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget

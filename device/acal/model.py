@@ -145,13 +145,14 @@ def residual_jacobian(p, ux, uy, uz, d):
     return r
 
 
-def remove_effects(p, kinds, w, at, dT, dt):
+def remove_effects(p, kinds, w, at, dT, dt, ts=0):
     """Remove a composed model's effects (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) from
-    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in.
+    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in
+    (ts: a step's time, as dt).
     Each result is clamped to +-FIT_W_MAX, as the apply clamps it (fixed.APPLY_W_MAX)."""
     k = len(kinds) - 1
     while k >= 0:
-        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at)
+        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at, ts)
         for c in range(at, at + 3):
             if w[c] > FIT_W_MAX:
                 w[c] = FIT_W_MAX
@@ -160,17 +161,17 @@ def remove_effects(p, kinds, w, at, dT, dt):
         k -= 1
 
 
-def residual_effects(p, u, at, dT, dt, kinds, w):
+def residual_effects(p, u, at, dT, dt, kinds, w, ts=0):
     """residual() of the point u[at:at+3] seen at dT, dt, with a composed model's effects removed
     first (into w, a list of 3), as objective_effects does it."""
     w[0] = u[at]
     w[1] = u[at + 1]
     w[2] = u[at + 2]
-    remove_effects(p, kinds, w, 0, dT, dt)
+    remove_effects(p, kinds, w, 0, dT, dt, ts)
     return residual(p, w[0], w[1], w[2])
 
 
-def objective_effects(p, u, aux, n, kinds, w):
+def objective_effects(p, u, aux, n, kinds, w, ts=0):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
     they act in), into w (a list of 3 n ints); the 9-parameter objective then reads w.
@@ -178,7 +179,7 @@ def objective_effects(p, u, aux, n, kinds, w):
     for i in range(3 * n):
         w[i] = u[i]
     for i in range(n):
-        remove_effects(p, kinds, w, 3 * i, aux[2 * i], aux[2 * i + 1])
+        remove_effects(p, kinds, w, 3 * i, aux[2 * i], aux[2 * i + 1], ts)
     return objective(p, w, n)
 
 
@@ -202,7 +203,7 @@ class Calibration:
     kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
     p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC)
     and `time` (64 s units) current, and the effects are removed with dT = temp - ref_temp and
-    dt = time - ref_time, the references the fit used (set())."""
+    dt = time - ref_time, the references the fit used (set()); a step at dt >= step_time."""
 
     def __init__(self, kinds=(), range_g=2):
         self.kinds = tuple(kinds)
@@ -217,6 +218,7 @@ class Calibration:
         self.time = 0
         self.ref_temp = 0
         self.ref_time = 0
+        self.step_time = 0
         self.x = 0
         self.y = 0
         self.z = 0
@@ -224,8 +226,9 @@ class Calibration:
         identity(p)
         self.set(p)
 
-    def set(self, p, ref_temp=0, ref_time=0):
-        """Take Q24 parameters; ValueError outside the bounds (the range proof needs them)."""
+    def set(self, p, ref_temp=0, ref_time=0, step_time=0):
+        """Take Q24 parameters (and a step's time, 64 s units from ref_time); ValueError outside
+        the bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
         shift = APPLY_PARAM_SHIFT + self.e
@@ -236,6 +239,7 @@ class Calibration:
             effects.apply_params(self.kinds[j], p, N_PARAMS + 3 * j, self.k, N_PARAMS + 3 * j)
         self.ref_temp = ref_temp
         self.ref_time = ref_time
+        self.step_time = step_time
 
     def apply(self, x, y, z):
         """Correct one sample; the result is in self.x, self.y, self.z (Q10 g).  A reading past
@@ -286,7 +290,8 @@ class Calibration:
         dt = self.time - self.ref_time
         j = len(self.kinds) - 1
         while j >= 0:
-            effects.correct_sample(self.kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)
+            effects.correct_sample(self.kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt,
+                                   self.step_time)
             for i in range(3):
                 if w[i] > APPLY_W_MAX:
                     w[i] = APPLY_W_MAX

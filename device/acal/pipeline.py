@@ -10,6 +10,7 @@ from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.profile import GRADIENT, NEWTON
 from acal import effects
+from acal.changepoint import ChangePoint, copy_params
 
 
 class Pipeline:
@@ -29,6 +30,10 @@ class Pipeline:
     paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
     NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
 
+    A model with a step (effects.STEP; NEWTON only): the model without the step is fitted
+    first, acal/changepoint.py finds the step's time on its residuals (step_time, 64 s units
+    from ref_time, which the calibration keeps), and the whole model is fitted from there.
+
     The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
     between FIFO reads), or calibrate() at once; the same integers either way.
 
@@ -46,18 +51,32 @@ class Pipeline:
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
         temp_differ = 0
         time_differ = 0
+        base_kinds = []
         for k in self.kinds:
-            if k == effects.TEMP_OFFSET or k == effects.TEMP_SCALE or k == effects.TEMP_OFFSET2:
+            source = effects.SHAPES[k][0] if k in effects.SHAPES else 0
+            if k == effects.TEMP_OFFSET or k == effects.TEMP_SCALE or k == effects.TEMP_OFFSET2 \
+                    or source == effects.SOURCE_TEMP:
                 temp_differ = TEMP_DIFFER
-            elif k == effects.DRIFT:
+            elif k == effects.DRIFT or source == effects.SOURCE_TIME or k == effects.STEP:
                 time_differ = TIME_DIFFER
+            if k != effects.STEP:
+                base_kinds.append(k)
         self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
                          fit == NEWTON)
         self.base_fit = None
+        self.search = None
+        self.step_time = 0
+        # the base fit: the paper's model, or for a model with a step the model without it
+        self.base_kinds = tuple(base_kinds) if len(base_kinds) < len(self.kinds) else ()
         if fit == NEWTON:
             self.optimiser = GaussNewton(N_SUBSETS * max_count, self.kinds, True)
             if self.kinds:  # the base fit of the same points: kept when the composed one fails
-                self.base_fit = GaussNewton(N_SUBSETS * max_count, (), True)
+                self.base_fit = GaussNewton(N_SUBSETS * max_count, self.base_kinds, True)
+                self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
+            if len(base_kinds) < len(self.kinds):
+                self.search = ChangePoint(N_SUBSETS * max_count)
+        elif len(base_kinds) < len(self.kinds):
+            raise ValueError("a step is found by the wear profile's fit (NEWTON)")
         else:
             self.optimiser = Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
         if iterations is None:
@@ -77,8 +96,8 @@ class Pipeline:
         self.worn = True
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
-        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 1 the
-        # model's own
+        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 3 a step's
+        # search, 1 the model's own
         self.n_fit = 0     # points gathered for the fit
 
     def offer(self, x, y, z):
@@ -122,6 +141,7 @@ class Pipeline:
         their ranges) and start the optimiser on them (a composed model with the wear
         profile's fit: the base fit of the same points first)."""
         self.stage = 1
+        self.step_time = 0
         if not self.kinds:
             self.n_fit = self.bins.gather(self.points)
             self.optimiser.begin(self.points, self.n_fit, self.iterations)
@@ -130,13 +150,13 @@ class Pipeline:
         n = self.bins.gather(self.points, aux)
         self.n_fit = n
         self.ref_temp = _middle(aux, 0, n)
-        self.ref_time = _middle(aux, 1, n)
+        self.ref_time = _middle(aux, 1, n, effects.time_from_first(self.kinds))
         for i in range(n):
             aux[2 * i] -= self.ref_temp
             aux[2 * i + 1] -= self.ref_time
         if self.base_fit is not None:
             self.stage = 0
-            self.base_fit.begin(self.points, n, self.iterations)
+            self.base_fit.begin(self.points, n, self.iterations, aux)
         else:
             self.optimiser.begin(self.points, n, self.iterations, aux)
 
@@ -152,9 +172,23 @@ class Pipeline:
             return False
         if self.stage == 2:
             b = self.base_fit
-            self.stage = 1
-            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
-                                 b.p if b.status == OK else None)
+            if self.search is not None:
+                if b.status != OK:   # nothing to search the step on
+                    self._keep_base(b.status)
+                    return True
+                self.search.begin(b)
+                self.stage = 3
+                return False
+            self._begin_model(b.status == OK)
+            return False
+        if self.stage == 3:
+            if not self.search.step():
+                return False
+            if not self.search.found:   # no split pins a step: the model without it stays
+                self._keep_base(BASE_KEPT_FAILED)
+                return True
+            self.step_time = self.search.ts
+            self._begin_model(True)
             return False
         if not self.optimiser.step():
             return False
@@ -172,11 +206,21 @@ class Pipeline:
                     self.bins.remove(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2])
         return True
 
+    def _begin_model(self, from_base):
+        # the model's own fit, from the base fit's parameters (the step's at zero)
+        b = self.base_fit
+        self.stage = 1
+        self.optimiser.ts = self.step_time
+        if from_base:
+            copy_params(b.p, self.base_kinds, self.start, self.kinds)
+        self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
+                             self.start if from_base else None)
+
     def _keep_base(self, why):
         o = self.optimiser
         b = self.base_fit
-        for i in range(o.n_params):
-            o.p[i] = b.p[i] if i < N_PARAMS else 0
+        copy_params(b.p, self.base_kinds, o.p, self.kinds)
+        o.n_given = b.n_given
         for i in range(o.n_given):
             o.keep[i] = b.keep[i]
         o.rejected = b.rejected
@@ -195,9 +239,10 @@ def _mean_above(f1, n1, f2, n2):
     return (f1 >> s) * n2 > (f2 >> s) * n1
 
 
-def _middle(cond, c, n):
+def _middle(cond, c, n, lowest=False):
     # Middle of the range of condition c over n points (floor): the fit's reference, so that
-    # dT and dt are centred and the effect terms do not trade with the offsets.
+    # dT and dt are centred and the effect terms do not trade with the offsets; or the lowest
+    # (effects.time_from_first).
     if n == 0:
         return 0
     lo = hi = cond[c]
@@ -207,4 +252,4 @@ def _middle(cond, c, n):
             lo = v
         elif v > hi:
             hi = v
-    return (lo + hi) >> 1
+    return lo if lowest else (lo + hi) >> 1

@@ -218,9 +218,11 @@ def summary(dirpath: str | Path) -> dict:
             if e["index"] == c["index"] and e["effect"] in deff.NAMES:
                 eff = CATALOGUE[deff.NAMES[e["effect"]]]
                 vals = eff.from_int([e["p0"], e["p1"], e["p2"]]) * eff.scale
+                # a step's record holds its time where the others hold the reference time
+                when = "step_time_s" if e["effect"] == deff.STEP else "ref_time_s"
                 c.setdefault("effects", {})[eff.name] = {
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
-                    "ref_temp": e["ref_temp"], "ref_time_s": e["ref_time"] * deff.DT_UNIT_S}
+                    "ref_temp": e["ref_temp"], when: e["ref_time"] * deff.DT_UNIT_S}
     rests = lg.dicts(log.REST)
     for r in rests:
         for k in "xyz":

@@ -151,6 +151,7 @@ class DeviceResult:
     selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time
     ref_temp: int = 0
     ref_time: int = 0
+    step_time: int = 0       # a step's time, 64 s units from ref_time
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
     temp_span: int = 0       # of the held points: degC
     time_span: int = 0       # 64 s units
@@ -263,7 +264,7 @@ class Collector:
         elif tag == "S":
             cur.selected_int.append(tuple(v[:5]))
         elif tag == "Z":
-            cur.ref_temp, cur.ref_time = v[0], v[1]
+            cur.ref_temp, cur.ref_time, cur.step_time = v[0], v[1], v[2]
         elif tag == "Y":
             cur.ready, cur.temp_span, cur.time_span = v[0] == 1, v[1], v[2]
             cur.covered = v[3] == 1

@@ -6,7 +6,7 @@ import json
 import sys
 
 from acal.fixed import PARAM_NAMES
-from accelcal.cli.options import float_in, int_in
+from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 
 
@@ -28,10 +28,10 @@ def _app_settings(args) -> dict:
         s["recal_seconds"] = int(args.recal_hours * 3600)
     if args.model != "base":
         from accelcal.model.effects import ModelSpec
+        register_effects(args)
         try:
             spec = ModelSpec.parse(args.model)
-            spec.kinds   # ValueError: an effect the board does not have
-            s["model"] = str(spec)
+            s["model"] = spec.device_model   # ValueError: an effect the board does not have
         except ValueError as e:
             raise InputError(str(e)) from None
     return s
@@ -141,7 +141,9 @@ def add_parsers(sub) -> None:
         g.add_argument("--recal-hours", type=float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "
-                            "one such as base+temp_offset (what `accelcal diagnose` named)")
+                            "one such as base+temp_offset (what `accelcal diagnose` named); a "
+                            "declared effect (--effects) runs as the device kind of its shape")
+        add_effects_arg(g)
         g.add_argument("--profile", choices=["wear", "paper"], default="wear",
                        help="wear (default): all-axis rest against the measured noise, 72 points, "
                             "Gauss-Newton with outlier rejection, sliced between FIFO reads; "

@@ -30,9 +30,10 @@ def cmd_report(args) -> int:
 
 def cmd_compare(args) -> int:
     from accelcal.pipeline.compare import compare_main
-    return compare_main(pipeline_config(args), path=args.input, methods_list=args.methods,
-                        train=args.train, runtime_name=args.runtime, plots=args.plots,
-                        as_json=args.json)
+    register_effects(args)
+    return compare_main(pipeline_config(args, args.model != "base"), path=args.input,
+                        methods_list=args.methods, train=args.train, runtime_name=args.runtime,
+                        plots=args.plots, as_json=args.json, model=args.model)
 
 
 def add_parsers(sub) -> None:
@@ -95,6 +96,11 @@ def add_parsers(sub) -> None:
     p.add_argument("--plots", metavar="DIR",
                    help="write training_curve.png: held-out error against the number of training "
                         "vectors per method (Gietzelt figure 3)")
+    p.add_argument("--model", default="base",
+                   help="also fit this composed model (base+EFFECT...: the catalogue's or yours, "
+                        "--effects) by the device pipeline and by lsq on the same training points, "
+                        "scored on the same held-out points: two more rows")
+    add_effects_arg(p)
     p.add_argument("--json", action="store_true")
     add_pipeline_args(p)
     p.set_defaults(func=cmd_compare)

@@ -6,7 +6,6 @@ import json
 import math
 from pathlib import Path
 
-from acal import effects as deffects
 from acal import fixed
 from acal import model as dmodel
 from accelcal.errors import InputError
@@ -41,7 +40,7 @@ def _effects_within(spec: ModelSpec, p_int) -> bool:
     """Every effect parameter inside its bound: the device's test where the device has the
     effect, the catalogue's bound in the same Q24 units where only the host does."""
     if not spec.host_only:
-        kinds = tuple(deffects.parse_model(str(spec)))
+        kinds = spec.kinds
         return not kinds or dmodel.effects_within(p_int, kinds, 1)
     for k, name in enumerate(spec.effects):
         e = CATALOGUE[name]

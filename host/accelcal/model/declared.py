@@ -14,8 +14,11 @@ a candidate like the built-in ones and calibrate (lsq) and apply fit and apply i
 
 The regressor x per axis is (T - T0)^power with T0 the mean temperature, ((t - t0) / 1 day)^power
 with t0 the first time, [t >= ts] for a step, or the axis's own reading^power.  Such effects are
-linear in their parameters; the device has no generic form for them yet, so they are fitted and
-applied on the host (docs/model-discovery.md "Effects you declare")."""
+linear in their parameters.  On the board an effect runs as the device kind of its shape
+(model/effects.py device_kind): an offset in temperature or time to a power 1..4, a step, a gain
+linear in temperature, an offset in the squared reading; the device's bound for that shape then
+holds (0.05 g per unit of its normalised regressor for the generic offsets).  Other shapes are
+fitted and applied on the host (docs/model-discovery.md "Effects you declare")."""
 from __future__ import annotations
 
 import math
@@ -49,7 +52,7 @@ def _check(path: str, i: int, d) -> Effect:
     if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_]{0,23}", name) or name == "base":
         raise InputError(f"{where}: name must be lower-case letters, digits and _ (a model spec "
                          f"part), found {name!r:.40}")
-    if name in CATALOGUE:
+    if name in CATALOGUE and CATALOGUE[name].declared_in != str(path):
         raise InputError(f"{where}: {name!r} is already an effect; choose another name")
     reg = d["regressor"]
     if reg not in REGRESSORS:

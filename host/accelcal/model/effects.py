@@ -9,13 +9,18 @@ An effect adds to what the sensor measures, after the 9-parameter errors (v = me
     step         v += j [t >= ts]            offset jumps once, at ts (a shock; g per axis)
     nonlinear    v += q v^2                  quadratic response per axis (1/g)
 
+and shapes the device runs (its generic offsets) that diagnose does not try unless a user
+declares an effect of that shape (model/declared.py) or names one in a model:
+    time_offset2..4  v += p ((t - t0) / 1 day)^2..4      temp_offset3..4  v += p (T - T0)^3..4
+
 The same declaration serves the simulator (`measure`: add the effect with true values), the
 fits (`correct`: remove it with fitted values, before the 9-parameter correction) and the reports
 (names, units, bounds, the regressor to plot residuals against, the physics in a sentence).
 T0 and t0 are references taken from the data a model is fitted on (mean temperature, first time),
 stored with the fitted parameters; ts, a step's time, is found by a change-point search
 (pipeline/composed_lsq.py) and stored beside them.  Effects without a device form (`kind` None)
-are fitted and applied on the host only.
+are fitted and applied on the host only; every other effect runs on the board as the device
+kind of its shape (device_kind).
 """
 from __future__ import annotations
 
@@ -53,6 +58,7 @@ class Effect:
     change_point: bool = False   # the time regressor is a step at ts, found by the fit
     sim_reference: tuple = ()    # simulator: the truth's own reference, e.g. (("T0", 33.0),)
     declared_in: str | None = None   # a user's effects file (model/declared.py); None: built in
+    candidate: bool = True  # diagnose tries it (the device's generic shapes: only when named)
 
     @property
     def param_names(self) -> list[str]:
@@ -83,15 +89,20 @@ class Effect:
     # Device integers (device/acal/effects.py): Q24 per normalised regressor.
     @property
     def kind(self) -> int | None:
-        """The device's id for the effect, None for an effect fitted and applied on the host."""
-        return {v: k for k, v in deff.NAMES.items()}.get(self.name)
+        """The device's id for the effect's shape, None for an effect fitted and applied on the
+        host only."""
+        return device_kind(self.needs, self.power, self.form, self.change_point)
 
     @property
     def int_scale(self) -> float:
-        if self.needs == "temp":   # per 16 degC, per 64 degC^2 (device/acal/effects.py)
+        """The device's Q24 per normalised regressor (device/acal/effects.py): temperature per
+        16 degC (temp_offset2: per 64 degC^2), time per 2048 units of 64 s (drift) or, for the
+        generic powers, per 2**13 units; a step and the reading per 1."""
+        if self.needs == "temp":
             per = {1: 16.0, 2: 64.0}.get(self.power, 16.0 ** self.power)
-        elif self.needs == "t":
-            per = 1.0 if self.change_point else (2048 * deff.DT_UNIT_S / 86400.0) ** self.power
+        elif self.needs == "t" and not self.change_point:
+            unit = 2048 if self.power == 1 else 1 << deff.GENERIC_TIME_SHIFT
+            per = (unit * deff.DT_UNIT_S / 86400.0) ** self.power
         else:
             per = 1.0
         return per * (1 << 24)
@@ -113,6 +124,38 @@ class Effect:
         if self.change_point:
             ref["ts"] = float(rng.uniform(0.25, 0.75) * span_s)
         return ref
+
+
+_TEMP_KINDS = {1: deff.TEMP_OFFSET, 2: deff.TEMP_OFFSET2, 3: deff.TEMP_OFFSET3, 4: deff.TEMP_OFFSET4}
+_TIME_KINDS = {1: deff.DRIFT, 2: deff.TIME_OFFSET2, 3: deff.TIME_OFFSET3, 4: deff.TIME_OFFSET4}
+
+
+def device_kind(needs: str | None, power: int, form: str, change_point: bool) -> int | None:
+    """The device kind (acal.effects) that computes an effect of this shape, None when the
+    device has none: offsets in a power of temperature or time (1..4) or a step in time, a gain
+    linear in temperature, an offset in the squared reading.  Gains in time, higher gains in
+    temperature and other powers of the reading run on the host only."""
+    if form == "gain":
+        return deff.TEMP_SCALE if (needs, power) == ("temp", 1) else None
+    if needs == "temp":
+        return _TEMP_KINDS.get(power)
+    if needs == "t":
+        return deff.STEP if change_point else _TIME_KINDS.get(power)
+    return deff.NONLINEAR if power == 2 else None
+
+
+_GENERIC_DAYS = (1 << deff.GENERIC_TIME_SHIFT) * deff.DT_UNIT_S / 86400.0   # 6.07 days
+_GENERIC_BOUND = deff.GENERIC_BOUND / float(1 << 24)                        # 0.05 g
+
+
+def _shape(name: str, needs: str, power: int, unit: str, report_unit: str, bound: float,
+           what: str) -> Effect:
+    # One of the device's generic offsets as a built-in effect (not a diagnose candidate).
+    reg = "temperature" if needs == "temp" else "time"
+    return Effect(name, f"{name}_", unit, 1e3, report_unit, bound,
+                  (bound / 10, bound / 4), needs, reg,
+                  f"The offset follows {what}: a shape the device computes (its generic offsets), "
+                  "for an effect a user declares with it.", power=power, candidate=False)
 
 
 CATALOGUE: dict[str, Effect] = {e.name: e for e in (
@@ -143,6 +186,17 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
            "proportionally at larger accelerations (LIS3DH: +-0.5 % of full scale), so the error "
            "depends on the squared reading of that axis, and on which side of zero it is.",
            power=2),
+    # bounds: the device's 0.05 g per unit of its normalised regressor
+    _shape("time_offset2", "t", 2, "g/day^2", "mg/day^2", _GENERIC_BOUND / _GENERIC_DAYS ** 2,
+           "the square of time"),
+    _shape("time_offset3", "t", 3, "g/day^3", "mg/day^3", _GENERIC_BOUND / _GENERIC_DAYS ** 3,
+           "the cube of time"),
+    _shape("time_offset4", "t", 4, "g/day^4", "mg/day^4", _GENERIC_BOUND / _GENERIC_DAYS ** 4,
+           "the fourth power of time"),
+    _shape("temp_offset3", "temp", 3, "g/degC^3", "mg/degC^3", _GENERIC_BOUND / 16 ** 3,
+           "the cube of temperature"),
+    _shape("temp_offset4", "temp", 4, "g/degC^4", "mg/degC^4", _GENERIC_BOUND / 16 ** 4,
+           "the fourth power of temperature"),
 )}
 
 
@@ -197,6 +251,12 @@ class ModelSpec:
                              "it is fitted and applied on the host (calibrate --method lsq "
                              "--points all)")
         return tuple(CATALOGUE[n].kind for n in self.effects)
+
+    @property
+    def device_model(self) -> str:
+        """The model as the device names it (acal.effects.NAMES): a declared effect by the
+        device kind of its shape."""
+        return "+".join(("base",) + tuple(deff.NAMES[k] for k in self.kinds))
 
     @property
     def change_point(self) -> str | None:

@@ -112,6 +112,9 @@ def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config,
             raise InputError(f"model {spec}: {', '.join(spec.host_only)} has no device form yet; "
                              "fit it on the host with --method lsq --points all")
         return spec, replace(cfg, kinds=(), conditions=True)
+    if method == "device" and deff.STEP in spec.kinds and cfg.fit != dprofile.NEWTON:
+        raise InputError(f"model {spec}: a step's time is found by the wear profile's fit "
+                         f"(--profile wear); the {cfg.profile} profile has no search for it")
     return spec, replace(cfg, kinds=spec.kinds)
 
 
@@ -189,10 +192,11 @@ def _float_fit_record(rec, g, r, spec, method, v, cond):
                              cond[:, 0].astype(float), np.zeros(len(v)), "points")
             if spec.host_only:   # the host's references, as diagnose takes them
                 ref = refs(pts)
-            else:   # the middle of the points' ranges, as the device takes them
+            else:   # the middle of the points' ranges (or their first time), as the device
+                lo, hi = int(cond[:, 1].min()), int(cond[:, 1].max())
+                at = lo if deff.time_from_first(spec.kinds) else (lo + hi) >> 1
                 ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
-                       "t0": g.t_first + ((int(cond[:, 1].min()) + int(cond[:, 1].max())) >> 1)
-                       * float(deff.DT_UNIT_S)}
+                       "t0": g.t_first + at * float(deff.DT_UNIT_S)}
             theta, ref = fit_with_reference(spec, pts, ref)
             p_int = spec.to_int(theta)
     except methods.FitError as e:
@@ -205,7 +209,10 @@ def _params_record(rec, g, r, spec, method, p_int, ref=None):
     """rec with the parameters (decoded and Q24) and the error after; ref: a composed model's
     references (None: the device fit's)."""
     if spec.effects:
-        ref = ref or {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+        if ref is None:   # the device fit's references, and a step's time it found
+            ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+            if spec.change_point:
+                ref["ts"] = ref["t0"] + r.step_time * deff.DT_UNIT_S
         rec.update(model=str(spec), method=method,
                    scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
                          "g, 1/degC, g/day, 1/g",
@@ -341,7 +348,13 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
-    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1]))
+    step_time = 0
+    if spec.change_point:   # from ts on, as the device compares whole 64 s units
+        if "ts" not in ref:
+            raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
+        step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
+    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1],
+                                         step_time=step_time))
 
 
 def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str) -> np.ndarray:

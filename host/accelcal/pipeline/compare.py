@@ -9,6 +9,11 @@ select the calibration points for each of the compared calibration algorithms"),
 --train all on every training rest point.  All are scored on the held-out part with the Table 3
 metric, mean | |a| - 1 g | in mg, before and after, and the improvement R (eq. 21).  Fit times
 are measured in this run, one fit each.
+
+With a composed model (--model base+EFFECT..., effects of the catalogue or declared with
+--effects), two more rows fit it on the same training part: the device's integer pipeline (where
+the device has every effect's form) and float least squares on every training rest point; both
+are scored on the same held-out points, each at its conditions.
 """
 from __future__ import annotations
 
@@ -100,8 +105,58 @@ def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str)
     return p, time.perf_counter() - t0, None
 
 
+def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, before: float) -> list:
+    """The composed model's rows: the device pipeline on the training points (in stream order,
+    with their conditions) and lsq on every training point, scored on the held-out points."""
+    from dataclasses import replace
+    from accelcal.pipeline.calibrate import result_record
+    from accelcal.pipeline.composed_lsq import fit_with_reference, refs
+    rows = []
+    for name in ("device", "lsq"):
+        t0 = time.perf_counter()
+        row = {"method": name, "model": str(spec), "error_before_mg": before,
+               "role": "the device's integer pipeline" if name == "device"
+               else "float least squares on every training rest point"}
+        try:
+            if name == "device":
+                if spec.host_only:
+                    raise methods.FitError(f"{', '.join(spec.host_only)} has no device form")
+                g = runtime.Group("train", points=sp.train.v, temp=sp.train.temp, t=sp.train.t)
+                c = replace(cfg, kinds=spec.kinds)
+                r = runtime.run([g], c, runtime_name)[0]
+                rec = result_record({}, g, r, c, spec, "device")
+                if rec.get("status") != "calibrated":
+                    raise methods.FitError(rec.get("reason") or rec.get("status", "failed"))
+                theta, ref = spec.from_int(list(rec["params_int"].values())), rec["reference"]
+                row["points"] = rec["points"]
+                if rec.get("note"):
+                    row["note"] = rec["note"]
+            else:
+                methods.check_points(sp.train.v, 9 + 3 * len(spec.effects), "lsq")
+                theta, ref = fit_with_reference(spec, sp.train, refs(sp.train))
+                row["points"] = len(sp.train)
+        except (methods.FitError, InputError) as e:
+            row.update(status="failed", reason=str(e), error_after_mg=None, improvement_pct=None,
+                       params=None, points=row.get("points", 0),
+                       fit_ms=(time.perf_counter() - t0) * 1e3)
+            rows.append(row)
+            continue
+        row["fit_ms"] = (time.perf_counter() - t0) * 1e3
+        test = sp.test
+        temp = test.temp if test.temp is not None else np.zeros(len(test))
+        a = spec.correct(theta, test.v, temp, test.t, ref)
+        after = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+        row.update(status="calibrated", reason=None, error_after_mg=after,
+                   improvement_pct=100 * before / after if after > 0 else None,
+                   params=dict(zip(spec.param_names, np.round(theta, 9).tolist())),
+                   reference=ref)
+        rows.append(row)
+    return rows
+
+
 def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
-            runtime_name: str = "cpython", say=lambda m: None) -> tuple[CompareResult, Split]:
+            runtime_name: str = "cpython", say=lambda m: None,
+            spec=None) -> tuple[CompareResult, Split]:
     """The comparison (JSON-ready) and the split it was made on."""
     say(f"{path}: rest detection (the device's detector, {cfg.profile} profile)")
     sp = split_points(path, cfg)
@@ -134,6 +189,13 @@ def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "sele
                        improvement_pct=100 * before / after if after > 0 else None,
                        params=dict(zip(fixed.PARAM_NAMES, np.round(p, 7).tolist())))
         rows.append(row)
+    if spec is not None and spec.effects:
+        say(f"  fitting {spec} (device, lsq)")
+        try:
+            spec.check_data(sp.train.temp, sp.train.t, path)
+        except ValueError as e:
+            raise InputError(str(e)) from None
+        rows += composed_rows(spec, sp, cfg, runtime_name, before)
     return CompareResult(input=path, profile=cfg.profile, split=sp.how, training=training,
                          rest_points={"train": len(sp.train), "heldout": len(sp.test)},
                          heldout="every held-out rest point",
@@ -202,14 +264,19 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 
 def compare_main(cfg: runtime.Config, *, path: str, methods_list: str | None,
                  train: str = "selected", runtime_name: str = "cpython", plots: str | None,
-                 as_json: bool = False) -> int:
+                 as_json: bool = False, model: str = "base") -> int:
+    from accelcal.model.effects import ModelSpec
     names = parse_methods(methods_list)
+    try:
+        spec = ModelSpec.parse(model)
+    except ValueError as e:
+        raise InputError(str(e)) from None
     if plots:
         check_output_dir(plots, [path], "--plots")
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = as_json or not sys.stderr.isatty()
     say = (lambda m: None) if quiet else (lambda m: print(m, file=sys.stderr, flush=True))
-    out, sp = compare(path, names, cfg, train, runtime_name, say)
+    out, sp = compare(path, names, cfg, train, runtime_name, say, spec)
     if plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, runtime_name)

@@ -54,7 +54,7 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
     where = where_it_fails(spec, theta, test, ref, r)
     cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err, theta)
-             for name in CATALOGUE if name not in spec.effects]
+             for name in CATALOGUE if name not in spec.effects and CATALOGUE[name].candidate]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
     best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
     plain = [c for c in testable if not CATALOGUE[c["effect"]].change_point]

@@ -179,14 +179,18 @@ class CompareResult(dict):
     def table(self) -> str:
         """The table `compare` prints."""
         rp = self["rest_points"]
-        hdr = (f"{'method':<10}{'points':>7}{'fit ms':>9}{'before mg':>11}{'after mg':>10}"
+        models = {r.get("model", "base") for r in self["rows"]}
+        names = [r["method"] if len(models) == 1 else f"{r['method']} ({r.get('model', 'base')})"
+                 for r in self["rows"]]
+        w = max([10] + [len(n) + 2 for n in names])
+        hdr = (f"{'method':<{w}}{'points':>7}{'fit ms':>9}{'before mg':>11}{'after mg':>10}"
                f"{'R (eq.21)':>11}  status")
         lines = [f"{self['input']}: {rp['train']} training / {rp['heldout']} held-out rest points "
                  f"({self['split']})",
                  f"fitted on {self['training']}; scored on {self['heldout']}: {self['metric']}\n",
                  hdr, "-" * (len(hdr) + 20)]
-        for r in self["rows"]:
-            head = f"{r['method']:<10}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
+        for r, name in zip(self["rows"], names):
+            head = f"{name:<{w}}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
             if r["status"] == "calibrated":
                 imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
                 lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  ok")

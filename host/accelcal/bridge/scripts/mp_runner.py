@@ -24,7 +24,7 @@
 #   S x y z temp time          every point the bins hold at the end (Q16 g)
 #   Y ready temp_span time_span covered   the bins' verdict (1/0), the held points' spread,
 #                              and whether they cover every axis (bins.covered(), 1/0)
-#   Z ref_temp ref_time        the fit's reference conditions (composed models)
+#   Z ref_temp ref_time step_time  the fit's reference conditions (composed models), a step's time
 #   F status iterations objective_start objective p0 ... p8 [3 per effect]
 #   D n k0 ... k(n-1)          NEWTON: the points the fit was given (in S order) kept (1) or
 #                              rejected as outliers (0)
@@ -95,7 +95,7 @@ class Runner:
         emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0])
         status = pipe.calibrate()
         o = pipe.optimiser
-        emit("Z", [pipe.ref_temp, pipe.ref_time])
+        emit("Z", [pipe.ref_temp, pipe.ref_time, pipe.step_time])
         q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:

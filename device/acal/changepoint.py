@@ -1,0 +1,249 @@
+# Where a step (effects.STEP: the offsets jump once, a shock) happened: the change-point search
+# of docs/model-discovery.md "More effects", in integers, on the points a fit holds.
+#
+# The model without the step is fitted first (pipeline.py).  A step d in the offsets from ts on
+# moves each later point's residual r = |a|^2 - 1 by about 2 n . d (n: the point's direction),
+# so a split k of the time-sorted points is scored by how much an offset step after it would
+# explain: the least-squares gain  g_k = b_k^T S_k^-1 b_k  with S_k = sum n n^T and b_k = sum n r
+# over the points after the split (the host's composed_lsq.change_point, the same rule in float).
+# All splits are scored in one backward pass of running sums; ts is the first time after the
+# best split.  At least MIN_SIDE_SHIFT's share of the points (1/8) stays on either side, and a
+# split falls between distinct times.
+#
+# Formats.  n: the point's reading with the other effects removed, Q24 g >> 17 (Q7, |n| <= 2**8
+# at 2.048 g); r: Q22 g^2 >> 8, clamped to +-2**13.  Sums over <= 128 points: |S| < 2**23,
+# |b| < 2**28.  A split's score: S and b shifted to 9 bits (S', b'), the adjugate A of S'
+# (< 2**19), det = S' . A (< 3 * 2**28, positive for a split that pins all three directions:
+# one below 2**-8 of the product of the diagonal is skipped as undetermined), A b' (< 2**29.6),
+# num = b' . (A b' >> 11) (< 2**29.2); then g = num / det 2**(11 + 2 tb - ts) as a mantissa of 13
+# bits and an exponent, compared as such.  Every intermediate stays below 2**30: the search
+# allocates nothing on a 32-bit port.
+#
+# Sliced like the fit: begin() then step() until it returns True, SLICE points a step.
+from acal.fixed import N_PARAMS
+
+MIN_SIDE_SHIFT = 3
+SLICE = 8
+R_SHIFT = 8
+R_MAX = 1 << 13
+N_SHIFT = 17
+SCALE_BITS = 9
+GUARD_SHIFT = 8
+NONE = -1 << 29      # a split not scored
+
+_READ = 0    # residuals and directions, point by point
+_SORT = 1    # the points' order in time
+_SCAN = 2    # the backward pass
+_DONE = 3
+
+
+class ChangePoint:
+    """Preallocated for max_points.  After the search: found (True when a split was scored),
+    ts (the time of the first point after the best split, as the points' dt), at (the number
+    of points before it)."""
+
+    def __init__(self, max_points):
+        self.t = [0] * max_points
+        self.n = [0] * (3 * max_points)
+        self.r = [0] * max_points
+        self.order = [0] * max_points
+        self.s = [0] * 6          # S: xx yy zz xy xz yz
+        self.b = [0] * 3
+        self.w = [0, 0, 0]
+        self.m = 0
+        self.pos = 0
+        self.phase = _DONE
+        self.fit = None
+        self.found = False
+        self.ts = 0
+        self.at = 0
+        self.best_m = 0
+        self.best_e = NONE
+
+    def begin(self, fit):
+        """Search on the points a finished fit (gaussnewton.GaussNewton, the model without the
+        step) kept, at its parameters."""
+        self.fit = fit
+        self.m = 0
+        self.pos = 0
+        self.found = False
+        self.best_m = 0
+        self.best_e = NONE
+        self.phase = _READ
+
+    def step(self):
+        """One slice; True when the search has ended."""
+        if self.phase == _READ:
+            self._read()
+        elif self.phase == _SORT:
+            self._sort()
+        elif self.phase == _SCAN:
+            self._scan()
+        return self.phase == _DONE
+
+    def run(self, fit):
+        self.begin(fit)
+        while not self.step():
+            pass
+        return self.found
+
+    def _read(self):
+        fit = self.fit
+        w = self.w
+        end = self.pos + SLICE
+        if end > fit.n_given:
+            end = fit.n_given
+        for i in range(self.pos, end):
+            if not fit.keep[i]:
+                continue
+            r = fit.point(i, w) >> R_SHIFT
+            if r > R_MAX:
+                r = R_MAX
+            elif r < -R_MAX:
+                r = -R_MAX
+            m = self.m
+            self.t[m] = fit.aux[2 * i + 1]
+            self.r[m] = r
+            for c in range(3):
+                self.n[3 * m + c] = w[c] >> N_SHIFT
+            self.order[m] = m
+            self.m = m + 1
+        self.pos = end
+        if end == fit.n_given:
+            self.pos = 1
+            self.phase = _SORT
+
+    def _sort(self):
+        # insertion sort of order by time, SLICE points a step (stable: equal times keep order)
+        order = self.order
+        t = self.t
+        end = self.pos + SLICE
+        if end > self.m:
+            end = self.m
+        for i in range(self.pos, end):
+            v = order[i]
+            j = i - 1
+            while j >= 0 and t[order[j]] > t[v]:
+                order[j + 1] = order[j]
+                j -= 1
+            order[j + 1] = v
+        self.pos = end
+        if end >= self.m:
+            for c in range(6):
+                self.s[c] = 0
+            for c in range(3):
+                self.b[c] = 0
+            self.pos = self.m - 1
+            self.phase = _SCAN
+
+    def _scan(self):
+        # splits k = pos, pos - 1, ...: the points k.. m-1 after the split
+        order = self.order
+        lo = self.m >> MIN_SIDE_SHIFT
+        if lo < 1:
+            lo = 1
+        hi = self.m - lo
+        stop = self.pos - SLICE
+        if stop < lo - 1:
+            stop = lo - 1
+        k = self.pos
+        while k > stop:
+            q = order[k]
+            self._add(q)
+            if k < hi and self.t[q] > self.t[order[k - 1]]:
+                self._score(k)
+            k -= 1
+        self.pos = k
+        if k < lo:
+            self.phase = _DONE
+
+    def _add(self, q):
+        n = self.n
+        x = n[3 * q]
+        y = n[3 * q + 1]
+        z = n[3 * q + 2]
+        s = self.s
+        s[0] += x * x
+        s[1] += y * y
+        s[2] += z * z
+        s[3] += x * y
+        s[4] += x * z
+        s[5] += y * z
+        r = self.r[q]
+        b = self.b
+        b[0] += x * r
+        b[1] += y * r
+        b[2] += z * r
+
+    def _score(self, k):
+        s = self.s
+        b = self.b
+        ss = _shift_to(max(s[0], s[1], s[2]), SCALE_BITS)
+        bs = _shift_to(max(abs(b[0]), abs(b[1]), abs(b[2])), SCALE_BITS)
+        xx = s[0] >> ss
+        yy = s[1] >> ss
+        zz = s[2] >> ss
+        xy = s[3] >> ss
+        xz = s[4] >> ss
+        yz = s[5] >> ss
+        bx = b[0] >> bs
+        by = b[1] >> bs
+        bz = b[2] >> bs
+        a00 = yy * zz - yz * yz
+        a11 = xx * zz - xz * xz
+        a22 = xx * yy - xy * xy
+        a01 = xz * yz - xy * zz
+        a02 = xy * yz - xz * yy
+        a12 = xy * xz - xx * yz
+        det = xx * a00 + xy * a01 + xz * a02
+        if det <= 0 or det < ((xx * yy) * zz) >> GUARD_SHIFT:
+            return
+        yx = a00 * bx + a01 * by + a02 * bz
+        yy_ = a01 * bx + a11 * by + a12 * bz
+        yz_ = a02 * bx + a12 * by + a22 * bz
+        num = bx * (yx >> 11) + by * (yy_ >> 11) + bz * (yz_ >> 11)
+        if num <= 0:
+            return
+        # num / det as a 13-bit mantissa and an exponent
+        e = 11 + 2 * bs - ss
+        while num < (1 << 28):
+            num <<= 1
+            e -= 1
+        while det >= (1 << 15):   # num / det = num / (2 det'): the exponent falls
+            det >>= 1
+            e -= 1
+        while det < (1 << 14):
+            det <<= 1
+            e += 1
+        m = num // det           # [2**13, 2**15)
+        while m >= (1 << 14):
+            m >>= 1
+            e += 1
+        if e > self.best_e or (e == self.best_e and m > self.best_m):
+            self.best_e = e
+            self.best_m = m
+            self.found = True
+            self.ts = self.t[self.order[k]]
+            self.at = k
+
+
+def _shift_to(v, bits):
+    # the smallest s >= 0 with v >> s < 2**bits (v >= 0)
+    s = 0
+    while (v >> s) >= (1 << bits):
+        s += 1
+    return s
+
+
+def copy_params(src, src_kinds, dst, dst_kinds):
+    """A fit's parameters (9, then 3 per effect of src_kinds) into a composed model's (dst_kinds):
+    the nine, each effect both hold, and zero for the others (the step the search adds)."""
+    for i in range(N_PARAMS):
+        dst[i] = src[i]
+    for k in range(len(dst_kinds)):
+        j = -1
+        for m in range(len(src_kinds)):
+            if src_kinds[m] == dst_kinds[k]:
+                j = m
+        for c in range(3):
+            dst[N_PARAMS + 3 * k + c] = src[N_PARAMS + 3 * j + c] if j >= 0 else 0
