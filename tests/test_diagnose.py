@@ -149,11 +149,20 @@ def test_device_fits_the_composed_model_in_integers(recordings, effect, profile)
     assert dev["error_after_mg"] < (3.5 if profile == "paper" else 1.5) * lsq["error_after_mg"], (dev, lsq)
 
 
-def test_composed_device_fit_is_bit_identical_under_micropython(recordings):
-    cp = calibrate(recordings["temp_offset"], "base+temp_offset")
-    mp = calibrate(recordings["temp_offset"], "base+temp_offset", "--runtime", "micropython")
+def test_composed_device_fit_is_bit_identical_under_micropython(recordings, tmp_path):
+    """The composed pipeline (bins spread in temperature and time, the fit) on every 8th rest
+    point of the recording, as a points file with t and temp: the same record under MicroPython
+    (every rest point through the MicroPython bins takes half a minute; the fraction keeps the
+    spread and the coverage)."""
+    from accelcal.pipeline.restpoints import rest_points
+    p = rest_points(str(recordings["temp_offset"]))
+    pts = tmp_path / "points.csv"
+    np.savetxt(pts, np.column_stack([p.v, p.t, p.temp])[::8], delimiter=",", fmt="%.6f",
+               header="x,y,z,t,temp", comments="")
+    cp = calibrate(pts, "base+temp_offset")
+    mp = calibrate(pts, "base+temp_offset", "--runtime", "micropython")
     assert cp.pop("runtime") == "cpython" and mp.pop("runtime") == "micropython"
-    assert cp == mp and cp["status"] == "calibrated"
+    assert cp == mp and cp["status"] == "calibrated" and cp["points"] >= 36
 
 
 def test_applying_the_composed_calibration_leaves_nothing_to_name(recordings, tmp_path):
