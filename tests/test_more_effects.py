@@ -144,6 +144,8 @@ def test_the_device_refuses_what_it_cannot_fit_in_one_line(recordings, tmp_path,
                      "bound=0.01, explanation='x')]")
     for args, says in (
             (["calibrate", path, "--model", "base+step", "--profile", "paper"], "wear profile"),
+            (["deploy", "--port", tmp_path / "no-port", "--model", "base+step", "--profile",
+              "paper"], "wear profile"),
             (["calibrate", path, "--model", "base+cubic", "--effects", cubed], "no device form"),
             (["calibrate", path, "--model", "base+cubic", "--effects", cubed, "--method", "lsq"],
              "no device form"),

@@ -32,6 +32,10 @@ def _app_settings(args) -> dict:
         try:
             spec = ModelSpec.parse(args.model)
             s["model"] = spec.device_model   # ValueError: an effect the board does not have
+            from acal import effects as deff
+            if deff.STEP in spec.kinds and args.profile != "wear":
+                raise ValueError(f"model {spec}: a step's time is found by the wear profile's "
+                                 "fit; the paper profile has no search for it")
         except ValueError as e:
             raise InputError(str(e)) from None
     return s

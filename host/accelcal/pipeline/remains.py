@@ -22,13 +22,15 @@ UNITS = {"time_h": "h", "temp_c": "degC", "ax": "g", "ay": "g", "az": "g", "abs_
 # (regressor, shape) -> the kind of effect that would fit it.
 SUGGEST = {
     ("time_h", "trend"): "an offset drifting with time: the catalogue's drift",
-    ("time_h", "curve"): "ageing that is not linear: declare an effect whose regressor is a power "
-                         "of time (--effects FILE)",
+    ("time_h", "curve"): "ageing that is not linear: drift with time_offset2 (the device's shape "
+                         "for time squared, named in --model; it runs on the board), or an effect "
+                         "you declare on a power of time (--effects FILE)",
     ("time_h", "step"): "an offset that jumps once (a shock, a re-mounting): the catalogue's step",
     ("temp_c", "trend"): "an offset or sensitivity moving with temperature: temp_offset or temp_scale",
     ("temp_c", "curve"): "an offset curved in temperature: temp_offset2",
-    ("temp_c", "step"): "a response that changes at one temperature (hysteresis, a heater): declare "
-                        "an effect with a temperature step (--effects FILE)",
+    ("temp_c", "step"): "a response that changes at one temperature (hysteresis, a heater): "
+                        "temp_offset2 or temp_offset3 follow it smoothly; a step in temperature "
+                        "cannot be declared yet (a step is in time only)",
     ("abs_a", "trend"): "a common scale error: check the base fit's points cover every axis",
     ("abs_a", "curve"): "a response not linear in the reading: nonlinear",
     ("abs_a", "step"): "a response that differs by orientation: declare an effect on the reading",
