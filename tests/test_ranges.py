@@ -263,6 +263,7 @@ class _HeldFit:
     def __init__(self, T, w, r, t):
         self.n_given = len(r)
         self.keep = [1] * len(r)
+        self.srt = [0] * len(r)
         self.aux = [T(0) if k % 2 == 0 else T(t[k // 2]) for k in range(2 * len(r))]
         self._w, self._r, self._T = w, r, T
 
@@ -295,7 +296,7 @@ def test_change_point_search_stays_small_at_the_worst_case(rng):
         corners = [tuple(int(c) for c in rng.choice([-w, w], 3)) for _ in range(n)]
         cases.append((corners, [int(x) for x in rng.choice([-big_r, big_r], n)]))
     for pts, r in cases:
-        ChangePoint(n).run(_HeldFit(T, pts, r, t))
+        ChangePoint().run(_HeldFit(T, pts, r, t))
     assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
     # a step in the residuals after point 80, seen through random directions: found there
     d = rng.normal(size=(n, 3))
@@ -303,7 +304,7 @@ def test_change_point_search_stays_small_at_the_worst_case(rng):
     jump = np.array([0.004, -0.003, 0.002])
     res = 2 * (d @ jump) * (np.arange(n) >= 80) + rng.normal(scale=2e-4, size=n)
     pts = [tuple(int(c) for c in row) for row in np.round(d * (1 << 24))]
-    cp = ChangePoint(n)
+    cp = ChangePoint()
     assert cp.run(_HeldFit(int, pts, [int(x) for x in np.round(res * (1 << 22))], t))
     # the float search of the host (composed_lsq.change_point) on the same points finds the step;
     # the device's split is one of the same worth, in float, to 1 % (its sums keep 9 bits)

@@ -19,6 +19,11 @@
 # bits and an exponent, compared as such.  Every intermediate stays below 2**30: the search
 # allocates nothing on a 32-bit port.
 #
+# Memory (an RP2040's heap holds the whole app): nothing per point of its own.  The points'
+# order in time lives in the finished fit's sort buffer (GaussNewton.srt, scratch once the fit
+# has ended), their times are read from the fit's aux, and each point's residual and direction
+# are computed from the fit (GaussNewton.point) when the backward pass reaches it.
+#
 # Sliced like the fit: begin() then step() until it returns True, SLICE points a step.
 from acal.fixed import N_PARAMS
 
@@ -31,25 +36,21 @@ SCALE_BITS = 9
 GUARD_SHIFT = 8
 NONE = -1 << 29      # a split not scored
 
-_READ = 0    # residuals and directions, point by point
-_SORT = 1    # the points' order in time
+_READ = 0    # the kept points
+_SORT = 1    # their order in time
 _SCAN = 2    # the backward pass
 _DONE = 3
 
 
 class ChangePoint:
-    """Preallocated for max_points.  After the search: found (True when a split was scored),
-    ts (the time of the first point after the best split, as the points' dt), at (the number
-    of points before it)."""
+    """After the search: found (True when a split was scored), ts (the time of the first point
+    after the best split, as the points' dt), at (the number of points before it)."""
 
-    def __init__(self, max_points):
-        self.t = [0] * max_points
-        self.n = [0] * (3 * max_points)
-        self.r = [0] * max_points
-        self.order = [0] * max_points
+    def __init__(self):
         self.s = [0] * 6          # S: xx yy zz xy xz yz
         self.b = [0] * 3
         self.w = [0, 0, 0]
+        self.order = None         # the fit's sort buffer, while a search runs
         self.m = 0
         self.pos = 0
         self.phase = _DONE
@@ -64,6 +65,7 @@ class ChangePoint:
         """Search on the points a finished fit (gaussnewton.GaussNewton, the model without the
         step) kept, at its parameters."""
         self.fit = fit
+        self.order = fit.srt
         self.m = 0
         self.pos = 0
         self.found = False
@@ -87,27 +89,18 @@ class ChangePoint:
             pass
         return self.found
 
+    def _time(self, k):
+        return self.fit.aux[2 * self.order[k] + 1]
+
     def _read(self):
         fit = self.fit
-        w = self.w
         end = self.pos + SLICE
         if end > fit.n_given:
             end = fit.n_given
         for i in range(self.pos, end):
-            if not fit.keep[i]:
-                continue
-            r = fit.point(i, w) >> R_SHIFT
-            if r > R_MAX:
-                r = R_MAX
-            elif r < -R_MAX:
-                r = -R_MAX
-            m = self.m
-            self.t[m] = fit.aux[2 * i + 1]
-            self.r[m] = r
-            for c in range(3):
-                self.n[3 * m + c] = w[c] >> N_SHIFT
-            self.order[m] = m
-            self.m = m + 1
+            if fit.keep[i]:
+                self.order[self.m] = i
+                self.m += 1
         self.pos = end
         if end == fit.n_given:
             self.pos = 1
@@ -116,14 +109,15 @@ class ChangePoint:
     def _sort(self):
         # insertion sort of order by time, SLICE points a step (stable: equal times keep order)
         order = self.order
-        t = self.t
+        aux = self.fit.aux
         end = self.pos + SLICE
         if end > self.m:
             end = self.m
         for i in range(self.pos, end):
             v = order[i]
+            tv = aux[2 * v + 1]
             j = i - 1
-            while j >= 0 and t[order[j]] > t[v]:
+            while j >= 0 and aux[2 * order[j] + 1] > tv:
                 order[j + 1] = order[j]
                 j -= 1
             order[j + 1] = v
@@ -138,7 +132,6 @@ class ChangePoint:
 
     def _scan(self):
         # splits k = pos, pos - 1, ...: the points k.. m-1 after the split
-        order = self.order
         lo = self.m >> MIN_SIDE_SHIFT
         if lo < 1:
             lo = 1
@@ -148,20 +141,25 @@ class ChangePoint:
             stop = lo - 1
         k = self.pos
         while k > stop:
-            q = order[k]
-            self._add(q)
-            if k < hi and self.t[q] > self.t[order[k - 1]]:
+            self._add(self.order[k])
+            if k < hi and self._time(k) > self._time(k - 1):
                 self._score(k)
             k -= 1
         self.pos = k
         if k < lo:
             self.phase = _DONE
 
-    def _add(self, q):
-        n = self.n
-        x = n[3 * q]
-        y = n[3 * q + 1]
-        z = n[3 * q + 2]
+    def _add(self, i):
+        # point i of the fit: its residual and direction, into the running sums
+        w = self.w
+        r = self.fit.point(i, w) >> R_SHIFT
+        if r > R_MAX:
+            r = R_MAX
+        elif r < -R_MAX:
+            r = -R_MAX
+        x = w[0] >> N_SHIFT
+        y = w[1] >> N_SHIFT
+        z = w[2] >> N_SHIFT
         s = self.s
         s[0] += x * x
         s[1] += y * y
@@ -169,7 +167,6 @@ class ChangePoint:
         s[3] += x * y
         s[4] += x * z
         s[5] += y * z
-        r = self.r[q]
         b = self.b
         b[0] += x * r
         b[1] += y * r
@@ -223,7 +220,7 @@ class ChangePoint:
             self.best_e = e
             self.best_m = m
             self.found = True
-            self.ts = self.t[self.order[k]]
+            self.ts = self._time(k)
             self.at = k
 
 

@@ -74,7 +74,7 @@ class Pipeline:
                 self.base_fit = GaussNewton(N_SUBSETS * max_count, self.base_kinds, True)
                 self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
             if len(base_kinds) < len(self.kinds):
-                self.search = ChangePoint(N_SUBSETS * max_count)
+                self.search = ChangePoint()
         elif len(base_kinds) < len(self.kinds):
             raise ValueError("a step is found by the wear profile's fit (NEWTON)")
         else:
