@@ -1,7 +1,7 @@
-"""`make bench` (slow): the device app itself (CPython, the simulated LIS3DH behind the fake I2C
-bus) wearing a wrist with a shock for two days, with base+step: its calibrations find the step's
-time and size, log them (the step's EFFECT record holds ts), and the host's replay of the raw
-capture reproduces every record."""
+"""The device app itself (CPython, the simulated LIS3DH behind the fake I2C bus) wearing a wrist
+with a shock for two days, with base+step: its calibrations find the step's time and size, log
+them (the step's EFFECT record holds ts), and the host's replay of the raw capture reproduces
+every record.  The same on the virtual board over mpremote is slow (`make bench`)."""
 import json
 import os
 import sys
@@ -16,8 +16,8 @@ from conftest import run_cli
 RATE = 10
 
 
-@pytest.mark.slow
 def test_the_app_finds_and_removes_a_shock(tmp_path):
+    """In the default run (about 30 s): the board's own code path, app to log to replay."""
     sys.path.insert(0, str(CHIP_DIR))
     from simboard import SimBoard
     from acal import effects as deff, log
