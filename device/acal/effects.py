@@ -1,6 +1,6 @@
 # Physical effects beyond the paper's 9 parameters, in integers: their application on the device.
-# host/accelcal/effects.py declares each effect once for the host (names, units, bounds, physics,
-# plots) and converts its parameters to and from the integers here.
+# host/accelcal/model/effects.py declares each effect once for the host (names, units, bounds,
+# physics, plots) and converts its parameters to and from the integers here.
 #
 # An effect is removed from a reading v (g) before the 9-parameter correction a = K (w + o):
 #   TEMP_OFFSET  w = v - c dT          dT: degC from the model's reference temperature
