@@ -203,14 +203,19 @@ def apply_params(kind, p, j, k, m):
         k[m + i] = (p[j + i] + half) >> shift
 
 
+def offset_sample(k, m, w, r):
+    """A generic offset's per-sample form: w -= k r, r its regressor >> 4 (Q12, <= 2**16), k in
+    Q16 (apply_params), w in Q14."""
+    for i in range(3):
+        w[i] -= (k[m + i] * r) >> 14
+
+
 def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
     accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result);
     ts: a step's time (as dt)."""
     if kind >= STEP:
-        r = regressor(kind, dT, dt, ts) >> 4     # Q12, <= 2**16
-        for i in range(3):
-            w[i] -= (k[m + i] * r) >> 14
+        offset_sample(k, m, w, regressor(kind, dT, dt, ts) >> 4)
         return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:

@@ -219,6 +219,12 @@ class Calibration:
         self.ref_temp = 0
         self.ref_time = 0
         self.step_time = 0
+        # the generic offsets' regressors (Q12), computed when temp or time changes, not per
+        # sample (effects.regressor: up to three wide products)
+        self.r = [0] * len(self.kinds)
+        self.r_valid = False
+        self.r_temp = 0
+        self.r_time = 0
         self.x = 0
         self.y = 0
         self.z = 0
@@ -240,6 +246,7 @@ class Calibration:
         self.ref_temp = ref_temp
         self.ref_time = ref_time
         self.step_time = step_time
+        self.r_valid = False
 
     def apply(self, x, y, z):
         """Correct one sample; the result is in self.x, self.y, self.z (Q10 g).  A reading past
@@ -288,10 +295,21 @@ class Calibration:
         w[2] = z << APPLY_FROM_SAMPLE_SHIFT
         dT = self.temp - self.ref_temp
         dt = self.time - self.ref_time
-        j = len(self.kinds) - 1
+        kinds = self.kinds
+        r = self.r
+        if not self.r_valid or self.temp != self.r_temp or self.time != self.r_time:
+            for j in range(len(kinds)):
+                if kinds[j] >= effects.STEP:
+                    r[j] = effects.regressor(kinds[j], dT, dt, self.step_time) >> 4
+            self.r_valid = True
+            self.r_temp = self.temp
+            self.r_time = self.time
+        j = len(kinds) - 1
         while j >= 0:
-            effects.correct_sample(self.kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt,
-                                   self.step_time)
+            if kinds[j] >= effects.STEP:   # correct_sample's form, with the regressor kept
+                effects.offset_sample(self.k, N_PARAMS + 3 * j, w, r[j])
+            else:
+                effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)
             for i in range(3):
                 if w[i] > APPLY_W_MAX:
                     w[i] = APPLY_W_MAX
