@@ -149,8 +149,7 @@ class Pipeline:
         aux = self.aux
         n = self.bins.gather(self.points, aux)
         self.n_fit = n
-        self.ref_temp = _middle(aux, 0, n)
-        self.ref_time = _middle(aux, 1, n, effects.time_from_first(self.kinds))
+        self.ref_temp, self.ref_time = references(aux, n, self.kinds)
         for i in range(n):
             aux[2 * i] -= self.ref_temp
             aux[2 * i + 1] -= self.ref_time
@@ -239,10 +238,16 @@ def _mean_above(f1, n1, f2, n2):
     return (f1 >> s) * n2 > (f2 >> s) * n1
 
 
+def references(cond, n, kinds):
+    """A composed fit's reference temperature and time over n points' conditions (flat: temp,
+    time per point): the middle of each range (floor), so that dT and dt are centred and the
+    effect terms do not trade with the offsets; for a model with a power of time above 1, the
+    earliest time (effects.time_from_first)."""
+    return _middle(cond, 0, n), _middle(cond, 1, n, effects.time_from_first(kinds))
+
+
 def _middle(cond, c, n, lowest=False):
-    # Middle of the range of condition c over n points (floor): the fit's reference, so that
-    # dT and dt are centred and the effect terms do not trade with the offsets; or the lowest
-    # (effects.time_from_first).
+    # the middle (or the lowest) of condition c over n points
     if n == 0:
         return 0
     lo = hi = cond[c]

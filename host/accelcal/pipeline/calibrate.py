@@ -192,11 +192,11 @@ def _float_fit_record(rec, g, r, spec, method, v, cond):
                              cond[:, 0].astype(float), np.zeros(len(v)), "points")
             if spec.host_only:   # the host's references, as diagnose takes them
                 ref = refs(pts)
-            else:   # the middle of the points' ranges (or their first time), as the device
-                lo, hi = int(cond[:, 1].min()), int(cond[:, 1].max())
-                at = lo if deff.time_from_first(spec.kinds) else (lo + hi) >> 1
-                ref = {"T0": float((int(cond[:, 0].min()) + int(cond[:, 0].max())) >> 1),
-                       "t0": g.t_first + at * float(deff.DT_UNIT_S)}
+            else:   # the device's references (acal.pipeline.references)
+                from acal.pipeline import references
+                ref_temp, ref_time = references([int(c) for c in cond.ravel()], len(cond),
+                                                spec.kinds)
+                ref = {"T0": float(ref_temp), "t0": g.t_first + ref_time * float(deff.DT_UNIT_S)}
             theta, ref = fit_with_reference(spec, pts, ref)
             p_int = spec.to_int(theta)
     except methods.FitError as e:
