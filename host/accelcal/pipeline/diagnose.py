@@ -52,7 +52,8 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     _, r = residuals(spec, theta, test, ref)
     err = float(np.mean(np.abs(r)) * 1e3)
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
-    where = where_it_fails(spec, theta, test, ref, r)
+    regs = regressors(spec, theta, test, ref)
+    where = where_it_fails(regs, r)
     cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err, theta)
              for name in CATALOGUE if name not in spec.effects and CATALOGUE[name].candidate]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
@@ -83,7 +84,7 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
     remains = None
     if named is None and err > WELL_ABOVE * floor:
-        remains = what_remains(regressors(spec, theta, test, ref), r * 1e3)
+        remains = what_remains(regs, r * 1e3)
         if remains:
             explanation += " " + remains["text"]
     out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
@@ -137,10 +138,10 @@ def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:
     return regs
 
 
-def where_it_fails(spec, theta, test, ref, r) -> dict:
-    """Held-out residuals against each regressor: correlation and the residual's spread across
-    the regressor's quintiles (mg) - a flat line is a model that does not fail there."""
-    regs = regressors(spec, theta, test, ref)
+def where_it_fails(regs: dict, r) -> dict:
+    """Held-out residuals against each regressor (regressors()): correlation and the residual's
+    spread across the regressor's quintiles (mg) - a flat line is a model that does not fail
+    there."""
     out = {}
     for k, x in regs.items():
         if np.ptp(x) == 0:
