@@ -21,3 +21,5 @@ chip = _hw.chip
 bus = _hw.bus
 i2c = _hw.i2c
 exhausted = _hw.exhausted
+if _hw.has_supply():   # a stimulus with the simulated battery: the board reads its supply
+    supply_mv = _hw.supply_mv

@@ -42,6 +42,24 @@ def run_main(capsys, argv):
     return code, out, err
 
 
+def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):
+    """deploy MODEL to the virtual board (the MicroPython unix port on a pty, an RP2040-sized
+    160 kB heap) with the real mpremote, acquire `hours` of the stimulus, pull: (the pulled
+    summary, its folder)."""
+    import json
+    from accelcal.board import virtual
+    with virtual.Running(tmp_path / "flash", stim, "--heap", "160k") as b:
+        app = ["--rate", rate, "--capture-kb", 12000, "--model", model, "--recal-hours", 6]
+        r = run_cli("deploy", "--port", b.port, *app)
+        assert r.returncode == 0, r.stderr
+        r = run_cli("acquire", "--port", b.port, "--hours", hours, *app)
+        assert r.returncode == 0, r.stderr
+        out = tmp_path / "pulled"
+        r = run_cli("pull", "--port", b.port, "-o", out, "--json")
+        assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout), out
+
+
 def run_cli(*args, cwd=None):
     """Run the installed CLI as a user does; returns CompletedProcess."""
     return subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, args)],

@@ -137,6 +137,15 @@ def bad_files(tmp_path_factory):
         "empty.csv": "",
         "backwards.csv": "t,x,y,z\n" + "".join(f"{(500 - i) / 10:.1f},0,0,1\n" for i in range(500)),
         "nant.csv": "t,x,y,z\n" + "nan,0,0,1\n" * 500,
+        # further named columns (battery voltage, ...): checked as the others
+        "col_nan.csv": "t,x,y,z,temp,battery_v\n" + "".join(f"{i / 10:.1f},0,0,1,25,nan\n"
+                                                            for i in range(500)),
+        "col_huge.csv": "t,x,y,z,battery_v\n" + "".join(f"{i / 10:.1f},0,0,1,1e300\n"
+                                                      for i in range(500)),
+        "col_text.csv": "t,x,y,z,battery_v\n" + "".join(f"{i / 10:.1f},0,0,1,low\n"
+                                                      for i in range(500)),
+        "col_short.csv": "t,x,y,z,battery_v\n" + "".join(f"{i / 10:.1f},0,0,1\n"
+                                                       for i in range(500)),
         "garbage.cwa": bytes(range(256)) * 40,
         "garbage.bin": b"Device Identity\r\nDevice Unique Serial Code:x\r\n" + bytes(300),
         "garbage.gt3x": b"PK\x03\x04" + bytes(200),

@@ -110,3 +110,49 @@ def test_composed_bins_are_ready_only_with_the_spread():
                                    (0, G, 0), (0, 0, -G), (G, G // 10, 0), (0, 0, G)]):
         b2.offer(x, y, z, 30 + (k == 4) * 4)
     assert min(b2.counts) == 1 and b2.ready()
+
+
+def test_the_board_supply_is_a_third_condition():
+    """With supply_differ (a model following the board's supply, mV) the same orientation at a
+    supply 100 mV away differs, a full subset widens its supply range, and ready() needs the
+    span; without it the supply is ignored."""
+    b = Bins(1, 2, differ=G // 10, supply_differ=bins.SUPPLY_DIFFER)
+
+    def only_xp(x, y, z):
+        return int(x * G), int(y * G), int(z * G)
+
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 3900) == 2
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 3950) == -1       # 50 mV: the same point
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 4000) == 2        # 100 mV: differs
+    assert b.offer(*only_xp(0.8, 0.45, 0.35), 0, 0, 3700) == 2      # full: widens 3900..4000
+    assert sorted(b.condition(2, k)[2] for k in range(2)) == [3700, 3900]
+    assert b.supply_span() == 200 and b.temp_span() == 0
+    r = Bins(1, 1, supply_differ=bins.SUPPLY_DIFFER)
+    pts = [(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G), (0, G, 0),
+           (0, 0, -G), (G, G // 10, 0), (0, 0, G)]
+    for k, p in enumerate(pts):
+        r.offer(*p, 30, 0, 3900 + (k == 4) * 60)
+    assert min(r.counts) == 1 and not r.ready()            # 60 mV: not spread enough
+    r.remove(*pts[4])
+    r.offer(*pts[4], 30, 0, 4000)
+    assert r.ready()
+    plain = Bins(2, 4, differ=G // 10)
+    assert plain.offer(G, 0, 0, 0, 0, 3900) >= 0 and plain.offer(G, 0, 0, 0, 0, 4500) == -1
+
+
+def test_the_spread_score_stays_small_with_three_conditions():
+    """The CENTRE rule's spread score with all three conditions tracked, at ranges of 125 degC,
+    2**20 time units (776 days) and 65 V: below 2**30 (a 32-bit board's small ints)."""
+    from accelcal.bridge.ranges import Tracer, traced
+    tr = Tracer()
+    T = traced(tr)
+    b = Bins(2, 4, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER,
+             supply_differ=bins.SUPPLY_DIFFER)
+    b.cond = [T(0)] * len(b.cond)
+    x, z = int(0.8 * G), int(0.4 * G)        # y and z between the bands: C_xp alone
+    for k, (temp, time, mv) in enumerate([(-40, 0, 0), (85, 1 << 20, 65535), (20, 5, 3900),
+                                          (30, 1 << 19, 4100), (-40, 1 << 20, 0),
+                                          (85, 0, 65535), (-40, 1 << 20, 65535)]):
+        b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), T(temp), T(time), T(mv))
+    assert b.counts[2] == 4             # full: the last three offers score the spread
+    assert tr.ops > 50 and 2 ** 28 < tr.max_abs < 2 ** 30, tr.max_abs

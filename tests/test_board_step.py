@@ -11,7 +11,7 @@ import pytest
 
 from accelcal.bridge import boardlog
 from accelcal.locations import CHIP_DIR
-from conftest import run_cli
+from conftest import run_cli, wear_on_virtual_board
 
 RATE = 10
 
@@ -56,22 +56,12 @@ def test_the_virtual_board_finds_the_shock_over_mpremote(tmp_path):
     """The same wrist on the virtual board (the MicroPython unix port on a pty, an RP2040-sized
     heap) with the real mpremote: deploy base+step, acquire two simulated days, pull: the pulled
     summary shows the step's time and size, and the host's replay of the capture is identical."""
-    from accelcal.board import virtual
     rec, stim = tmp_path / "rec.csv", tmp_path / "stim.bin"
     r = run_cli("simulate", "wrist", "--days", 2, "--rate", RATE, "--seed", 31, "--effect", "step",
                 "-o", rec, "--stimulus", stim)
     assert r.returncode == 0, r.stderr
     truth = json.loads(rec.with_suffix(".truth.json").read_text())["effects"][0]
-    with virtual.Running(tmp_path / "flash", stim, "--heap", "160k") as b:
-        app = ["--rate", RATE, "--capture-kb", 12000, "--model", "base+step", "--recal-hours", 6]
-        r = run_cli("deploy", "--port", b.port, *app)
-        assert r.returncode == 0, r.stderr
-        r = run_cli("acquire", "--port", b.port, "--hours", 48, *app)
-        assert r.returncode == 0, r.stderr
-        out = tmp_path / "pulled"
-        r = run_cli("pull", "--port", b.port, "-o", out, "--json")
-        assert r.returncode == 0, r.stderr
-    s = json.loads(r.stdout)
+    s, out = wear_on_virtual_board(tmp_path, stim, "base+step", RATE)
     ok = [c for c in s["calibrations"] if c["status"] == "ok" and "step" in c.get("effects", {})]
     assert ok, [c["status"] for c in s["calibrations"]]
     step = ok[-1]["effects"]["step"]

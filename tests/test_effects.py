@@ -18,7 +18,8 @@ def inputs(rng, n=400):
     v = rng.uniform(-2.0, 2.0, (n, 3))
     dT = rng.integers(-20, 21, n)
     dt = rng.integers(0, 12 * 86400 // DT_UNIT, n)   # inside the generic offsets' clamp
-    return v, dT, dt
+    dV = rng.integers(-deff.SUPPLY_MAX, deff.SUPPLY_MAX + 1, n)   # mV, inside the clamp
+    return v, dT, dt, dV
 
 
 STEP_AT = 5 * 86400 // DT_UNIT    # a step's time in the tests, 64 s units
@@ -29,22 +30,25 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
     e = CATALOGUE[name]
     theta = rng.uniform(-e.bound, e.bound, 3)
     p = e.to_int(theta)
-    v, dT, dt = inputs(rng)
-    ref = {"T0": 0.0, "t0": 0.0, "ts": STEP_AT * float(DT_UNIT)}
-    want = e.correct(v, e.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref)
+    v, dT, dt, dV = inputs(rng)
+    ref = {"T0": 0.0, "t0": 0.0, "ts": STEP_AT * float(DT_UNIT), "supply_mv0": 0.0}
+    want = e.correct(v, e.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref,
+                     {"supply_mv": dV.astype(float)})
     k = [0, 0, 0]
     deff.apply_params(e.kind, p, 0, k, 0)
-    for (x, y, z), a, b, w in zip(v, dT, dt, want):
+    for (x, y, z), a, b, c_v, w in zip(v, dT, dt, dV, want):
         u = [int(round(c * 2 ** 24)) for c in (x, y, z)]
-        deff.correct_u(e.kind, p, 0, u, int(a), int(b), 0, STEP_AT)
+        deff.correct_u(e.kind, p, 0, u, int(a), int(b), 0, STEP_AT, int(c_v))
         # Q24: rounding only (the generic offsets' powers: each a floor in Q16)
         assert np.abs(np.array(u) / 2 ** 24 - w).max() < (2e-7 if e.kind not in deff.SHAPES else 5e-6)
         s = [int(round(c * 1024)) for c in (x, y, z)]
         acc = [c << 4 for c in s]
-        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], int(a), int(b), STEP_AT)
+        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], int(a), int(b), STEP_AT,
+                            int(c_v))
         # Q14 out, Q10 in (the sample's own rounding, 0.5 mg, is the larger part for q v^2).
         exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([float(a)]),
-                          np.array([b * float(DT_UNIT)]), ref)[0]
+                          np.array([b * float(DT_UNIT)]), ref,
+                          {"supply_mv": np.array([float(c_v)])})[0]
         assert np.abs(np.array(acc) / 2 ** 14 - exact).max() < 3e-4
 
 
@@ -59,7 +63,7 @@ def test_apply_path_stays_small_at_the_worst_case():
         for x in (-edge, edge):
             acc = [T(x << 4)] * 3
             deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x), T(temp), T(far),
-                                T(0))
+                                T(0), T(far // 100))      # supply past its clamp too
     assert tr.ops > 100 and tr.max_abs < 2 ** 30, tr.max_abs
 
 
@@ -74,10 +78,11 @@ for kind in sorted(effects.NAMES):
         u = [rnd(1 << 25) for _ in range(3)]
         dT = rnd(40)
         dt = rnd(1 << 15)
-        effects.correct_u(kind, p, 0, u, dT, dt, 0, 1000)
+        dV = rnd(1500)
+        effects.correct_u(kind, p, 0, u, dT, dt, 0, 1000, dV)
         x, y, z = rnd(2097), rnd(2097), rnd(2097)
         w = [x << 4, y << 4, z << 4]
-        effects.correct_sample(kind, k, 0, w, x, y, z, dT, dt, 1000)
+        effects.correct_sample(kind, k, 0, w, x, y, z, dT, dt, 1000, dV)
         out.append(" ".join(map(str, u + w)))
 print("\n".join(out))
 '''
@@ -105,8 +110,9 @@ def test_apply_stays_small_in_every_composition_and_order():
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
             cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
-            for temp, time in ((-100, -(10 ** 7)), (100, 10 ** 7), (5, 3)):
-                cal.temp, cal.time = T(temp), T(time)
+            for temp, time, supply in ((-100, -(10 ** 7), -(10 ** 6)), (100, 10 ** 7, 10 ** 6),
+                                       (5, 3, 7)):
+                cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
                 for x in (-2097, 2097):
                     cal.apply(T(x), T(-x), T(x))
     assert tr.ops > 10000 and tr.max_abs < 2 ** 30, tr.max_abs

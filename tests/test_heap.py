@@ -155,7 +155,7 @@ FIT_32 = r'''
 import micropython
 from acal.gaussnewton import GaussNewton
 from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2, STEP
-from acal.effects import TIME_OFFSET2, TEMP_OFFSET4
+from acal.effects import TIME_OFFSET2, TEMP_OFFSET4, SUPPLY_OFFSET
 from acal.changepoint import ChangePoint
 
 PTS = %s
@@ -163,7 +163,7 @@ AUX = %s
 fits = [(GaussNewton(18), 18, None), (GaussNewton(72), 72, None),
         (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX),
         (GaussNewton(72, (TEMP_OFFSET, TEMP_OFFSET2)), 72, AUX),
-        (GaussNewton(72, (TIME_OFFSET2, TEMP_OFFSET4)), 72, AUX)]
+        (GaussNewton(72, (TIME_OFFSET2, TEMP_OFFSET4, SUPPLY_OFFSET)), 72, AUX)]
 search = ChangePoint()
 step = GaussNewton(72, (TEMP_OFFSET, STEP))
 res = []
@@ -194,8 +194,8 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     """The default profile's Gauss-Newton fit, with outlier rejection, under heap_lock where
     ints past 2^30 allocate: 18 points, its largest point count (72, the wear profile's 8 per
     subset), a composed model of all four first effects, one with the curved temperature
-    response and one of two generic offsets over 72 points with temperatures and times spread
-    across the clamps, and a step: its time searched (acal/changepoint.py) on the four-effect
+    response and one of three generic offsets (time^2, temperature^4, the board's supply) over
+    72 points with temperatures, times and supplies spread across the clamps, and a step: its time searched (acal/changepoint.py) on the four-effect
     fit, then fitted.  Each runs bit-identical to CPython."""
     from acal import effects
     from acal.gaussnewton import GaussNewton
@@ -209,14 +209,15 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     pts = [int(x) for x in np.round(v * 65536).astype(np.int64).ravel()]
     aux = []
     for i in range(72):
-        aux += [int(rng.integers(-40, 41)), int(rng.integers(-300000, 300001))]
+        aux += [int(rng.integers(-40, 41)), int(rng.integers(-300000, 300001)),
+                int(rng.integers(-1500, 1501))]     # degC, 64 s units, mV: past every clamp
     f = tmp_path / "fit32.py"
     f.write_text(FIT_32 % (pts, aux))
     out = mp32(str(f)).split()
     kinds = (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)
     expect = []
     curve = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2)
-    generic = (effects.TIME_OFFSET2, effects.TEMP_OFFSET4)
+    generic = (effects.TIME_OFFSET2, effects.TEMP_OFFSET4, effects.SUPPLY_OFFSET)
     fits = []
     for kind, n, a in (((), 18, None), ((), 72, None), (kinds, 72, aux), (curve, 72, aux),
                        (generic, 72, aux)):

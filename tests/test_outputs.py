@@ -137,7 +137,7 @@ def test_a_failed_apply_leaves_no_file(work, capsys, tmp_path, monkeypatch):
     """The disk fills while apply writes: one line, exit 2, no output file and no temporary
     left beside it."""
     d, rec, params = work
-    from accelcal.pipeline import calibrate
+    from accelcal.pipeline import apply as calibrate
 
     def failing(*a, **k):
         raise OSError(28, "No space left on device", str(tmp_path / "cal.csv"))

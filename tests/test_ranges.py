@@ -244,14 +244,15 @@ def test_default_fit_stays_small_on_hostile_points(rng):
     v = simulate.uncorrect(np.array([1.2, 0.8, 1.1, 0.1, -0.1, 0.1, 0.2, -0.2, 0.2]), d)
     v[:6] = [[16, -16, 16], [2.1, 2.1, 2.1], [0, 0, 0], [-3, 0, 0], [0.5, 0.5, 0.5], [1, 1, 1]]
     pts = [int(c) for c in np.round(v * 65536).astype(np.int64).ravel()]
-    aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=144)]
-    aux[0::2] = [int(x) for x in rng.integers(-200, 200, size=72)]
+    aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=216)]   # dT dt dV (COND)
+    aux[0::3] = [int(x) for x in rng.integers(-200, 200, size=72)]
     specific = tuple(k for k in effects.NAMES if k not in effects.SHAPES)
-    generic = (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4, effects.TIME_OFFSET2)
+    generic = (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4, effects.SUPPLY_OFFSET)
     for k, a in (((), None), (specific, aux), (generic, aux)):
         tr = Tracer()
         T = traced(tr)
         gn = GaussNewton(72, k)
+        gn.aux = [T(0)] * len(gn.aux)   # a traced list for its int32 array: dT, dt, dV traced
         gn.ts = T(0)
         gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
@@ -264,7 +265,7 @@ class _HeldFit:
         self.n_given = len(r)
         self.keep = [1] * len(r)
         self.srt = [0] * len(r)
-        self.aux = [T(0) if k % 2 == 0 else T(t[k // 2]) for k in range(2 * len(r))]
+        self.aux = [T(t[k // 3]) if k % 3 == 1 else T(0) for k in range(3 * len(r))]
         self._w, self._r, self._T = w, r, T
 
     def point(self, i, w):

@@ -133,7 +133,7 @@ def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
 @st.composite
 def composed_cases(draw):
     """A composed model of any of the device's effects inside the calibration bounds, samples to
-    the extremes, dT and dt past the device's clamps, a step's time anywhere."""
+    the extremes, dT, dt and the supply's dV past the device's clamps, a step's time anywhere."""
     from acal import effects as deff
     kinds = draw(st.lists(st.sampled_from(sorted(deff.NAMES)), min_size=1, max_size=4, unique=True))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
@@ -150,21 +150,23 @@ def composed_cases(draw):
     dt = rng.integers(-(1 << 21), 1 << 21, n)
     dt[n // 2:] = rng.integers(-(1 << 15), 1 << 15, n - n // 2)   # inside the generic clamp too
     step_time = int(rng.integers(-(1 << 15), 1 << 15))
-    return tuple(kinds), p, q.astype(np.int64), dT, dt, step_time
+    dV = rng.integers(-3000, 3001, n)
+    return tuple(kinds), p, q.astype(np.int64), dT, dt, step_time, dV
 
 
 @settings(max_examples=150, deadline=None)
 @given(composed_cases())
 def test_composed_apply_equals_the_device_calibration(case):
-    kinds, p, q, dT, dt, step_time = case
+    kinds, p, q, dT, dt, step_time, dV = case
     cal = Calibration(kinds)
-    cal.set(p, 0, 0, step_time)
+    cal.set(p, 0, 0, step_time, 120)
     dev = []
-    for (x, y, z), a, b in zip(q.tolist(), dT.tolist(), dt.tolist()):
-        cal.temp, cal.time = a, b
+    for (x, y, z), a, b, c in zip(q.tolist(), dT.tolist(), dt.tolist(), dV.tolist()):
+        cal.temp, cal.time, cal.supply = a, b, c + 120
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
-    assert (twin.apply_params(p, q, kinds, dT, dt, step_time=step_time) == np.array(dev)).all()
+    assert (twin.apply_params(p, q, kinds, dT, dt, step_time=step_time, dV=dV) ==
+            np.array(dev)).all()
 
 
 def _with_gaps(src, dst):

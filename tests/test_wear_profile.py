@@ -239,7 +239,7 @@ def test_composed_gauss_newton_reaches_the_float_optimum(name):
     old = tcf.N
     tcf.N = 72
     try:
-        e, theta, v, temp, t, pts, aux = points(name, 4)
+        e, theta, v, temp, t, pts, aux, _ = points(name, 4)
     finally:
         tcf.N = old
     gn = GaussNewton(72, kinds=(e.kind,), reject=False)
@@ -248,7 +248,7 @@ def test_composed_gauss_newton_reaches_the_float_optimum(name):
     ref = {"T0": float(T0), "t0": 0.0}
     q = np.array(pts, float).reshape(-1, 3) / fixed.POINT_ONE_G
     # the device's regressors: int degC from T0, 64 s units
-    temp_i, t_i = np.array(aux[0::2]) + T0, np.array(aux[1::2]) * 64.0
+    temp_i, t_i = np.array(aux[0::3]) + T0, np.array(aux[1::3]) * 64.0
 
     def res(th):
         a = spec.correct(th, q, temp_i.astype(float), t_i, ref)

@@ -76,6 +76,9 @@ class Processor:
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
         self.temp = 0               # relative degC, set by the feeder
+        self.supply = 0             # the board's supply, mV, set by the feeder (supply_offset)
+        self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
+        self._cap_supply = -1       # the supply the capture last recorded
         self.calibrations = 0
         self.last_cal_index = -1
         self.last_logged = [0, 0, 0]
@@ -113,6 +116,7 @@ class Processor:
             return   # a record the checksum passed but no fit could have made: not applied
         ref_temp = 0
         ref_time = 0
+        ref_supply = 0
         step_at = 0
         for j in range(len(self.kinds)):
             e = store.effects[j]
@@ -120,13 +124,15 @@ class Processor:
             at = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
             if self.kinds[j] == effects.STEP:
                 step_at = at     # a step's record holds its time, not the reference
+            elif self.kinds[j] == effects.SUPPLY_OFFSET:
+                ref_supply = e[3]   # a supply's record holds its reference (mV)
             else:
                 ref_time = at
             for i in range(3):
                 self.params[N_PARAMS + 3 * j + i] = e[4 + i]
         for i in range(N_PARAMS):
             self.params[i] = rec[7 + i]
-        self.calibration.set(self.params, ref_temp, ref_time, step_at - ref_time)
+        self.calibration.set(self.params, ref_temp, ref_time, step_at - ref_time, ref_supply)
 
     def _on_rest(self, x, y, z, subset):
         index = self.batch_start + self.pipe.position
@@ -161,8 +167,10 @@ class Processor:
         if self.kinds:  # the block's conditions, for the bins and for applying the calibration
             pipe.temp = self.temp
             pipe.time = self.index // self.time_unit_samples
+            pipe.supply = self.supply
             self.calibration.temp = pipe.temp
             self.calibration.time = pipe.time
+            self.calibration.supply = self.supply
         pipe.add_samples(buf, 0, n)
         self.index += n
         if self.on_samples is not None and self.calibrations:
@@ -194,6 +202,11 @@ class Processor:
 
     def _capture(self, buf, n):
         c = self.capture
+        if self.uses_supply and self.supply != self._cap_supply:   # replays need it too
+            if not c.write(log.SUPPLY, self.index, self.supply):
+                self.capture_full = True
+                return
+            self._cap_supply = self.supply
         b = c.buf
         struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
         j = 9
@@ -232,6 +245,8 @@ class Processor:
             at = pipe.ref_time   # a step's record holds the step's time instead
             if self.kinds[j] == effects.STEP:
                 at += pipe.step_time
+            elif self.kinds[j] == effects.SUPPLY_OFFSET:
+                at = pipe.ref_supply   # and a supply's its reference (mV)
             extra.append((self.index, self.kinds[j], pipe.ref_temp, at,
                           o.p[e], o.p[e + 1], o.p[e + 2]))
             self.log.write(log.EFFECT, *extra[j])
@@ -239,7 +254,8 @@ class Processor:
             self.calibrations = number
             for i in range(len(self.params)):
                 self.params[i] = o.p[i]
-            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time)
+            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time,
+                                 pipe.ref_supply)
             if self.store is not None:
                 self.store.save(values, extra)
         if not self.kinds and pipe.fit == profiles.GRADIENT:
@@ -315,6 +331,11 @@ class App:
         # file's TEMP_REF_C (an int, from one thermometer reading) temperatures are absolute.
         ref = getattr(board, "TEMP_REF_C", None)
         self.temp_ref = 0 if ref is None else ref
+        # the board's supply in mV (an optional supply_mv() in its board file), read once per
+        # block: what a supply_offset model follows
+        self.supply_mv = getattr(board, "supply_mv", None)
+        if self.proc.uses_supply and self.supply_mv is None:
+            raise ValueError("model follows the board's supply: its board file needs supply_mv()")
         p = self.proc.pipe
         self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
@@ -357,6 +378,12 @@ class App:
                 self.proc.temp = self.sensor.temperature() + self.temp_ref
             except OSError:
                 self.bus_errors += 1
+            if self.supply_mv is not None:
+                try:  # as the temperature: a failed read keeps the last value
+                    mv = self.supply_mv()
+                    self.proc.supply = 0 if mv < 0 else (65535 if mv > 65535 else mv)
+                except OSError:
+                    self.bus_errors += 1
             self.proc.feed(self.block, self.fill)
             self.fill = 0
 

@@ -30,7 +30,30 @@
 #     placed of equals (time only grows: the newest point widens by replacing any but the
 #     oldest); else, by the CENTRE rule, a placement slot; no replacement narrows the spread.
 #   - ready() also needs all held points together to span temp_differ and time_differ.
+# An integer the board supplies (its supply in mV: effects.SUPPLY_OFFSET) is a third condition,
+# tracked with supply_differ (mV) as the other two: a near point differs when |dV| >=
+# supply_differ, the spread counts its range per its threshold, ready() needs the span.
+from array import array
+
 from acal.fixed import POINT_ONE_G
+try:
+    from micropython import const
+except ImportError:
+    def const(x):
+        return x
+
+COND = const(3)     # conditions per point, flat: temperature (degC), time (64 s), supply (mV)
+
+
+def int32s(n):
+    """n zeroed int32 slots: an array takes 4 bytes a slot where a list takes 8 on a 64-bit
+    port, in one block (points in Q16 g and conditions - degC, 64 s units, mV - all fit)."""
+    return array("i", bytearray(4 * n))
+
+
+def conditions(n_points):
+    """Zeroed room for n_points' conditions (COND each)."""
+    return int32s(COND * n_points)
 
 FIRST = 0
 CENTRE = 1
@@ -55,6 +78,7 @@ _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
 TEMP_DIFFER = 3     # degC: what a temperature effect needs (host diagnose: the same 3 degC)
 TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
+SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
 # not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
 # after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.
@@ -98,12 +122,12 @@ class Bins:
 
     min_count / max_count: points per subset (paper: 2 and 2 -> 18 points);
     differ: minimum max-norm distance to every held point, Q16 g (default 0.1 g);
-    policy: FIRST or CENTRE; temp_differ (degC), time_differ (64 s units): 0, or the spreads a
-    composed model needs (see above).
+    policy: FIRST or CENTRE; temp_differ (degC), time_differ (64 s units), supply_differ (mV):
+    0, or the spreads a composed model needs (see above).
     """
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
-                 temp_differ=0, time_differ=0, coverage=False):
+                 temp_differ=0, time_differ=0, coverage=False, supply_differ=0):
         if not 1 <= min_count <= max_count:
             raise ValueError("need 1 <= min_count <= max_count")
         self.coverage = coverage
@@ -114,11 +138,13 @@ class Bins:
         self.policy = policy
         self.temp_differ = temp_differ
         self.time_differ = time_differ
+        self.supply_differ = supply_differ
         self.counts = [0] * N_SUBSETS
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].
-        self.xyz = [0] * (3 * N_SUBSETS * max_count)
-        # Temperature and time of slot k of subset s at cond[2 * (s * max_count + k)] and + 1.
-        self.cond = [0] * (2 * N_SUBSETS * max_count)
+        self.xyz = int32s(3 * N_SUBSETS * max_count)
+        # Temperature, time and supply of slot k of subset s at cond[COND * (s * max_count + k)],
+        # + 1 and + 2.
+        self.cond = conditions(N_SUBSETS * max_count)
         self.offered = 0
         self.kept = 0
         self.replaced = 0
@@ -139,14 +165,15 @@ class Bins:
     def ready(self):
         """True when every subset holds at least min_count points, or with `coverage` when the
         held points cover every axis (covered()); and, for a composed model, when the held
-        points span temp_differ and time_differ."""
+        points span temp_differ, time_differ and supply_differ."""
         full = True
         for s in range(N_SUBSETS):
             if self.counts[s] < self.min_count:
                 full = False
         if not full and not (self.coverage and self.covered()):
             return False
-        return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ
+        return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ \
+            and self.supply_span() >= self.supply_differ
 
     def covered(self):
         """True when at least COVER_POINTS points are held and, on every axis, at least
@@ -179,21 +206,21 @@ class Bins:
                 if self.xyz[i] == x and self.xyz[i + 1] == y and self.xyz[i + 2] == z:
                     for j in range(k + 1, n):  # the later slots move down one
                         i = 3 * (s * m + j)
-                        c = 2 * (s * m + j)
+                        c = COND * (s * m + j)
                         self._store(s * m + j - 1, self.xyz[i], self.xyz[i + 1], self.xyz[i + 2],
-                                    self.cond[c], self.cond[c + 1])
+                                    self.cond[c], self.cond[c + 1], self.cond[c + 2])
                     self.counts[s] = n - 1
                     return True
         return False
 
     def _span(self, c):
-        # Range of condition c (0 temperature, 1 time) over every held point.
+        # Range of condition c (0 temperature, 1 time, 2 supply) over every held point.
         lo = hi = 0
         first = True
         m = self.max_count
         for s in range(N_SUBSETS):
             for k in range(self.counts[s]):
-                v = self.cond[2 * (s * m + k) + c]
+                v = self.cond[COND * (s * m + k) + c]
                 if first or v < lo:
                     lo = v
                 if first or v > hi:
@@ -209,16 +236,23 @@ class Bins:
         """Time range of the held points (64 s units; 0 unless time is tracked)."""
         return self._span(1)
 
-    def _spread(self, s, skip, temp, time):
-        # The spread score of subset s with slot `skip` holding (temp, time) instead.
+    def supply_span(self):
+        """Supply range of the held points (mV; 0 unless the supply is tracked)."""
+        return self._span(2)
+
+    def _spread(self, s, skip, temp, time, supply):
+        # The spread score of subset s with slot `skip` holding (temp, time, supply) instead:
+        # each range per its threshold, times the product of the thresholds (ints).  Below
+        # 2**30 for ranges of 125 degC, 2**20 time units (776 days) and 5 V.
         m = self.max_count
         cond = self.cond
         t_lo = t_hi = temp
         u_lo = u_hi = time
+        v_lo = v_hi = supply
         for k in range(self.counts[s]):
             if k == skip:
                 continue
-            j = 2 * (s * m + k)
+            j = COND * (s * m + k)
             v = cond[j]
             if v < t_lo:
                 t_lo = v
@@ -229,15 +263,23 @@ class Bins:
                 u_lo = v
             elif v > u_hi:
                 u_hi = v
-        return ((t_hi - t_lo) * (self.time_differ or 1) +
-                (u_hi - u_lo) * (self.temp_differ or 1))
+            v = cond[j + 2]
+            if v < v_lo:
+                v_lo = v
+            elif v > v_hi:
+                v_hi = v
+        a = self.temp_differ or 1
+        b = self.time_differ or 1
+        c = self.supply_differ or 1
+        return (t_hi - t_lo) * b * c + (u_hi - u_lo) * a * c + (v_hi - v_lo) * a * b
 
-    def _far_from_all(self, x, y, z, temp, time, skip):
+    def _far_from_all(self, x, y, z, temp, time, supply, skip):
         # Max-norm distance >= differ from every held point except slot index `skip`, or far
-        # enough in temperature or time.
+        # enough in temperature, time or supply.
         d = self.differ
         dT = self.temp_differ
         dt = self.time_differ
+        dV = self.supply_differ
         xyz = self.xyz
         cond = self.cond
         m = self.max_count
@@ -249,29 +291,37 @@ class Bins:
                     continue
                 i = 3 * slot
                 if -d < x - xyz[i] < d and -d < y - xyz[i + 1] < d and -d < z - xyz[i + 2] < d:
-                    if dT and not -dT < temp - cond[2 * slot] < dT:
+                    j = COND * slot
+                    if dT and not -dT < temp - cond[j] < dT:
                         continue
-                    if dt and not -dt < time - cond[2 * slot + 1] < dt:
+                    if dt and not -dt < time - cond[j + 1] < dt:
+                        continue
+                    if dV and not -dV < supply - cond[j + 2] < dV:
                         continue
                     return False
         return True
 
-    def _store(self, slot, x, y, z, temp, time):
+    def _store(self, slot, x, y, z, temp, time, supply):
         i = 3 * slot
         self.xyz[i] = x
         self.xyz[i + 1] = y
         self.xyz[i + 2] = z
-        self.cond[2 * slot] = temp
-        self.cond[2 * slot + 1] = time
+        j = COND * slot
+        self.cond[j] = temp
+        self.cond[j + 1] = time
+        self.cond[j + 2] = supply
 
-    def offer(self, x, y, z, temp=0, time=0):
-        """Offer a rest mean (Q16 g) seen at temperature `temp` (int degC) and time `time` (64 s
-        units; both ignored unless tracked). Returns the subset index it was kept in, or -1."""
+    def offer(self, x, y, z, temp=0, time=0, supply=0):
+        """Offer a rest mean (Q16 g) seen at temperature `temp` (int degC), time `time` (64 s
+        units) and the board's supply (mV; each ignored unless tracked). Returns the subset
+        index it was kept in, or -1."""
         self.offered += 1
         if not self.temp_differ:
             temp = 0
         if not self.time_differ:
             time = 0
+        if not self.supply_differ:
+            supply = 0
         if not (-_HI_OUT <= x <= _HI_OUT and -_HI_OUT <= y <= _HI_OUT and -_HI_OUT <= z <= _HI_OUT):
             return -1
         mag2 = (x >> 4) * (x >> 4) + (y >> 4) * (y >> 4) + (z >> 4) * (z >> 4)
@@ -284,16 +334,17 @@ class Bins:
             if s >= 0 and self.counts[s] < m and (best < 0 or self.counts[s] < self.counts[best]):
                 best = s
         if best >= 0:
-            if not self._far_from_all(x, y, z, temp, time, -1):
+            if not self._far_from_all(x, y, z, temp, time, supply, -1):
                 return -1
-            self._store(best * m + self.counts[best], x, y, z, temp, time)
+            self._store(best * m + self.counts[best], x, y, z, temp, time, supply)
             self.counts[best] += 1
             self.kept += 1
             return best
         if self.policy != CENTRE:
             return -1
-        tracked = self.temp_differ or self.time_differ
-        gain = ((self.temp_differ or 1) * (self.time_differ or 1)) >> 2  # a quarter threshold
+        tracked = self.temp_differ or self.time_differ or self.supply_differ
+        gain = ((self.temp_differ or 1) * (self.time_differ or 1) *
+                (self.supply_differ or 1)) >> 2  # a quarter threshold
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
             s = subset_of(c, axis, self.lo_out)
@@ -301,14 +352,15 @@ class Bins:
                 continue
             now = 0  # the subset's spread as it is: slot 0 "replaced" by itself
             if tracked:
-                now = self._spread(s, 0, self.cond[2 * s * m], self.cond[2 * s * m + 1])
+                j = COND * s * m
+                now = self._spread(s, 0, self.cond[j], self.cond[j + 1], self.cond[j + 2])
             widest = -1
             widest_spread = now + gain - 1
             widest_bad = -1
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
-                spread = self._spread(s, k, temp, time) if tracked else 0
+                spread = self._spread(s, k, temp, time, supply) if tracked else 0
                 if spread < now:
                     continue  # would narrow the spread the effects need
                 i = 3 * (s * m + k)
@@ -323,8 +375,8 @@ class Bins:
                     worst_bad = b
                     worst = k
             k = widest if widest >= 0 else worst
-            if k >= 0 and self._far_from_all(x, y, z, temp, time, s * m + k):
-                self._store(s * m + k, x, y, z, temp, time)
+            if k >= 0 and self._far_from_all(x, y, z, temp, time, supply, s * m + k):
+                self._store(s * m + k, x, y, z, temp, time, supply)
                 self.replaced += 1
                 return s
         return -1
@@ -335,13 +387,13 @@ class Bins:
         return self.xyz[i], self.xyz[i + 1], self.xyz[i + 2]
 
     def condition(self, s, k):
-        """(temperature, time) of slot k of subset s: degC, 64 s units."""
-        j = 2 * (s * self.max_count + k)
-        return self.cond[j], self.cond[j + 1]
+        """(temperature, time, supply) of slot k of subset s: degC, 64 s units, mV."""
+        j = COND * (s * self.max_count + k)
+        return self.cond[j], self.cond[j + 1], self.cond[j + 2]
 
     def gather(self, out, cond=None):
         """Copy the held points into the flat int list `out` (x y z per point) and, if given,
-        their temperature and time into `cond` (2 per point); return the count."""
+        their temperature, time and supply into `cond` (COND per point); return the count."""
         n = 0
         for s in range(N_SUBSETS):
             for k in range(self.counts[s]):
@@ -351,7 +403,7 @@ class Bins:
                 out[3 * n + 1] = self.xyz[i + 1]
                 out[3 * n + 2] = self.xyz[i + 2]
                 if cond is not None:
-                    cond[2 * n] = self.cond[2 * slot]
-                    cond[2 * n + 1] = self.cond[2 * slot + 1]
+                    for c in range(COND):
+                        cond[COND * n + c] = self.cond[COND * slot + c]
                 n += 1
         return n

@@ -26,6 +26,7 @@
 #
 # Sliced like the fit: begin() then step() until it returns True, SLICE points a step.
 from acal.fixed import N_PARAMS
+from acal.bins import COND
 
 MIN_SIDE_SHIFT = 3
 SLICE = 8
@@ -90,7 +91,7 @@ class ChangePoint:
         return self.found
 
     def _time(self, k):
-        return self.fit.aux[2 * self.order[k] + 1]
+        return self.fit.aux[COND * self.order[k] + 1]
 
     def _read(self):
         fit = self.fit
@@ -115,9 +116,9 @@ class ChangePoint:
             end = self.m
         for i in range(self.pos, end):
             v = order[i]
-            tv = aux[2 * v + 1]
+            tv = aux[COND * v + 1]
             j = i - 1
-            while j >= 0 and aux[2 * order[j] + 1] > tv:
+            while j >= 0 and aux[COND * order[j] + 1] > tv:
                 order[j + 1] = order[j]
                 j -= 1
             order[j + 1] = v

@@ -13,9 +13,11 @@
 #                                      acal/changepoint.py and kept beside the parameters
 #   TIME_OFFSET2..4   x = (dt / 2**13)^2..4     the offset ageing along a curve in time
 #   TEMP_OFFSET3..4   x = (dT / 16)^3..4        higher powers of temperature
+#   SUPPLY_OFFSET     x = dV / 1024             an integer the board supplies (its supply in mV:
+#                                               the zero-g level following the battery)
 # Three parameters per effect (x, y, z), in this order.
 #
-# Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).
+# Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).  dV: int mV from the reference.
 #   Fit (Q24 g readings u, model.objective): every parameter in Q24 per its normalised regressor -
 #   c and s per 16 degC, e per 64 degC^2, d per 2048 dt units (131 072 s, 1.52 days), q per g - so
 #   that each is of the size of an offset and takes the offsets' learning rate.
@@ -26,7 +28,8 @@
 #   both clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
 #   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (x <= 2**20 for
-#   (dT/16)^4) or dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16);
+#   (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
+#   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
 #   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
 #   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> 14, k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
@@ -52,22 +55,25 @@ TIME_OFFSET3 = const(8)
 TIME_OFFSET4 = const(9)
 TEMP_OFFSET3 = const(10)
 TEMP_OFFSET4 = const(11)
+SUPPLY_OFFSET = const(12)
 NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear",
          TEMP_OFFSET2: "temp_offset2", STEP: "step", TIME_OFFSET2: "time_offset2",
          TIME_OFFSET3: "time_offset3", TIME_OFFSET4: "time_offset4", TEMP_OFFSET3: "temp_offset3",
-         TEMP_OFFSET4: "temp_offset4"}
+         TEMP_OFFSET4: "temp_offset4", SUPPLY_OFFSET: "supply_offset"}
 # The generic offsets' regressors: (source, power).  A declared effect of one of these shapes
 # runs on the board as this kind (host: model/effects.py device_kind).
 SOURCE_TEMP = const(1)
 SOURCE_TIME = const(2)
 SOURCE_STEP = const(3)
+SOURCE_SUPPLY = const(4)
 SHAPES = {STEP: (SOURCE_STEP, 1), TIME_OFFSET2: (SOURCE_TIME, 2), TIME_OFFSET3: (SOURCE_TIME, 3),
           TIME_OFFSET4: (SOURCE_TIME, 4), TEMP_OFFSET3: (SOURCE_TEMP, 3),
-          TEMP_OFFSET4: (SOURCE_TEMP, 4)}
+          TEMP_OFFSET4: (SOURCE_TEMP, 4), SUPPLY_OFFSET: (SOURCE_SUPPLY, 1)}
 X_Q = const(12)                   # the generic regressor's format
 GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
 GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
 GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
+SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
 DT_UNIT_S = const(64)
 APPLY_DT_MAX = const(32)          # degC either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
@@ -80,17 +86,23 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           NONLINEAR: const(838861),      # 0.05 * 2**24
           TEMP_OFFSET2: const(1073742),  # 0.001 * 64 * 2**24
           STEP: GENERIC_BOUND, TIME_OFFSET2: GENERIC_BOUND, TIME_OFFSET3: GENERIC_BOUND,
-          TIME_OFFSET4: GENERIC_BOUND, TEMP_OFFSET3: GENERIC_BOUND, TEMP_OFFSET4: GENERIC_BOUND}
+          TIME_OFFSET4: GENERIC_BOUND, TEMP_OFFSET3: GENERIC_BOUND, TEMP_OFFSET4: GENERIC_BOUND,
+          SUPPLY_OFFSET: GENERIC_BOUND}
+
+
+def uses_source(kinds, source):
+    """True when a model has a generic offset whose regressor comes from `source`."""
+    for k in kinds:
+        if k in SHAPES and SHAPES[k][0] == source:
+            return True
+    return False
 
 
 def time_from_first(kinds):
     """True when a model's reference time is its earliest point's rather than the middle of
     their range: a power of time above 1 has an origin (ageing since the recording began) that
     moving the reference would turn into a linear part the model may lack."""
-    for k in kinds:
-        if k in SHAPES and SHAPES[k][0] == SOURCE_TIME:
-            return True
-    return False
+    return uses_source(kinds, SOURCE_TIME)
 
 
 def parse_model(spec):
@@ -127,13 +139,19 @@ def model_kinds(code):
     return tuple(kinds)
 
 
-def regressor(kind, dT, dt, ts):
+def regressor(kind, dT, dt, ts, dV=0):
     """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (degC), dt (64 s units), with a
-    step at ts (64 s units, as dt): SHAPES, clamped as the formats above say; each power an
-    exact floor (acal/wide.py)."""
+    step at ts (64 s units, as dt), and the board's integer dV (mV from its reference): SHAPES,
+    clamped as the formats above say; each power an exact floor (acal/wide.py)."""
     source, power = SHAPES[kind]
     if source == SOURCE_STEP:
         return 65536 if dt >= ts else 0
+    if source == SOURCE_SUPPLY:
+        if dV > SUPPLY_MAX:
+            dV = SUPPLY_MAX
+        elif dV < -SUPPLY_MAX:
+            dV = -SUPPLY_MAX
+        return dV << 6                    # dV / 1024 in Q16, <= 2**16
     if source == SOURCE_TEMP:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX
@@ -152,13 +170,13 @@ def regressor(kind, dT, dt, ts):
     return x
 
 
-def correct_u(kind, p, j, u, dT, dt, at=0, ts=0):
+def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
     place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
-    see the formats above); ts: a step's time (as dt).  Every intermediate stays below 2**30
-    (acal/wide.py)."""
+    see the formats above); ts: a step's time (as dt); dV: the board's integer (mV from its
+    reference).  Every intermediate stays below 2**30 (acal/wide.py)."""
     if kind >= STEP:
-        x = regressor(kind, dT, dt, ts)
+        x = regressor(kind, dT, dt, ts, dV)
         for i in range(3):
             u[at + i] -= mul_shift(p[j + i], x, 16)
         return
@@ -210,12 +228,12 @@ def offset_sample(k, m, w, r):
         w[i] -= (k[m + i] * r) >> 14
 
 
-def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0):
+def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
     accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result);
-    ts: a step's time (as dt)."""
+    ts: a step's time (as dt); dV: the board's integer (mV from its reference)."""
     if kind >= STEP:
-        offset_sample(k, m, w, regressor(kind, dT, dt, ts) >> 4)
+        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4)
         return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:

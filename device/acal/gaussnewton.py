@@ -26,6 +26,7 @@
 # The objective f is in 2**(2 tau - 44) g^4; objective and objective_start are reported in
 # Q24 g^4 (OBJ_Q), saturated at 2**30 - 1.
 from acal.fixed import N_PARAMS, POINT_TO_PARAM_SHIFT
+from acal.bins import COND, conditions
 from acal import effects
 from acal import model
 from acal.model import FIT_W_MAX
@@ -72,7 +73,7 @@ _DONE = 6
 
 class GaussNewton:
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
-    model, acal/effects.py; aux holds each point's dT and dt).  reject: outlier rejection after
+    model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier rejection after
     the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
 
     After the fit: p (Q24), status (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED),
@@ -91,7 +92,7 @@ class GaussNewton:
         np_ = N_PARAMS + 3 * len(self.kinds)
         self.n_params = np_
         self.u = [0] * (3 * max_points)
-        self.aux = [0] * (2 * max_points)
+        self.aux = conditions(max_points)
         self.index = [0] * max_points
         self.keep = [0] * max_points
         self.r = [0] * max_points       # residuals at p (Q22 g^2)
@@ -147,7 +148,7 @@ class GaussNewton:
         return self.status
 
     def begin(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None, start=None):
-        """Load n points (and for a composed model their dT, dt in aux) and start from p0, or
+        """Load n points (and for a composed model their dT, dt, dV in aux) and start from p0, or
         from start: its 9 parameters (a base fit's: a composed fit then starts where the base
         model is best, effects at zero), or all of them when it holds as many as this fit."""
         if n > self.max_points:
@@ -176,7 +177,7 @@ class GaussNewton:
             index[i] = i
             keep[i] = 1
         if aux is not None:   # the effects' regressors (and the points' times a step search reads)
-            for i in range(2 * n):
+            for i in range(COND * n):
                 self.aux[i] = aux[i]
         model.identity(self.p)
         for i in range(N_PARAMS, self.n_params):
@@ -238,8 +239,9 @@ class GaussNewton:
     def _res(self, p, i):
         at = 3 * i
         if self.kinds:
-            return model.residual_effects(p, self.u, at, self.aux[2 * i], self.aux[2 * i + 1],
-                                          self.kinds, self.w, self.ts)
+            j = COND * i
+            return model.residual_effects(p, self.u, at, self.aux[j], self.aux[j + 1],
+                                          self.kinds, self.w, self.ts, self.aux[j + 2])
         u = self.u
         return model.residual(p, u[at], u[at + 1], u[at + 2])
 
@@ -269,11 +271,12 @@ class GaussNewton:
         w = self.w
         z = self.z
         q = self.q
-        dT = self.aux[2 * i]
-        dt = self.aux[2 * i + 1]
+        dT = self.aux[COND * i]
+        dt = self.aux[COND * i + 1]
+        dV = self.aux[COND * i + 2]
         for c in range(3):
             w[c] = u[at + c]
-        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts)
+        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts, dV)
         r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
         for c in range(3):
             q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
@@ -282,7 +285,7 @@ class GaussNewton:
             # parameters
             for c in range(3):
                 z[c] = u[at + c]
-            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts)
+            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts, dV)
             j = N_PARAMS + 3 * k
             for c in range(3):
                 d[j + c] = z[c] - u[at + c]
@@ -519,8 +522,8 @@ class GaussNewton:
                 if kept != i:
                     for c in range(3):
                         u[3 * kept + c] = u[3 * i + c]
-                    aux[2 * kept] = aux[2 * i]
-                    aux[2 * kept + 1] = aux[2 * i + 1]
+                    for c in range(COND):
+                        aux[COND * kept + c] = aux[COND * i + c]
                     self.index[kept] = self.index[i]
                     r[kept] = r[i]
                 kept += 1

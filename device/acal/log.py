@@ -19,14 +19,17 @@
 #                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
 #   EFFECT   <IBbI3i        after a CAL, one per effect of a composed model: sample index (the
 #                          CAL's), effect id (effects.py), reference temperature (degC) and time
-#                          (64 s units of running time; a step's record: the step's time), 3
-#                          parameters (Q24, effects.py fit form)
+#                          (64 s units of running time; a step's record: the step's time; a
+#                          supply_offset's: the reference supply in mV), 3 parameters (Q24,
+#                          effects.py fit form)
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget
 #   SAMPLES  <IBb + n*<hhh  raw capture: first sample index, n, temperature (as REST), n samples
 #                          (Q10 g)
 #   GAP      <II            raw capture: sample index, samples lost there
+#   SUPPLY   <IH            raw capture of a model that follows the board's supply: the sample
+#                          index from which the supply (mV) holds, written when it changes
 #   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
 #                          EFFECT payload per effect of a composed model, under one CRC, so a
 #                          cut anywhere leaves the whole calibration or none of it
@@ -41,11 +44,12 @@ SAMPLES = 5
 GAP = 6
 EFFECT = 7
 STORE = 8
+SUPPLY = 9
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap", EFFECT: "effect", STORE: "store"}
+              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply"}
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II", EFFECT: "<IBbI3i"}
+           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH"}
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 22: a STORE of 4 effects is 141 bytes

@@ -10,6 +10,7 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
+from acal.bins import COND
 from acal.wide import mul_shift
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
@@ -145,14 +146,14 @@ def residual_jacobian(p, ux, uy, uz, d):
     return r
 
 
-def remove_effects(p, kinds, w, at, dT, dt, ts=0):
+def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):
     """Remove a composed model's effects (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) from
     the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in
-    (ts: a step's time, as dt).
+    (ts: a step's time, as dt; dV: the board's integer, mV from its reference).
     Each result is clamped to +-FIT_W_MAX, as the apply clamps it (fixed.APPLY_W_MAX)."""
     k = len(kinds) - 1
     while k >= 0:
-        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at, ts)
+        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at, ts, dV)
         for c in range(at, at + 3):
             if w[c] > FIT_W_MAX:
                 w[c] = FIT_W_MAX
@@ -161,13 +162,13 @@ def remove_effects(p, kinds, w, at, dT, dt, ts=0):
         k -= 1
 
 
-def residual_effects(p, u, at, dT, dt, kinds, w, ts=0):
-    """residual() of the point u[at:at+3] seen at dT, dt, with a composed model's effects removed
-    first (into w, a list of 3), as objective_effects does it."""
+def residual_effects(p, u, at, dT, dt, kinds, w, ts=0, dV=0):
+    """residual() of the point u[at:at+3] seen at dT, dt, dV, with a composed model's effects
+    removed first (into w, a list of 3), as objective_effects does it."""
     w[0] = u[at]
     w[1] = u[at + 1]
     w[2] = u[at + 2]
-    remove_effects(p, kinds, w, 0, dT, dt, ts)
+    remove_effects(p, kinds, w, 0, dT, dt, ts, dV)
     return residual(p, w[0], w[1], w[2])
 
 
@@ -175,11 +176,12 @@ def objective_effects(p, u, aux, n, kinds, w, ts=0):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
     they act in), into w (a list of 3 n ints); the 9-parameter objective then reads w.
-    aux: per point dT (degC) and dt (64 s units), flat."""
+    aux: per point dT (degC), dt (64 s units) and dV (mV), flat (COND per point)."""
     for i in range(3 * n):
         w[i] = u[i]
     for i in range(n):
-        remove_effects(p, kinds, w, 3 * i, aux[2 * i], aux[2 * i + 1], ts)
+        j = COND * i
+        remove_effects(p, kinds, w, 3 * i, aux[j], aux[j + 1], ts, aux[j + 2])
     return objective(p, w, n)
 
 
@@ -201,9 +203,10 @@ class Calibration:
     path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g.
 
     kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
-    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC)
-    and `time` (64 s units) current, and the effects are removed with dT = temp - ref_temp and
-    dt = time - ref_time, the references the fit used (set()); a step at dt >= step_time."""
+    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC),
+    `time` (64 s units) and `supply` (mV, the board's) current, and the effects are removed with
+    dT = temp - ref_temp, dt = time - ref_time and dV = supply - ref_supply, the references the
+    fit used (set()); a step at dt >= step_time."""
 
     def __init__(self, kinds=(), range_g=2):
         self.kinds = tuple(kinds)
@@ -216,15 +219,18 @@ class Calibration:
         self.w = [0, 0, 0]
         self.temp = 0
         self.time = 0
+        self.supply = 0
         self.ref_temp = 0
         self.ref_time = 0
+        self.ref_supply = 0
         self.step_time = 0
-        # the generic offsets' regressors (Q12), computed when temp or time changes, not per
-        # sample (effects.regressor: up to three wide products)
+        # the generic offsets' regressors (Q12), computed when temp, time or supply changes,
+        # not per sample (effects.regressor: up to three wide products)
         self.r = [0] * len(self.kinds)
         self.r_valid = False
         self.r_temp = 0
         self.r_time = 0
+        self.r_supply = 0
         self.x = 0
         self.y = 0
         self.z = 0
@@ -232,9 +238,9 @@ class Calibration:
         identity(p)
         self.set(p)
 
-    def set(self, p, ref_temp=0, ref_time=0, step_time=0):
-        """Take Q24 parameters (and a step's time, 64 s units from ref_time); ValueError outside
-        the bounds (the range proof needs them)."""
+    def set(self, p, ref_temp=0, ref_time=0, step_time=0, ref_supply=0):
+        """Take Q24 parameters (and a step's time, 64 s units from ref_time; the supply's
+        reference, mV); ValueError outside the bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
         shift = APPLY_PARAM_SHIFT + self.e
@@ -246,6 +252,7 @@ class Calibration:
         self.ref_temp = ref_temp
         self.ref_time = ref_time
         self.step_time = step_time
+        self.ref_supply = ref_supply
         self.r_valid = False
 
     def apply(self, x, y, z):
@@ -297,13 +304,16 @@ class Calibration:
         dt = self.time - self.ref_time
         kinds = self.kinds
         r = self.r
-        if not self.r_valid or self.temp != self.r_temp or self.time != self.r_time:
+        if not self.r_valid or self.temp != self.r_temp or self.time != self.r_time or \
+                self.supply != self.r_supply:
+            dV = self.supply - self.ref_supply
             for j in range(len(kinds)):
                 if kinds[j] >= effects.STEP:
-                    r[j] = effects.regressor(kinds[j], dT, dt, self.step_time) >> 4
+                    r[j] = effects.regressor(kinds[j], dT, dt, self.step_time, dV) >> 4
             self.r_valid = True
             self.r_temp = self.temp
             self.r_time = self.time
+            self.r_supply = self.supply
         j = len(kinds) - 1
         while j >= 0:
             if kinds[j] >= effects.STEP:   # correct_sample's form, with the regressor kept

@@ -87,7 +87,8 @@ class Optimiser:
 
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Fit the model to n points (flat x y z list, Q16 g; for a composed model aux holds
-        each point's dT and dt, acal/effects.py) from p0; return the status."""
+        each point's dT, dt and dV, acal/bins.COND apiece, acal/effects.py) from p0; return the
+        status."""
         self.begin(pts, n, iterations, aux)
         while not self.step():
             pass

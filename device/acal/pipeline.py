@@ -1,7 +1,8 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.bins import Bins, CENTRE, DEFAULT_DIFFER, N_SUBSETS, TEMP_DIFFER, TIME_DIFFER
+from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, N_SUBSETS, SUPPLY_DIFFER, TEMP_DIFFER,
+                       TIME_DIFFER, conditions, int32s)
 from acal.optimiser import (Optimiser, DEFAULT_ITERATIONS, COMPOSED_ITERATIONS, OK,
                             BASE_KEPT_FAILED, BASE_KEPT_WORSE)
 from acal.fixed import N_PARAMS
@@ -24,9 +25,10 @@ class Pipeline:
     the subset it was kept in or -1 (the app logs these; the host collects them).
 
     kinds: the effects of a composed model (acal.effects ids; () is the paper's model).  Their
-    bins track temperature and time (bins.py), and the feeder keeps `temp` (int degC) and `time`
-    (64 s units) current; a fit takes each point's dT and dt from the middle of the held points'
-    ranges (ref_temp, ref_time), which the calibration keeps.  iterations None: 50 for the
+    bins track temperature, time and the board's supply (bins.py), and the feeder keeps `temp`
+    (int degC), `time` (64 s units) and `supply` (mV, effects.SUPPLY_OFFSET) current; a fit takes
+    each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
+    ref_supply), which the calibration keeps.  iterations None: 50 for the
     paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
     NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
 
@@ -51,6 +53,7 @@ class Pipeline:
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
         temp_differ = 0
         time_differ = 0
+        supply_differ = 0
         base_kinds = []
         for k in self.kinds:
             source = effects.SHAPES[k][0] if k in effects.SHAPES else 0
@@ -59,10 +62,12 @@ class Pipeline:
                 temp_differ = TEMP_DIFFER
             elif k == effects.DRIFT or source == effects.SOURCE_TIME or k == effects.STEP:
                 time_differ = TIME_DIFFER
+            elif source == effects.SOURCE_SUPPLY:
+                supply_differ = SUPPLY_DIFFER
             if k != effects.STEP:
                 base_kinds.append(k)
         self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
-                         fit == NEWTON)
+                         fit == NEWTON, supply_differ)
         self.base_fit = None
         self.search = None
         self.step_time = 0
@@ -85,12 +90,14 @@ class Pipeline:
             else:
                 iterations = COMPOSED_ITERATIONS if self.kinds else DEFAULT_ITERATIONS
         self.iterations = iterations
-        self.points = [0] * (3 * N_SUBSETS * max_count)
-        self.aux = [0] * (2 * N_SUBSETS * max_count)  # dT, dt per point (composed models)
+        self.points = int32s(3 * N_SUBSETS * max_count)
+        self.aux = conditions(N_SUBSETS * max_count)  # dT, dt, dV per point (composed models)
         self.temp = 0
         self.time = 0
+        self.supply = 0
         self.ref_temp = 0
         self.ref_time = 0
+        self.ref_supply = 0
         self.on_rest = on_rest
         self.rest_count = 0
         self.worn = True
@@ -101,10 +108,10 @@ class Pipeline:
         self.n_fit = 0     # points gathered for the fit
 
     def offer(self, x, y, z):
-        """A rest mean (Q16 g), seen at self.temp and self.time -> bins; returns the subset it
-        was kept in or -1."""
+        """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
+        subset it was kept in or -1."""
         self.rest_count += 1
-        s = self.bins.offer(x, y, z, self.temp, self.time)
+        s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
         if self.on_rest is not None:
             self.on_rest(x, y, z, s)
         return s
@@ -137,7 +144,7 @@ class Pipeline:
         return self.optimiser.status
 
     def begin_fit(self):
-        """Gather the held points (a composed model: with their dT, dt from the middle of
+        """Gather the held points (a composed model: with their dT, dt, dV from the middle of
         their ranges) and start the optimiser on them (a composed model with the wear
         profile's fit: the base fit of the same points first)."""
         self.stage = 1
@@ -149,10 +156,11 @@ class Pipeline:
         aux = self.aux
         n = self.bins.gather(self.points, aux)
         self.n_fit = n
-        self.ref_temp, self.ref_time = references(aux, n, self.kinds)
+        self.ref_temp, self.ref_time, self.ref_supply = references(aux, n, self.kinds)
         for i in range(n):
-            aux[2 * i] -= self.ref_temp
-            aux[2 * i + 1] -= self.ref_time
+            aux[COND * i] -= self.ref_temp
+            aux[COND * i + 1] -= self.ref_time
+            aux[COND * i + 2] -= self.ref_supply
         if self.base_fit is not None:
             self.stage = 0
             self.base_fit.begin(self.points, n, self.iterations, aux)
@@ -239,11 +247,12 @@ def _mean_above(f1, n1, f2, n2):
 
 
 def references(cond, n, kinds):
-    """A composed fit's reference temperature and time over n points' conditions (flat: temp,
-    time per point): the middle of each range (floor), so that dT and dt are centred and the
-    effect terms do not trade with the offsets; for a model with a power of time above 1, the
-    earliest time (effects.time_from_first)."""
-    return _middle(cond, 0, n), _middle(cond, 1, n, effects.time_from_first(kinds))
+    """A composed fit's reference temperature, time and supply over n points' conditions (flat:
+    temp, time, supply per point, bins.COND): the middle of each range (floor), so that dT, dt
+    and dV are centred and the effect terms do not trade with the offsets; for a model with a
+    power of time above 1, the earliest time (effects.time_from_first)."""
+    return (_middle(cond, 0, n), _middle(cond, 1, n, effects.time_from_first(kinds)),
+            _middle(cond, 2, n))
 
 
 def _middle(cond, c, n, lowest=False):
@@ -252,7 +261,7 @@ def _middle(cond, c, n, lowest=False):
         return 0
     lo = hi = cond[c]
     for i in range(1, n):
-        v = cond[2 * i + c]
+        v = cond[COND * i + c]
         if v < lo:
             lo = v
         elif v > hi:

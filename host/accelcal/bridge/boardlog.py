@@ -27,6 +27,7 @@ FIELDS = {
                    "rest_segments", "rest_logged", "rest_skipped"),
     log.GAP: ("index", "lost"),
     log.EFFECT: ("index", "effect", "ref_temp", "ref_time", "p0", "p1", "p2"),
+    log.SUPPLY: ("index", "supply_mv"),
 }
 
 
@@ -112,7 +113,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
 
 @dataclass
 class Capture:
-    blocks: list  # ("samples", first_index, temp, ndarray (n, 3) int) or ("gap", index, lost)
+    blocks: list  # ("samples", first_index, temp, ndarray (n, 3) int), ("gap", index, lost)
+    # or ("supply", index, mV)
     boot: tuple | None
 
 
@@ -125,6 +127,8 @@ def read_capture(dirpath: Path) -> Capture:
             blocks.append(("samples", first, temp, np.array(xyz, dtype=np.int64).reshape(n, 3)))
         elif t == log.GAP:
             blocks.append(("gap", v[0], v[1]))
+        elif t == log.SUPPLY:
+            blocks.append(("supply", v[0], v[1]))
     boots = decode(dirpath / "log.bin").of(log.BOOT)
     return Capture(blocks, boots[-1] if boots else None)
 
@@ -156,6 +160,8 @@ def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None =
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])
+        elif blk[0] == "supply":   # the board's supply from here on, as its feeder set it
+            proc.supply = blk[2]
         else:
             _, first, temp, xyz = blk
             if first != proc.index:
@@ -218,11 +224,16 @@ def summary(dirpath: str | Path) -> dict:
             if e["index"] == c["index"] and e["effect"] in deff.NAMES:
                 eff = CATALOGUE[deff.NAMES[e["effect"]]]
                 vals = eff.from_int([e["p0"], e["p1"], e["p2"]]) * eff.scale
-                # a step's record holds its time where the others hold the reference time
-                when = "step_time_s" if e["effect"] == deff.STEP else "ref_time_s"
+                # a step's record holds its time where the others hold the reference time, a
+                # supply's its reference supply (mV)
+                if e["effect"] == deff.SUPPLY_OFFSET:
+                    when, value = "ref_supply_mv", e["ref_time"]
+                else:
+                    when = "step_time_s" if e["effect"] == deff.STEP else "ref_time_s"
+                    value = e["ref_time"] * deff.DT_UNIT_S
                 c.setdefault("effects", {})[eff.name] = {
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
-                    "ref_temp": e["ref_temp"], when: e["ref_time"] * deff.DT_UNIT_S}
+                    "ref_temp": e["ref_temp"], when: value}
     rests = lg.dicts(log.REST)
     for r in rests:
         for k in "xyz":

@@ -15,6 +15,7 @@ from acal import fixed, optimiser, rest
 from acal import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
 from accelcal.errors import InputError
+from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.fixedpoint import g_to_point, g_to_sample
 
 BATCH = 1000  # samples per B record
@@ -99,6 +100,9 @@ class Group:
     # Rest means as the twin found them (Q16 g ints): handed to the bins as they are, never
     # through floats.
     points_q16: np.ndarray | None = None
+    # Further recording columns by name, one value per point (battery voltage, ...): host-only
+    # column effects are fitted on them (model/declared.py); the device never sees them.
+    cols: dict = field(default_factory=dict)
 
     def point_ints(self) -> np.ndarray:
         """The rest points as the device's bins take them, Q16 g ints."""
@@ -119,17 +123,20 @@ class Group:
     def conditions(self, n: int) -> np.ndarray:
         if self.cond is not None:
             return self.cond
-        return device_conditions(self.temp, self.t, self.t_first, n)
+        return device_conditions(self.temp, self.t, self.t_first, n, self.cols.get(SUPPLY_COLUMN))
 
 
-def device_conditions(temp, t, t0: float, n: int) -> np.ndarray:
-    """(n, 2) ints: temperature (degC, rounded) and time (64 s units from t0), as the device
-    reads them; zeros where a column is missing."""
-    out = np.zeros((n, 2), dtype=np.int64)
+def device_conditions(temp, t, t0: float, n: int, supply=None) -> np.ndarray:
+    """(n, 3) ints: temperature (degC, rounded), time (64 s units from t0) and the board's supply
+    (mV, rounded: a recording's SUPPLY_COLUMN), as the device reads them; zeros where a column
+    is missing."""
+    out = np.zeros((n, 3), dtype=np.int64)
     if temp is not None:
         out[:, 0] = np.rint(temp)
     if t is not None:
         out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
+    if supply is not None:
+        out[:, 2] = np.rint(supply)
     return out
 
 
@@ -147,14 +154,16 @@ class DeviceResult:
     objective: int = 0
     params_int: list[int] = field(default_factory=list)
     counts: list[int] = field(default_factory=list)
-    rest_int: list[tuple[int, ...]] = field(default_factory=list)      # x y z subset temp time
-    selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time
+    rest_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z subset temp time supply
+    selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time supply
     ref_temp: int = 0
     ref_time: int = 0
     step_time: int = 0       # a step's time, 64 s units from ref_time
+    ref_supply: int = 0      # mV
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
     temp_span: int = 0       # of the held points: degC
     time_span: int = 0       # 64 s units
+    supply_span: int = 0     # mV
     covered: bool = False    # the held points cover every axis (bins.covered())
     kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
     threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
@@ -180,8 +189,9 @@ class DeviceResult:
 
     @property
     def rest_conditions(self) -> np.ndarray:
-        """(N, 2) ints: each rest mean's temperature (degC) and time (64 s units)."""
-        return np.array([r[4:6] for r in self.rest_int], dtype=np.int64).reshape(-1, 2)
+        """(N, 3) ints: each rest mean's temperature (degC), time (64 s units) and the board's
+        supply (mV)."""
+        return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
 
 
 def protocol_items(groups: list[Group], cfg: Config):
@@ -197,7 +207,7 @@ def protocol_items(groups: list[Group], cfg: Config):
             last = None
             for (x, y, z), c in zip(q.tolist(), cond):
                 if composed and c != last:
-                    yield "conditions", (c[0], c[1])
+                    yield "conditions", (c[0], c[1], c[2])
                     last = c
                 yield "point", (x, y, z)
         if g.samples is not None:
@@ -223,7 +233,7 @@ def protocol_items(groups: list[Group], cfg: Config):
                     state = bool(worn[a])
                     yield "worn", (state,)
                 if composed:
-                    yield "conditions", (int(cond[a, 0]), int(cond[a, 1]))
+                    yield "conditions", (int(cond[a, 0]), int(cond[a, 1]), int(cond[a, 2]))
                 for s in range(a, b, BATCH):
                     chunk = q[s:min(b, s + BATCH)]
                     yield "samples", (chunk.ravel().tolist(), len(chunk))
@@ -260,14 +270,14 @@ class Collector:
             return
         cur = self.results[-1]
         if tag == "R":
-            cur.rest_int.append(tuple(v[:6]))
+            cur.rest_int.append(tuple(v[:7]))
         elif tag == "S":
-            cur.selected_int.append(tuple(v[:5]))
+            cur.selected_int.append(tuple(v[:6]))
         elif tag == "Z":
-            cur.ref_temp, cur.ref_time, cur.step_time = v[0], v[1], v[2]
+            cur.ref_temp, cur.ref_time, cur.step_time, cur.ref_supply = v[0], v[1], v[2], v[3]
         elif tag == "Y":
             cur.ready, cur.temp_span, cur.time_span = v[0] == 1, v[1], v[2]
-            cur.covered = v[3] == 1
+            cur.covered, cur.supply_span = v[3] == 1, v[4]
         elif tag == "K":
             cur.counts = list(v)
         elif tag == "D":

@@ -214,13 +214,14 @@ def samples_planar(x, y, z) -> np.ndarray:
 
 
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
-                 step_time: int = 0) -> np.ndarray:
+                 step_time: int = 0, dV=None) -> np.ndarray:
     """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters
     (9, then 3 per effect), Q10 samples in and out (m x 3 int64), the format of the full scale
     range_g (fixed.py), readings clamped to it.  A composed model also takes each
     sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
-    time), as the device's temp - ref_temp and time - ref_time; clamped as the device clamps
-    (dT, dt, and the reading after each effect); a step from dt >= step_time on."""
+    time), as the device's temp - ref_temp and time - ref_time, and dV (mV of the board's supply
+    from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
+    effect); a step from dt >= step_time on."""
     e = fixed.apply_range_shift(range_g)
     if kinds and e:
         raise ValueError("a composed model applies at +-2 g full scale")
@@ -236,13 +237,14 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
                      -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
         dt_raw = np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,))[:, None]
         dt = np.clip(dt_raw, -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)
+        dV = np.broadcast_to(np.asarray(0 if dV is None else dV, np.int64), (m,))[:, None]
         for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
             kind = kinds[j]
             ke = [0, 0, 0]
             deff.apply_params(kind, [int(v) for v in p_int[9 + 3 * j:12 + 3 * j]], 0, ke, 0)
             ke = np.array(ke, dtype=np.int64)
             if kind in deff.SHAPES:
-                w -= (ke * generic_regressor(kind, dT, dt_raw, step_time)) >> 14
+                w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> 14
             elif kind == deff.TEMP_OFFSET:
                 w -= (ke * dT) >> 4
             elif kind == deff.TEMP_SCALE:
@@ -266,13 +268,16 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     return out
 
 
-def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int) -> np.ndarray:
+def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
+                      dV: np.ndarray | int = 0) -> np.ndarray:
     """The twin of acal.effects.regressor >> 4 (Q12, the apply's), vectorised: a step's
-    indicator, or the clamped temperature or time to its power (each an exact floor in Q16, as
-    acal/wide.py's mul_shift gives it)."""
+    indicator, the board's supply (clamped), or the clamped temperature or time to its power
+    (each an exact floor in Q16, as acal/wide.py's mul_shift gives it)."""
     source, power = deff.SHAPES[kind]
     if source == deff.SOURCE_STEP:
         return np.where(dt >= step_time, 4096, 0).astype(np.int64)
+    if source == deff.SOURCE_SUPPLY:
+        return (np.clip(np.asarray(dV, np.int64), -deff.SUPPLY_MAX, deff.SUPPLY_MAX) << 6) >> 4
     if source == deff.SOURCE_TEMP:
         base = np.clip(dT, -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX) << 12
     else:

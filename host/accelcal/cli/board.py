@@ -82,8 +82,10 @@ def _print_summary(s, where):
               f"{cal['iterations']} iterations, {cal['points']} points: {vals}")
         for name, e in cal.get("effects", {}).items():
             vals = " ".join(f"{n}={v:+.4g}" for n, v in e["params"].items())
-            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, "
-                  f"{e['ref_time_s']} s of running time")
+            where = (f"{e['ref_time_s']} s of running time" if "ref_time_s" in e else
+                     f"step at {e['step_time_s']} s of running time" if "step_time_s" in e else
+                     f"supply {e['ref_supply_mv']} mV")
+            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, {where}")
     if s["stored_calibration"]:
         print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
     for d in s["dropped"]:

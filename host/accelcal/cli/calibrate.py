@@ -115,15 +115,15 @@ def _calibrate_batch(args, spec, engine) -> int:
 
 
 def cmd_apply(args) -> int:
-    from accelcal.pipeline.calibrate import apply_file
+    from accelcal.pipeline.apply import apply_file
     from accelcal.files.params import load_params
     from accelcal.files.recordings import is_recording
     from accelcal.model.effects import ModelSpec
     register_effects(args)
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
-        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp], or "
-                         ".cwa/.bin/.gt3x)")
+        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
+                         "or .cwa/.bin/.gt3x)")
     check_output(args.output, [args.params, args.input], args.force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
     host_only = ModelSpec.parse(model).host_only
@@ -143,7 +143,7 @@ def add_parsers(sub) -> None:
                                    "it selects) and report parameters and calibration error.",
                        epilog=EPILOG_CAL, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", nargs="+", metavar="INPUT",
-                   help="recording (CSV t,x,y,z[,temp]; Axivity .cwa, GENEActiv .bin, ActiGraph "
+                   help="recording (CSV t,x,y,z[,temp][,NAME...]; Axivity .cwa, GENEActiv .bin, ActiGraph "
                         ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default="base",
                    help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
@@ -200,8 +200,9 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("apply", help="calibrate a recording with saved parameters",
                        description="Apply saved parameters to every sample with the device's "
                                    "integer per-sample code (the paper's model through its numpy "
-                                   "twin, bit-exact); writes t,x,y,z[,temp] in g.  Streams: any "
-                                   "length of recording in constant memory.")
+                                   "twin, bit-exact); writes t,x,y,z[,temp] in g, then the "
+                                   "recording's further columns as read.  Streams: any length "
+                                   "of recording in constant memory.")
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True,

@@ -44,7 +44,8 @@ def add_parsers(sub) -> None:
                                    "noise floor, residuals against time, temperature, each axis and "
                                    "|a|, and for every catalogue effect not in the model the held-out "
                                    "error with it added; names the missing effect, or none.")
-    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
+                                 "as supply_mv are regressors too) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
     add_effects_arg(p)
     p.add_argument("--report", metavar="DIR",
@@ -83,7 +84,8 @@ def add_parsers(sub) -> None:
                                    "| |a| - 1 g | in mg before and after, R (Farago eq. 21), fit "
                                    "time measured in this run.  A method that cannot fit shows "
                                    "its reason; the others still run.")
-    p.add_argument("input", help="recording CSV (t,x,y,z[,temp]) or points file")
+    p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
+                                 "as supply_mv are regressors too) or points file")
     p.add_argument("--methods", metavar="M1,M2,...",
                    help="default all: device," + ",".join(METHODS))
     p.add_argument("--train", choices=["selected", "thinned", "all"], default="selected",

@@ -137,7 +137,7 @@ def pipeline_config(args, composed=False):
 
 
 EFFECTS_HELP = ("a Python file declaring effects of your own (EFFECTS = [dict(name=..., regressor="
-                "'temperature'|'time'|'reading', power=..., form='offset'|'gain', unit=..., "
+                "'temperature'|'time'|'reading'|'column:NAME', power=..., form='offset'|'gain', unit=..., "
                 "bound=..., explanation=...)]): they join the catalogue for this command "
                 "(docs/model-discovery.md \"Effects you declare\")")
 

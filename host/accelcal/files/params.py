@@ -11,7 +11,7 @@ from acal import model as dmodel
 from accelcal.errors import InputError
 from accelcal.files.outputs import write_text
 from accelcal.fixedpoint import params_to_float
-from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
 
 
 def params_record(p_int, model="base", method="device", **extra) -> dict:
@@ -120,6 +120,13 @@ def load_params(path: str, device: str | None = None) -> tuple[str, list[int], d
                 raise InputError(f"{path}: model {spec} needs reference.ts, the step's time in s "
                                  "(finite)")
             ref["ts"] = float(ts)
+        for c in spec.columns:   # a column effect's reference: the column's mean
+            k = column_ref(c)
+            v = r.get(k)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"{path}: model {spec} needs reference.{k}, the mean of column "
+                                 f"{c} it was fitted at (finite)")
+            ref[k] = float(v)
     if not dmodel.in_bounds(p_int) or not _effects_within(spec, p_int):
         raise InputError(f"{path}: parameters outside the calibration bounds (docs/method-and-formats.md \"Fixed-"
                          "point formats\"): no fit writes these")

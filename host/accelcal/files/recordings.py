@@ -1,7 +1,7 @@
 """Recordings of any size and format, read in chunks onto our recording model (docs/method-and-formats.md "Files"):
 time t in s, x/y/z in g, temperature in degC where the device records it.
 
-* CSV (header t,x,y,z[,temp]) streams through Apache Arrow's CSV reader: a C++ engine, parsed in
+* CSV (header t,x,y,z[,temp][,NAME...]) streams through Apache Arrow's CSV reader: a C++ engine, parsed in
   blocks on both cores, so memory stays constant whatever the file's length.
 * Axivity .cwa (AX3, AX6), GENEActiv .bin and ActiGraph .gt3x go through `actfast`, a maintained
   reader of all three.  It reads a whole file at once (about 20 bytes a sample: a 14-day 100 Hz
@@ -18,7 +18,7 @@ nothing that matters.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
@@ -26,8 +26,12 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
+from accelcal.model.effects import COLUMN_NAME, RESERVED
 
 RECORDING_HEADERS = (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])
+# Further named columns after those (battery voltage, say: a regressor an effect may follow,
+# model/effects.py COLUMN_NAME, RESERVED, SUPPLY_COLUMN).
+COLUMN_MAX = 1e9     # |value| of an extra column: beyond it a float fit loses its digits
 GAP_S = 1.0
 CHUNK = 1 << 20                      # samples per chunk handed on
 ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
@@ -37,11 +41,24 @@ STANDARD_RANGES_G = (2, 4, 8, 16)
 @dataclass
 class Chunk:
     """Consecutive samples: t (n,) s; xyz (n, 3) g; temp (n,) degC or None; first: the stream
-    index of the first sample."""
+    index of the first sample; cols: the recording's further columns by name, (n,) each."""
     t: np.ndarray
     xyz: np.ndarray
     temp: np.ndarray | None
     first: int
+    cols: dict = field(default_factory=dict)
+
+
+def recording_columns(header: list[str]) -> list[str] | None:
+    """The further columns of a recording's CSV header (t,x,y,z[,temp][,NAME...]), in order;
+    None when the header is not a recording's (a points file, or anything else)."""
+    if header[:4] != ["t", "x", "y", "z"]:
+        return None
+    rest = header[5:] if header[4:5] == ["temp"] else header[4:]
+    if any(h in RESERVED or not COLUMN_NAME.fullmatch(h) for h in rest) or \
+            len(set(rest)) != len(rest):
+        return None
+    return rest
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -59,6 +76,7 @@ class Recording:
         self.range_g: float | None = None
         self.meta: dict = {}
         self.has_temp = False
+        self.columns: list[str] = []    # further named columns (CSV only), Chunk.cols
         self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
@@ -87,11 +105,14 @@ class CsvRecording(Recording):
         header = csv_header(path)
         if not header:
             raise InputError(f"{path}: empty file")
-        if header not in RECORDING_HEADERS:
-            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp; found "
-                             f"{','.join(header)}")
+        columns = recording_columns(header)
+        if columns is None:
+            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp, then any "
+                             f"further named columns (lower-case, not device); found "
+                             f"{','.join(header)[:200]}")
         self.header = header
         self.has_temp = "temp" in header
+        self.columns = columns
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
@@ -129,8 +150,16 @@ class CsvRecording(Recording):
             cols.append(v)
         check_values(self.path, cols[0], np.column_stack(cols[1:4]),
                      cols[4] if self.has_temp else None, first, self._last_t)
+        extra = dict(zip(self.columns, cols[len(self.header) - len(self.columns):]))
+        for name, v in extra.items():
+            big = np.abs(v) > COLUMN_MAX
+            if big.any():
+                row = first + int(np.argmax(big))
+                raise InputError(f"{self.path}:{row + 2}: {v[row - first]:g} in column {name} "
+                                 f"(|value| <= {COLUMN_MAX:g})")
         self._last_t = float(cols[0][-1])
-        return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first)
+        return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first,
+                     extra)
 
 
 def _arrow_message(e: Exception) -> str:
@@ -313,10 +342,10 @@ def read_whole(path: str | Path):
 
 def is_recording(path: str | Path) -> bool:
     """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
-    header is t,x,y,z[,temp]."""
+    header is t,x,y,z[,temp] and any further named columns (recording_columns)."""
     if Path(path).suffix.lower() in ACTIGRAPHY:
         return True
-    return csv_header(path) in RECORDING_HEADERS
+    return recording_columns(csv_header(path)) is not None
 
 
 def csv_header(path: str | Path) -> list[str]:

@@ -12,7 +12,7 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
-from accelcal.files.recordings import ACTIGRAPHY, RECORDING_HEADERS, read_whole
+from accelcal.files.recordings import ACTIGRAPHY, read_whole, recording_columns
 
 
 @dataclass
@@ -70,13 +70,13 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
                 data = None
             if data is not None and data.shape[1] == len(header) and len(data) \
                     and np.isfinite(data).all():
-                kind = "recording" if header in RECORDING_HEADERS else "points"
+                kind = "recording" if recording_columns(header) is not None else "points"
                 return _checked(Table(path, {h: np.ascontiguousarray(data[:, i])
                                              for i, h in enumerate(header)}, kind, {}))
             fh.seek(0)
             next(reader)
         rows = list(reader)
-    kind = "recording" if header in RECORDING_HEADERS else "points"
+    kind = "recording" if recording_columns(header) is not None else "points"
     ncol = len(header)
     cols: dict[str, list] = {h: [] for h in header}
     for lineno, row in enumerate(rows, start=2):

@@ -4,7 +4,8 @@ a candidate like the built-in ones and calibrate (lsq) and apply fit and apply i
 
     EFFECTS = [
         dict(name="ageing2",                 # a new name: letters, digits, _
-             regressor="time",               # "temperature", "time" or "reading"
+             regressor="time",               # "temperature", "time", "reading" or
+                                             # "column:NAME", a column of the recording
              power=2,                        # the regressor to this power (1..4); default 1
              step=False,                     # time only: a step at a time the fit finds instead
              form="offset",                  # "offset": v + p x;  "gain": v (1 + p x)
@@ -13,12 +14,14 @@ a candidate like the built-in ones and calibrate (lsq) and apply fit and apply i
     ]
 
 The regressor x per axis is (T - T0)^power with T0 the mean temperature, ((t - t0) / 1 day)^power
-with t0 the first time, [t >= ts] for a step, or the axis's own reading^power.  Such effects are
-linear in their parameters.  On the board an effect runs as the device kind of its shape
+with t0 the first time, [t >= ts] for a step, the axis's own reading^power, or (C - C0)^power for
+a recording column C (battery voltage, say: CSV t,x,y,z[,temp],NAME...; a points file's column)
+with C0 its mean over the points fitted.  Such effects are linear in their parameters.  On the board an effect runs as the device kind of its shape
 (model/effects.py device_kind): an offset in temperature or time to a power 1..4, a step, a gain
 linear in temperature, an offset in the squared reading; the device's bound for that shape then
-holds (0.05 g per unit of its normalised regressor for the generic offsets).  Other shapes are
-fitted and applied on the host (docs/model-discovery.md "Effects you declare")."""
+holds (0.05 g per unit of its normalised regressor for the generic offsets).  Other shapes, and
+every effect of a recording column, are fitted and applied on the host
+(docs/model-discovery.md "Effects you declare")."""
 from __future__ import annotations
 
 import math
@@ -27,7 +30,7 @@ import runpy
 from pathlib import Path
 
 from accelcal.errors import InputError
-from accelcal.model.effects import CATALOGUE, Effect
+from accelcal.model.effects import CATALOGUE, COLUMN_NAME, RESERVED, Effect
 
 REGRESSORS = {"temperature": "temp", "time": "t", "reading": None}
 REQUIRED = ("name", "regressor", "unit", "bound", "explanation")
@@ -55,9 +58,15 @@ def _check(path: str, i: int, d) -> Effect:
     if name in CATALOGUE and CATALOGUE[name].declared_in != str(path):
         raise InputError(f"{where}: {name!r} is already an effect; choose another name")
     reg = d["regressor"]
-    if reg not in REGRESSORS:
-        raise InputError(f"{where}: regressor must be one of {', '.join(REGRESSORS)} (a recording "
-                         f"column is not supported yet), found {reg!r:.40}")
+    column = None
+    if isinstance(reg, str) and reg.startswith("column:"):
+        column = reg[len("column:"):]
+        if column in RESERVED or not COLUMN_NAME.fullmatch(column):
+            raise InputError(f"{where}: regressor 'column:NAME' names a further recording column "
+                             f"(lower-case, not t/x/y/z/temp/device), found {reg!r:.40}")
+    elif reg not in REGRESSORS:
+        raise InputError(f"{where}: regressor must be one of {', '.join(REGRESSORS)} or "
+                         f"'column:NAME' (a column of the recording), found {reg!r:.40}")
     power = d.get("power", 1)
     if isinstance(power, bool) or not isinstance(power, int) or not 1 <= power <= 4:
         raise InputError(f"{where}: power must be a whole number 1..4, found {power!r:.40}")
@@ -75,10 +84,11 @@ def _check(path: str, i: int, d) -> Effect:
     for k in ("unit", "explanation"):
         if not isinstance(d[k], str) or not d[k].strip():
             raise InputError(f"{where}: {k} must be text")
+    needs, label = ("col", column) if column else (REGRESSORS[reg], REGRESSOR_LABEL[reg])
     return Effect(name, f"{name}_", d["unit"], 1.0, d["unit"], float(bound),
-                  (bound / 10, bound / 4), REGRESSORS[reg], REGRESSOR_LABEL[reg],
+                  (bound / 10, bound / 4), needs, label,
                   d["explanation"].strip(), form=form, power=power, change_point=step,
-                  declared_in=str(path))
+                  declared_in=str(path), column=column)
 
 
 def load_effects(path: str) -> list[Effect]:

@@ -12,6 +12,9 @@ An effect adds to what the sensor measures, after the 9-parameter errors (v = me
 and shapes the device runs (its generic offsets) that diagnose does not try unless a user
 declares an effect of that shape (model/declared.py) or names one in a model:
     time_offset2..4  v += p ((t - t0) / 1 day)^2..4      temp_offset3..4  v += p (T - T0)^3..4
+and an effect of a recording column (model/declared.py), of which the board's own supply runs
+on it too (diagnose tries it where a recording has the column):
+    supply_offset    v += p (V - V0)          V: the supply_mv column (mV), V0 its reference
 
 The same declaration serves the simulator (`measure`: add the effect with true values), the
 fits (`correct`: remove it with fitted values, before the 9-parameter correction) and the reports
@@ -24,6 +27,7 @@ kind of its shape (device_kind).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +39,14 @@ from accelcal.fixedpoint import params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
 AXES = "xyz"
+# Recording columns an effect may follow (files/recordings.py reads them after t,x,y,z[,temp]):
+# lower-case names, not the recording's own (`device` stays a points file's group column).
+# supply_mv is the board's own supply in mV, the one column the device reads itself
+# (acal.effects.SUPPLY_OFFSET, its third condition).
+COLUMN_NAME = re.compile(r"[a-z][a-z0-9_]{0,23}")
+RESERVED = ("t", "x", "y", "z", "temp", "device")
+SUPPLY_COLUMN = "supply_mv"
+SIM_BATTERY_V = 3.9     # the simulator's battery (simulate/wearer.py) is referred to this
 
 
 @dataclass(frozen=True)
@@ -50,7 +62,7 @@ class Effect:
     report_unit: str
     bound: float            # |parameter| <= bound (fit bounds; the device's BOUNDS in Q24)
     true_range: tuple       # simulator: |true value| drawn uniformly in this range
-    needs: str | None       # "temp", "t" or None (the regressor is the reading itself)
+    needs: str | None       # "temp", "t", "col" (a recording column) or None (the reading itself)
     regressor: str          # what residuals are plotted against
     explanation: str
     form: str = "offset"    # "offset": v + theta x;  "gain": v (1 + theta x)
@@ -59,14 +71,19 @@ class Effect:
     sim_reference: tuple = ()    # simulator: the truth's own reference, e.g. (("T0", 33.0),)
     declared_in: str | None = None   # a user's effects file (model/declared.py); None: built in
     candidate: bool = True  # diagnose tries it (the device's generic shapes: only when named)
+    column: str | None = None    # needs "col": the recording column it follows (battery_v, ...)
 
     @property
     def param_names(self) -> list[str]:
         return [f"{self.symbol}{a}" for a in AXES]
 
-    def x(self, v, temp, t, ref) -> np.ndarray:
+    def x(self, v, temp, t, ref, cols=None) -> np.ndarray:
         """The regressor, per axis (broadcast against v): degC from T0 (to the effect's power),
-        days from t0, 1 from ts on (a step), or the axis reading squared."""
+        days from t0, 1 from ts on (a step), a recording column from its reference (its mean,
+        ref[column_ref(name)]), or the axis reading squared."""
+        if self.needs == "col":
+            return ((np.asarray(cols[self.column]) - ref[column_ref(self.column)])
+                    ** self.power)[:, None]
         if self.needs == "temp":
             return ((temp - ref["T0"]) ** self.power)[:, None]
         if self.needs == "t":
@@ -75,15 +92,15 @@ class Effect:
             return (((t - ref["t0"]) / 86400.0) ** self.power)[:, None]
         return v ** self.power
 
-    def measure(self, v, theta, temp, t, ref):
+    def measure(self, v, theta, temp, t, ref, cols=None):
         """What the sensor reads with the effect added (simulator)."""
-        dx = np.asarray(theta) * self.x(v, temp, t, ref)
+        dx = np.asarray(theta) * self.x(v, temp, t, ref, cols)
         return v * (1 + dx) if self.form == "gain" else v + dx
 
-    def correct(self, v, theta, temp, t, ref):
+    def correct(self, v, theta, temp, t, ref, cols=None):
         """Remove the effect from measurements (fits, apply): first order, exactly the form the
         device applies in integers (device/acal/effects.py)."""
-        dx = np.asarray(theta) * self.x(v, temp, t, ref)
+        dx = np.asarray(theta) * self.x(v, temp, t, ref, cols)
         return v - dx * v if self.form == "gain" else v - dx
 
     # Device integers (device/acal/effects.py): Q24 per normalised regressor.
@@ -91,13 +108,19 @@ class Effect:
     def kind(self) -> int | None:
         """The device's id for the effect's shape, None for an effect fitted and applied on the
         host only."""
+        if self.needs == "col":   # the board reads its supply, no other column
+            return deff.SUPPLY_OFFSET if (self.column, self.power, self.form) == \
+                (SUPPLY_COLUMN, 1, "offset") else None
         return device_kind(self.needs, self.power, self.form, self.change_point)
 
     @property
     def int_scale(self) -> float:
         """The device's Q24 per normalised regressor (device/acal/effects.py): temperature per
         16 degC (temp_offset2: per 64 degC^2), time per 2048 units of 64 s (drift) or, for the
-        generic powers, per 2**13 units; a step and the reading per 1."""
+        generic powers, per 2**13 units; the board's supply per SUPPLY_MAX mV; a step, the
+        reading and other columns per 1."""
+        if self.kind == deff.SUPPLY_OFFSET:
+            return float(deff.SUPPLY_MAX) * (1 << 24)
         if self.needs == "temp":
             per = {1: 16.0, 2: 64.0}.get(self.power, 16.0 ** self.power)
         elif self.needs == "t" and not self.change_point:
@@ -121,9 +144,17 @@ class Effect:
         """The simulator's reference for this effect beyond TrueEffect.REF: its own (a curve's
         T0), and a step's time, uniform in the middle half of the recording."""
         ref = dict(self.sim_reference)
+        if self.needs == "col":   # the simulator's column is a battery (simulate/wearer.py)
+            ref[column_ref(self.column)] = SIM_BATTERY_V * (1000 if self.column == SUPPLY_COLUMN
+                                                            else 1)
         if self.change_point:
             ref["ts"] = float(rng.uniform(0.25, 0.75) * span_s)
         return ref
+
+
+def column_ref(name: str) -> str:
+    """The reference key (fitted model's `reference`) of a recording column: its mean, C0."""
+    return f"{name}0"
 
 
 _TEMP_KINDS = {1: deff.TEMP_OFFSET, 2: deff.TEMP_OFFSET2, 3: deff.TEMP_OFFSET3, 4: deff.TEMP_OFFSET4}
@@ -197,6 +228,13 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
            "the cube of temperature"),
     _shape("temp_offset4", "temp", 4, "g/degC^4", "mg/degC^4", _GENERIC_BOUND / 16 ** 4,
            "the fourth power of temperature"),
+    # the board's own supply, a column of its recordings (files/recordings.py SUPPLY_COLUMN)
+    Effect("supply_offset", "v", "g/mV", 1e6, "mg/V", _GENERIC_BOUND / deff.SUPPLY_MAX,
+           (0.05 / deff.SUPPLY_MAX / 10, 0.05 / deff.SUPPLY_MAX / 4), "col", SUPPLY_COLUMN,
+           "The zero-g level follows the supply: the readout's reference is not fully "
+           "ratiometric, so rest readings shift as the battery runs down - a trend in the "
+           "board's supply (mV), which repeats with every charge, not in time.",
+           column=SUPPLY_COLUMN),
 )}
 
 
@@ -259,6 +297,12 @@ class ModelSpec:
         return "+".join(("base",) + tuple(deff.NAMES[k] for k in self.kinds))
 
     @property
+    def columns(self) -> tuple[str, ...]:
+        """The recording columns the model's effects follow (battery_v, ...), in order."""
+        return tuple(dict.fromkeys(CATALOGUE[n].column for n in self.effects
+                                   if CATALOGUE[n].needs == "col"))
+
+    @property
     def change_point(self) -> str | None:
         """The effect whose time (ts) the fit finds, if any (one per model)."""
         return next((n for n in self.effects if CATALOGUE[n].change_point), None)
@@ -280,14 +324,25 @@ class ModelSpec:
             parts.append(CATALOGUE[n].from_int(p_int[9 + 3 * k: 12 + 3 * k]))
         return np.concatenate(parts)
 
-    def check_data(self, temp, t, source: str) -> None:
+    def check_data(self, temp, t, source: str, cols=None) -> None:
         """ValueError, one line, when the data cannot support the model: a temperature effect
-        without temperatures or with too little spread, a drift over too short a span.  The
-        thresholds are the device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
+        without temperatures or with too little spread, a drift over too short a span, a column
+        effect without its column or with a column that does not vary.  The thresholds are the
+        device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
         need_temp = dbins.TEMP_DIFFER
         need_h = dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600
+        cols = cols or {}
         for n in self.effects:
             e = CATALOGUE[n]
+            if e.needs == "col":
+                if e.column not in cols:
+                    have = ", ".join(cols) or "none"
+                    raise ValueError(f"{n} follows a column {e.column!r}; {source} has none "
+                                     f"(its further columns: {have})")
+                c = np.asarray(cols[e.column])
+                if len(c) and float(np.ptp(c)) <= 1e-9 * max(1.0, float(np.max(np.abs(c)))):
+                    raise ValueError(f"{n} follows column {e.column!r}, which does not vary "
+                                     f"across {source}'s rest points")
             if e.needs == "temp":
                 if temp is None:
                     raise ValueError(f"{n} needs a temperature column; {source} has none")
@@ -301,11 +356,13 @@ class ModelSpec:
                     raise ValueError(f"{n} needs rest points spanning >= {need_h:g} h; "
                                      f"{source} spans {span:.1f} h")
 
-    def correct(self, theta, v, temp, t, ref):
-        """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect)."""
+    def correct(self, theta, v, temp, t, ref, cols=None):
+        """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect);
+        cols: the recording columns column effects follow, by name."""
         w = v
         for k in reversed(range(len(self.effects))):  # undo in the reverse order of measure
-            w = CATALOGUE[self.effects[k]].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref)
+            w = CATALOGUE[self.effects[k]].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref,
+                                                   cols)
         return base_correct(theta[:9], w)
 
 
@@ -318,8 +375,8 @@ class TrueEffect:
         self.theta = np.asarray(theta, dtype=np.float64)
         self.ref = {**self.REF, **(reference or {})}
 
-    def apply(self, v, temp_c, t_s):
-        return self.effect.measure(v, self.theta, temp_c, t_s, self.ref)
+    def apply(self, v, temp_c, t_s, cols=None):
+        return self.effect.measure(v, self.theta, temp_c, t_s, self.ref, cols)
 
     def truth(self) -> dict:
         e = self.effect

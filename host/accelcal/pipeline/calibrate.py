@@ -1,5 +1,5 @@
-"""`accelcal calibrate` and `apply`: the device pipeline on files, with the host's reference
-methods fitted on the very points the device's bins selected."""
+"""`accelcal calibrate`: the device pipeline on files, with the host's reference methods
+fitted on the very points the device's bins selected (`apply`: pipeline/apply.py)."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -10,15 +10,14 @@ from acal import bins as dbins
 from acal import effects as deff
 from acal import fixed, optimiser
 from acal import profile as dprofile
-from acal.model import Calibration
 from accelcal import methods
-from accelcal.bridge import runtime, twin
-from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.bridge import runtime
+from accelcal.model.effects import SUPPLY_COLUMN
+from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
-from accelcal.fixedpoint import g_to_sample, params_to_float, params_to_int, sample_to_g
+from accelcal.fixedpoint import params_to_float, params_to_int
 from accelcal.files.params import params_record
-from accelcal.files.outputs import atomic
 from accelcal.pipeline.results import CalibrationResult
 
 
@@ -28,8 +27,9 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
         raise InputError(f"{table.path}: a recording goes through calibrate_recording")
     temp = table.columns.get("temp")
     t = table.columns.get("t")
+    cols = {k: v for k, v in table.columns.items() if k not in ("x", "y", "z", "t", "temp", by)}
     if not by:
-        return [runtime.Group("points", points=table.xyz, temp=temp, t=t)]
+        return [runtime.Group("points", points=table.xyz, temp=temp, t=t, cols=cols)]
     if by in table.text_columns:
         keys = table.text_columns[by]
     elif by in table.columns:
@@ -42,7 +42,8 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
             raise InputError(f"{table.path}: {by} value {k!r} must be non-empty without spaces")
         sel = keys == k
         groups.append(runtime.Group(k, points=table.xyz[sel], temp=None if temp is None else temp[sel],
-                                    t=None if t is None else t[sel]))
+                                    t=None if t is None else t[sel],
+                                    cols={c: v[sel] for c, v in cols.items()}))
     return groups
 
 
@@ -73,6 +74,9 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
         if need == "t" and r.time_span < dbins.TIME_DIFFER:
             return (f"{n}: the held points span {r.time_span * deff.DT_UNIT_S / 3600:.1f} h, the fit needs "
                     f">= {dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600:g} h")
+        if CATALOGUE[n].kind == deff.SUPPLY_OFFSET and r.supply_span < dbins.SUPPLY_DIFFER:
+            return (f"{n}: the held points span {r.supply_span} mV of {SUPPLY_COLUMN}, the fit "
+                    f"needs >= {dbins.SUPPLY_DIFFER}")
     return "the bins are not ready"
 
 
@@ -86,7 +90,8 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
     groups = groups_from_table(table, by)
     for g in groups:
         try:
-            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})")
+            spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})",
+                            g.cols)
         except ValueError as e:
             raise InputError(str(e)) from None
     results = runtime.run(groups, cfg, runtime_name)
@@ -139,7 +144,8 @@ def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: run
     if method != "device":
         rec["points_from"] = points
         if points == "all":
-            return _float_fit_record(rec, g, r, spec, method, rest, r.rest_conditions)
+            return _float_fit_record(rec, g, r, spec, method, rest, r.rest_conditions,
+                                     _rest_columns(spec, g, r))
     why = fill_reason(r, cfg)
     if why:
         n_samples = len(g.samples) if g.samples is not None else g.n_samples
@@ -165,19 +171,39 @@ def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: run
         rec["iterations"] = r.iterations
         rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
     else:
-        sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 5)
+        sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 6)
         if r.kept is not None:
             sel = sel[np.asarray(r.kept, bool)]
-        return _float_fit_record(rec, g, r, spec, method, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:5])
+        return _float_fit_record(rec, g, r, spec, method, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:6])
     return _params_record(rec, g, r, spec, method, p_int)
 
 
-def _float_fit_record(rec, g, r, spec, method, v, cond):
-    """A float method fitted on points v (g) seen at cond (int degC, 64 s units): the paper's
-    model by any method, a composed one by lsq (diagnose.fit) with the device's references."""
+def _rest_columns(spec: ModelSpec, g: runtime.Group, r: runtime.DeviceResult) -> dict:
+    """The recording columns spec's effects follow, one value per rest point the device
+    reported: the board's supply as the device saw it (its third condition), others from the
+    group's points, which are its rest points (a points file, or a recording's segments as the
+    twin found them), each offered once, in order."""
+    out = {SUPPLY_COLUMN: r.rest_conditions[:, 2].astype(np.float64)} \
+        if SUPPLY_COLUMN in spec.columns else {}
+    if not [c for c in spec.columns if c not in out]:
+        return out
+    if len(r.rest_int) != len(g):
+        raise InputError(f"model {spec}: its column effects need the rest points as the host "
+                         "found them (engine vector)")
+    return {c: out[c] if c in out else np.asarray(g.cols[c], dtype=np.float64)
+            for c in spec.columns}
+
+
+def _float_fit_record(rec, g, r, spec, method, v, cond, cols=None):
+    """A float method fitted on points v (g) seen at cond (int degC, 64 s units, mV) with
+    further columns cols (by name, per point): the paper's model by any method, a composed one
+    by lsq (diagnose.fit) with the device's references."""
     mag = np.linalg.norm(v, axis=1)
     ok = (mag > 0.5) & (mag < 1.5)
     v, cond = v[ok], cond[ok]
+    cols = {c: x[ok] for c, x in (cols or {}).items()}
+    if SUPPLY_COLUMN in spec.columns:   # the board's supply, as the device saw it
+        cols[SUPPLY_COLUMN] = cond[:, 2].astype(np.float64)
     rec["points"] = int(len(v))
     rec["iterations"] = None
     ref = None
@@ -189,14 +215,16 @@ def _float_fit_record(rec, g, r, spec, method, v, cond):
             from accelcal.pipeline.composed_lsq import fit_with_reference, refs
             methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
             pts = RestPoints(v, g.t_first + cond[:, 1] * float(deff.DT_UNIT_S),
-                             cond[:, 0].astype(float), np.zeros(len(v)), "points")
+                             cond[:, 0].astype(float), np.zeros(len(v)), "points", cols)
             if spec.host_only:   # the host's references, as diagnose takes them
-                ref = refs(pts)
+                ref = refs(pts, spec)
             else:   # the device's references (acal.pipeline.references)
                 from acal.pipeline import references
-                ref_temp, ref_time = references([int(c) for c in cond.ravel()], len(cond),
-                                                spec.kinds)
+                ref_temp, ref_time, ref_supply = references([int(c) for c in cond.ravel()],
+                                                            len(cond), spec.kinds)
                 ref = {"T0": float(ref_temp), "t0": g.t_first + ref_time * float(deff.DT_UNIT_S)}
+                if SUPPLY_COLUMN in spec.columns:
+                    ref[column_ref(SUPPLY_COLUMN)] = float(ref_supply)
             theta, ref = fit_with_reference(spec, pts, ref)
             p_int = spec.to_int(theta)
     except methods.FitError as e:
@@ -213,6 +241,8 @@ def _params_record(rec, g, r, spec, method, p_int, ref=None):
             ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
             if spec.change_point:
                 ref["ts"] = ref["t0"] + r.step_time * deff.DT_UNIT_S
+            if SUPPLY_COLUMN in spec.columns:
+                ref[column_ref(SUPPLY_COLUMN)] = float(r.ref_supply)
         rec.update(model=str(spec), method=method,
                    scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
                          "g, 1/degC, g/day, 1/g",
@@ -232,9 +262,9 @@ def error_after_mg(spec: ModelSpec, p_int, ref: dict | None, g: runtime.Group,
     rest = r.rest_g
     if not spec.effects:
         return methods.calibration_error_mg(params_to_float(p_int), rest)
-    cond = r.rest_conditions  # int degC, 64 s units
+    cond = r.rest_conditions  # int degC, 64 s units, mV
     a = spec.correct(spec.from_int(p_int), rest, cond[:, 0].astype(float),
-                     g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref)
+                     g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref, _rest_columns(spec, g, r))
     return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
@@ -249,23 +279,28 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline.scan import scan
     spec, cfg = _device_spec(spec, method, cfg, points)
+    if spec.columns and engine != "vector":
+        raise InputError(f"model {spec}: its column effects ({', '.join(spec.columns)}) are "
+                         "fitted on the rest points the host finds: --engine vector")
     rec_in = open_recording(path)
     out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
-               progress=progress)
+               progress=progress, extras=bool(spec.columns))
     sc, whole = out if engine == "device" else (out, None)
     cfg = replace(cfg, rate_hz=sc.rate_hz)
     m = sc.masks()
     kept = m["kept"]
     temp = None if sc.seg_temp is None else sc.seg_temp[kept]
+    cols = {c: sc.seg_column(c)[kept] for c in sc.columns if c in spec.columns}
     try:
-        spec.check_data(temp, sc.seg_t[kept], path)
+        spec.check_data(temp, sc.seg_t[kept], path, cols)
     except ValueError as e:
         raise InputError(str(e)) from None
     if engine == "vector":
-        cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()))
+        cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()),
+                                         cols.get(SUPPLY_COLUMN))
         g = runtime.Group("recording", points_q16=sc.segments.mean[kept],
                           temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
-                          n_samples=sc.n_samples)
+                          n_samples=sc.n_samples, cols=cols)
     else:
         t, q, temp_s = whole
         g = runtime.Group("recording", samples=q / fixed.SAMPLE_ONE_G,
@@ -320,89 +355,3 @@ def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
     if len(rest_g):
         rec["error_after_mg"] = methods.calibration_error_mg(params_to_float(p_int), rest_g)
     return rec
-
-
-def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
-                     ref: dict | None = None, source: str = "recording", range_g: int = 2) -> np.ndarray:
-    """Calibrate samples with the vectorised twin of the device's per-sample code
-    (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
-    model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
-    the device sees them as int degC and 64 s units from t0."""
-    spec = ModelSpec.parse(model)
-    if spec.host_only:
-        return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source)
-    if spec.effects and range_g != 2:
-        raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
-                         f"{source} is at +-{range_g} g")
-    cal = Calibration(spec.kinds, range_g)
-    ref_temp = int(round(ref["T0"])) if spec.effects else 0
-    try:
-        cal.set(p_int, ref_temp, 0)
-    except ValueError:
-        raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
-                         "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
-                         "bounds)") from None
-    q = g_to_sample(xyz_g)
-    if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
-        return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
-        raise InputError(f"model {spec} needs a temperature column; {source} has none")
-    cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
-    step_time = 0
-    if spec.change_point:   # from ts on, as the device compares whole 64 s units
-        if "ts" not in ref:
-            raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
-        step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
-    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1],
-                                         step_time=step_time))
-
-
-def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str) -> np.ndarray:
-    """A model with an effect the device does not have, applied in float64 (the fit's own
-    correction, spec.correct) to the samples as read."""
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
-        raise InputError(f"model {spec} needs a temperature column; {source} has none")
-    temp = np.zeros(len(xyz_g)) if temp is None else np.asarray(temp, dtype=np.float64)
-    return spec.correct(spec.from_int(p_int), np.asarray(xyz_g, dtype=np.float64), temp,
-                        np.asarray(t, dtype=np.float64), ref)
-
-
-def apply_range(declared, given: int | None) -> int:
-    """The full scale the device's apply takes for a file: given (apply --range), else the
-    file's declared range (rounded up to 2, 4, 8 or 16 g), else 2 g."""
-    if given:
-        return given
-    if declared:
-        for r in (2, 4, 8, 16):
-            if declared <= r:
-                return r
-    return 2
-
-
-def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
-               range_g: int | None = None) -> tuple[int, int, int]:
-    """Calibrate a recording of any format and length chunk by chunk (accelcal.files.recordings) with
-    the device's per-sample code at the full scale apply_range() picks (readings past it are
-    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3).
-    Returns (samples, samples clipped, full scale in g)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    from accelcal.files.recordings import open_recording
-    rec = open_recording(path)
-    rng = apply_range(rec.range_g, range_g)
-    limit = (fixed.APPLY_IN_MAX << fixed.apply_range_shift(rng)) / fixed.SAMPLE_ONE_G
-    clipped = 0
-    names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else [])
-    schema = pa.schema([(n, pa.float64()) for n in names])
-    n = 0
-    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-    # written whole or not at all: a killed run leaves no partial file that looks like a recording
-    with atomic(output, "wb") as sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
-        sink.write((",".join(names) + "\n").encode())
-        for ch in rec.chunks():
-            clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
-            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng), 6)
-            cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else [])
-            writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
-            n += len(ch.t)
-    return n, clipped, rng

@@ -121,7 +121,8 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
             if name == "device":
                 if spec.host_only:
                     raise methods.FitError(f"{', '.join(spec.host_only)} has no device form")
-                g = runtime.Group("train", points=sp.train.v, temp=sp.train.temp, t=sp.train.t)
+                g = runtime.Group("train", points=sp.train.v, temp=sp.train.temp, t=sp.train.t,
+                                  cols=sp.train.cols)
                 c = replace(cfg, kinds=spec.kinds)
                 r = runtime.run([g], c, runtime_name)[0]
                 rec = result_record({}, g, r, c, spec, "device")
@@ -133,7 +134,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
                     row["note"] = rec["note"]
             else:
                 methods.check_points(sp.train.v, 9 + 3 * len(spec.effects), "lsq")
-                theta, ref = fit_with_reference(spec, sp.train, refs(sp.train))
+                theta, ref = fit_with_reference(spec, sp.train, refs(sp.train, spec))
                 row["points"] = len(sp.train)
         except (methods.FitError, InputError) as e:
             row.update(status="failed", reason=str(e), error_after_mg=None, improvement_pct=None,
@@ -144,7 +145,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
         row["fit_ms"] = (time.perf_counter() - t0) * 1e3
         test = sp.test
         temp = test.temp if test.temp is not None else np.zeros(len(test))
-        a = spec.correct(theta, test.v, temp, test.t, ref)
+        a = spec.correct(theta, test.v, temp, test.t, ref, test.cols)
         after = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
         row.update(status="calibrated", reason=None, error_after_mg=after,
                    improvement_pct=100 * before / after if after > 0 else None,
@@ -192,7 +193,7 @@ def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "sele
     if spec is not None and spec.effects:
         say(f"  fitting {spec} (device, lsq)")
         try:
-            spec.check_data(sp.train.temp, sp.train.t, path)
+            spec.check_data(sp.train.temp, sp.train.t, path, sp.train.cols)
         except ValueError as e:
             raise InputError(str(e)) from None
         rows += composed_rows(spec, sp, cfg, runtime_name, before)

@@ -9,7 +9,7 @@ from scipy.optimize import least_squares
 
 from accelcal.errors import InputError
 from accelcal.methods import calibration_error_mg
-from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
 from accelcal.pipeline.results import CalibrationResult
 from accelcal.pipeline.restpoints import RestPoints, check_coverage, rest_points, usable
 
@@ -17,7 +17,7 @@ from accelcal.pipeline.restpoints import RestPoints, check_coverage, rest_points
 def check_model(spec: ModelSpec, p: RestPoints) -> None:
     """Exit-2 reasons for a model the data cannot support."""
     try:
-        spec.check_data(p.temp, p.t, p.source)
+        spec.check_data(p.temp, p.t, p.source, p.cols)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -34,11 +34,15 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
     return spec, p
 
 
-def refs(p: RestPoints) -> dict:
+def refs(p: RestPoints, spec: ModelSpec | None = None) -> dict:
     """The effects' reference: mean temperature rounded to a whole degC (the device's resolution:
-    a saved lsq model applies there exactly), first time."""
-    return {"T0": float(np.round(np.mean(p.temp))) if p.temp is not None else 0.0,
-            "t0": float(p.t.min())}
+    a saved lsq model applies there exactly), first time, and the mean of each recording column
+    spec's effects follow."""
+    out = {"T0": float(np.round(np.mean(p.temp))) if p.temp is not None else 0.0,
+           "t0": float(p.t.min())}
+    for c in (spec.columns if spec is not None else ()):
+        out[column_ref(c)] = float(np.mean(p.cols[c]))
+    return out
 
 
 def fit(spec: ModelSpec, p: RestPoints, ref: dict, start: np.ndarray | None = None) -> np.ndarray:
@@ -58,7 +62,7 @@ def fit(spec: ModelSpec, p: RestPoints, ref: dict, start: np.ndarray | None = No
     temp = p.temp if p.temp is not None else np.zeros(len(p.t))
 
     def resid(th):
-        return np.linalg.norm(spec.correct(th, p.v, temp, p.t, ref), axis=1) - 1.0
+        return np.linalg.norm(spec.correct(th, p.v, temp, p.t, ref, p.cols), axis=1) - 1.0
     return least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf").x
 
 
@@ -95,6 +99,9 @@ def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict,
     the fitted parameters of spec without its last effect, where the caller has them (diagnose's
     candidates): the fit starts there, and a step that is that last effect searches its time on
     that model's residuals."""
+    missing = [c for c in spec.columns if column_ref(c) not in ref]
+    if missing:   # a column effect added to a model fitted without it (diagnose's candidates)
+        ref = {**ref, **{column_ref(c): float(np.mean(p.cols[c])) for c in missing}}
     name = spec.change_point
     if name is not None and "ts" not in ref:
         rest = spec.without(name)
@@ -107,7 +114,7 @@ def fit_with_reference(spec: ModelSpec, p: RestPoints, ref: dict,
 
 def residuals(spec, theta, p, ref):
     temp = p.temp if p.temp is not None else np.zeros(len(p.t))
-    a = spec.correct(theta, p.v, temp, p.t, ref)
+    a = spec.correct(theta, p.v, temp, p.t, ref, p.cols)
     return a, np.linalg.norm(a, axis=1) - 1.0
 
 
@@ -115,7 +122,7 @@ def calibrate_model(path: str, model: str) -> CalibrationResult:
     """`calibrate --model SPEC --method lsq`: the composed model fitted (float) on every usable
     rest point of the file; error before/after on the same points."""
     spec, p = prepare(path, model)
-    theta, ref = fit_with_reference(spec, p, refs(p))
+    theta, ref = fit_with_reference(spec, p, refs(p, spec))
     a, r = residuals(spec, theta, p, ref)
     p_int = spec.to_int(theta)  # the device's integers (device/acal/effects.py)
     return CalibrationResult(model=str(spec), method="lsq", status="calibrated",

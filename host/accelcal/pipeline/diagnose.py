@@ -48,14 +48,16 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
                          "need >= 30 each (a longer recording)")
-    theta, ref = fit_with_reference(spec, train, refs(train))
+    theta, ref = fit_with_reference(spec, train, refs(train, spec))
     _, r = residuals(spec, theta, test, ref)
     err = float(np.mean(np.abs(r)) * 1e3)
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
     regs = regressors(spec, theta, test, ref)
     where = where_it_fails(regs, r)
+    # a column effect is a candidate where the file has its column (not listed elsewhere)
     cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err, theta)
-             for name in CATALOGUE if name not in spec.effects and CATALOGUE[name].candidate]
+             for name, e in CATALOGUE.items() if name not in spec.effects and e.candidate
+             and (e.needs != "col" or e.column in p.cols)]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
     best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
     plain = [c for c in testable if not CATALOGUE[c["effect"]].change_point]
@@ -128,13 +130,16 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
 
 
 def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:
-    """What a held-out residual is looked at against: time (h), each corrected axis, |v|, and
-    temperature where the file has it."""
+    """What a held-out residual is looked at against: time (h), each corrected axis, |v|,
+    temperature where the file has it, and each further column of the recording ("column:NAME",
+    as an effect declares it)."""
     a, _ = residuals(spec, theta, test, ref)
     regs = {"time_h": (test.t - test.t.min()) / 3600, "ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2],
             "abs_a": np.linalg.norm(test.v, axis=1)}
     if test.temp is not None:
         regs["temp_c"] = test.temp
+    for c, x in test.cols.items():
+        regs[f"column:{c}"] = np.asarray(x, dtype=np.float64)
     return regs
 
 

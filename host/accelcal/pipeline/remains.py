@@ -3,9 +3,9 @@ residual follows and how - a trend, a curve, or a step at one value (a moment in
 temperature) - and what kind of effect would fit it.  diagnose says it (text and --json) when the
 error stands well above the noise floor and nothing was named.
 
-Each regressor x (time, temperature, each corrected axis, |v|) is tried with three shapes, fitted to
-the held-out residual r by least squares: a line, a parabola, and one step (the best split of the
-points sorted by x, from cumulative sums).  The shape that explains the largest share of r's
+Each regressor x (time, temperature, each corrected axis, |v|, each further recording column) is
+tried with three shapes, fitted to the held-out residual r by least squares: a line, a parabola,
+and one step (the best split of the points sorted by x, from cumulative sums).  The shape that explains the largest share of r's
 variance (R^2) wins; a step must beat the parabola by STEP_MARGIN, as it has a free split."""
 from __future__ import annotations
 
@@ -40,6 +40,19 @@ AXIS_SUGGEST = {"trend": "a scale or offset error on that axis the base fit miss
                 "curve": "a response not linear in that axis's reading: nonlinear",
                 "step": "a response that depends on which side of zero that axis reads (a "
                         "sign-dependent offset): declare an effect on the reading"}
+
+
+def _column_suggest(name: str, shape: str) -> str:
+    # a further column of the recording ("column:NAME"): a declared effect follows it, or for
+    # the board's own supply the catalogue's supply_offset
+    if name == "column:supply_mv" and shape == "trend":
+        return ("an offset following the board's supply: the catalogue's supply_offset (it runs "
+                "on the board)")
+    power = {"trend": "", "curve": ", power=2", "step": ""}[shape]
+    extra = "; a step in a column cannot be declared, a power of it (power=2..4) follows a sharp " \
+            "change smoothly" if shape == "step" else ""
+    return (f"an offset following that column: declare one with regressor='{name}'{power} "
+            f"(--effects FILE){extra}")
 
 
 def _r2(y: np.ndarray, fitted: np.ndarray) -> float:
@@ -95,11 +108,13 @@ def what_remains(regressors: dict[str, np.ndarray], r_mg: np.ndarray) -> dict | 
         return None
     name, shape = best["regressor"], best["shape"]
     what = {"trend": "a trend", "curve": "a curve", "step": "a step"}[shape]
-    where = f" at {best['at']:g} {UNITS.get(name, '')}" if "at" in best else ""
+    unit = f" {UNITS[name]}" if name in UNITS else ""
+    where = f" at {best['at']:g}{unit}" if "at" in best else ""
     suggest = SUGGEST.get((name, shape)) or (AXIS_SUGGEST[shape] if name in ("ax", "ay", "az")
-                                             else f"declare an effect on {name} (--effects FILE)")
+                                             else _column_suggest(name, shape))
     best["suggests"] = suggest
-    best["text"] = (f"What remains follows {LABELS.get(name, name)}: {what}{where}, explaining "
+    label = LABELS.get(name) or f"the recording's column {name.split(':', 1)[-1]}"
+    best["text"] = (f"What remains follows {label}: {what}{where}, explaining "
                     f"{best['explained_pct']:.0f} % of the held-out residual's variance "
                     f"(residuals.png, its panel). An effect that would fit it: {suggest}.")
     return best

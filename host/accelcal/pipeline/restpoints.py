@@ -9,7 +9,7 @@ depends on either is seen by the fit and tested on it; no rest segment is split 
 postures held across a block edge are the only shared context."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,13 +29,14 @@ class RestPoints:
     temp: np.ndarray | None
     noise: np.ndarray      # (N,) g: sd(|v|) / sqrt(n) inside the segment
     source: str
+    cols: dict = field(default_factory=dict)   # further columns by name: (N,) segment means
 
     def __len__(self):
         return len(self.v)
 
     def take(self, sel):
         return RestPoints(self.v[sel], self.t[sel], None if self.temp is None else self.temp[sel],
-                          self.noise[sel], self.source)
+                          self.noise[sel], self.source, {k: c[sel] for k, c in self.cols.items()})
 
 
 def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> RestPoints:
@@ -51,8 +52,9 @@ def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> Re
             raise InputError(f"{path.path}: recordings are read by name (streamed)")
         c = path.columns
         n = len(path.xyz)
+        further = {k: v for k, v in c.items() if k not in ("x", "y", "z", "t", "temp")}
         return RestPoints(path.xyz, c["t"] if "t" in c else np.arange(n, dtype=float),
-                          c.get("temp"), np.zeros(n), path.path)
+                          c.get("temp"), np.zeros(n), path.path, further)
     from accelcal.pipeline.scan import scan
     rec = open_recording(path)
     sc = scan(rec, seconds, threshold, axis, extras=True)
@@ -64,7 +66,8 @@ def rest_points(path, seconds: int = 5, threshold: int = 0, axis: int = 3) -> Re
     m = sc.seg_means[still]
     sd = np.sqrt(np.maximum(m[:, 3] - m[:, 2] ** 2, 0.0))
     return RestPoints(sc.segments.mean[still] / fixed.POINT_ONE_G, m[:, 0], m[:, 1] if rec.has_temp else None,
-                      sd / np.sqrt(sc.length), str(path))
+                      sd / np.sqrt(sc.length), str(path),
+                      {c: sc.seg_column(c)[still] for c in sc.columns})
 
 
 def usable(p: RestPoints) -> RestPoints:

@@ -74,7 +74,10 @@ class CalibrationResult(dict):
                      f"{r['points']} points of {r['rest_points']} rest points{it}")
         lines.append("  " + "  ".join(f"{k}={v:+.5g}" for k, v in r["params"].items()))
         if "reference" in r:
-            lines.append(f"  reference: {r['reference']['T0']:g} degC, t = {r['reference']['t0']:g} s")
+            ref = r["reference"]
+            more = "".join(f", step at t = {v:g} s" if k == "ts" else f", {k[:-1]} = {v:.6g}"
+                           for k, v in ref.items() if k not in ("T0", "t0"))
+            lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
         return "\n".join(lines)
@@ -146,15 +149,17 @@ class DiagnoseResult(dict):
                  f"held-out calibration error {self['heldout_error_mg']:.2f} mg, noise floor "
                  f"{self['noise_floor_mg']:.2f} mg",
                  "where the model fails (held-out residual, mean per quintile of each regressor, mg):"]
+        kw = max([8] + [len(k) for k in self["where_it_fails"]])
         for k, w in self["where_it_fails"].items():
-            lines.append(f"  {k:<8} corr {w['corr']:+.2f}  spread {w['range_mg']:6.2f}  "
+            lines.append(f"  {k:<{kw}} corr {w['corr']:+.2f}  spread {w['range_mg']:6.2f}  "
                          + " ".join(f"{b:+6.2f}" for b in w["quintile_mean_residual_mg"]))
         lines.append("candidates:")
+        ew = max([12] + [len(c["effect"]) for c in self["candidates"]])
         for c in self["candidates"]:
             if c["heldout_error_mg"] is None:
-                lines.append(f"  +{c['effect']:<12} not testable: {c['untestable']}")
+                lines.append(f"  +{c['effect']:<{ew}} not testable: {c['untestable']}")
             else:
-                lines.append(f"  +{c['effect']:<12} {c['heldout_error_mg']:6.2f} mg  "
+                lines.append(f"  +{c['effect']:<{ew}} {c['heldout_error_mg']:6.2f} mg  "
                              f"{c['improvement_pct']:+6.1f} %  better in "
                              f"{c['blocks_improved_pct']:3.0f} % of blocks")
         lines.append(f"missing effect: {self['missing_effect'] or 'none'}")

@@ -59,11 +59,17 @@ class Scan:
     length: int = 0                                        # samples per segment
     threshold: int = 0                                     # Q10 g
     # with scan(extras=True), per segment the means of: t (s), temperature (degC; 0 without),
-    # |v| and |v|^2 of the file's own float samples (g, g^2)
+    # |v| and |v|^2 of the file's own float samples (g, g^2), then each further column's
+    # (Recording.columns, in order: seg_column())
     seg_means: np.ndarray | None = None
+    columns: list[str] = field(default_factory=list)
     # threshold AUTO: the noise gauge at the end (Q10 g): its threshold and the noise level
     noise_threshold: int | None = None
     noise_level: int | None = None
+
+    def seg_column(self, name: str) -> np.ndarray:
+        """Per segment, the mean of a further recording column (scan(extras=True))."""
+        return self.seg_means[:, 4 + self.columns.index(name)]
 
     @property
     def hours(self) -> float:
@@ -128,8 +134,8 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
          keep_samples: bool = False, progress=None, extras: bool = False):
     """Stream rec through the twin's detector.  rate_hz None: from the first chunk's median time
     step.  keep_samples: also return the whole recording (t, xyz Q10 m x 3, temp) for the
-    device engine.  extras: also each segment's means of t, temperature, |v|, |v|^2
-    (Scan.seg_means, for diagnose).  progress(samples_done) after each chunk."""
+    device engine.  extras: also each segment's means of t, temperature, |v|, |v|^2 and the
+    recording's further columns (Scan.seg_means, for diagnose and column effects).  progress(samples_done) after each chunk."""
     sc = None
     stream = None
     parts, seg_t, seg_temp = [], [], []
@@ -153,7 +159,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
                 raise InputError(f"{rec.path}: {seconds} s segments at {rate_hz} Hz exceed "
                                  f"{fixed.SEGMENT_MAX_SAMPLES} samples")
             sc = Scan(rec.path, rec.format, rate_hz, t_first=float(t[0]), range_g=rec.range_g,
-                      length=length, threshold=threshold)
+                      length=length, threshold=threshold, columns=list(rec.columns))
             sc.clip_counts = {float(r): 0 for r in STANDARD_RANGES_G}
             stream = twin.RestStream(rate_hz, seconds, threshold, axis)
             limit = gap_limit(rate_hz)
@@ -172,7 +178,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
         if extras:
             mag2 = np.einsum("ij,ij->i", ch.xyz, ch.xyz)
             extra = np.vstack([t - sc.t_first, ch.temp if ch.temp is not None else np.zeros(len(t)),
-                               np.sqrt(mag2), mag2])
+                               np.sqrt(mag2), mag2] + [ch.cols[c] for c in rec.columns])
         seg = stream.feed_planar(p, gaps, extra)
         local = seg.end - ch.first
         parts.append(seg)

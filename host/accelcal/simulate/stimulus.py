@@ -15,20 +15,24 @@ class StimulusWriter:
     """Writes a stimulus file block by block (n_samples known up front): constant memory.  Into
     a temporary file beside it, renamed into place by close() once every sample is written."""
 
-    def __init__(self, path: str | Path, rate_hz: int, n_samples: int):
+    def __init__(self, path: str | Path, rate_hz: int, n_samples: int, supply: bool = False):
         self.path = Path(path)
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
         self.fh = open(self.tmp, "wb")
         self.n = n_samples
         self.written = 0
-        self.fh.write(HEADER.pack(MAGIC, 1, int(rate_hz), n_samples, 0))
+        self.supply = supply   # version 2: each sample also carries the board's supply (mV)
+        self.fh.write(HEADER.pack(MAGIC, 2 if supply else 1, int(rate_hz), n_samples, 0))
 
-    def write(self, xyz_g: np.ndarray, temp_c: np.ndarray) -> None:
-        """xyz_g: (N, 3) acceleration the sensing element sees (g); temp_c: (N,) degC."""
+    def write(self, xyz_g: np.ndarray, temp_c: np.ndarray, supply_mv=None) -> None:
+        """xyz_g: (N, 3) acceleration the sensing element sees (g); temp_c: (N,) degC;
+        supply_mv: (N,) the board's supply (a version-2 file, written with supply=True)."""
         xyz_g = np.asarray(xyz_g, dtype=np.float64)
-        rec = np.empty((len(xyz_g), 4), dtype="<i4")
+        rec = np.empty((len(xyz_g), 5 if self.supply else 4), dtype="<i4")
         rec[:, :3] = np.rint(np.clip(xyz_g, -2000.0, 2000.0) * 1e6)
         rec[:, 3] = np.rint(np.asarray(temp_c, dtype=np.float64) * 1e3)
+        if self.supply:
+            rec[:, 4] = np.rint(np.clip(supply_mv, 0, 65535))
         self.fh.write(rec.tobytes())
         self.written += len(rec)
 
@@ -54,8 +58,9 @@ def write_stimulus(path: str | Path, rate_hz: int, xyz_g: np.ndarray, temp_c: np
 
 def read_stimulus(path: str | Path) -> tuple[int, np.ndarray, np.ndarray]:
     data = Path(path).read_bytes()
-    magic, _, rate, n, _ = HEADER.unpack_from(data)
+    magic, version, rate, n, _ = HEADER.unpack_from(data)
     if magic != MAGIC:
         raise ValueError(f"{path}: not a stimulus file")
-    rec = np.frombuffer(data, dtype="<i4", offset=HEADER.size, count=4 * n).reshape(n, 4)
+    k = 5 if version == 2 else 4
+    rec = np.frombuffer(data, dtype="<i4", offset=HEADER.size, count=k * n).reshape(n, k)
     return rate, rec[:, :3] / 1e6, rec[:, 3] / 1e3

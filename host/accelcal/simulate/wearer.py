@@ -22,6 +22,11 @@ the paper's figure 5.
 
 Temperature: the chip follows a target (skin 32-33 degC awake, 35 degC under a blanket,
 room 21-23 degC off the wrist) with a 15-minute time constant: not collinear with time.
+
+Recording columns: when a hidden effect follows a column of the recording (a declared effect,
+regressor "column:NAME"), the column is written after temp and holds the wearable's battery
+voltage (battery_voltage): a LiPo charged for an hour each morning and discharged over the day;
+in V, or in whole mV for the board's own supply column (supply_mv, supply_offset).
 """
 from __future__ import annotations
 
@@ -33,6 +38,7 @@ import numpy as np
 
 from accelcal import simulate
 from accelcal.files.outputs import atomic, write_text
+from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.simulate.stimulus import StimulusWriter
 
 NOISE_DENSITY_G = 220e-6      # LIS3DH: 220 ug/sqrt(Hz)
@@ -110,11 +116,12 @@ class Sensor:
         p = np.array([s[0], s[1], s[2], s[1] * t[0], s[2] * t[1], s[2] * t[2], *o])
         return Sensor(p, NOISE_DENSITY_G * np.sqrt(rate_hz / 2.0), list(effects))
 
-    def measure(self, rng, a_true, temp_c, t_s):
-        """What the chip measures (g, before quantisation) for true specific force a_true."""
+    def measure(self, rng, a_true, temp_c, t_s, cols=None):
+        """What the chip measures (g, before quantisation) for true specific force a_true;
+        cols: the recording columns (by name) effects may follow."""
         v = simulate.uncorrect(self.params, a_true)
         for e in self.effects:
-            v = e.apply(v, temp_c, t_s)
+            v = e.apply(v, temp_c, t_s, cols)
         return v + rng.normal(scale=self.noise_g, size=v.shape)
 
     def truth(self) -> dict:
@@ -273,13 +280,34 @@ def quantise(v_g: np.ndarray, range_g: int = 2, bits: int = 12) -> np.ndarray:
     return d * step
 
 
-def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, range_g, progress):
-    # The recording day by day (written whole or not at all) and the stimulus beside it.
+BATTERY_FULL_V = 4.18        # LiPo at the end of its charge
+BATTERY_EMPTY_DROP_V = 0.42  # the drop over a day's discharge, with a knee at the end
+
+
+def battery_voltage(t_s: np.ndarray, charge_hour: float, rng: np.random.Generator) -> np.ndarray:
+    """A wearable's LiPo voltage (V) at times t_s: charged for an hour from charge_hour each day
+    (rising linearly back to full), then discharged over the day: a slow linear fall and a knee
+    near empty; 3 mV of ADC noise.  Not collinear with time (it repeats daily) or temperature."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    day_s = 86400.0
+    since = np.mod(t_s - charge_hour * 3600.0, day_s)      # s since this day's charge began
+    f = np.clip((since - 3600.0) / (day_s - 3600.0), 0.0, 1.0)   # discharge fraction
+    v = BATTERY_FULL_V - BATTERY_EMPTY_DROP_V * (0.75 * f + 0.25 * f ** 6)
+    low = BATTERY_FULL_V - BATTERY_EMPTY_DROP_V
+    charging = since < 3600.0
+    v = np.where(charging, low + (BATTERY_FULL_V - low) * since / 3600.0, v)
+    return v + rng.normal(scale=0.003, size=len(t_s))
+
+
+def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, range_g, progress,
+                columns=(), crng=None, charge_hour=7.5):
+    # The recording day by day (written whole or not at all) and the stimulus beside it; the
+    # further columns (battery voltage) from their own stream crng.
     segs_all: list[Segment] = []
     hours: dict[str, float] = {}
     clipped = 0
     with atomic(out_csv) as fh:
-        fh.write("t,x,y,z,temp\n")
+        fh.write(",".join(["t", "x", "y", "z", "temp", *columns]) + "\n")
         done = 0
         for day in range(n_days):
             segs = wearer.schedule(day)
@@ -288,13 +316,17 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
                 break
             a, temp = wearer.signals(segs, n, done)
             t = (done + np.arange(n)) / rate_hz
-            v = sensor.measure(rng, a, temp, t)
+            volts = battery_voltage(t, charge_hour, crng) if columns else None
+            # the board's supply column in whole mV (its ADC), any other in V
+            cols = {c: np.rint(volts * 1000) if c == SUPPLY_COLUMN else volts for c in columns}
+            v = sensor.measure(rng, a, temp, t, cols)
             q = quantise(v, range_g)
             clipped += int((np.abs(q) >= range_g - 0.0015).any(axis=1).sum())
-            np.savetxt(fh, np.column_stack([t, q, temp]), delimiter=",",
-                       fmt=["%.4f", "%.3f", "%.3f", "%.3f", "%.2f"])
+            np.savetxt(fh, np.column_stack([t, q, temp, *cols.values()]), delimiter=",",
+                       fmt=["%.4f", "%.3f", "%.3f", "%.3f", "%.2f"] +
+                       ["%.0f" if c == SUPPLY_COLUMN else "%.4f" for c in columns])
             if stim is not None:
-                stim.write(v, temp)
+                stim.write(v, temp, cols.get(SUPPLY_COLUMN))
             end_s = (done + n) / rate_hz
             for s in segs:
                 if s.start_s < end_s:
@@ -310,9 +342,10 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
 def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
                    effects=(), stimulus: str | Path | None = None, range_g: int = 2,
                    progress=None) -> dict:
-    """Write a recording CSV (t,x,y,z,temp) and its truth beside it (NAME.truth.json);
-    with stimulus, also the stimulus file for the virtual board.  effects: catalogue names
-    (accelcal.model.effects), drawn with realistic magnitudes.  Returns the truth."""
+    """Write a recording CSV (t,x,y,z,temp, then any column a hidden effect follows: battery
+    voltage) and its truth beside it (NAME.truth.json); with stimulus, also the stimulus file
+    for the virtual board.  effects: catalogue names (accelcal.model.effects), drawn with
+    realistic magnitudes.  Returns the truth."""
     from accelcal.model.effects import CATALOGUE, TrueEffect
     rng = np.random.default_rng(seed)
     sensor = Sensor.lis3dh(rng, rate_hz)
@@ -320,14 +353,20 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
     erng = np.random.default_rng([seed, 1])
     sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng), CATALOGUE[n].draw_reference(erng, days * 86400))
                       for n in effects]
+    columns = tuple(dict.fromkeys(CATALOGUE[n].column for n in effects
+                                  if CATALOGUE[n].needs == "col"))
+    crng = np.random.default_rng([seed, 2])    # the columns' own stream, as the effects'
+    charge_hour = float(crng.uniform(6.5, 9.0))
     wearer = Wearer(rng, rate_hz)
     out_csv = Path(out_csv)
     n_days = int(np.ceil(days))
     total = int(round(days * 86400 * rate_hz))
-    stim = StimulusWriter(stimulus, rate_hz, total) if stimulus is not None else None
+    stim = StimulusWriter(stimulus, rate_hz, total, SUPPLY_COLUMN in columns) \
+        if stimulus is not None else None
     try:
         hours, segs_all, clipped = _write_days(out_csv, stim, wearer, sensor, rng, n_days, total,
-                                               rate_hz, range_g, progress)
+                                               rate_hz, range_g, progress, columns, crng,
+                                               charge_hour)
     except BaseException:
         if stim is not None:
             stim.abort()
@@ -341,6 +380,8 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
              "still_segments": {"count": len(rest), "min_s": min(rest), "median_s": float(np.median(rest)),
                                 "max_s": max(rest)},
              "clipped_samples": clipped,
+             **({"columns": {c: f"battery voltage (V): charged 1 h from {charge_hour:.2f} h each "
+                                "day, discharged over the day" for c in columns}} if columns else {}),
              "segments": [[round(s.start_s, 2), round(s.seconds, 2), s.activity, s.posture]
                           for s in segs_all]}
     write_text(out_csv.with_suffix(".truth.json"), json.dumps(truth, indent=1))

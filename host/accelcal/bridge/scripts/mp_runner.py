@@ -10,7 +10,7 @@
 #                          (acal.rest.AUTO); axis 3: all axes; fit: acal.profile.GRADIENT or
 #                          NEWTON; the effects of a composed model (acal.effects ids), if any
 #   G name                 start a group (a device): a fresh pipeline
-#   T temp time            conditions of what follows: degC, 64 s units (composed models)
+#   T temp time supply     conditions of what follows: degC, 64 s units, mV (composed models)
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
 #   X                      a gap in the samples: the open segment is dropped
@@ -18,13 +18,14 @@
 #   E                      end of group: calibrate and report
 # Output lines (a Runner's emit(tag, values) calls, printed as "tag v0 v1 ..."):
 #   G name
-#   R x y z subset temp time   every rest mean (Q16 g), the subset that kept it (-1: not kept)
-#                              and the conditions it was seen at
+#   R x y z subset temp time supply   every rest mean (Q16 g), the subset that kept it (-1: not
+#                              kept) and the conditions it was seen at
 #   K c0 ... c8                points per subset
-#   S x y z temp time          every point the bins hold at the end (Q16 g)
-#   Y ready temp_span time_span covered   the bins' verdict (1/0), the held points' spread,
-#                              and whether they cover every axis (bins.covered(), 1/0)
-#   Z ref_temp ref_time step_time  the fit's reference conditions (composed models), a step's time
+#   S x y z temp time supply   every point the bins hold at the end (Q16 g)
+#   Y ready temp_span time_span covered supply_span   the bins' verdict (1/0), the held
+#                              points' spread, and whether they cover every axis (bins.covered())
+#   Z ref_temp ref_time step_time ref_supply   the fit's reference conditions (composed
+#                              models) and a step's time
 #   F status iterations objective_start objective p0 ... p8 [3 per effect]
 #   D n k0 ... k(n-1)          NEWTON: the points the fit was given (in S order) kept (1) or
 #                              rejected as outliers (0)
@@ -59,16 +60,17 @@ class Runner:
         emit = self.emit
 
         def on_rest(x, y, z, s):
-            emit("R", [x, y, z, s, pipe.temp, pipe.time])
+            emit("R", [x, y, z, s, pipe.temp, pipe.time, pipe.supply])
 
         pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
                         max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
                         on_rest=on_rest, alphas=(v[n], v[n + 1], v[n + 2]), kinds=v[n + 3:])
         self.pipe = pipe
 
-    def conditions(self, temp, time):
+    def conditions(self, temp, time, supply):
         self.pipe.temp = temp
         self.pipe.time = time
+        self.pipe.supply = supply
 
     def point(self, x, y, z):
         self.pipe.offer(x, y, z)
@@ -90,12 +92,13 @@ class Runner:
         for s in range(9):
             for k in range(b.counts[s]):
                 x, y, z = b.point(s, k)
-                temp, time = b.condition(s, k)
-                emit("S", [x, y, z, temp, time])
-        emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0])
+                temp, time, supply = b.condition(s, k)
+                emit("S", [x, y, z, temp, time, supply])
+        emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0,
+                   b.supply_span()])
         status = pipe.calibrate()
         o = pipe.optimiser
-        emit("Z", [pipe.ref_temp, pipe.ref_time, pipe.step_time])
+        emit("Z", [pipe.ref_temp, pipe.ref_time, pipe.step_time, pipe.ref_supply])
         q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:
@@ -125,7 +128,7 @@ def run(lines, emit):
         elif tag == "W":
             r.worn(f[1] == "1")
         elif tag == "T":
-            r.conditions(int(f[1]), int(f[2]))
+            r.conditions(int(f[1]), int(f[2]), int(f[3]))
         elif tag == "P":
             r.point(int(f[1]), int(f[2]), int(f[3]))
         elif tag == "G":

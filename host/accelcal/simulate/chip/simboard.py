@@ -21,3 +21,11 @@ class SimBoard:
 
     def exhausted(self):
         return self.chip.exhausted
+
+    def has_supply(self):
+        return self.chip.stim.has_supply
+
+    def supply_mv(self):
+        """The board's supply (mV) with the sample the chip converted last (a version-2
+        stimulus: the simulated battery)."""
+        return self.chip.stim.supply_mv

@@ -4,7 +4,8 @@
 #
 # Stimulus file (written by accelcal.simulate.wearer): 16-byte header b"ACST" version u16, rate_hz u16,
 # n_samples u32, reserved u32; then per sample four int32: x, y, z in ug (what the sensing element
-# sees, sensor errors and noise included) and temperature in m degC.
+# sees, sensor errors and noise included) and temperature in m degC; version 2 adds a fifth, the
+# board's supply in mV (the simulated battery, what the virtual board's supply_mv() reads).
 #
 # Behaviour modelled: WHO_AM_I; CTRL_REG1 ODR/LPen/axes; CTRL_REG4 FS/HR/BDU; CTRL_REG5 FIFO_EN and
 # BOOT; TEMP_CFG_REG ADC_EN/TEMP_EN and OUT_ADC3 (relative temperature, 1 digit/degC, 8 bits);
@@ -35,18 +36,21 @@ _REG_FIFO_SRC = 0x2F
 class Stimulus:
     """Sequential reader of a stimulus file, a block at a time."""
 
-    BLOCK = 256
+    BLOCK_BYTES = 4096    # read a block at a time (256 samples of version 1, 204 of version 2)
 
     def __init__(self, path):
         self.f = open(path, "rb")
         head = self.f.read(16)
         if len(head) != 16 or head[:4] != b"ACST":
             raise ValueError("not a stimulus file: " + path)
-        _, self.rate_hz, self.n = struct.unpack("<HHI", head[4:12])
-        self.block = bytearray(16 * self.BLOCK)
+        version, self.rate_hz, self.n = struct.unpack("<HHI", head[4:12])
+        # version 2: each sample also holds the board's supply (mV), for supply_mv()
+        self.has_supply = version == 2
+        self.size = 20 if self.has_supply else 16
+        self.block = bytearray(self.BLOCK_BYTES)   # whole samples of either version
         self.first = -1
         self.count = 0
-        self.x = self.y = self.z = self.temp_mc = 0
+        self.x = self.y = self.z = self.temp_mc = self.supply_mv = 0
 
     def load(self, k):
         """Make sample k current (x, y, z in ug, temp_mc); False past the end."""
@@ -54,15 +58,18 @@ class Stimulus:
             return False
         if not (self.first <= k < self.first + self.count):
             self.first = k
-            self.f.seek(16 + 16 * k)
-            self.count = self.f.readinto(self.block) // 16
+            self.f.seek(16 + self.size * k)
+            self.count = self.f.readinto(self.block) // self.size
+            # (a version-2 block's tail, 16 bytes, holds part of a sample: never read)
         # Decoded by hand: struct.unpack_from would allocate a tuple per sample, and the virtual
         # board's acquisition path is checked for allocations with the heap locked.
-        j = 16 * (k - self.first)
+        j = self.size * (k - self.first)
         self.x = _i32(self.block, j)
         self.y = _i32(self.block, j + 4)
         self.z = _i32(self.block, j + 8)
         self.temp_mc = _i32(self.block, j + 12)
+        if self.has_supply:
+            self.supply_mv = _i32(self.block, j + 16)
         return True
 
 

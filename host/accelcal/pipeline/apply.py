@@ -1,0 +1,117 @@
+"""`accelcal apply`: saved parameters applied to every sample of a recording with the device's
+per-sample code - its vectorised twin (bridge/twin.py, bit-exact with acal.model.Calibration) -
+or, for a model with an effect the device has no form for, the fit's own float correction."""
+from __future__ import annotations
+
+import numpy as np
+
+from acal import effects as deff
+from acal import fixed
+from acal.model import Calibration
+from accelcal.bridge import runtime, twin
+from accelcal.errors import InputError
+from accelcal.files.outputs import atomic
+from accelcal.fixedpoint import g_to_sample, sample_to_g
+from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+
+
+def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
+                     ref: dict | None = None, source: str = "recording", range_g: int = 2,
+                     cols: dict | None = None) -> np.ndarray:
+    """Calibrate samples with the vectorised twin of the device's per-sample code
+    (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
+    model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
+    the device sees them as int degC and 64 s units from t0.  cols: the recording's further
+    columns by name, for a model whose effects follow one (the board's supply_mv for the
+    device's supply_offset; any other on the host)."""
+    spec = ModelSpec.parse(model)
+    if spec.host_only:
+        return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source, cols)
+    if spec.effects and range_g != 2:
+        raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
+                         f"{source} is at +-{range_g} g")
+    cal = Calibration(spec.kinds, range_g)
+    ref_temp = int(round(ref["T0"])) if spec.effects else 0
+    try:
+        cal.set(p_int, ref_temp, 0)
+    except ValueError:
+        raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
+                         "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
+                         "bounds)") from None
+    q = g_to_sample(xyz_g)
+    if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
+        return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
+    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+        raise InputError(f"model {spec} needs a temperature column; {source} has none")
+    supply = None
+    if SUPPLY_COLUMN in spec.columns:   # the board's supply, from its reference (mV)
+        if cols is None or SUPPLY_COLUMN not in cols:
+            raise InputError(f"model {spec} follows a column {SUPPLY_COLUMN!r}; {source} has none")
+        supply = np.rint(np.asarray(cols[SUPPLY_COLUMN], dtype=np.float64)) - \
+            int(round(ref[column_ref(SUPPLY_COLUMN)]))
+    cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
+    step_time = 0
+    if spec.change_point:   # from ts on, as the device compares whole 64 s units
+        if "ts" not in ref:
+            raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
+        step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
+    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1],
+                                         step_time=step_time, dV=supply))
+
+
+def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str,
+                   cols: dict | None = None) -> np.ndarray:
+    """A model with an effect the device does not have, applied in float64 (the fit's own
+    correction, spec.correct) to the samples as read."""
+    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+        raise InputError(f"model {spec} needs a temperature column; {source} has none")
+    cols = cols or {}
+    for c in spec.columns:
+        if c not in cols:
+            raise InputError(f"model {spec} follows a column {c!r}; {source} has none")
+    temp = np.zeros(len(xyz_g)) if temp is None else np.asarray(temp, dtype=np.float64)
+    return spec.correct(spec.from_int(p_int), np.asarray(xyz_g, dtype=np.float64), temp,
+                        np.asarray(t, dtype=np.float64), ref, cols)
+
+
+def apply_range(declared, given: int | None) -> int:
+    """The full scale the device's apply takes for a file: given (apply --range), else the
+    file's declared range (rounded up to 2, 4, 8 or 16 g), else 2 g."""
+    if given:
+        return given
+    if declared:
+        for r in (2, 4, 8, 16):
+            if declared <= r:
+                return r
+    return 2
+
+
+def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
+               range_g: int | None = None) -> tuple[int, int, int]:
+    """Calibrate a recording of any format and length chunk by chunk (accelcal.files.recordings) with
+    the device's per-sample code at the full scale apply_range() picks (readings past it are
+    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3), then the
+    file's further columns as read.  Returns (samples, samples clipped, full scale in g)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    from accelcal.files.recordings import open_recording
+    rec = open_recording(path)
+    rng = apply_range(rec.range_g, range_g)
+    limit = (fixed.APPLY_IN_MAX << fixed.apply_range_shift(rng)) / fixed.SAMPLE_ONE_G
+    clipped = 0
+    names = ["t", "x", "y", "z"] + (["temp"] if rec.has_temp else []) + list(rec.columns)
+    schema = pa.schema([(n, pa.float64()) for n in names])
+    n = 0
+    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
+    # written whole or not at all: a killed run leaves no partial file that looks like a recording
+    with atomic(output, "wb") as sink, pacsv.CSVWriter(sink, schema, write_options=opts) as writer:
+        sink.write((",".join(names) + "\n").encode())
+        for ch in rec.chunks():
+            clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
+            a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng,
+                                          ch.cols), 6)
+            cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else []) \
+                + [ch.cols[c] for c in rec.columns]
+            writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
+            n += len(ch.t)
+    return n, clipped, rng
