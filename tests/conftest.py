@@ -42,6 +42,29 @@ def run_main(capsys, argv):
     return code, out, err
 
 
+def true_heldout_error(rec, effects_file=None) -> float:
+    """The true sensor on diagnose's held-out points of a simulated recording: each hidden effect
+    removed with its true values and its own true reference (a curve's vertex, a step's time, a
+    column's reference), then the true 9 parameters - independent of how the fitted models are
+    parametrised.  effects_file: the declarations the simulator hid an effect of."""
+    import json
+    import numpy as np
+    from acal.fixed import PARAM_NAMES
+    from accelcal.methods import correct as base_correct
+    from accelcal.model.declared import register
+    from accelcal.model.effects import CATALOGUE
+    from accelcal.pipeline.restpoints import rest_points, split, usable
+    register(str(effects_file) if effects_file else None)
+    truth = json.loads(rec.with_suffix(".truth.json").read_text())
+    _, test, _ = split(usable(rest_points(str(rec))))
+    w = test.v
+    for e in reversed(truth["effects"]):
+        w = CATALOGUE[e["effect"]].correct(w, np.array(list(e["params"].values())), test.temp,
+                                           test.t, e["reference"], test.cols)
+    a = base_correct(np.array([truth["params"][n] for n in PARAM_NAMES]), w)
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
 def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):
     """deploy MODEL to the virtual board (the MicroPython unix port on a pty, an RP2040-sized
     160 kB heap) with the real mpremote, acquire `hours` of the stimulus, pull: (the pulled

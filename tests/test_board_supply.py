@@ -14,7 +14,7 @@ import pytest
 
 from accelcal.bridge import boardlog
 from accelcal.locations import CHIP_DIR
-from conftest import run_cli, run_main, wear_on_virtual_board
+from conftest import run_cli, run_main, true_heldout_error, wear_on_virtual_board
 
 RATE = 10
 
@@ -27,6 +27,39 @@ def wrist(tmp_path_factory):
                 "supply_offset", "-o", rec, "--stimulus", stim)
     assert r.returncode == 0, r.stderr
     return rec, stim
+
+
+def diagnose(capsys, rec, model="base"):
+    code, text, err = run_main(capsys, ["diagnose", str(rec), "--model", model, "--json"])
+    assert code == 0, err
+    return json.loads(text)
+
+
+def test_diagnose_names_the_supply_where_the_recording_has_it(wrist, capsys):
+    """supply_offset is a candidate wherever a recording has the supply_mv column: named, and
+    the loop ends within 1.5x of the true model's held-out error."""
+    rec, _ = wrist
+    first = diagnose(capsys, rec)
+    assert first["missing_effect"] == "supply_offset", first["explanation"]
+    second = diagnose(capsys, rec, "base+supply_offset")
+    assert second["missing_effect"] is None, second["explanation"]
+    assert second["heldout_error_mg"] <= 1.5 * true_heldout_error(rec)
+
+
+def test_a_battery_that_moves_nothing_names_nothing(tmp_path, capsys):
+    """Clean wear with a supply_mv column (a declared effect of that column, 1e-9 g/mV at most:
+    nothing) - supply_offset is tried and not named, nor anything else."""
+    eff = tmp_path / "none.py"
+    eff.write_text("EFFECTS = [dict(name='flat', regressor='column:supply_mv', unit='g/mV', "
+                   "bound=1e-9, explanation='A battery that moves nothing.')]")
+    rec = tmp_path / "clean.csv"
+    r = run_cli("simulate", "wrist", "--days", 2, "--rate", RATE, "--seed", 32, "--effects", eff,
+                "--effect", "flat", "-o", rec)
+    assert r.returncode == 0, r.stderr
+    out = diagnose(capsys, rec)
+    tried = {c["effect"]: c for c in out["candidates"]}
+    assert tried["supply_offset"]["heldout_error_mg"] is not None
+    assert out["missing_effect"] is None, out["explanation"]
 
 
 def true_params(rec):
@@ -168,3 +201,25 @@ def test_a_stored_supply_reference_resumes_after_a_reboot(tmp_path):
     c = proc.calibration
     assert c.ref_time == 80 - 100 and c.ref_supply == 3912 and c.ref_temp == 30
     assert proc.params[-6:] == [1000, -1000, 0, 20000, 0, -20000]
+
+
+def test_a_declared_offset_on_the_supply_column_runs_on_the_device(wrist, tmp_path, capsys):
+    """A user's effect declared on column:supply_mv (power 1, an offset) is the device's
+    supply_offset: the board is given that name, and the integer fit finds it."""
+    from accelcal.model.declared import register
+    from accelcal.model.effects import ModelSpec
+    rec, _ = wrist
+    eff = tmp_path / "vsys.py"
+    eff.write_text("EFFECTS = [dict(name='vsys', regressor='column:supply_mv', unit='g/mV', "
+                   "bound=4e-5, explanation='The offset follows VSYS.')]")
+    code, text, err = run_main(capsys, ["calibrate", str(rec), "--effects", str(eff), "--model",
+                                        "base+vsys", "--json"])
+    assert code == 0, err
+    res = json.loads(text)
+    assert res["method"] == "device" and res["status"] == "calibrated"
+    got = np.array([res["params"][f"vsys_{a}"] for a in "xyz"])
+    want = true_params(rec)
+    assert np.abs(got - want).max() < 0.2 * np.abs(want).max(), (got, want)
+    register(str(eff))
+    assert ModelSpec.parse("base+drift+vsys").device_model == "base+drift+supply_offset"
+    assert ModelSpec.parse("base+vsys").host_only == ()

@@ -11,9 +11,7 @@ import numpy as np
 import pytest
 
 from accelcal.files.recordings import recording_columns
-from accelcal.methods import correct as base_correct
-from acal.fixed import PARAM_NAMES
-from conftest import run_cli, run_main
+from conftest import run_cli, run_main, true_heldout_error
 
 DAYS, RATE, SEED = 3, 10, 31
 SUPPLY = '''
@@ -42,22 +40,6 @@ def diagnose(rec, eff, model="base"):
     r = run_cli(*args)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout)
-
-
-def true_heldout_error(rec, eff) -> float:
-    """The true sensor (the simulator's parameters and reference) on diagnose's held-out points."""
-    from accelcal.model.declared import register
-    from accelcal.model.effects import CATALOGUE
-    from accelcal.pipeline.restpoints import rest_points, split, usable
-    register(str(eff))
-    truth = json.loads(rec.with_suffix(".truth.json").read_text())
-    _, test, _ = split(usable(rest_points(str(rec))))
-    w = test.v
-    for e in reversed(truth["effects"]):
-        w = CATALOGUE[e["effect"]].correct(w, np.array(list(e["params"].values())), test.temp,
-                                           test.t, e["reference"], test.cols)
-    a = base_correct(np.array([truth["params"][n] for n in PARAM_NAMES]), w)
-    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
 def test_the_simulator_writes_the_column_and_says_what_it_is(battery):

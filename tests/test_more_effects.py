@@ -10,11 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from accelcal.model.effects import CATALOGUE
-from accelcal.methods import correct as base_correct
-from accelcal.pipeline.restpoints import rest_points, split, usable
-from acal.fixed import PARAM_NAMES
-from conftest import run_cli, run_main, simulate_wrists
+from accelcal.pipeline.restpoints import rest_points, usable
+from conftest import run_cli, run_main, simulate_wrists, true_heldout_error
 
 DAYS, RATE = 3, 10
 CASES = {"step": (31, "step"), "curve31": (31, "temp_offset2")}
@@ -25,20 +22,6 @@ def recordings(tmp_path_factory):
     return simulate_wrists(tmp_path_factory.mktemp("more_effects"),
                            {name: (seed, (effect,)) for name, (seed, effect) in CASES.items()},
                            DAYS, RATE)
-
-
-def true_heldout_error(path) -> float:
-    """The true sensor model on diagnose's held-out points: each effect removed with its own true
-    reference (a curve's vertex, a step's time), then the true 9 parameters - independent of the
-    fitted models' parametrisation."""
-    truth = json.loads(path.with_suffix(".truth.json").read_text())
-    _, test, _ = split(usable(rest_points(str(path))))
-    w = test.v
-    for e in reversed(truth["effects"]):
-        eff = CATALOGUE[e["effect"]]
-        w = eff.correct(w, np.array(list(e["params"].values())), test.temp, test.t, e["reference"])
-    a = base_correct(np.array([truth["params"][n] for n in PARAM_NAMES]), w)
-    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
 def diagnose(path, model):
@@ -217,7 +200,7 @@ def test_a_declared_effect_is_found_once_declared(declared, tmp_path):
     r = run_cli("diagnose", rec, "--effects", eff, "--model", "base+ageing2", "--json")
     second = json.loads(r.stdout)
     assert second["missing_effect"] is None
-    assert second["heldout_error_mg"] <= 1.5 * true_heldout_error_declared(rec, eff)
+    assert second["heldout_error_mg"] <= 1.5 * true_heldout_error(rec, eff)
     # calibrate (lsq, every rest point), save, apply: the effect is gone from the applied file
     params, out = tmp_path / "p.json", tmp_path / "applied.csv"
     r = run_cli("calibrate", rec, "--effects", eff, "--model", "base+ageing2", "--method", "lsq",
@@ -252,12 +235,6 @@ def test_a_declared_effect_of_a_device_shape_runs_on_the_device(declared, capsys
     assert dev["error_after_mg"] < 0.5 * dev["error_before_mg"]
     register(str(eff))
     assert ModelSpec.parse("base+drift+ageing2").device_model == "base+drift+time_offset2"
-
-
-def true_heldout_error_declared(rec, eff):
-    from accelcal.model.declared import register
-    register(str(eff))
-    return true_heldout_error(rec)
 
 
 def test_without_the_declaration_the_loop_says_what_remains(declared):

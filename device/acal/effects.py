@@ -90,6 +90,19 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           SUPPLY_OFFSET: GENERIC_BOUND}
 
 
+def source_of(kind):
+    """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
+    SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""
+    if kind in SHAPES:
+        source = SHAPES[kind][0]
+        return SOURCE_TIME if source == SOURCE_STEP else source
+    if kind == DRIFT:
+        return SOURCE_TIME
+    if kind == NONLINEAR:
+        return 0
+    return SOURCE_TEMP           # TEMP_OFFSET, TEMP_OFFSET2, TEMP_SCALE
+
+
 def uses_source(kinds, source):
     """True when a model has a generic offset whose regressor comes from `source`."""
     for k in kinds:

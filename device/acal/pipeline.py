@@ -55,12 +55,11 @@ class Pipeline:
         time_differ = 0
         supply_differ = 0
         base_kinds = []
-        for k in self.kinds:
-            source = effects.SHAPES[k][0] if k in effects.SHAPES else 0
-            if k == effects.TEMP_OFFSET or k == effects.TEMP_SCALE or k == effects.TEMP_OFFSET2 \
-                    or source == effects.SOURCE_TEMP:
+        for k in self.kinds:   # the spread each effect's regressor needs in the held points
+            source = effects.source_of(k)
+            if source == effects.SOURCE_TEMP:
                 temp_differ = TEMP_DIFFER
-            elif k == effects.DRIFT or source == effects.SOURCE_TIME or k == effects.STEP:
+            elif source == effects.SOURCE_TIME:
                 time_differ = TIME_DIFFER
             elif source == effects.SOURCE_SUPPLY:
                 supply_differ = SUPPLY_DIFFER
