@@ -100,8 +100,9 @@ def _replayed_params(d: Path) -> np.ndarray:
 
 
 # The effects the board fits that one diagnose step names and one calibrate removes (the curved
-# temperature response shows as temp_offset first, docs/model-discovery.md "More effects").
-ONE_STEP = ("temp_offset", "temp_scale", "drift", "nonlinear")
+# temperature response shows as temp_offset first, docs/model-discovery.md "More effects"; the
+# supply's recording carries the board's supply_mv column).
+ONE_STEP = ("temp_offset", "temp_scale", "drift", "nonlinear", "supply_offset")
 
 
 def discovery_loop(work: Path, seed: int | None = None) -> bool:
@@ -120,7 +121,7 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
     print(f"base model: held-out error {out['heldout_error_mg']:.2f} mg, noise floor "
           f"{out['noise_floor_mg']:.2f} mg")
     for c in out["candidates"]:
-        print(f"  +{c['effect']:<12} {c['heldout_error_mg']:6.2f} mg  ({c['improvement_pct']:+.1f} %, "
+        print(f"  +{c['effect']:<13} {c['heldout_error_mg']:6.2f} mg  ({c['improvement_pct']:+.1f} %, "
               f"better in {c['blocks_improved_pct']:.0f} % of held-out blocks)")
     named = out["missing_effect"]
     print(f"diagnose names: {named}\n  {out['explanation']}")
