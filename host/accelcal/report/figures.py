@@ -137,7 +137,8 @@ def regressors(test, a) -> list[tuple[str, str, np.ndarray]]:
         regs.append(("temp_c", "temperature (°C)", np.asarray(test.temp, float)))
     regs += [(f"a{c}", f"corrected a_{c} (g)", a[:, i]) for i, c in enumerate("xyz")]
     regs.append(("abs_v", "|v| measured (g)", np.linalg.norm(test.v, axis=1)))
-    regs += [(f"column:{c}", f"recording column {c}", np.asarray(x, float))
+    regs += [(f"column:{c}", "the board's supply, column supply_mv (mV)" if c == "supply_mv"
+              else f"recording column {c}", np.asarray(x, float))
              for c, x in getattr(test, "cols", {}).items()]
     return regs
 
