@@ -130,17 +130,12 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
 
 
 def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:
-    """What a held-out residual is looked at against: time (h), each corrected axis, |v|,
-    temperature where the file has it, and each further column of the recording ("column:NAME",
-    as an effect declares it)."""
+    """What a held-out residual is looked at against (report/figures.regressors, which the
+    residuals figure draws): time (h), temperature where the file has it, each corrected axis,
+    |v|, and each further column of the recording ("column:NAME", as an effect declares it)."""
+    from accelcal.report.figures import regressors as listed
     a, _ = residuals(spec, theta, test, ref)
-    regs = {"time_h": (test.t - test.t.min()) / 3600, "ax": a[:, 0], "ay": a[:, 1], "az": a[:, 2],
-            "abs_a": np.linalg.norm(test.v, axis=1)}
-    if test.temp is not None:
-        regs["temp_c"] = test.temp
-    for c, x in test.cols.items():
-        regs[f"column:{c}"] = np.asarray(x, dtype=np.float64)
-    return regs
+    return {key: x for key, _, x in listed(test, a)}
 
 
 def where_it_fails(regs: dict, r) -> dict:

@@ -131,12 +131,14 @@ AXIS_COLOURS = {"x": "tab:blue", "y": "tab:orange", "z": "tab:green"}
 
 
 def regressors(test, a) -> list[tuple[str, str, np.ndarray]]:
-    """(key, axis label with unit, values) of each regressor a residual may follow."""
+    """(key, axis label with unit, values) of each regressor a residual may follow, at held-out
+    points `test` with corrected readings a: the one list diagnose's "where it fails" and "what
+    remains" read and the residuals figure draws."""
     regs = [("time_h", "time since the first rest point (h)", (test.t - test.t.min()) / 3600)]
     if test.temp is not None:
         regs.append(("temp_c", "temperature (°C)", np.asarray(test.temp, float)))
     regs += [(f"a{c}", f"corrected a_{c} (g)", a[:, i]) for i, c in enumerate("xyz")]
-    regs.append(("abs_v", "|v| measured (g)", np.linalg.norm(test.v, axis=1)))
+    regs.append(("abs_a", "|v| measured (g)", np.linalg.norm(test.v, axis=1)))
     regs += [(f"column:{c}", "the board's supply, column supply_mv (mV)" if c == "supply_mv"
               else f"recording column {c}", np.asarray(x, float))
              for c, x in getattr(test, "cols", {}).items()]
