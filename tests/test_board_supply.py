@@ -184,25 +184,6 @@ def test_the_virtual_board_follows_its_supply_over_mpremote(wrist, tmp_path):
     assert replay["identical"], replay
 
 
-def test_a_stored_supply_reference_resumes_after_a_reboot(tmp_path):
-    """The calibration store keeps a supply_offset's reference supply (mV) in its EFFECT
-    record's time field, beside a drift's reference time: a reboot takes both back."""
-    from acal import effects as deff, log
-    from acal.app import Processor
-    rate = 25
-    unit = deff.DT_UNIT_S * rate
-    store = log.CalStore(str(tmp_path / "a.bin"), str(tmp_path / "b.bin"))
-    one = 1 << 24
-    cal = (100 * unit, 1, 0, 5, 70, 1000, 10) + (one, one, one, 0, 0, 0, 0, 0, 0)
-    store.save(cal, [(100 * unit, deff.DRIFT, 30, 80, 1000, -1000, 0),
-                     (100 * unit, deff.SUPPLY_OFFSET, 30, 3912, 20000, 0, -20000)])
-    proc = Processor(log.Log(str(tmp_path / "log.bin")), rate, store=store,
-                     model="base+drift+supply_offset")
-    c = proc.calibration
-    assert c.ref_time == 80 - 100 and c.ref_supply == 3912 and c.ref_temp == 30
-    assert proc.params[-6:] == [1000, -1000, 0, 20000, 0, -20000]
-
-
 def test_a_declared_offset_on_the_supply_column_runs_on_the_device(wrist, tmp_path, capsys):
     """A user's effect declared on column:supply_mv (power 1, an offset) is the device's
     supply_offset: the board is given that name, and the integer fit finds it."""

@@ -152,9 +152,11 @@ def test_the_device_refuses_what_it_cannot_fit_in_one_line(recordings, tmp_path,
     assert len(out.read_text().splitlines()) == 36001
 
 
-def test_a_stored_step_resumes_after_a_reboot(tmp_path):
-    """The app's calibration store keeps a step's time in its EFFECT record's time field; a
-    reboot takes it back relative to the restarted clock, as the reference time."""
+@pytest.mark.parametrize("kind", ["step", "supply_offset"])
+def test_a_stored_step_or_supply_resumes_after_a_reboot(tmp_path, kind):
+    """The app's calibration store keeps a step's time (or a supply_offset's reference supply,
+    mV) in its EFFECT record's time field, beside a drift's reference time; a reboot takes them
+    back, a time relative to the restarted clock."""
     from acal import effects as deff, log
     from acal.app import Processor
     rate = 25
@@ -162,11 +164,17 @@ def test_a_stored_step_resumes_after_a_reboot(tmp_path):
     store = log.CalStore(str(tmp_path / "a.bin"), str(tmp_path / "b.bin"))
     one = 1 << 24
     cal = (100 * unit, 1, 0, 5, 70, 1000, 10) + (one, one, one, 0, 0, 0, 0, 0, 0)
+    held = 150 if kind == "step" else 3912
     store.save(cal, [(100 * unit, deff.DRIFT, 30, 80, 1000, -1000, 0),
-                     (100 * unit, deff.STEP, 30, 150, 20000, 0, -20000)])
-    proc = Processor(log.Log(str(tmp_path / "log.bin")), rate, store=store, model="base+drift+step")
+                     (100 * unit, deff.parse_model("base+" + kind)[0], 30, held, 20000, 0, -20000)])
+    proc = Processor(log.Log(str(tmp_path / "log.bin")), rate, store=store,
+                     model="base+drift+" + kind)
     c = proc.calibration
-    assert c.ref_time == 80 - 100 and c.step_time == 150 - 80 and c.ref_temp == 30
+    assert c.ref_time == 80 - 100 and c.ref_temp == 30
+    if kind == "step":
+        assert c.step_time == 150 - 80 and c.ref_supply == 0
+    else:
+        assert c.ref_supply == 3912 and c.step_time == 0
     assert proc.params[-6:] == [1000, -1000, 0, 20000, 0, -20000]
 
 

@@ -132,7 +132,8 @@ class Processor:
                 self.params[N_PARAMS + 3 * j + i] = e[4 + i]
         for i in range(N_PARAMS):
             self.params[i] = rec[7 + i]
-        self.calibration.set(self.params, ref_temp, ref_time, step_at - ref_time, ref_supply)
+        step_time = step_at - ref_time if effects.STEP in self.kinds else 0
+        self.calibration.set(self.params, ref_temp, ref_time, step_time, ref_supply)
 
     def _on_rest(self, x, y, z, subset):
         index = self.batch_start + self.pipe.position
