@@ -100,7 +100,9 @@ def add_parsers(sub) -> None:
     from accelcal.model.effects import CATALOGUE
     q.add_argument("--effect", action="append", default=[], metavar="NAME",
                    help="add a hidden physical effect (repeatable): " + ", ".join(CATALOGUE)
-                   + ", or one --effects declares; its true values go to the truth JSON")
+                   + ", or one --effects declares; its true values go to the truth JSON (an "
+                   "effect that follows a recording column gets the column, after temp: a "
+                   "battery's voltage, in mV for supply_mv, the board's own supply)")
     add_effects_arg(q)
     q.add_argument("-o", "--output", required=True, help="recording CSV to write")
     q.add_argument("--force", action="store_true", help=FORCE_HELP)
