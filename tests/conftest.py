@@ -13,6 +13,17 @@ def rng():
     return np.random.default_rng(12345)
 
 
+@pytest.fixture(autouse=True)
+def catalogue_restored():
+    """Effects a test declares (--effects in-process, register()) leave the catalogue with it:
+    the next test sees the built-in one."""
+    from accelcal.model.effects import CATALOGUE
+    before = dict(CATALOGUE)
+    yield
+    CATALOGUE.clear()
+    CATALOGUE.update(before)
+
+
 def simulate_wrists(folder, cases: dict, days, rate) -> dict:
     """Simulated wrist recordings, name -> (seed, hidden effects), made in parallel (both cores);
     name -> path."""
