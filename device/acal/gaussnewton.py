@@ -73,8 +73,8 @@ _DONE = 6
 
 class GaussNewton:
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
-    model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier rejection after
-    the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
+    model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
+    rejection after the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
 
     After the fit: p (Q24), status (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED),
     iterations (accepted steps, every round), objective and objective_start (Q24 g^4, OBJ_Q,

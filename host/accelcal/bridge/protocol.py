@@ -101,7 +101,8 @@ class Group:
     # through floats.
     points_q16: np.ndarray | None = None
     # Further recording columns by name, one value per point (battery voltage, ...): host-only
-    # column effects are fitted on them (model/declared.py); the device never sees them.
+    # column effects are fitted on them (model/declared.py); the board's supply (supply_mv) is
+    # also handed to the device, as each point's third condition (conditions()).
     cols: dict = field(default_factory=dict)
 
     def point_ints(self) -> np.ndarray:

@@ -43,20 +43,20 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
     if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
-    supply = None
-    if SUPPLY_COLUMN in spec.columns:   # the board's supply, from its reference (mV)
-        if cols is None or SUPPLY_COLUMN not in cols:
-            raise InputError(f"model {spec} follows a column {SUPPLY_COLUMN!r}; {source} has none")
-        supply = np.rint(np.asarray(cols[SUPPLY_COLUMN], dtype=np.float64)) - \
-            int(round(ref[column_ref(SUPPLY_COLUMN)]))
-    cond = runtime.device_conditions(temp, t, ref["t0"], len(q))
+    follows_supply = SUPPLY_COLUMN in spec.columns
+    if follows_supply and SUPPLY_COLUMN not in (cols or {}):
+        raise InputError(f"model {spec} follows a column {SUPPLY_COLUMN!r}; {source} has none")
+    cond = runtime.device_conditions(temp, t, ref["t0"], len(q),
+                                     cols[SUPPLY_COLUMN] if follows_supply else None)
+    # the board's supply from its reference (mV), as the device's supply - ref_supply
+    dV = cond[:, 2] - int(round(ref[column_ref(SUPPLY_COLUMN)])) if follows_supply else None
     step_time = 0
     if spec.change_point:   # from ts on, as the device compares whole 64 s units
         if "ts" not in ref:
             raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
         step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
     return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1],
-                                         step_time=step_time, dV=supply))
+                                         step_time=step_time, dV=dV))
 
 
 def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str,

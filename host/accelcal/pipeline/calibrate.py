@@ -12,8 +12,7 @@ from acal import fixed, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import SUPPLY_COLUMN
-from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
+from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
 from accelcal.fixedpoint import params_to_float, params_to_int
@@ -185,7 +184,7 @@ def _rest_columns(spec: ModelSpec, g: runtime.Group, r: runtime.DeviceResult) ->
     twin found them), each offered once, in order."""
     out = {SUPPLY_COLUMN: r.rest_conditions[:, 2].astype(np.float64)} \
         if SUPPLY_COLUMN in spec.columns else {}
-    if not [c for c in spec.columns if c not in out]:
+    if all(c in out for c in spec.columns):
         return out
     if len(r.rest_int) != len(g):
         raise InputError(f"model {spec}: its column effects need the rest points as the host "
@@ -220,11 +219,8 @@ def _float_fit_record(rec, g, r, spec, method, v, cond, cols=None):
                 ref = refs(pts, spec)
             else:   # the device's references (acal.pipeline.references)
                 from acal.pipeline import references
-                ref_temp, ref_time, ref_supply = references([int(c) for c in cond.ravel()],
-                                                            len(cond), spec.kinds)
-                ref = {"T0": float(ref_temp), "t0": g.t_first + ref_time * float(deff.DT_UNIT_S)}
-                if SUPPLY_COLUMN in spec.columns:
-                    ref[column_ref(SUPPLY_COLUMN)] = float(ref_supply)
+                ref = _device_reference(spec, g, *references([int(c) for c in cond.ravel()],
+                                                             len(cond), spec.kinds))
             theta, ref = fit_with_reference(spec, pts, ref)
             p_int = spec.to_int(theta)
     except methods.FitError as e:
@@ -233,16 +229,23 @@ def _float_fit_record(rec, g, r, spec, method, v, cond, cols=None):
     return _params_record(rec, g, r, spec, method, p_int, ref)
 
 
+def _device_reference(spec, g, ref_temp, ref_time, ref_supply) -> dict:
+    """The device's integer references (degC, 64 s units from the group's first time, mV) as a
+    model's reference: T0, t0 and, for an effect of the board's supply, its column's."""
+    ref = {"T0": float(ref_temp), "t0": g.t_first + ref_time * float(deff.DT_UNIT_S)}
+    if SUPPLY_COLUMN in spec.columns:
+        ref[column_ref(SUPPLY_COLUMN)] = float(ref_supply)
+    return ref
+
+
 def _params_record(rec, g, r, spec, method, p_int, ref=None):
     """rec with the parameters (decoded and Q24) and the error after; ref: a composed model's
     references (None: the device fit's)."""
     if spec.effects:
         if ref is None:   # the device fit's references, and a step's time it found
-            ref = {"T0": float(r.ref_temp), "t0": g.t_first + r.ref_time * deff.DT_UNIT_S}
+            ref = _device_reference(spec, g, r.ref_temp, r.ref_time, r.ref_supply)
             if spec.change_point:
                 ref["ts"] = ref["t0"] + r.step_time * deff.DT_UNIT_S
-            if SUPPLY_COLUMN in spec.columns:
-                ref[column_ref(SUPPLY_COLUMN)] = float(r.ref_supply)
         rec.update(model=str(spec), method=method,
                    scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
                          "g, 1/degC, g/day, 1/g",
