@@ -80,8 +80,8 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
           str(out["rest_points"]["heldout"]), _num(blocks, "d")]])
         + "<p>The noise floor is the sensor's noise alone; the wrist floor what a complete model "
           f"would still leave, from {_num(out.get('wrist_floor_pairs'), 'd')} pairs of rest means "
-          "of nearly the same posture close in time and temperature (docs/model-discovery.md "
-          "\"What remains\").</p>")
+          "of nearly the same posture close in time and temperature (the model discovery "
+          "page of the docs, What remains).</p>")
     named = out.get("missing_effect")
     if named:     # the explanation opens with the effect's physics: said once
         body.append(f'<h2>Named effect: {_e(named)}</h2><div class="named"><p>'
