@@ -159,6 +159,12 @@ def _directions(regs) -> np.ndarray:
     return a / np.linalg.norm(a, axis=1)[:, None]
 
 
+def _beats(pct: float, rival: float, margin: float) -> bool:
+    """A gain (%) beats a simpler shape's by margin: it removes margin times as much, or leaves
+    1/margin of what that one leaves."""
+    return pct >= margin * rival or 100 - pct <= (100 - rival) / margin
+
+
 def _holds_up(regressors, r_mg, train, blocks) -> dict | None:
     """The shape, fitted on the training residual, that lowers the held-out error most and
     holds up (MIN_GAIN_PCT, MIN_BLOCK_SHARE of the held-out blocks); None if none does."""
@@ -178,10 +184,10 @@ def _holds_up(regressors, r_mg, train, blocks) -> dict | None:
             gain = np.abs(r_mg) - left
             share = float(np.mean([gain[blocks == b].mean() > 0 for b in ids]))
             gains[shape] = (100 * (err - float(left.mean())) / err, share, at)
-        if "curve" in gains and gains["curve"][0] < CURVE_MARGIN * gains["trend"][0]:
+        if "curve" in gains and not _beats(gains["curve"][0], gains["trend"][0], CURVE_MARGIN):
             del gains["curve"]          # a parabola is a line unless it does better
         rival = gains.get("curve", gains["trend"])[0]
-        if "step" in gains and gains["step"][0] < STEP_MARGIN * rival:
+        if "step" in gains and not _beats(gains["step"][0], rival, STEP_MARGIN):
             del gains["step"]           # a step has a free split
         for shape, (pct, share, at) in gains.items():
             if pct >= (STEP_MIN_GAIN_PCT if shape == "step" else MIN_GAIN_PCT) and \
