@@ -62,17 +62,20 @@ def test_the_wrist_floor_is_the_scatter_nearby_postures_do_not_share():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(201, 211))
-def test_the_complete_model_ends_without_a_lead(tmp_path, seed):
-    """Each catalogue effect and clean data, 10 seeds: the complete model's diagnose names
-    nothing and says no lead in >= 95 % of runs (this test: per seed, at most one lead in 8)."""
-    recs = simulate_wrists(tmp_path, {c: (seed, () if c == "clean" else (c,)) for c in CASES}, 3, 10)
-    leads = []
-    for case, path in recs.items():
-        r = run_cli("diagnose", path, "--model", COMPLETE.get(case, "base+" + case), "--json")
-        out = json.loads(r.stdout)
-        if out["missing_effect"] or out["what_remains"]:
-            leads.append((case, out["explanation"]))
-        assert out["wrist_floor_mg"] is not None and out["wrist_floor_mg"] > out["noise_floor_mg"]
-    print(f"seed {seed}: {len(leads)} leads of {len(recs)}", leads)
-    assert len(leads) <= 1, leads
+def test_the_complete_model_ends_without_a_lead(tmp_path):
+    """Each catalogue effect and clean data, 10 seeds (80 recordings, about 15 min): the
+    complete model's diagnose names nothing and says no lead in >= 95 % of runs."""
+    leads, runs = [], 0
+    for seed in range(201, 211):
+        recs = simulate_wrists(tmp_path, {c: (seed, () if c == "clean" else (c,)) for c in CASES},
+                               3, 10)
+        for case, path in recs.items():
+            r = run_cli("diagnose", path, "--model", COMPLETE.get(case, "base+" + case), "--json")
+            out = json.loads(r.stdout)
+            runs += 1
+            if out["missing_effect"] or out["what_remains"]:
+                leads.append((seed, case, out["explanation"]))
+            assert out["wrist_floor_mg"] is not None and out["wrist_floor_mg"] > out["noise_floor_mg"]
+            path.unlink()
+    print(f"{len(leads)} leads in {runs} runs", leads)
+    assert len(leads) <= 0.05 * runs, leads
