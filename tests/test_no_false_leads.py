@@ -67,7 +67,8 @@ def test_the_complete_model_ends_without_a_lead(tmp_path):
     complete model's diagnose names nothing and says no lead in >= 95 % of runs."""
     leads, runs = [], 0
     for seed in range(201, 211):
-        recs = simulate_wrists(tmp_path, {c: (seed, () if c == "clean" else (c,)) for c in CASES},
+        (tmp_path / str(seed)).mkdir()
+        recs = simulate_wrists(tmp_path / str(seed), {c: (seed, () if c == "clean" else (c,)) for c in CASES},
                                3, 10)
         for case, path in recs.items():
             r = run_cli("diagnose", path, "--model", COMPLETE.get(case, "base+" + case), "--json")
