@@ -13,10 +13,13 @@ STAMP_BENCH := $(VENV_BENCH)/.installed
 # root is mip's): small ints stop at 2^30 as on an RP2040 or ESP32.
 MP32 := build/mp32
 STAMP_MP32 := $(MP32)/.installed
+# The emulated RP2040 (npm rp2040js, pinned) that boots firmware/'s MicroPython and CircuitPython.
+RP2040JS := build/rp2040js
+STAMP_RP2040JS := $(RP2040JS)/.installed
 
 .PHONY: setup demo test bench build clean
 
-setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32)
+setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS)
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -33,6 +36,11 @@ $(STAMP_MPY):
 $(STAMP_MP32):
 	mkdir -p $(MP32)
 	npm install --silent --no-audit --no-fund --prefix $(MP32) @micropython/micropython-webassembly-pyscript@1.27.0
+	touch $@
+
+$(STAMP_RP2040JS):
+	mkdir -p $(RP2040JS)
+	npm install --silent --no-audit --no-fund --prefix $(RP2040JS) rp2040js@1.4.1
 	touch $@
 
 demo: setup

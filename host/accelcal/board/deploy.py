@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 
 from accelcal.bridge import boardlog
+from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output_dir, write_text
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
@@ -107,13 +108,6 @@ class Remote:
         return info
 
 
-def _compile(src: Path, dst: Path, arch: str) -> None:
-    p = subprocess.run([sys.executable, "-c", "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
-                        f"-march={arch}", "-o", str(dst), str(src)], capture_output=True, text=True)
-    if p.returncode != 0:
-        raise InputError(f"mpy-cross failed on {src.name} for {arch}: {p.stderr.strip()[-200:]}")
-
-
 def main_py(settings: dict) -> str:
     args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
     return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
@@ -143,7 +137,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
             src = DEVICE_PKG / f"{m}.py"
             if info["ARCH"]:
                 dst = pkg / f"{m}.mpy"
-                _compile(src, dst, info["ARCH"])
+                mpy_cross(src, dst, info["ARCH"])
             else:
                 dst = pkg / f"{m}.py"
                 shutil.copy(src, dst)

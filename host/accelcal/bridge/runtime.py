@@ -13,8 +13,9 @@ from pathlib import Path
 
 from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, condition_changes,
                                       device_conditions, parse, protocol_items, protocol_lines)
+from accelcal.bridge import rp2040
 from accelcal.bridge.scripts import mp_runner
-from accelcal.errors import InputError
+from accelcal.errors import InputError, InterpreterFailed
 from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
 
 __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "device_conditions",
@@ -23,7 +24,7 @@ __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040")
 
 
 def micropython_path() -> str:
@@ -54,24 +55,6 @@ def run_micropython_script(script: str, *args: str, heap: str | None = None,
     if proc.returncode != 0:
         raise InterpreterFailed("micropython", proc)
     return proc.stdout
-
-
-class InterpreterFailed(InputError):
-    """A MicroPython child ended with an error: one line (its last error line), the whole
-    output kept in a file named in it (the protocol can be thousands of lines)."""
-
-    def __init__(self, name: str, proc: subprocess.CompletedProcess):
-        import tempfile
-        text = (proc.stdout or "") + (proc.stderr or "")
-        fd, path = tempfile.mkstemp(prefix=f"accelcal-{name}-", suffix=".log")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-        errs = [ln for ln in lines if "Error" in ln or "error" in ln]
-        last = (errs or lines or ["no output"])[-1][:200]
-        super().__init__(f"{name} failed (exit {proc.returncode}): {last}; its whole output is "
-                         f"in {path}")
-        self.output = text
 
 
 def micropython32_module() -> str:
@@ -117,4 +100,6 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
                 for line in protocol_lines(groups, cfg):
                     fh.write(line + "\n")
             return parse(script(str(RUNNER), str(inp)).splitlines())
+    if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
+        return parse(rp2040.run_protocol(list(protocol_lines(groups, cfg))).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
                                   pipeline_config, register_effects)
 from accelcal.errors import InputError
@@ -163,10 +164,11 @@ def add_parsers(sub) -> None:
                         "kept (bins, the default), or every usable rest point (all: |v| within "
                         "0.5-1.5 g; the bins need not fill).  The same for the paper's model and "
                         "composed ones; the record says which (points_from)")
-    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+    p.add_argument("--runtime", choices=RUNTIMES, default="cpython",
                    help="interpreter that runs the device modules: micropython, the real unix port "
                         "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
-                        "ints past 2^30 allocate as on an RP2040)")
+                        "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
+                        "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
 from accelcal.files.outputs import FORCE_HELP, check_output
 
@@ -93,7 +94,7 @@ def add_parsers(sub) -> None:
                         "as Farago Table 3; thinned when the bins do not fill), the training points "
                         "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
                         "then costs O(points) per generation: minutes on days of data)")
-    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+    p.add_argument("--runtime", choices=RUNTIMES, default="cpython",
                    help="interpreter for the device method")
     p.add_argument("--plots", metavar="DIR",
                    help="write training_curve.png: held-out error against the number of training "

@@ -2,6 +2,7 @@
 `bench`."""
 from __future__ import annotations
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import float_in, int_in
 
 
@@ -42,7 +43,7 @@ def add_parsers(sub) -> None:
     q.add_argument("--candidates", type=int_in(1, 100000), default=300,
                    help="random rest means offered to the bins per scenario (default 300)")
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal")
-    q.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython")
+    q.add_argument("--runtime", choices=RUNTIMES, default="cpython")
     q.add_argument("--no-first", action="store_true", help="skip the first-come comparison")
     q.add_argument("--profile", choices=["paper", "wear"], default="paper",
                    help="paper (default: the paper's Table 2), or wear: the default profile's "
