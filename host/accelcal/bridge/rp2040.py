@@ -114,8 +114,9 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
     if image.exists():
         return image
     cache.mkdir(parents=True, exist_ok=True)
-    for old in cache.glob(f"{fw.name}-*.bin"):
-        old.unlink()
+    for old in cache.glob(f"{fw.name}-*.bin"):     # an older package's image
+        if old != image:
+            old.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         puts = []
         for i, (data, remote) in enumerate(files):
