@@ -6,8 +6,12 @@ and candidate is fitted in float by pipeline/composed_lsq.py on the training blo
 the held-out ones.
 
 Metric: the paper's Table 3 calibration error, mean | |a| - 1 g | over held-out rest points, in mg.
-Noise floor: what the data implies a perfect model would still show: the radial noise of each
-held-out mean, sqrt(2/pi) sd(|v|) / sqrt(n), averaged.
+Noise floor: the sensor's noise alone: the radial noise of each held-out mean,
+sqrt(2/pi) sd(|v|) / sqrt(n), averaged.  Wrist floor: what a complete model would still leave,
+the noise and all else rest on a wrist carries that no effect smooth in orientation, time and
+temperature explains (pipeline/remains.py wrist_floor); "the model is complete" is judged
+against it.  What remains is said only when its shape holds up in held-out blocks as a named
+effect must (pipeline/remains.py).
 
 Naming rule (does not cry wolf on clean data): the candidate with the lowest held-out error is
 named when (1) it lowers the held-out error by at least MIN_IMPROVEMENT_PCT and (2) it lowers it
@@ -29,7 +33,7 @@ from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.composed_lsq import (check_model, fit, fit_with_reference, prepare, refs,
                                             residuals)
 from accelcal.pipeline.history import append_history, read_history
-from accelcal.pipeline.remains import WELL_ABOVE, what_remains
+from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
 
@@ -42,8 +46,17 @@ MIN_BLOCK_SHARE = 0.7
 STEP_PARSIMONY = 1.5
 
 
+# held-out error / wrist floor up to which the model is complete: no lead is looked for
+COMPLETE_WITHIN = 1.25
+
+
 def diagnose(path: str, model: str = "base", plots: str | None = None) -> DiagnoseResult:
     spec, p = prepare(path, model)
+    return diagnose_points(spec, p, path, plots)
+
+
+def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> DiagnoseResult:
+    """diagnose() of usable rest points p (pipeline/restpoints.py) under model spec."""
     train, test, test_block = split(p)
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
@@ -79,19 +92,25 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
-                       f"{best['blocks_improved_pct']:.0f} % of held-out blocks (naming needs >= "
-                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %). Error "
-                       f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
+                       f"{best['blocks_improved_pct']:.0f} % of the {len(np.unique(test_block))} "
+                       f"held-out blocks (naming needs >= {MIN_IMPROVEMENT_PCT:g} % in >= "
+                       f"{100 * MIN_BLOCK_SHARE:.0f} %).")
     else:
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
+    _, r_all = residuals(spec, theta, p, ref)
+    wrist = wrist_floor(p.t, p.v, p.temp, r_all * 1e3)
     remains = None
-    if named is None and err > WELL_ABOVE * floor:
-        remains = what_remains(regs, r * 1e3)
-        if remains:
-            explanation += " " + remains["text"]
+    if named is None:
+        _, r_train = residuals(spec, theta, train, ref)
+        remains = what_remains(regs, r * 1e3, (regressors(spec, theta, train, ref), r_train * 1e3),
+                               test_block)
+        explanation += " " + (remains["text"] if remains else
+                              complete_text(err, floor, wrist["floor_mg"]))
     out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
                          rest_points={"train": len(train), "heldout": len(test)},
-                         heldout_error_mg=err, noise_floor_mg=floor, missing_effect=named,
+                         heldout_error_mg=err, noise_floor_mg=floor,
+                         wrist_floor_mg=wrist["floor_mg"], wrist_floor_pairs=wrist["pairs"],
+                         heldout_blocks=len(np.unique(test_block)), missing_effect=named,
                          candidates=cands, explanation=explanation, where_it_fails=where,
                          params=dict(zip(spec.param_names, theta.round(6).tolist())), reference=ref,
                          what_remains=remains)
@@ -99,6 +118,21 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
         out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor,
                                   train)
     return out
+
+
+def complete_text(err: float, noise: float, wrist: float | None) -> str:
+    """What diagnose says when no effect is named and nothing that remains holds up."""
+    against = (f"a wrist floor of {wrist:.2f} mg (what rest on a wrist carries beyond the "
+               f"sensor's noise, {noise:.2f} mg)" if wrist is not None else
+               f"a noise floor of {noise:.2f} mg (too few pairs of nearby postures to estimate "
+               "the wrist floor)")
+    if wrist is not None and err <= COMPLETE_WITHIN * wrist:
+        return (f"The model is complete: it explains the data to within what rest on a wrist "
+                f"allows (held-out error {err:.2f} mg against {against}); nothing that remains "
+                "holds up in held-out blocks.")
+    return (f"Held-out error {err:.2f} mg against {against}; no shape of what remains holds up "
+            "in held-out blocks, so there is no lead: the model explains the data to within "
+            "what rest on a wrist allows here.")
 
 
 def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: float,

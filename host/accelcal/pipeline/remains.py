@@ -1,20 +1,42 @@
 """What remains when no catalogue effect explains the held-out residual: which regressor the
 residual follows and how - a trend, a curve, or a step at one value (a moment in time, a
-temperature) - and what kind of effect would fit it.  diagnose says it (text and --json) when the
-error stands well above the noise floor and nothing was named.
+temperature) - and what kind of effect would fit it; and the floor a complete model is judged
+against, what rest on a wrist allows.
 
 Each regressor x (time, temperature, each corrected axis, |v|, each further recording column) is
-tried with three shapes, fitted to the held-out residual r by least squares: a line, a parabola,
-and one step (the best split of the points sorted by x, from cumulative sums).  The shape that explains the largest share of r's
-variance (R^2) wins; a step must beat the parabola by STEP_MARGIN, as it has a free split."""
+tried with three shapes: a line, a parabola, and one step (the best split of the points sorted by
+x, from cumulative sums).  In diagnose a shape is fitted to the training blocks' residual and
+speaks only when it holds up the way a named effect must: subtracted from the held-out residual it
+lowers the held-out error by MIN_GAIN_PCT and does so in MIN_BLOCK_SHARE of the held-out blocks
+(diagnose's naming rule).  Among the shapes that hold up, the one that lowers the error most; a
+curve must beat the line, a step the curve, by their margins.  Without training data
+(what_remains(regs, r)) the shape explaining the largest share of r's variance (R^2) is described.
+
+The wrist floor (wrist_floor): the held-out error a complete model would still leave.  A model
+is smooth in orientation, time and temperature; what is not - the rest means' own noise, motion
+left in a still window, the readings' grid (a recording's 1 mg digits read into the device's
+1/1024 g samples), a posture's own idiosyncrasy - shows as the disagreement of rest means of nearly
+the same posture (PAIR_DEG apart: far enough for the grid's error to differ, near enough for any
+effect's), close in time (PAIR_S) and temperature (PAIR_DEGC), from different still segments.  The
+floor is mean |r_i - r_j| / sqrt(2) over such pairs of the model's residuals (for two independent
+residuals of one spread, E|r_i - r_j| = sqrt(2) E|r|)."""
 from __future__ import annotations
 
 import numpy as np
 
-WELL_ABOVE = 1.5       # held-out error / noise floor above which what remains is worth a look
 MIN_EXPLAINED = 0.05   # a shape explaining less than this share of the variance is not a finding
-STEP_MARGIN = 1.2      # a step's R^2 must be this many times the parabola's
+STEP_MARGIN = 1.2      # a step's R^2 (or held-out gain) must be this many times the parabola's
+CURVE_MARGIN = 1.1     # a parabola's must be this many times the line's
 MIN_SIDE = 0.05        # a step leaves at least this share of the points on either side
+# held out: as diagnose's naming rule (MIN_IMPROVEMENT_PCT, MIN_BLOCK_SHARE there)
+MIN_GAIN_PCT = 10.0
+MIN_BLOCK_SHARE = 0.7
+# the wrist floor's pairs: rest means of different still segments
+PAIR_DEG = (2.0, 8.0)  # apart in orientation (the grid's error decorrelates beyond ~1.5 deg)
+PAIR_S = 3600.0        # apart in time at most
+PAIR_DEGC = 0.5        # apart in temperature at most
+SEGMENT_GAP_S = 10.0   # rest means further apart in time (or turned) belong to different segments
+MIN_PAIRS = 30
 
 LABELS = {"time_h": "time", "temp_c": "temperature", "ax": "the x axis reading",
           "ay": "the y axis reading", "az": "the z axis reading", "abs_a": "|a|"}
@@ -83,10 +105,52 @@ def _step(x, y) -> tuple[float, float]:
     return (float(between[best]) / ss if ss else 0.0), float(0.5 * (xs[k[best] - 1] + xs[k[best]]))
 
 
-def what_remains(regressors: dict[str, np.ndarray], r_mg: np.ndarray) -> dict | None:
-    """The regressor and shape that the residual r_mg (held-out, mg) follows best, with the share of
-    its variance explained and the effect that would fit; None if no shape explains
-    MIN_EXPLAINED of it."""
+def _fitted_shapes(x, y) -> list[tuple[str, object, float | None]]:
+    """(shape, predict(x'), where) of each shape fitted to y along x by least squares."""
+    m, sd = float(x.mean()), float(x.std()) or 1.0
+    out = []
+    for shape, deg in (("trend", 1), ("curve", 2)):
+        c = np.polyfit((x - m) / sd, y, deg)
+        out.append((shape, lambda x2, c=c: np.polyval(c, (x2 - m) / sd), None))
+    _, at = _step(x, y)
+    if at == at:      # not nan: a split exists
+        lo, hi = float(y[x < at].mean()), float(y[x >= at].mean())
+        out.append(("step", lambda x2: np.where(x2 < at, lo, hi), at))
+    return out
+
+
+def _holds_up(regressors, r_mg, train, blocks) -> dict | None:
+    """The shape, fitted on the training residual, that lowers the held-out error most and
+    holds up (MIN_GAIN_PCT, MIN_BLOCK_SHARE of the held-out blocks); None if none does."""
+    regs_tr, r_tr = train
+    ids = np.unique(blocks)
+    err = float(np.mean(np.abs(r_mg)))
+    found = []
+    for name, x in regressors.items():
+        x, xt = np.asarray(x, dtype=np.float64), np.asarray(regs_tr.get(name, []), dtype=np.float64)
+        if len(xt) < 20 or len(x) < 20 or np.ptp(xt) == 0:
+            continue
+        gains = {}
+        for shape, predict, at in _fitted_shapes(xt, r_tr):
+            left = np.abs(r_mg - predict(x))
+            gain = np.abs(r_mg) - left
+            share = float(np.mean([gain[blocks == b].mean() > 0 for b in ids]))
+            gains[shape] = (100 * (err - float(left.mean())) / err, share, at)
+        if "curve" in gains and gains["curve"][0] < CURVE_MARGIN * gains["trend"][0]:
+            del gains["curve"]          # a parabola is a line unless it does better
+        rival = gains.get("curve", gains["trend"])[0]
+        if "step" in gains and gains["step"][0] < STEP_MARGIN * rival:
+            del gains["step"]           # a step has a free split
+        for shape, (pct, share, at) in gains.items():
+            if pct >= MIN_GAIN_PCT and share >= MIN_BLOCK_SHARE:
+                found.append({"regressor": name, "shape": shape, "heldout_gain_pct": round(pct, 1),
+                              "blocks_improved_pct": round(100 * share), "blocks": len(ids),
+                              **({"at": round(at, 3)} if at is not None else {})})
+    return max(found, key=lambda f: f["heldout_gain_pct"]) if found else None
+
+
+def _pooled(regressors, r_mg) -> dict | None:
+    """The shape explaining the largest share of r_mg's variance (no held-out test)."""
     best = None
     for name, x in regressors.items():
         x = np.asarray(x, dtype=np.float64)
@@ -98,13 +162,27 @@ def what_remains(regressors: dict[str, np.ndarray], r_mg: np.ndarray) -> dict | 
         if step > STEP_MARGIN * curve:
             shapes.append(("step", step, at))
         shape, r2, where = max(shapes, key=lambda s: s[1])
-        if shape == "curve" and curve < 1.1 * trend:
+        if shape == "curve" and curve < CURVE_MARGIN * trend:
             shape, r2 = "trend", trend          # a parabola is a line unless it does better
         if best is None or r2 > best["explained_pct"] / 100:
             best = {"regressor": name, "shape": shape, "explained_pct": round(100 * r2, 1)}
             if where is not None:
                 best["at"] = round(where, 3)
     if best is None or best["explained_pct"] < 100 * MIN_EXPLAINED:
+        return None
+    return best
+
+
+def what_remains(regressors: dict[str, np.ndarray], r_mg: np.ndarray, train=None,
+                 blocks=None) -> dict | None:
+    """The regressor and shape that the residual r_mg (held-out, mg) follows, with the effect
+    that would fit it, or None.  train: (regressors, residual mg) of the training blocks, blocks:
+    the held-out block of each point - the shape must then hold up in held-out blocks
+    (_holds_up); without them, the shape explaining the largest share of r_mg's variance, if it
+    explains MIN_EXPLAINED of it."""
+    best = _pooled(regressors, r_mg) if train is None else _holds_up(regressors, r_mg, train,
+                                                                        blocks)
+    if best is None:
         return None
     name, shape = best["regressor"], best["shape"]
     what = {"trend": "a trend", "curve": "a curve", "step": "a step"}[shape]
@@ -114,7 +192,61 @@ def what_remains(regressors: dict[str, np.ndarray], r_mg: np.ndarray) -> dict | 
                                              else _column_suggest(name, shape))
     best["suggests"] = suggest
     label = LABELS.get(name) or f"the recording's column {name.split(':', 1)[-1]}"
-    best["text"] = (f"What remains follows {label}: {what}{where}, explaining "
-                    f"{best['explained_pct']:.0f} % of the held-out residual's variance "
-                    f"(residuals.png, its panel). An effect that would fit it: {suggest}.")
+    if train is None:
+        evidence = f"explaining {best['explained_pct']:.0f} % of the held-out residual's variance"
+    else:
+        evidence = (f"fitted on the training blocks, it lowers the held-out error by "
+                    f"{best['heldout_gain_pct']:.0f} %, in {best['blocks_improved_pct']:.0f} % of "
+                    f"the {best['blocks']} held-out blocks")
+    best["text"] = (f"What remains follows {label}: {what}{where}; {evidence} (residuals.png, its "
+                    f"panel). An effect that would fit it: {suggest}.")
     return best
+
+
+def _segments(t, n) -> np.ndarray:
+    """Still segment of each time-sorted rest mean: a new one after a gap or a turn."""
+    new = np.r_[True, (np.diff(t) > SEGMENT_GAP_S)
+                | (np.sum(n[1:] * n[:-1], axis=1) < np.cos(np.radians(0.5)))]
+    return np.cumsum(new) - 1
+
+
+def wrist_floor(t, v, temp, r_mg, seed: int = 0) -> dict:
+    """The wrist floor (module doc) of residuals r_mg of rest means v (g) at times t (s) and
+    temperatures temp (degC or None): {"floor_mg", "pairs"}; floor_mg None below MIN_PAIRS."""
+    order = np.argsort(t, kind="stable")
+    t, v, r = t[order], v[order], r_mg[order]
+    temp = np.zeros(len(t)) if temp is None else temp[order]
+    n = v / np.linalg.norm(v, axis=1)[:, None]
+    seg = _segments(t, n)
+    ns = int(seg[-1]) + 1
+    count = np.bincount(seg, minlength=ns)
+    first = np.r_[0, np.cumsum(count)[:-1]]
+    st = np.bincount(seg, t, ns) / count
+    sT = np.bincount(seg, temp, ns) / count
+    sn = np.stack([np.bincount(seg, n[:, k], ns) for k in range(3)], axis=1)
+    sn /= np.linalg.norm(sn, axis=1)[:, None]
+    # candidate partner segments within PAIR_S of each (segments are in time order)
+    hi = np.searchsorted(st, st + PAIR_S, side="right")
+    lo = np.searchsorted(st, st - PAIR_S, side="left")
+    i = np.repeat(np.arange(ns), hi - lo)
+    j = np.arange(len(i)) - np.repeat(np.cumsum(hi - lo) - (hi - lo), hi - lo) + np.repeat(lo, hi - lo)
+    cos = np.sum(sn[i] * sn[j], axis=1)
+    ok = ((i != j) & (cos <= np.cos(np.radians(PAIR_DEG[0])))
+          & (cos >= np.cos(np.radians(PAIR_DEG[1]))) & (np.abs(sT[i] - sT[j]) <= PAIR_DEGC))
+    i, j = i[ok], j[ok]
+    if not len(i):
+        return {"floor_mg": None, "pairs": 0}
+    rng = np.random.default_rng(seed)
+    # one partner segment per segment at random, one partner point per point at random
+    cand = np.bincount(i, minlength=ns)
+    start = np.r_[0, np.cumsum(cand)[:-1]]
+    has = cand > 0
+    partner = np.full(ns, -1)
+    partner[has] = j[start[has] + (rng.random(has.sum()) * cand[has]).astype(int)]
+    pts = np.flatnonzero(partner[seg] >= 0)
+    ps = partner[seg[pts]]
+    other = first[ps] + (rng.random(len(pts)) * count[ps]).astype(int)
+    if len(pts) < MIN_PAIRS:
+        return {"floor_mg": None, "pairs": int(len(pts))}
+    return {"floor_mg": float(np.mean(np.abs(r[pts] - r[other])) / np.sqrt(2)),
+            "pairs": int(len(pts))}
