@@ -24,6 +24,9 @@ from accelcal.locations import DEVICE_PACKAGE, checkout, script
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
 HZ = 125_000_000
+# Samples per B line of the protocol: a line is split into a str per value on the chip, and
+# 1000 samples (the other runtimes' batch) take ~100 kB of its ~180 kB free heap
+SAMPLES_PER_LINE = 100
 
 
 @dataclass(frozen=True)
