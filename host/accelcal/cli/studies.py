@@ -7,7 +7,9 @@ from accelcal.cli.options import float_in, int_in
 
 
 def cmd_table2(args) -> int:
+    from accelcal.bridge.runtime import check
     from accelcal.studies.paper import table2_main
+    check(args.runtime)
     return table2_main(scenarios=args.scenarios, candidates=args.candidates,
                        noise_dist=args.noise_dist, runtime_name=args.runtime,
                        no_first=args.no_first, profile=args.profile, seed=args.seed,

@@ -212,7 +212,7 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     pts = bench_points()
     if runtime_name == "rp2040":   # a missing emulator is one line before minutes of unix work
         from accelcal.bridge import rp2040
-        rp2040.emulator_index()
+        rp2040.check()
         rp2040.flash_image()
     print("measuring (MicroPython unix port and CPython)...", file=sys.stderr)
     m = measure(pts)
