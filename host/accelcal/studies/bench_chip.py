@@ -63,6 +63,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         "rp2040_emulated_apply_base_us_per_sample": paths["apply_base_us_per_1000"] / 1000,
         "rp2040_emulated_apply_largest_us_per_sample": paths["apply_largest_us_per_1000"] / 1000,
         "rp2040_emulated_log_rest_ms_per_record": paths["log_rest_us_per_1000"] / 1e6,
+        "rp2040_emulated_processor_us_per_sample": paths["processor_us_per_1000"] / 1000,
         "rp2040_emulated_heap_total_bytes": paths["heap_total"],
         "rp2040_emulated_heap_free_before_app_bytes": paths["heap_free_before_app"],
         "rp2040_emulated_heap_free_app_largest_bytes": paths["heap_free_app_largest"],
@@ -70,6 +71,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         "unix_apply_base_us_per_sample": unix_paths["apply_base_us_per_1000"] / 1000,
         "unix_apply_largest_us_per_sample": unix_paths["apply_largest_us_per_1000"] / 1000,
         "unix_log_rest_ms_per_record": unix_paths["log_rest_us_per_1000"] / 1e6,
+        "unix_processor_us_per_sample": unix_paths["processor_us_per_1000"] / 1000,
     }
     for name, (slices, worst, total, status, used) in fits.items():
         res[f"rp2040_emulated_fit_{name}_slices"] = slices
@@ -98,6 +100,8 @@ def rows(m: dict) -> list[tuple[str, float | None, float, str]]:
          m[e + "apply_largest_us_per_sample"], "us"),
         ("log append (rest record, flushed)", m["unix_log_rest_ms_per_record"],
          m[e + "log_rest_ms_per_record"], "ms"),
+        ("app after acquisition (Processor.feed), per sample", m["unix_processor_us_per_sample"],
+         m[e + "processor_us_per_sample"], "us"),
         ("paper optimiser N=18 M=50", m["optimiser_ms_micropython"], m[e + "optimiser_ms"], "ms"),
     ]
     for name in FIT_CASES:

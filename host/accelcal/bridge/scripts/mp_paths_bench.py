@@ -2,7 +2,8 @@
 # MicroPython unix port or on the emulated RP2040 (host/accelcal/studies/bench_chip.py runs it
 # on both).  argv (the unix port): a writable folder; on the chip, main('/', 1) is appended.
 # Prints "key value" lines: import time, per-sample apply (base, the largest composed model),
-# the log's append per record, and the heap free after the app starts with the largest model.
+# the log's append per record, the Processor (all the app does after acquisition) per sample,
+# and the heap free after the app starts with the largest model.
 import gc
 import os
 import sys
@@ -11,6 +12,7 @@ import time
 LARGEST = "base+temp_offset+temp_scale+drift+nonlinear"   # the largest model the device fits
 N_APPLY = 1000
 N_RECORDS = 200
+N_FEED = 41 * 50
 
 
 def us(t0):
@@ -70,6 +72,32 @@ def apply_us(cal, n, repeat):
     return best
 
 
+def processor_us(log, Processor, repeat):
+    """The app's work per sample after acquisition (wear profile, base model, no calibration
+    yet): N_FEED samples in blocks of 41 at 100 Hz, still in one orientation with +-3 LSB of
+    noise, so rest segments close every 5 s, reach the bins and the log."""
+    n = log.SAMPLES_PER_RECORD
+    blocks = []
+    s = 12345
+    for b in range(N_FEED // n):
+        buf = [0] * (3 * n)
+        for i in range(3 * n):
+            s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+            buf[i] = (102, -205, 993)[i % 3] + (s >> 16) % 7 - 3
+        blocks.append(buf)
+    best = 1 << 40
+    for _ in range(repeat):
+        remove(("bench_log.bin",))
+        lg = log.Log("bench_log.bin", 1 << 20)
+        proc = Processor(lg, 100)
+        t0 = time.ticks_us()
+        for buf in blocks:
+            proc.feed(buf, n)
+        best = min(best, us(t0))
+        lg.close()
+    return best
+
+
 def main(work, repeat):
     gc.collect()
     t0 = time.ticks_us()
@@ -91,6 +119,8 @@ def main(work, repeat):
     lg.flush()
     print("log_rest_us_per_1000", us(t0) * 1000 // N_RECORDS)
     lg.close()
+    remove(("bench_log.bin",))
+    print("processor_us_per_1000", processor_us(log, app.Processor, repeat) * 1000 // N_FEED)
     remove(("bench_log.bin", "log.bin", "cal_a.bin", "cal_b.bin"))
     cal = None
     lg = None
