@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from accelcal.errors import InputError
 from conftest import run_main
 
 BAD_NUMBERS = ["nan", "inf", "-inf", "1e300", "-1", "abc", "", "0x10", "1e400", "10000000000"]
@@ -268,3 +269,28 @@ def test_a_few_as_real_processes(good, bad_files):
                            capture_output=True, text=True, timeout=300)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (argv, r.stderr)
         assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("missing", ["node", "rp2040js", "firmware"])
+def test_missing_emulated_rp2040_ends_in_one_line(good, capsys, monkeypatch, tmp_path, missing):
+    """--runtime rp2040 without Node, rp2040js or the firmware (make setup, the checkout's
+    firmware/): one line naming what is missing, exit 2, on every command that takes it."""
+    from accelcal.bridge import rp2040
+    if missing == "node":
+        monkeypatch.setenv("PATH", str(tmp_path))
+    elif missing == "rp2040js":
+        monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
+    else:   # a checkout without firmware/ (rp2040js where it is, if it is)
+        try:
+            monkeypatch.setenv("ACCELCAL_RP2040JS", rp2040.emulator_index())
+        except InputError as e:
+            pytest.skip(f"the emulated RP2040 is not available: {e}")
+        monkeypatch.setattr(rp2040, "_root", lambda: tmp_path)
+    said = {"node": "needs Node", "rp2040js": "rp2040js is not installed",
+            "firmware": "is missing"}[missing]
+    d, pts, rec, params = good
+    for argv in (["calibrate", pts], ["calibrate", rec], ["compare", pts],
+                 ["paper", "table2", "--scenarios", "1", "--no-first"], ["bench"]):
+        code, _, err = run_main(capsys, [*argv, "--runtime", "rp2040"])
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and said in err, (argv, code, err)

@@ -195,9 +195,9 @@ class DeviceResult:
         return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
 
 
-def protocol_items(groups: list[Group], cfg: Config):
+def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH):
     """The runner's calls, in order, as (method, args): configure, then per group its points or
-    samples with their conditions, gaps and wear, and end.  All ints."""
+    samples (batch a call at most) with their conditions, gaps and wear, and end.  All ints."""
     yield "configure", (cfg.values(),)
     composed = bool(cfg.kinds) or cfg.conditions
     for g in groups:
@@ -235,8 +235,8 @@ def protocol_items(groups: list[Group], cfg: Config):
                     yield "worn", (state,)
                 if composed:
                     yield "conditions", (int(cond[a, 0]), int(cond[a, 1]), int(cond[a, 2]))
-                for s in range(a, b, BATCH):
-                    chunk = q[s:min(b, s + BATCH)]
+                for s in range(a, b, batch):
+                    chunk = q[s:min(b, s + batch)]
                     yield "samples", (chunk.ravel().tolist(), len(chunk))
         yield "end", ()
 
@@ -245,9 +245,9 @@ _LINE_TAGS = {"configure": "C", "group": "G", "conditions": "T", "point": "P", "
               "worn": "W", "end": "E"}
 
 
-def protocol_lines(groups: list[Group], cfg: Config):
+def protocol_lines(groups: list[Group], cfg: Config, batch: int = BATCH):
     """The same calls as the text lines a MicroPython child reads (mp_runner.py's protocol)."""
-    for method, args in protocol_items(groups, cfg):
+    for method, args in protocol_items(groups, cfg, batch):
         if method == "samples":
             buf, n = args
             yield f"B {n} " + " ".join(map(str, buf))

@@ -24,6 +24,9 @@ from accelcal.locations import DEVICE_PACKAGE, checkout, script
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
 HZ = 125_000_000
+# Samples per B line of the protocol: a line is split into a str per value on the chip, and
+# 1000 samples (the other runtimes' batch) take ~100 kB of its ~180 kB free heap
+SAMPLES_PER_LINE = 100
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,13 @@ def firmware_files(fw: Firmware) -> tuple[Path, Path]:
         if not f.exists():
             raise InputError(f"{f} is missing: the checkout is incomplete")
     return uf2, rom
+
+
+def check(fw: Firmware = MICROPYTHON) -> None:
+    """InputError, one line, unless Node, rp2040js and the firmware are all here: what a command
+    taking --runtime rp2040 checks before its work."""
+    emulator_index()
+    firmware_files(fw)
 
 
 def mpy_cross(src: Path, dst: Path, arch: str) -> None:

@@ -43,14 +43,15 @@ def micropython_path() -> str:
 
 
 def run_micropython_script(script: str, *args: str, heap: str | None = None,
-                           timeout: float = 600, extra_path: list[str] = ()) -> str:
-    """Run a script file under the MicroPython unix port with device/ (and extra_path) on its
-    path."""
+                           timeout: float = 600, extra_path: list[str] = (),
+                           device_path: str = str(DEVICE_DIR)) -> str:
+    """Run a script file under the MicroPython unix port with device/ (or device_path: a folder
+    holding the package, e.g. compiled to .mpy) and extra_path on its path."""
     cmd = [micropython_path()]
     if heap:
         cmd += ["-X", f"heapsize={heap}"]
     cmd += [script, *args]
-    env = dict(os.environ, MICROPYPATH=":".join([str(DEVICE_DIR), *extra_path, ".frozen"]))
+    env = dict(os.environ, MICROPYPATH=":".join([device_path, *extra_path, ".frozen"]))
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     if proc.returncode != 0:
         raise InterpreterFailed("micropython", proc)
@@ -84,6 +85,16 @@ def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
     return proc.stdout
 
 
+def check(runtime: str) -> None:
+    """One line (InputError) now, not after the host's work, when the runtime cannot start."""
+    if runtime == "micropython":
+        micropython_path()
+    elif runtime == "micropython32":
+        micropython32_module()
+    elif runtime == "rp2040":
+        rp2040.check()
+
+
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
     """Run the device pipeline on each group under the chosen runtime (RUNTIMES)."""
     if runtime == "cpython":   # in-process: ints in, ints out
@@ -101,5 +112,6 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
                     fh.write(line + "\n")
             return parse(script(str(RUNNER), str(inp)).splitlines())
     if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
-        return parse(rp2040.run_protocol(list(protocol_lines(groups, cfg))).out.splitlines())
+        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
+        return parse(rp2040.run_protocol(list(lines)).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -47,6 +47,8 @@ def cmd_calibrate(args) -> int:
         raise InputError("--points applies to the float methods (--method lsq, ...); the device "
                          "method fits the points its bins select")
     engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
+    from accelcal.bridge.runtime import check
+    check(args.runtime)
     inputs = args.input
     reads = [*inputs, args.fallback]
     if args.save:

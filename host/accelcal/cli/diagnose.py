@@ -30,8 +30,10 @@ def cmd_report(args) -> int:
 
 
 def cmd_compare(args) -> int:
+    from accelcal.bridge.runtime import check
     from accelcal.pipeline.compare import compare_main
     register_effects(args)
+    check(args.runtime)
     return compare_main(pipeline_config(args, args.model != "base"), path=args.input,
                         methods_list=args.methods, train=args.train, runtime_name=args.runtime,
                         plots=args.plots, as_json=args.json, model=args.model)
