@@ -1,0 +1,148 @@
+// The emulated Pico board: the RP2040 of rp2040.mjs with the LIS3DH of lis3dh.mjs on its I2C0
+// (GP4/GP5, as boards/pico.py wires it), fed by a stimulus file.
+//
+//   node pico.mjs --rp2040js INDEX_JS --firmware FW.uf2 --bootrom ROM.bin [--flash-in IMG]
+//        [--flash-out IMG] [--stimulus STIM] [--bus-faults PER_MILLE] [--seed N] MODE ...
+//
+// MODE run:   [--put LOCAL=REMOTE]... [--exec SCRIPT]... [--get REMOTE=LOCAL]... [--report FILE]
+//             as rp2040.mjs's command (boot, raw REPL, put, soft reset, run each script), then
+//             copy files off the board; --report: one JSON object, the chip model's ground truth
+//             (samples converted, FIFO overwrites, ODR starts, bus transactions and faults) and
+//             each script's cycles.  A script that raises: exit 1.
+// MODE serve: the board's USB CDC on stdin/stdout, byte for byte, for a relay to a pseudo-
+//             terminal (board/emulated.py); the flash image is saved to --flash-out when stdin
+//             closes or on SIGTERM.  Emulated time runs while the firmware has work (a script, a
+//             sleep with its timer armed) and stands still while it waits for the host, so an
+//             idle board costs nothing and a session's samples do not depend on the host's pace.
+// MODE cut:   --cut-at CYCLES [--put ...] [--exec SCRIPT]: run as `run` (after the boot from
+//             --flash-in; puts and soft reset not counted) but power off at CYCLES of the
+//             script's run, save the flash as it is then (--flash-out), and report how far it got.
+import fs from 'node:fs';
+import { parseArgs } from 'node:util';
+import { pathToFileURL } from 'node:url';
+import * as R from './rp2040.mjs';
+import { attachLis3dh, lis3dhReport } from './lis3dh.mjs';
+
+const OPTIONS = {
+  rp2040js: { type: 'string' }, firmware: { type: 'string' }, bootrom: { type: 'string' },
+  'flash-in': { type: 'string' }, 'flash-out': { type: 'string' },
+  stimulus: { type: 'string' }, 'bus-faults': { type: 'string', default: '0' },
+  seed: { type: 'string', default: '1' },
+  put: { type: 'string', multiple: true, default: [] }, exec: { type: 'string', multiple: true, default: [] },
+  get: { type: 'string', multiple: true, default: [] }, report: { type: 'string' },
+  'cut-at': { type: 'string' },
+};
+
+export function bootPico(emu, v) {
+  const chip = R.createChip(emu, { firmware: v.firmware, bootrom: v.bootrom,
+    flashIn: v['flash-in'] && fs.existsSync(v['flash-in']) ? v['flash-in'] : null });
+  const sensor = v.stimulus ? attachLis3dh(chip, { stimulus: v.stimulus,
+    faultPerMille: Number(v['bus-faults']), seed: Number(v.seed) }) : null;
+  return { chip, sensor };
+}
+
+function putAll(chip, puts) {
+  for (const spec of puts) {
+    const [local, remote] = spec.split('=');
+    R.putFile(chip, fs.readFileSync(local), remote);
+  }
+}
+
+function exists(chip, remote) {
+  const r = R.exec(chip, `import os\ntry:\n    os.stat(${JSON.stringify(remote)})\n    print(1)\nexcept OSError:\n    print(0)\n`);
+  return r.out.trim() === '1';
+}
+
+function run(chip, sensor, v) {
+  R.enterRawRepl(chip);
+  putAll(chip, v.put);
+  R.softReset(chip);
+  const report = { scripts: [] };
+  let failed = false;
+  for (const file of v.exec) {
+    const r = R.exec(chip, fs.readFileSync(file, 'utf8'));
+    process.stdout.write(r.out.replace(/\r\n/g, '\n'));
+    report.scripts.push({ script: file, cycles: r.cycles, emulated_ms: r.emuMs, wall_ms: r.wallMs });
+    if (r.err) { process.stderr.write(r.err.replace(/\r\n/g, '\n')); failed = true; break; }
+  }
+  for (const spec of v.get) { // absent files are skipped: the caller sees which arrived
+    const [remote, local] = spec.split('=');
+    if (exists(chip, remote)) fs.writeFileSync(local, R.readFile(chip, remote));
+  }
+  if (sensor) report.lis3dh = lis3dhReport(sensor);
+  report.cycles = chip.cycles;
+  return { report, failed };
+}
+
+// Power off at cutAt cycles into the (single) script: what reached the flash stays.
+function cut(chip, sensor, v) {
+  R.enterRawRepl(chip);
+  putAll(chip, v.put);
+  R.softReset(chip);
+  const code = fs.readFileSync(v.exec[0], 'utf8');
+  chip.send(code);
+  chip.runUntil(chip.sent, 'the code upload');
+  const c0 = chip.cycles;
+  chip.stopAt = c0 + Number(v['cut-at']);
+  chip.send('\x04');
+  let finished = false;
+  try {
+    chip.runUntil(() => chip.rx.eots >= 2 && chip.rx.endsWith('\x04>'), 'the script end', R.HZ * 3600);
+    finished = true;
+  } catch (e) {
+    if (!(e instanceof R.PowerCut)) throw e;
+  }
+  const out = chip.rx.take();
+  const report = { cut_at: Number(v['cut-at']), ran: chip.cycles - c0, finished,
+    flash_writes: chip.flashWrites, out: out.slice(-2000) };
+  if (sensor) report.lis3dh = lis3dhReport(sensor);
+  return { report, failed: false };
+}
+
+// The USB CDC on stdin/stdout.  The chip runs in slices between the event loop's turns, so
+// host bytes arrive while it runs; with no work and nothing from the host it waits for stdin.
+function serve(chip, v) {
+  let closing = false;
+  const save = () => { if (v['flash-out']) fs.writeFileSync(v['flash-out'], chip.flashImage()); };
+  const finish = () => { if (closing) return; closing = true; save(); process.exit(0); };
+  process.on('SIGTERM', finish);
+  process.stdin.on('end', finish);
+  let waiting = null;
+  process.stdin.on('data', (buf) => {
+    chip.send(buf);
+    if (waiting) { const w = waiting; waiting = null; setImmediate(w); }
+  });
+  const slice = () => {
+    if (closing) return;
+    const t0 = performance.now();
+    let busy = true;
+    while (performance.now() - t0 < 20) {
+      chip.feed();
+      busy = chip.step(20000);
+      if (chip.rx.length) process.stdout.write(Buffer.from(chip.rx.take(), 'latin1'));
+      if (!busy && chip.sent()) break;
+    }
+    if (!busy && chip.sent()) waiting = slice; // asleep with no timer: until the host speaks
+    else setImmediate(slice);
+  };
+  slice();
+}
+
+async function main() {
+  const { values: v, positionals } = parseArgs({ options: OPTIONS, allowPositionals: true });
+  for (const need of ['rp2040js', 'firmware', 'bootrom']) {
+    if (!v[need]) { console.error(`pico.mjs: --${need} is required`); process.exit(2); }
+  }
+  const mode = positionals[0] || 'run';
+  const emu = await R.loadEmulator(v.rp2040js);
+  const { chip, sensor } = bootPico(emu, v);
+  if (mode === 'serve') { serve(chip, v); return; }
+  const { report, failed } = mode === 'cut' ? cut(chip, sensor, v) : run(chip, sensor, v);
+  if (v['flash-out']) fs.writeFileSync(v['flash-out'], chip.flashImage());
+  if (v.report) fs.writeFileSync(v.report, JSON.stringify(report) + '\n');
+  process.exitCode = failed ? 1 : 0;
+}
+
+if (process.argv[1] && import.meta.url === pathToFileURL(process.argv[1]).href) {
+  main().catch((e) => { console.error(`pico.mjs: ${e.message}`); process.exitCode = 3; });
+}
