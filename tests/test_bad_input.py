@@ -268,3 +268,74 @@ def test_a_few_as_real_processes(good, bad_files):
                            capture_output=True, text=True, timeout=300)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (argv, r.stderr)
         assert "Traceback" not in r.stderr
+
+
+# Class 1 (issue 27): a file is a recording or a points file by one rule (files/readers.py,
+# printed in --help); a header the rule does not place is one line, exit 2, never a points-file
+# calibration of a recording's samples.
+
+@pytest.fixture(scope="module")
+def wrist_day(tmp_path_factory):
+    """A simulated day at 10 Hz and its truth."""
+    d = tmp_path_factory.mktemp("wrist")
+    rec = d / "w.csv"
+    r = subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", "1",
+                        "--rate", "10", "--seed", "3", "-o", str(rec)], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    return rec, json.loads(rec.with_suffix(".truth.json").read_text())
+
+
+def _reheader(src, dst, header, extra=None):
+    lines = src.read_text().splitlines(keepends=True)
+    body = lines[1:] if extra is None else [ln.rstrip("\n") + f",{extra}\n" for ln in lines[1:]]
+    dst.write_text(header + "\n" + "".join(body))
+    return dst
+
+
+@pytest.mark.parametrize("header", ["time,x,y,z,temp", "Timestamp,X,Y,Z,Temperature",
+                                    "t_s,x,y,z,temp_c"])
+def test_a_time_column_by_another_name_calibrates_right(wrist_day, tmp_path, capsys, header):
+    rec, truth = wrist_day
+    f = _reheader(rec, tmp_path / "r.csv", header)
+    code, out, err = run_main(capsys, ["calibrate", f, "--json"])
+    assert code == 0, err
+    got = json.loads(out)
+    assert got["format"] == "CSV" and got["status"] == "calibrated"
+    for k in ("kxx", "kyy", "kzz"):   # a points-file reading of the samples gave 0.84 for 1.02
+        assert abs(got["params"][k] - truth["params"][k]) < 0.01, (k, got["params"], truth)
+
+
+@pytest.mark.parametrize("extra, says", [
+    ("Battery", "recording column 'Battery'"), ("battery V", "recording column 'battery V'"),
+    ("batterie_\u00e9", "recording column"), ("b" * 30, "recording column"),
+    ("c" * 70, "at most 64"), ("Time", "recording column 'Time'"),
+    ("device", "recording column 'device'")])
+def test_a_recording_column_the_rule_does_not_place_is_one_line(good, tmp_path, capsys, extra,
+                                                                 says):
+    f = tmp_path / "r.csv"
+    f.write_text(f"time,x,y,z,{extra}\n" + "".join(f"{i / 10:.1f},0,0,1,3.7\n" for i in range(300)),
+                 encoding="utf-8")
+    for cmd in (["calibrate", f], ["diagnose", f], ["compare", f], ["apply", good[3], f, "-o", tmp_path / "o.csv"]):
+        code, out, err = run_main(capsys, cmd)
+        assert code == 2 and err.count("\n") == 1 and says in err, (cmd, err)
+    # a batch says it in the file's record: failed, with the reason
+    code, out, err = run_main(capsys, ["calibrate", f, f, "--json", "--quiet", "--summary",
+                                       tmp_path / "s.csv"])
+    recs = [json.loads(line) for line in out.splitlines()]
+    assert code == 0 and all(r["status"] == "failed" and says in r["reason"] for r in recs)
+
+
+def test_the_rule_is_in_help_and_samples_are_not_rest_points(tmp_path, capsys):
+    from accelcal.files.readers import RULE, TIME_NAMES
+    for cmd in ("calibrate", "apply", "diagnose", "compare"):
+        code, out, _ = run_main(capsys, [cmd, "--help"])
+        assert code == 0 and "How a file is read" in out and all(n in out for n in TIME_NAMES)
+    assert "Anything else is refused" in RULE
+    f = tmp_path / "p.csv"      # a recording whose columns are in a points file's order
+    f.write_text("x,y,z,t\n" + "".join(f"0,0,1,{i / 10:.1f}\n" for i in range(300)))
+    code, _, err = run_main(capsys, ["calibrate", f])
+    assert code == 2 and "holds samples, not rest means" in err
+    f.write_text("t,device,x,y,z\n1,a,0,0,1\n")
+    code, _, err = run_main(capsys, ["calibrate", f])
+    assert code == 2 and "then x,y,z" in err

@@ -8,11 +8,12 @@ from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_addre
                                   pipeline_config, register_effects)
 from accelcal.errors import InputError
 from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.readers import RULE
 
 
-EPILOG_CAL = """\
-Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
-GENEActiv .bin, ActiGraph .gt3x) goes through rest detection, bins and the optimiser, streamed in
+EPILOG_CAL = RULE + """
+
+A recording goes through rest detection, bins and the optimiser, streamed in
 constant memory; a points file (CSV with x,y,z and optional temp,t,device) through bins and the
 optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol) are
 fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.
@@ -52,7 +53,7 @@ def cmd_calibrate(args) -> int:
         check_output(args.save, reads, args.force, "--save")
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
         return _calibrate_batch(args, spec, engine)
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     if is_recording(inputs[0]):
         if args.by:
             raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
@@ -117,7 +118,7 @@ def _calibrate_batch(args, spec, engine) -> int:
 def cmd_apply(args) -> int:
     from accelcal.pipeline.apply import apply_file
     from accelcal.files.params import load_params
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     from accelcal.model.effects import ModelSpec
     register_effects(args)
     model, p_int, ref = load_params(args.params, args.device)
@@ -202,7 +203,8 @@ def add_parsers(sub) -> None:
                                    "integer per-sample code (the paper's model through its numpy "
                                    "twin, bit-exact); writes t,x,y,z[,temp] in g, then the "
                                    "recording's further columns as read.  Streams: any length "
-                                   "of recording in constant memory.")
+                                   "of recording in constant memory.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True,

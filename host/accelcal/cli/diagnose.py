@@ -2,10 +2,12 @@
 a board's calibrations) and `compare` (every method on the same data)."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
 from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.readers import RULE
 
 
 def cmd_diagnose(args) -> int:
@@ -43,7 +45,8 @@ def add_parsers(sub) -> None:
                                    "measures on the odd ones: held-out calibration error beside the "
                                    "noise floor, residuals against time, temperature, each axis and "
                                    "|a|, and for every catalogue effect not in the model the held-out "
-                                   "error with it added; names the missing effect, or none.")
+                                   "error with it added; names the missing effect, or none.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
                                  "as supply_mv are regressors too) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
@@ -83,7 +86,8 @@ def add_parsers(sub) -> None:
                                    "training point).  All are scored on the held-out part: mean "
                                    "| |a| - 1 g | in mg before and after, R (Farago eq. 21), fit "
                                    "time measured in this run.  A method that cannot fit shows "
-                                   "its reason; the others still run.")
+                                   "its reason; the others still run.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
                                  "as supply_mv are regressors too) or points file")
     p.add_argument("--methods", metavar="M1,M2,...",
