@@ -339,3 +339,140 @@ def test_the_rule_is_in_help_and_samples_are_not_rest_points(tmp_path, capsys):
     f.write_text("t,device,x,y,z\n1,a,0,0,1\n")
     code, _, err = run_main(capsys, ["calibrate", f])
     assert code == 2 and "then x,y,z" in err
+
+
+# Class 2: every file a command reads is an input (never replaced, --force or not); a history is
+# appended to only when it is one, under a lock; a forced pull replaces the whole pull.
+
+EFFECTS_PY = ("EFFECTS = [dict(name='ageing9', regressor='time', unit='g/day', bound=0.01, "
+              "explanation='test')]\n")
+
+
+@pytest.fixture
+def pulled(tmp_path):
+    """A folder as `pull` writes it: log.bin (a BOOT), capture.bin, cal_a.bin, summary.json."""
+    from acal import log
+    d = tmp_path / "pulled"
+    d.mkdir()
+    boot = struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600,
+                       -128, 0, 1)
+    (d / "log.bin").write_bytes(board_log([(log.BOOT, boot)]))
+    (d / "capture.bin").write_bytes(board_log([(log.BOOT, boot)]))
+    (d / "cal_a.bin").write_bytes(b"")
+    (d / "summary.json").write_text("{}")
+    return d
+
+
+def test_force_never_replaces_a_file_the_command_reads(good, pulled, tmp_path, capsys):
+    d, pts, rec, params = good
+    eff = tmp_path / "eff.py"
+    eff.write_text(EFFECTS_PY)
+    page = tmp_path / "rep" / "report.html"      # an effects file where diagnose writes its page
+    page.parent.mkdir()
+    page.write_text(EFFECTS_PY.replace("ageing9", "ageing8"))
+    hist = tmp_path / "h.jsonl"
+    hist.write_text('{"model": "base", "heldout_error_mg": 1, "noise_floor_mg": 0.1}\n')
+    keep = {p: p.read_bytes() for p in [eff, page, hist, rec, pts, params,
+                                       *sorted(pulled.iterdir())]}
+    out = tmp_path / "o.csv"
+    cases = [
+        ["calibrate", rec, "--effects", eff, "--save", eff],
+        ["calibrate", rec, "--fallback", params, "--save", params],
+        ["calibrate", pts, rec, "--effects", eff, "--summary", eff],
+        ["apply", params, rec, "-o", eff, "--effects", eff],
+        ["simulate", "wrist", "-o", eff, "--effects", eff],
+        ["diagnose", rec, "--effects", page, "--report", page.parent],
+        ["diagnose", rec, "--history", eff, "--effects", eff],
+        ["report", hist, "--html", hist],
+        ["report", hist, "--plot", hist.with_suffix(".png"), "--html", hist.with_suffix(".png")],
+        *[["report", pulled, "--html", f] for f in sorted(pulled.iterdir())],
+    ]
+    for argv in cases:
+        code, _, err = run_main(capsys, [*argv, "--force"])
+        assert code == 2 and err.count("\n") == 1 and "input" in err, (argv, err)
+    for p, data in keep.items():
+        assert p.read_bytes() == data, p
+    assert not out.exists()
+
+
+def test_a_history_is_appended_only_to_a_history(good, tmp_path, capsys):
+    d, pts, rec, params = good
+    for name, text in [("p.json", params.read_text()), ("r.csv", rec.read_text()[:2000]),
+                       ("bin.jsonl", bytes(range(256))), ("nested.jsonl", "[" * 100000)]:
+        f = tmp_path / name
+        f.write_bytes(text if isinstance(text, bytes) else text.encode())
+        before = f.read_bytes()
+        code, _, err = run_main(capsys, ["diagnose", rec, "--history", f])
+        assert code == 2 and err.count("\n") == 1 and "refusing to append" in err, (name, err)
+        assert f.read_bytes() == before
+
+
+APPENDER = """
+import sys
+from accelcal.pipeline.history import append_history
+for k in range(int(sys.argv[3])):
+    append_history(sys.argv[1], {"model": "base", "heldout_error_mg": 1 + k,
+                                 "noise_floor_mg": 0.1, "writer": sys.argv[2]})
+"""
+
+
+def test_concurrent_history_writers_lose_no_line(tmp_path):
+    """Four processes append 40 steps each to one history at once: 160 lines, each whole."""
+    from accelcal.pipeline.history import read_history
+    h = tmp_path / "h.jsonl"
+    procs = [subprocess.Popen([sys.executable, "-c", APPENDER, str(h), str(w), "40"])
+             for w in range(4)]
+    assert all(p.wait(timeout=120) == 0 for p in procs)
+    steps = read_history(h)
+    lines = h.read_text().splitlines()
+    assert len(steps) == 160 and len(lines) == 160
+    for w in range(4):
+        mine = [json.loads(ln)["heldout_error_mg"] for ln in lines
+                if json.loads(ln)["writer"] == str(w)]
+        assert mine == list(range(1, 41))
+
+
+def test_a_forced_pull_holds_only_the_new_pull(pulled, capsys, monkeypatch):
+    """An earlier pull held capture.bin and cal_a.bin; the board now holds only log.bin: after
+    pull --force the folder holds the new log and its summary, nothing of the earlier pull."""
+    import shutil
+    from accelcal.board import deploy
+    new_log = board_log([])  # replaced below by a BOOT with another rate
+    from acal import log
+    new_log = board_log([(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 50, 5, 0, 3, 2, 0,
+                                                2, 8, 6553, 20, 600, -128, 0, 1))])
+    board = pulled.parent / "board"
+    board.mkdir()
+    (board / "log.bin").write_bytes(new_log)
+
+    class FakeBoard:
+        def __init__(self, port, timeout=0):
+            pass
+
+        def identify(self):
+            return {"files": ["log.bin"], "sizes": {"log.bin": len(new_log)}}
+
+        def run(self, *args):   # fs cp :log.bin DEST
+            shutil.copy(board / args[2][1:], args[3])
+    monkeypatch.setattr(deploy, "Remote", FakeBoard)
+    code, _, err = run_main(capsys, ["pull", "--port", "x", "-o", pulled])
+    assert code == 2 and "--force" in err
+    code, out, err = run_main(capsys, ["pull", "--port", "x", "-o", pulled, "--force", "--json"])
+    assert code == 0, err
+    assert sorted(f.name for f in pulled.iterdir()) == ["log.bin", "summary.json"]
+    assert (pulled / "log.bin").read_bytes() == new_log
+
+
+def test_two_writers_of_one_new_output_never_both_succeed(tmp_path):
+    """Both checked the output as new; the second to finish finds the first's file: it fails,
+    one line, and the first's result stays."""
+    from accelcal.errors import InputError
+    from accelcal.files import outputs
+    out = tmp_path / "o.json"
+    outputs.forget_inputs()
+    outputs.check_output(out)
+    out.write_text("the other run's result")
+    with pytest.raises(InputError, match="another run meanwhile"):
+        outputs.write_text(out, "mine")
+    assert out.read_text() == "the other run's result"
+    assert [f.name for f in tmp_path.iterdir()] == ["o.json"]

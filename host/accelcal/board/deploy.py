@@ -195,7 +195,8 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
 
 def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
     """Copy the logs off the board into outdir and decode them.  The files are copied into a
-    temporary folder inside it and renamed into place once all have arrived."""
+    temporary folder inside it and renamed into place once all have arrived; then the files of
+    an earlier pull (--force) that this one does not hold are removed."""
     out = check_pull_dir(outdir, force)
     r = Remote(port, timeout=3600)
     ident = r.identify()
@@ -215,6 +216,10 @@ def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
         r.run(*cmd[:-1])
         for f in present:
             os.replace(tmp / f, out / f)
+        # the whole earlier pull goes (--force): none of its files stays beside the new log
+        for f in (*boardlog.LOG_FILES, "summary.json"):
+            if f not in present and (out / f).exists():
+                (out / f).unlink()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     sizes = {f: (out / f).stat().st_size for f in present}

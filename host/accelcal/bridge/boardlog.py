@@ -15,6 +15,7 @@ from acal import effects as deff
 from acal import fixed, log, optimiser
 from acal.app import Processor
 from accelcal.errors import InputError
+from accelcal.files.outputs import note_input
 
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FIELDS = {
@@ -56,6 +57,7 @@ class Decoded:
 
 
 def decode(path: str | Path) -> Decoded:
+    note_input(path)
     try:
         data = Path(path).read_bytes()
     except OSError as e:
@@ -243,6 +245,8 @@ def summary(dirpath: str | Path) -> dict:
            "counters": lg.dicts(log.COUNTERS)[-1] if lg.of(log.COUNTERS) else None,
            "calibrations": cals, "rest_points": rests,
            "dropped": lg.dropped_report(data)}
+    for f in ("cal_a.bin", "cal_b.bin"):
+        note_input(d / f)
     store = log.CalStore(str(d / "cal_a.bin"), str(d / "cal_b.bin"))
     slot, rec = store.load()
     out["stored_calibration"] = None if rec is None else {

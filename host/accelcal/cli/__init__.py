@@ -22,6 +22,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    from accelcal.files.outputs import forget_inputs
+    forget_inputs()
     ap = build_parser()
     args = ap.parse_args(argv)
     try:

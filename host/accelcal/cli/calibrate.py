@@ -48,7 +48,7 @@ def cmd_calibrate(args) -> int:
                          "method fits the points its bins select")
     engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
     inputs = args.input
-    reads = [*inputs, args.fallback]
+    reads = [*inputs, args.fallback, args.effects]
     if args.save:
         check_output(args.save, reads, args.force, "--save")
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
@@ -90,7 +90,8 @@ def _calibrate_batch(args, spec, engine) -> int:
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
     summary = args.summary or "accelcal-summary.csv"
-    check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
+    check_output(summary, [*args.input, args.fallback, args.save, args.effects], args.force,
+                 "--summary")
     job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
                     args.fallback, args.points or "bins", args.effects)
     if args.fallback:
@@ -125,7 +126,7 @@ def cmd_apply(args) -> int:
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
                          "or .cwa/.bin/.gt3x)")
-    check_output(args.output, [args.params, args.input], args.force, "-o/--output")
+    check_output(args.output, [args.params, args.input, args.effects], args.force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
     host_only = ModelSpec.parse(model).host_only
     if host_only:

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
-from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.outputs import FORCE_HELP, check_figure_name, check_output
 from accelcal.files.readers import RULE
 
 
@@ -15,12 +15,19 @@ def cmd_diagnose(args) -> int:
     register_effects(args)
     return diagnose_main(path=args.input, model=args.model, history=args.history,
                          plots=args.plots, report_dir=args.report, force=args.force,
-                         as_json=args.json)
+                         as_json=args.json, effects=args.effects)
 
 
 def cmd_report(args) -> int:
+    reads = [args.history]
+    if Path(args.history).is_dir():   # a pulled folder: every file of the pull is read
+        from accelcal.bridge.boardlog import LOG_FILES
+        reads += [Path(args.history) / f for f in (*LOG_FILES, "summary.json")]
     if args.plot:   # a figure, regenerated from what it reads: replaced if it exists
-        check_output(args.plot, [args.history], True, "--plot")
+        check_output(args.plot, reads, True, "--plot")
+        check_figure_name(args.plot, "--plot")
+    if args.html:
+        check_output(args.html, [*reads, args.plot], args.force, "--html")
     if Path(args.history).is_dir():
         from accelcal.board.report import board_report
         return board_report(pulled_dir=args.history, html=args.html, force=args.force,

@@ -149,5 +149,7 @@ def add_effects_arg(p) -> None:
 def register_effects(args) -> None:
     """The user's declared effects into the catalogue, checked (one line, exit 2, if bad)."""
     if getattr(args, "effects", None):
+        from accelcal.files.outputs import note_input
         from accelcal.model.declared import register
+        note_input(args.effects)   # run as code, and never an output (--force or not)
         register(args.effects)

@@ -9,7 +9,7 @@ from pathlib import Path
 from acal import fixed
 from acal import model as dmodel
 from accelcal.errors import InputError
-from accelcal.files.outputs import write_text
+from accelcal.files.outputs import note_input, write_text
 from accelcal.fixedpoint import params_to_float
 from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
 
@@ -55,6 +55,7 @@ def load_params(path: str, device: str | None = None) -> tuple[str, list[int], d
     `calibrate --by` file.  The reference (T0 degC, t0 s) is a composed model's; {} for base.
     Everything is checked: the shape, integer parameters inside the device's calibration bounds
     (a file no fit could have written is refused), a finite reference."""
+    note_input(path)
     try:
         text = Path(path).read_bytes().decode("utf-8")
         rec = json.loads(text, parse_constant=_reject_constant)

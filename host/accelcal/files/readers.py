@@ -8,12 +8,11 @@ a device or a FIFO is refused before it is opened for reading)."""
 from __future__ import annotations
 
 import csv
-import os
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 from accelcal.errors import InputError
+from accelcal.files.outputs import check_regular
 from accelcal.model.effects import COLUMN_NAME, RESERVED
 
 ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
@@ -47,17 +46,6 @@ class Layout:
     raw: list[str]
     header: list[str]
     further: list[str]
-
-
-def check_regular(path) -> None:
-    """A regular file (links followed): a device, FIFO or folder is refused before it is read."""
-    try:
-        st = os.stat(path)
-    except OSError as e:
-        raise InputError(f"{path}: cannot open ({e.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        what = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device or FIFO)"
-        raise InputError(f"{path}: {what}; expected a file")
 
 
 def read_header(path) -> list[str]:
