@@ -476,3 +476,34 @@ def test_two_writers_of_one_new_output_never_both_succeed(tmp_path):
         outputs.write_text(out, "mine")
     assert out.read_text() == "the other run's result"
     assert [f.name for f in tmp_path.iterdir()] == ["o.json"]
+
+
+# Class 3: a declared-effects file is code, run first; whatever it raises or exits with is one
+# line, exit 2, with no output touched; at most 64 effects.
+
+@pytest.mark.parametrize("code_text", [
+    "import sys\nsys.exit(0)\n", "raise SystemExit(3)\n", "raise KeyboardInterrupt\n",
+    "class Odd(BaseException):\n    pass\nraise Odd('mine')\n", "import os\nos.chdir\nraise GeneratorExit\n",
+    "EFFECTS = [dict(name=f'e{i}', regressor='time', unit='g', bound=0.1, explanation='x') "
+    "for i in range(5000)]\n"])
+def test_an_effects_file_ends_the_command_only_as_one_line(good, tmp_path, capsys, code_text):
+    d, pts, rec, params = good
+    eff = tmp_path / "eff.py"
+    eff.write_text(code_text)
+    out = tmp_path / "o.csv"
+    out.write_text("an earlier output\n")
+    for argv in (["calibrate", rec, "--effects", eff, "--save", out, "--force"],
+                 ["apply", params, rec, "-o", out, "--effects", eff, "--force"],
+                 ["diagnose", rec, "--effects", eff, "--history", tmp_path / "h.jsonl"],
+                 ["simulate", "wrist", "-o", out, "--effects", eff, "--force"]):
+        code, _, err = run_main(capsys, argv)
+        assert code == 2 and err.count("\n") == 1 and str(eff) in err, (argv, code, err)
+        assert "running it failed" in err or "at most 64" in err
+    assert out.read_text() == "an earlier output\n"
+    assert not (tmp_path / "h.jsonl").exists()
+
+
+def test_effects_help_says_the_file_is_trusted_code(capsys):
+    for cmd in (["calibrate"], ["diagnose"], ["apply"], ["compare"], ["simulate", "wrist"]):
+        code, out, _ = run_main(capsys, [*cmd, "--help"])
+        assert code == 0 and "run as Python code" in " ".join(out.split()), cmd

@@ -139,7 +139,10 @@ def pipeline_config(args, composed=False):
 EFFECTS_HELP = ("a Python file declaring effects of your own (EFFECTS = [dict(name=..., regressor="
                 "'temperature'|'time'|'reading'|'column:NAME', power=..., form='offset'|'gain', unit=..., "
                 "bound=..., explanation=...)]): they join the catalogue for this command "
-                "(docs/model-discovery.md \"Effects you declare\")")
+                "(docs/model-discovery.md \"Effects you declare\").  The file is run as Python "
+                "code, first, before any output is touched: name only a file you trust, as you "
+                "would a config file.  At most 64 effects; anything it raises or exits with is "
+                "one line, exit 2")
 
 
 def add_effects_arg(p) -> None:
