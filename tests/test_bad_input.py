@@ -3,6 +3,7 @@ CLI's main(argv) in-process (hundreds of cases in seconds): each must end with e
 and exactly one line on stderr, never a traceback, and never a silent wrong result.  A few run
 as real subprocesses to prove the exit code and the absence of a traceback end to end."""
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -507,3 +508,106 @@ def test_effects_help_says_the_file_is_trusted_code(capsys):
     for cmd in (["calibrate"], ["diagnose"], ["apply"], ["compare"], ["simulate", "wrist"]):
         code, out, _ = run_main(capsys, [*cmd, "--help"])
         assert code == 0 and "run as Python code" in " ".join(out.split()), cmd
+
+
+# Class 4: what is read is bounded before it is parsed; CRC-valid records with absurd fields,
+# file names and links that are not what they seem: one line, exit 2.
+
+RSS_RUNNER = """
+import resource, sys
+from accelcal import cli
+codes = [cli.main(a.split("|")) for a in sys.argv[1:]]
+print(codes, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)
+"""
+MEMORY_BOUND_MB = 250    # the interpreter with numpy and pyarrow loaded is ~110 MB of it
+
+
+def test_huge_files_are_one_line_in_bounded_memory(tmp_path):
+    """Sparse files (truncate: nothing written): a 1 GB single-line file, a 1 GB line after a
+    good header, a 1 GB points file, 2 GB of garbage as CSV, .bin, .cwa, .gt3x, parameters and
+    history.  One process runs them all; its peak RSS stays under MEMORY_BOUND_MB."""
+    def sparse(name, head, size):
+        f = tmp_path / name
+        f.write_bytes(head)
+        os.truncate(f, size)
+        return f
+    G = 1 << 30
+    one_line = sparse("one_line.csv", b"t,x,y,z", G)
+    long_row = sparse("long_row.csv", b"t,x,y,z\n0.0,0,0,1\n0.1,", G)
+    pts = sparse("pts.csv", b"x,y,z\n", G)
+    garbage = [sparse(f"garbage.{ext}", b"", 2 * G) for ext in ("csv", "bin", "cwa", "gt3x")]
+    params = sparse("p.json", b'{"model": "', 2 * G)
+    hist = sparse("h.jsonl", b'{"model": "', 2 * G)
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps({"model": "base", "params_int": {
+        n: (1 << 24 if i < 3 else 0) for i, n in enumerate(
+            ["kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"])}}))
+    runs = [f"calibrate|{f}" for f in (one_line, long_row, pts, *garbage)]
+    runs += [f"diagnose|{long_row}", f"compare|{one_line}", f"apply|{params}|{long_row}|-o|"
+             f"{tmp_path / 'o.csv'}", f"apply|{good}|{garbage[0]}|-o|{tmp_path / 'o.csv'}",
+             f"report|{hist}"]
+    r = subprocess.run([sys.executable, "-c", RSS_RUNNER, *runs], capture_output=True, text=True,
+                       timeout=300)
+    codes, peak_mb = r.stdout.split("]")
+    assert codes.strip("[") == ", ".join(["2"] * len(runs)), r.stderr
+    errs = r.stderr.strip().splitlines()
+    assert len(errs) == len(runs) and "Traceback" not in r.stderr, r.stderr
+    assert int(peak_mb) < MEMORY_BOUND_MB, (peak_mb, r.stderr)
+    assert not (tmp_path / "o.csv").exists()
+
+
+def _boot(rate=25, seconds=5, min_count=2, max_count=8, model=0):
+    from acal import log
+    return struct.pack(log.FORMATS[log.BOOT], 0, 2, rate, seconds, 0, 3, 2, 0, min_count,
+                       max_count, 6553, 20, 600, -128, model, 1)
+
+
+@pytest.mark.parametrize("boot", [dict(seconds=0), dict(model=0xFFFF), dict(model=15),
+                                  dict(model=0x11), dict(rate=5376, seconds=255),
+                                  dict(min_count=60, max_count=60)])
+def test_replay_of_absurd_boot_settings_is_one_line(tmp_path, capsys, boot):
+    from acal import log
+    b = _boot(**boot)
+    samples = [(log.SAMPLES, struct.pack(log.SAMPLES_HEAD, 41 * i, 41, 25)
+                + struct.pack("<" + "hhh" * 41, *([0, 0, 1024] * 41))) for i in range(20)]
+    (tmp_path / "log.bin").write_bytes(board_log([(log.BOOT, b)]))
+    (tmp_path / "capture.bin").write_bytes(board_log([(log.BOOT, b), *samples]))
+    code, _, err = run_main(capsys, ["replay", tmp_path])
+    assert code == 2 and err.count("\n") == 1 and "BOOT" in err, err
+
+
+def test_odd_files_and_names_are_one_line(good, pulled, tmp_path, capsys):
+    d, pts, rec, params = good
+    nul = tmp_path / "nul.csv"
+    nul.write_bytes(bytes(5000))
+    wide = tmp_path / "wide.csv"
+    wide.write_text("t,x,y,z,b" + "b" * 131072 + "\n0,0,0,1,1\n")
+    cell = tmp_path / "cell.csv"
+    cell.write_text("x,y,z\n" + "1," * 2 + "1" * 140000 + "\n")
+    nested = tmp_path / "nested.json"
+    nested.write_text("[" * 100000 + "]" * 100000)
+    deep_hist = tmp_path / "deep.jsonl"
+    deep_hist.write_text("[" * 100000 + "\n")
+    (pulled / "log.bin").unlink()
+    (pulled / "log.bin").symlink_to("/dev/zero")
+    cases = [["calibrate", nul], ["diagnose", nul], ["calibrate", wide], ["calibrate", cell],
+             ["apply", nested, rec, "-o", tmp_path / "o.csv"], ["calibrate", rec, "--fallback",
+                                                                 nested],
+             ["report", deep_hist], ["report", pulled], ["replay", pulled],
+             ["report", pulled, "--html", tmp_path / "b.html"],
+             ["report", deep_hist, "--plot", tmp_path / "steps.csv"]]
+    for argv in cases:
+        code, _, err = run_main(capsys, argv)
+        assert code == 2 and err.count("\n") == 1, (argv, err)
+    assert not (tmp_path / "steps.csv").exists() and not (tmp_path / "o.csv").exists()
+
+
+def test_a_model_name_matplotlib_would_parse_is_drawn_as_written(tmp_path, capsys):
+    hist = tmp_path / "h.jsonl"
+    hist.write_text("".join(json.dumps({"model": m, "heldout_error_mg": 2.0,
+                                        "noise_floor_mg": 0.1}) + "\n"
+                            for m in ["base", "base+$\\frac{", "$x^{", "a" * 300]))
+    code, out, err = run_main(capsys, ["report", hist, "--plot", tmp_path / "s.png",
+                                       "--html", tmp_path / "s.html"])
+    assert code == 0, err
+    assert (tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"

@@ -144,6 +144,8 @@ class CsvRecording(Recording):
 
 
 def _arrow_message(e: Exception) -> str:
+    if "straddl" in str(e):   # a row longer than Arrow's 1 MB block: no recording's line is
+        return "a line longer than 1 MB (not a recording's line)"
     return " ".join(str(e).split())[:300]
 
 

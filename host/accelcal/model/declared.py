@@ -33,6 +33,7 @@ from accelcal.errors import InputError
 from accelcal.model.effects import CATALOGUE, COLUMN_NAME, RESERVED, Effect
 
 MAX_EFFECTS = 64     # one file's effects: each is a candidate fit in diagnose
+MAX_FILE_BYTES = 1 << 20
 REGRESSORS = {"temperature": "temp", "time": "t", "reading": None}
 REQUIRED = ("name", "regressor", "unit", "bound", "explanation")
 OPTIONAL = ("power", "step", "form")
@@ -97,7 +98,9 @@ def load_effects(path: str) -> list[Effect]:
     one: missing, a syntax error, an error running it, no EFFECTS list, a bad field."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{path}: no such effects file")
+        raise InputError(f"{path}: no such effects file (a regular file)")
+    if p.stat().st_size > MAX_FILE_BYTES:
+        raise InputError(f"{path}: an effects file of more than {MAX_FILE_BYTES >> 10} KiB")
     try:
         ns = runpy.run_path(str(p), run_name="accelcal_effects")
     except SyntaxError as e:
