@@ -8,7 +8,7 @@ import sys
 
 from accelcal.cli import board, calibrate, diagnose, simulate, studies
 from accelcal.cli.options import Parser
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line
 
 GROUPS = (calibrate, simulate, board, diagnose, studies)   # the order of `accelcal --help`
 
@@ -29,11 +29,11 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except InputError as e:
-        print(f"accelcal: error: {e}", file=sys.stderr)
+        print(f"accelcal: error: {one_line(e)}", file=sys.stderr)
         return 2
     except BrokenPipeError:
         return 0
     except OSError as e:   # the system refused a read or a write (disk full, permissions...)
         where = f"{e.filename}: " if e.filename else ""
-        print(f"accelcal: error: {where}{e.strerror or e}", file=sys.stderr)
+        print(f"accelcal: error: {one_line(f'{where}{e.strerror or e}')}", file=sys.stderr)
         return 2

@@ -6,7 +6,7 @@ import sys
 
 from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
                                   pipeline_config, register_effects)
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line, printable
 from accelcal.files.outputs import FORCE_HELP, check_output
 from accelcal.files.readers import RULE
 
@@ -71,11 +71,11 @@ def cmd_calibrate(args) -> int:
         if args.fallback:
             raise InputError("--fallback applies to recordings")
     failed = [r for r in recs if not r.usable]
-    for r in recs:
-        print(r.to_json() if args.json else r.report(args.by))
+    for r in recs:   # a --by column's values come from the file: printable, as every echo
+        print(r.to_json() if args.json else "\n".join(map(printable, r.report(args.by).split("\n"))))
     for r in failed:
         who = f"{args.by} {r[args.by]}: " if args.by else ""
-        print(f"accelcal: {who}{r['reason']}", file=sys.stderr)
+        print(f"accelcal: {one_line(who + str(r['reason']))}", file=sys.stderr)
     if args.save:
         ok = [r for r in recs if r.ok]
         if ok:

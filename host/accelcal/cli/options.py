@@ -7,7 +7,7 @@ import argparse
 import math
 from dataclasses import replace
 
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line
 
 
 class Parser(argparse.ArgumentParser):
@@ -15,7 +15,7 @@ class Parser(argparse.ArgumentParser):
     --help named for the details."""
 
     def error(self, message):
-        self.exit(2, f"accelcal: error: {message} (see `{self.prog} --help`)\n")
+        self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
 def int_in(lo, hi):

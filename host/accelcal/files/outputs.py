@@ -83,6 +83,7 @@ def check_output(path, inputs=(), force: bool = False, option: str = "output") -
     if not os.access(parent, os.W_OK):
         raise InputError(f"{path}: folder {parent} is not writable")
     (_NEW.discard if force else _NEW.add)(os.path.realpath(p))
+    remove_stale(p)
     return p
 
 

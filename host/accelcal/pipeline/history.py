@@ -8,7 +8,7 @@ import math
 import sys
 from pathlib import Path
 
-from accelcal.errors import InputError
+from accelcal.errors import InputError, printable
 from accelcal.files.outputs import check_output, save_figure, write_text
 
 
@@ -120,8 +120,9 @@ def history_report(*, history: str, plot: str | None, html: str | None, force: b
         for k, st in enumerate(steps, 1):
             e = st["heldout_error_mg"]
             ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
-            print(f"{k:<5}{st['model']:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
-                  f"{st['missing_effect'] or '-'}")
+            model = printable(st["model"])[:200]   # from the file: no terminal escapes
+            print(f"{k:<5}{model:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
+                  f"{printable(st['missing_effect'] or '-')[:100]}")
             prev = e
     if plot or html:
         import io
