@@ -695,3 +695,21 @@ def test_the_pages_embedded_json_stays_closed(tmp_path, capsys):
     block = p.blocks[0]
     assert "<!--" not in block and "<script" not in block.lower() and "</" not in block
     assert json.loads(block)["steps"][0]["model"] == nasty
+
+
+def test_the_second_round_as_real_processes(good, tmp_path):
+    """A few of the cases above end to end: exit status 2, one line, no traceback."""
+    d, pts, rec, params = good
+    eff = tmp_path / "eff.py"
+    eff.write_text("import sys\nsys.exit(0)\n")
+    col = tmp_path / "col.csv"
+    col.write_text("time,x,y,z,Battery\n" + "".join(f"{i / 10:.1f},0,0,1,3.7\n" for i in range(300)))
+    pulled = tmp_path / "pulled"
+    pulled.mkdir()
+    (pulled / "log.bin").symlink_to("/dev/zero")
+    (pulled / "capture.bin").write_bytes(b"")
+    for argv in (["calibrate", rec, "--effects", eff], ["calibrate", col], ["replay", pulled]):
+        r = subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, argv)],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (argv, r.stderr)
+        assert "Traceback" not in r.stderr
