@@ -456,6 +456,10 @@ def test_a_forced_pull_holds_only_the_new_pull(pulled, capsys, monkeypatch):
         def run(self, *args):   # fs cp :log.bin DEST
             shutil.copy(board / args[2][1:], args[3])
     monkeypatch.setattr(deploy, "Remote", FakeBoard)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (pulled / f".pull-{dead.pid}.partial").mkdir()    # a killed pull's copies
+    (pulled / f".pull-{dead.pid}.partial" / "log.bin").write_bytes(b"old")
     code, _, err = run_main(capsys, ["pull", "--port", "x", "-o", pulled])
     assert code == 2 and "--force" in err
     code, out, err = run_main(capsys, ["pull", "--port", "x", "-o", pulled, "--force", "--json"])

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from accelcal.bridge import boardlog
 from accelcal.errors import InputError
-from accelcal.files.outputs import check_output_dir, write_text
+from accelcal.files.outputs import check_output_dir, pid_running, write_text
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
@@ -186,6 +186,10 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
     """pull's folder, checked before the board is touched: a folder (made if missing) that holds
     no earlier pull unless force."""
     out = check_output_dir(outdir, (), "-o/--output")
+    for stale in out.glob(".pull-*.partial"):   # a killed pull's copies: its PID is gone
+        pid = stale.name[len(".pull-"):-len(".partial")]
+        if pid.isdigit() and not pid_running(int(pid)):
+            shutil.rmtree(stale, ignore_errors=True)
     held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
     if held and not force:
         raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "

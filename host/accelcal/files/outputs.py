@@ -108,7 +108,7 @@ def _tmp_for(p: Path) -> Path:
     return p.with_name(f".{p.name}.{os.getpid()}.partial")
 
 
-def _alive(pid: int) -> bool:
+def pid_running(pid: int) -> bool:
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -128,7 +128,7 @@ def remove_stale(p: Path) -> None:
     for n in names:
         pid = n[len(prefix):-len(".partial")]
         if n.startswith(prefix) and n.endswith(".partial") and pid.isdigit() and \
-                int(pid) != os.getpid() and not _alive(int(pid)):
+                int(pid) != os.getpid() and not pid_running(int(pid)):
             with contextlib.suppress(OSError):
                 os.unlink(p.with_name(n))
 
@@ -192,4 +192,4 @@ def save_figure(fig, path, **kw) -> None:
     """fig.savefig(path), atomically."""
     p = Path(path)
     with atomic(p, "wb") as fh:
-        fig.savefig(fh, format=p.suffix.lstrip(".") or "png", **kw)
+        fig.savefig(fh, format=p.suffix.lstrip(".").lower() or "png", **kw)
