@@ -182,7 +182,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--port", required=True)
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="folder for the logs (made if missing; the files arrive whole or not at all)")
-    p.add_argument("--force", action="store_true", help="replace an earlier pull's files in DIR")
+    p.add_argument("--force", action="store_true", help="replace an earlier pull in DIR: all of it (its files this board does not "
+                        "hold are removed, so DIR holds this pull only)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_pull)
 

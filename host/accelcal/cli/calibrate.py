@@ -7,13 +7,14 @@ import sys
 from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
                                   pipeline_config, register_effects)
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line, printable
 from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.readers import RULE
 
 
-EPILOG_CAL = """\
-Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
-GENEActiv .bin, ActiGraph .gt3x) goes through rest detection, bins and the optimiser, streamed in
+EPILOG_CAL = RULE + """
+
+A recording goes through rest detection, bins and the optimiser, streamed in
 constant memory; a points file (CSV with x,y,z and optional temp,t,device) through bins and the
 optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol) are
 fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.
@@ -50,12 +51,12 @@ def cmd_calibrate(args) -> int:
     from accelcal.bridge.runtime import check
     check(args.runtime)
     inputs = args.input
-    reads = [*inputs, args.fallback]
+    reads = [*inputs, args.fallback, args.effects]
     if args.save:
         check_output(args.save, reads, args.force, "--save")
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
         return _calibrate_batch(args, spec, engine)
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     if is_recording(inputs[0]):
         if args.by:
             raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
@@ -73,11 +74,11 @@ def cmd_calibrate(args) -> int:
         if args.fallback:
             raise InputError("--fallback applies to recordings")
     failed = [r for r in recs if not r.usable]
-    for r in recs:
-        print(r.to_json() if args.json else r.report(args.by))
+    for r in recs:   # a --by column's values come from the file: printable, as every echo
+        print(r.to_json() if args.json else "\n".join(map(printable, r.report(args.by).split("\n"))))
     for r in failed:
         who = f"{args.by} {r[args.by]}: " if args.by else ""
-        print(f"accelcal: {who}{r['reason']}", file=sys.stderr)
+        print(f"accelcal: {one_line(who + str(r['reason']))}", file=sys.stderr)
     if args.save:
         ok = [r for r in recs if r.ok]
         if ok:
@@ -92,7 +93,8 @@ def _calibrate_batch(args, spec, engine) -> int:
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
     summary = args.summary or "accelcal-summary.csv"
-    check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
+    check_output(summary, [*args.input, args.fallback, args.save, args.effects], args.force,
+                 "--summary")
     job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
                     args.fallback, args.points or "bins", args.effects)
     if args.fallback:
@@ -120,14 +122,14 @@ def _calibrate_batch(args, spec, engine) -> int:
 def cmd_apply(args) -> int:
     from accelcal.pipeline.apply import apply_file
     from accelcal.files.params import load_params
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     from accelcal.model.effects import ModelSpec
     register_effects(args)
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
                          "or .cwa/.bin/.gt3x)")
-    check_output(args.output, [args.params, args.input], args.force, "-o/--output")
+    check_output(args.output, [args.params, args.input, args.effects], args.force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
     host_only = ModelSpec.parse(model).host_only
     if host_only:
@@ -206,7 +208,8 @@ def add_parsers(sub) -> None:
                                    "integer per-sample code (the paper's model through its numpy "
                                    "twin, bit-exact); writes t,x,y,z[,temp] in g, then the "
                                    "recording's further columns as read.  Streams: any length "
-                                   "of recording in constant memory.")
+                                   "of recording in constant memory.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True,

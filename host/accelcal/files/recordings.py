@@ -26,15 +26,12 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
-from accelcal.model.effects import COLUMN_NAME, RESERVED
+from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
-RECORDING_HEADERS = (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])
-# Further named columns after those (battery voltage, say: a regressor an effect may follow,
-# model/effects.py COLUMN_NAME, RESERVED, SUPPLY_COLUMN).
+# Which file is a recording, and its header's names: files/readers.py (the one rule).
 COLUMN_MAX = 1e9     # |value| of an extra column: beyond it a float fit loses its digits
 GAP_S = 1.0
 CHUNK = 1 << 20                      # samples per chunk handed on
-ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
 STANDARD_RANGES_G = (2, 4, 8, 16)
 
 
@@ -47,18 +44,6 @@ class Chunk:
     temp: np.ndarray | None
     first: int
     cols: dict = field(default_factory=dict)
-
-
-def recording_columns(header: list[str]) -> list[str] | None:
-    """The further columns of a recording's CSV header (t,x,y,z[,temp][,NAME...]), in order;
-    None when the header is not a recording's (a points file, or anything else)."""
-    if header[:4] != ["t", "x", "y", "z"]:
-        return None
-    rest = header[5:] if header[4:5] == ["temp"] else header[4:]
-    if any(h in RESERVED or not COLUMN_NAME.fullmatch(h) for h in rest) or \
-            len(set(rest)) != len(rest):
-        return None
-    return rest
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -84,35 +69,30 @@ class Recording:
 
 
 def open_recording(path: str | Path) -> Recording:
-    """The reader for a file, chosen by its name: .cwa/.bin/.gt3x are actigraphy files,
-    anything else is CSV."""
+    """The reader for a file, by the rule of files/readers.py: .cwa/.bin/.gt3x are actigraphy
+    files, a CSV is a recording by its header (a points file or anything else: InputError)."""
     path = str(path)
-    if not Path(path).is_file():
-        raise InputError(f"{path}: no such file")
+    lay = layout(path)
     ext = Path(path).suffix.lower()
     if ext == ".cwa":
         return CwaRecording(path)
     if ext in ACTIGRAPHY:
         return ActigraphyRecording(path)
-    return CsvRecording(path)
+    return CsvRecording(path, lay)
 
 
 class CsvRecording(Recording):
     format = "CSV"
 
-    def __init__(self, path: str):
+    def __init__(self, path: str, lay=None):
         super().__init__(path)
-        header = csv_header(path)
-        if not header:
-            raise InputError(f"{path}: empty file")
-        columns = recording_columns(header)
-        if columns is None:
-            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp, then any "
-                             f"further named columns (lower-case, not device); found "
-                             f"{','.join(header)[:200]}")
-        self.header = header
-        self.has_temp = "temp" in header
-        self.columns = columns
+        lay = lay or layout(path)
+        if lay.kind != "recording":
+            raise InputError(f"{path}: a points file, not a recording: a recording's header begins "
+                             f"with its time column, then x,y,z (found {','.join(lay.raw)[:120]})")
+        self.header = lay.header     # the rule's names (t, temp) for the file's spellings
+        self.has_temp = "temp" in self.header
+        self.columns = lay.further
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
@@ -124,7 +104,8 @@ class CsvRecording(Recording):
         self._last_t = None
         try:
             reader = pacsv.open_csv(
-                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True),
+                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True,
+                                                          column_names=self.header, skip_rows=1),
                 convert_options=pacsv.ConvertOptions(column_types=types, null_values=[""]))
             for batch in reader:
                 if batch.num_rows:
@@ -163,6 +144,8 @@ class CsvRecording(Recording):
 
 
 def _arrow_message(e: Exception) -> str:
+    if "straddl" in str(e):   # a row longer than Arrow's 1 MB block: no recording's line is
+        return "a line longer than 1 MB (not a recording's line)"
     return " ".join(str(e).split())[:300]
 
 
@@ -338,23 +321,3 @@ def read_whole(path: str | Path):
     xyz = np.concatenate([c.xyz for c in parts])
     temp = np.concatenate([c.temp for c in parts]) if rec.has_temp else None
     return t, xyz, temp, rec
-
-
-def is_recording(path: str | Path) -> bool:
-    """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
-    header is t,x,y,z[,temp] and any further named columns (recording_columns)."""
-    if Path(path).suffix.lower() in ACTIGRAPHY:
-        return True
-    return recording_columns(csv_header(path)) is not None
-
-
-def csv_header(path: str | Path) -> list[str]:
-    """A CSV file's header cells, stripped ([] for an empty file)."""
-    import csv
-    try:
-        with open(path, newline="") as fh:
-            return [h.strip() for h in next(csv.reader([fh.readline()]), [])]
-    except OSError as e:
-        raise InputError(f"{path}: cannot open ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a CSV text file (nor .cwa/.bin/.gt3x)") from None

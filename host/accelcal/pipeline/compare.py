@@ -33,7 +33,7 @@ from accelcal.errors import InputError
 from accelcal.fixedpoint import params_to_float
 from accelcal.files.table import read_table
 from accelcal.files.outputs import check_output_dir, save_figure
-from accelcal.files.recordings import is_recording
+from accelcal.files.readers import is_recording
 
 ALL = ["device"] + methods.ORDER
 CURVE_MAX = 1000   # training vectors: Gietzelt's figure 3 goes to ~300; de costs O(n) per step

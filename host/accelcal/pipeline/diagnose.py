@@ -32,7 +32,7 @@ from accelcal.files.outputs import check_output, check_output_dir, save_figure, 
 from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.composed_lsq import (check_model, fit, fit_with_reference, prepare, refs,
                                             residuals)
-from accelcal.pipeline.history import append_history, read_history
+from accelcal.pipeline.history import append_history, check_history, read_history
 from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
@@ -228,15 +228,18 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None
 
 
 def diagnose_main(*, path: str, model: str, history: str | None, plots: str | None,
-                  report_dir: str | None, force: bool = False, as_json: bool = False) -> int:
-    if history:   # appended to: checked here, before the analysis, not replaced
-        check_output(history, [path], True, "--history")
+                  report_dir: str | None, force: bool = False, as_json: bool = False,
+                  effects: str | None = None) -> int:
+    reads = [path, effects]
+    if history:   # appended to, only if a history: checked here, before the analysis
+        check_output(history, reads, True, "--history")
+        check_history(history)
     if plots:
-        check_output_dir(plots, [path], "--plots")
+        check_output_dir(plots, reads, "--plots")
     page = None
     if report_dir:
-        rdir = check_output_dir(report_dir, [path], "--report")
-        page = check_output(rdir / "report.html", [path], force, "--report")
+        rdir = check_output_dir(report_dir, reads, "--report")
+        page = check_output(rdir / "report.html", [*reads, history], force, "--report")
     out = diagnose(path, model, plots or report_dir)
     if history:
         append_history(history, out.history_step())

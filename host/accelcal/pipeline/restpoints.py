@@ -15,7 +15,8 @@ import numpy as np
 
 from acal import fixed
 from accelcal.errors import InputError
-from accelcal.files.recordings import is_recording, open_recording
+from accelcal.files.readers import is_recording
+from accelcal.files.recordings import open_recording
 from accelcal.files.table import Table, read_table
 from accelcal.methods import one_side_margin
 
