@@ -44,7 +44,8 @@ STEP_PARSIMONY = 1.5
 
 def diagnose(path: str, model: str = "base", plots: str | None = None) -> DiagnoseResult:
     spec, p = prepare(path, model)
-    train, test, test_block = split(p)
+    halves = split(p)   # both halves pass the coverage rule every fit shares
+    train, test, test_block = halves
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
                          "need >= 30 each (a longer recording)")
@@ -89,7 +90,7 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
         remains = what_remains(regs, r * 1e3)
         if remains:
             explanation += " " + remains["text"]
-    out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
+    out = DiagnoseResult(model=str(spec), input=path, split=halves.how,
                          rest_points={"train": len(train), "heldout": len(test)},
                          heldout_error_mg=err, noise_floor_mg=floor, missing_effect=named,
                          candidates=cands, explanation=explanation, where_it_fails=where,
