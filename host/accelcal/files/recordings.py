@@ -382,6 +382,19 @@ def read_whole(path: str | Path):
     return t, xyz, temp, rec
 
 
+def sensor_of(path: str | Path) -> str | None:
+    """The accelerometer a file's figures may be worded for: the LIS3DH of accelcal's boards
+    and simulator for a recording CSV; a device file's format name (whose sensor is not the
+    LIS3DH); None for anything else (a points file)."""
+    ext = Path(path).suffix.lower()
+    if ext in ACTIGRAPHY:
+        return ACTIGRAPHY[ext]
+    try:
+        return "LIS3DH" if recording_columns(csv_header(path)) is not None else None
+    except InputError:
+        return None
+
+
 def is_recording(path: str | Path) -> bool:
     """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
     header is t,x,y,z[,temp] and any further named columns (recording_columns)."""
