@@ -51,6 +51,28 @@ class Chunk:
     cols: dict = field(default_factory=dict)
 
 
+def arrow():
+    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
+    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
+    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
+    for whatever imports it itself (pygt3x)."""
+    import sys
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    if "pandas" not in sys.modules:
+        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
+            def find_spec(self, name, path=None, target=None):
+                if name == "pandas":
+                    raise ModuleNotFoundError("pandas", name="pandas")
+        blocker = NoPandas()
+        sys.meta_path.insert(0, blocker)
+        try:
+            pa.array([0.0]).to_numpy()
+        finally:
+            sys.meta_path.remove(blocker)
+    return pa, pacsv
+
+
 def recording_columns(header: list[str]) -> list[str] | None:
     """The further columns of a recording's CSV header (t,x,y,z[,temp][,NAME...]), in order;
     None when the header is not a recording's (a points file, or anything else)."""
@@ -119,8 +141,7 @@ class CsvRecording(Recording):
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
         constant; `size` is not used (Arrow's blocks are the natural unit)."""
-        import pyarrow as pa
-        import pyarrow.csv as pacsv
+        pa, pacsv = arrow()
         types = {h: pa.float64() for h in self.header}
         first = 0
         self._last_t = None
