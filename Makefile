@@ -57,6 +57,7 @@ $(STAMP_BENCH): pyproject.toml
 
 bench: setup $(STAMP_BENCH)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench --runtime rp2040
+	$(BIN)/python -m accelcal.studies.bench_files --days 3 --rate 10 --no-throughput --others $(VENV_BENCH)/bin/python
 	$(BIN)/python -m accelcal.studies.bench_files --others $(VENV_BENCH)/bin/python
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow

@@ -151,6 +151,7 @@ def bad_files(tmp_path_factory):
         "garbage.cwa": bytes(range(256)) * 40,
         "garbage.bin": b"Device Identity\r\nDevice Unique Serial Code:x\r\n" + bytes(300),
         "garbage.gt3x": b"PK\x03\x04" + bytes(200),
+        "garbage.agdc": b"PK\x03\x04" + bytes(200),
         "short.cwa": b"MD",
     }
     good_params = params("good.json", json.dumps({"model": "base", "params_int": ident}))

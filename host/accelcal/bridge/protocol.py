@@ -195,22 +195,27 @@ class DeviceResult:
         return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
 
 
-def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH):
+def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH, bulk: bool = False):
     """The runner's calls, in order, as (method, args): configure, then per group its points or
-    samples (batch a call at most) with their conditions, gaps and wear, and end.  All ints."""
+    samples (batch a call at most) with their conditions, gaps and wear, and end.  All ints.
+    bulk: a group's points as one ("points", (q (n, 3) ints, their conditions (n, 3) or None))
+    for bridge/feed.py."""
     yield "configure", (cfg.values(),)
     composed = bool(cfg.kinds) or cfg.conditions
     for g in groups:
         yield "group", (g.name,)
         if g.points is not None or g.points_q16 is not None:
             q = g.point_ints()
-            cond = g.conditions(len(q)).tolist()
-            last = None
-            for (x, y, z), c in zip(q.tolist(), cond):
-                if composed and c != last:
-                    yield "conditions", (c[0], c[1], c[2])
-                    last = c
-                yield "point", (x, y, z)
+            if bulk:
+                yield "points", (np.asarray(q, np.int64),
+                                 np.asarray(g.conditions(len(q)), np.int64) if composed else None)
+            else:
+                last = None
+                for (x, y, z), c in zip(q.tolist(), g.conditions(len(q)).tolist()):
+                    if composed and c != last:
+                        yield "conditions", (c[0], c[1], c[2])
+                        last = c
+                    yield "point", (x, y, z)
         if g.samples is not None:
             q = g_to_sample(g.samples)
             n = len(q)

@@ -14,6 +14,7 @@ from pathlib import Path
 from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, condition_changes,
                                       device_conditions, parse, protocol_items, protocol_lines)
 from accelcal.bridge import rp2040
+from accelcal.bridge.feed import offer_points
 from accelcal.bridge.scripts import mp_runner
 from accelcal.errors import InputError, InterpreterFailed
 from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
@@ -100,8 +101,11 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
     if runtime == "cpython":   # in-process: ints in, ints out
         collector = Collector()
         runner = mp_runner.Runner(collector.emit)
-        for method, args in protocol_items(groups, cfg):
-            getattr(runner, method)(*args)
+        for method, args in protocol_items(groups, cfg, bulk=True):
+            if method == "points":   # the bins' refusals judged in bulk, the rest one at a time
+                offer_points(runner, collector, *args)
+            else:
+                getattr(runner, method)(*args)
         return collector.results
     if runtime in ("micropython", "micropython32"):
         script = run_micropython_script if runtime == "micropython" else run_micropython32_script

@@ -61,13 +61,16 @@ def cmd_calibrate(args) -> int:
         if args.by:
             raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
         from accelcal.pipeline.calibrate import calibrate_recording
-        from tqdm import tqdm
-        bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(),
-                   desc="reading")
+        bar = progress = None
+        if not args.quiet and sys.stderr.isatty():   # tqdm imported only to be shown
+            from tqdm import tqdm
+            bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, desc="reading")
+            progress = lambda n: bar.update(n - bar.n)  # noqa: E731
         recs = [calibrate_recording(inputs[0], pipeline_config(args, bool(spec.effects)), args.method,
-                                    args.runtime, spec, engine, progress=lambda n: bar.update(n - bar.n),
+                                    args.runtime, spec, engine, progress=progress,
                                     fallback=args.fallback, points=args.points or "bins")]
-        bar.close()
+        if bar is not None:
+            bar.close()
     else:
         recs = calibrate_groups(read_table(inputs[0]), args.by, pipeline_config(args, bool(spec.effects)),
                                 args.method, args.runtime, spec, args.points or "bins")

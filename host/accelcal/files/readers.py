@@ -15,7 +15,8 @@ from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular
 from accelcal.model.effects import COLUMN_NAME, RESERVED
 
-ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
+ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X",
+              ".agdc": "ActiGraph CentrePoint AGDC"}
 # Spellings of the time and temperature columns a recording's header may use (any case).
 TIME_NAMES = ("t", "time", "timestamp", "t_s", "time_s", "seconds")
 TEMP_NAMES = ("temp", "temperature", "temp_c")
