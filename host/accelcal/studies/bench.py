@@ -23,7 +23,8 @@ the same for the wear profile's Gauss-Newton fit of 72 points (paper simulation,
 The app (acquisition -> rest -> bins -> calibration -> log) on the simulated LIS3DH, MicroPython:
 app_us_per_sample_unix_*: App.step per sample at 100 Hz (register reads / FIFO reads), minus
   what the simulator alone costs for the same bus traffic (measured in the same run).
-rp2040_*: an estimate, not a measurement (no board here): the unix-port cost times
+rp2040_*: an estimate, not a measurement (`--runtime rp2040` replaces it and the fits' by what
+  the emulated RP2040 measures: bench_chip.py): the unix-port cost times
   RP2040_SLOWDOWN, the ratio of MicroPython's speed on this x86 core to an RP2040 at 125 MHz
   (Cortex-M0+, code from XIP flash through its cache): 40-100x from clock (3 GHz vs 125 MHz,
   24x) and instructions per clock (superscalar vs in-order M0+, 2-4x); 70x is taken and the
