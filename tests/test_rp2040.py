@@ -15,10 +15,10 @@ from conftest import run_main
 
 @pytest.fixture(scope="session")
 def chip():
-    """The emulated chip with the package installed; skipped, saying why, where Node or
-    rp2040js is missing (make setup installs it; CI has both)."""
+    """The emulated chip with the package installed; skipped, saying why, where Node, rp2040js
+    or the firmware is missing (make setup installs rp2040js; CI has all three)."""
     try:
-        rp2040.emulator_index()
+        rp2040.check()
         rp2040.flash_image()
     except InputError as e:
         pytest.skip(f"emulated RP2040 not available: {e}")
