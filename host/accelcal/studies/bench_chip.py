@@ -100,7 +100,7 @@ def rows(m: dict) -> list[tuple[str, float | None, float, str]]:
          m[e + "apply_largest_us_per_sample"], "us"),
         ("log append (rest record, flushed)", m["unix_log_rest_ms_per_record"],
          m[e + "log_rest_ms_per_record"], "ms"),
-        ("app after acquisition (Processor.feed), per sample", m["unix_processor_us_per_sample"],
+        ("app after acquisition, per sample", m["unix_processor_us_per_sample"],
          m[e + "processor_us_per_sample"], "us"),
         ("paper optimiser N=18 M=50", m["optimiser_ms_micropython"], m[e + "optimiser_ms"], "ms"),
     ]
