@@ -18,6 +18,7 @@ from pathlib import Path
 
 from accelcal.bridge import rp2040
 from accelcal.errors import InputError, InterpreterFailed
+from accelcal.files.outputs import check_output
 from accelcal.locations import script
 
 DRIVER = script("pico.mjs")
@@ -82,6 +83,16 @@ def cut(code: str, cut_at: int, *, flash_in, flash_out, stimulus=None, seed=1,
         if p.returncode != 0:
             raise InterpreterFailed("rp2040", p)
         return json.loads(report.read_text())
+
+
+def check_flash_image(path, stimulus=None) -> Path:
+    """The emulated Pico's flash: a new file, or one this board saved before (2 MB exactly), so
+    that no other file is ever taken for a flash image and overwritten."""
+    p = check_output(path, [stimulus], True, "--flash")
+    if p.exists() and p.stat().st_size != rp2040.FLASH_SIZE:
+        raise InputError(f"{path}: not an emulated Pico's flash image ({p.stat().st_size} bytes, "
+                         f"an image has {rp2040.FLASH_SIZE}); give a new file name")
+    return p
 
 
 class EmulatedBoard:

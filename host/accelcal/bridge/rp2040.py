@@ -24,6 +24,7 @@ from accelcal.locations import DEVICE_PACKAGE, checkout, script
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
 HZ = 125_000_000
+FLASH_SIZE = 2 * 1024 * 1024       # RPI_PICO's flash: the size of a saved image (rp2040.mjs)
 
 
 @dataclass(frozen=True)

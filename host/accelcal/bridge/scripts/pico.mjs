@@ -103,7 +103,12 @@ function cut(chip, sensor, v) {
 // host bytes arrive while it runs; with no work and nothing from the host it waits for stdin.
 function serve(chip, v) {
   let closing = false;
-  const save = () => { if (v['flash-out']) fs.writeFileSync(v['flash-out'], chip.flashImage()); };
+  const save = () => { // whole or not at all: a kill mid-write leaves the previous image
+    if (!v['flash-out']) return;
+    const part = `${v['flash-out']}.${process.pid}.partial`;
+    fs.writeFileSync(part, chip.flashImage());
+    fs.renameSync(part, v['flash-out']);
+  };
   const finish = () => { if (closing) return; closing = true; save(); process.exit(0); };
   process.on('SIGTERM', finish);
   process.stdin.on('end', finish);
@@ -115,8 +120,11 @@ function serve(chip, v) {
   const slice = () => {
     if (closing) return;
     const t0 = performance.now();
+    // short turns while the firmware has read all the host sent (a reply may be on its way):
+    // each turn lets stdin in, and a raw-REPL round trip costs a few of them
+    const turnMs = chip.sent() && chip.waitingForHost() ? 2 : 20;
     let busy = true;
-    while (performance.now() - t0 < 20) {
+    while (performance.now() - t0 < turnMs) {
       chip.feed();
       busy = chip.step(20000);
       if (chip.rx.length) process.stdout.write(Buffer.from(chip.rx.take(), 'latin1'));
