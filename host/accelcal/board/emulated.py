@@ -1,6 +1,6 @@
 """The emulated Pico: MicroPython's RPI_PICO firmware on rp2040js (bridge/rp2040.py) with the
 simulated LIS3DH on its I2C0 (bridge/scripts/lis3dh.mjs), fed by the stimulus files the virtual
-board reads.  Three ways in: run scripts on it (run), cut its power at a cycle (cut), and serve
+board reads.  Two ways in: run scripts on it (run; board/powercut.py cuts its power), and serve
 its USB CDC on a pseudo-terminal that mpremote, `deploy`, `acquire` and `pull` use as a Pico's
 port (EmulatedBoard).  Its flash is a 2 MB image file: littlefs as the firmware wrote it."""
 from __future__ import annotations
@@ -67,22 +67,6 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
             raise InterpreterFailed("rp2040", p)
         files = {r: (t / f"get{i}").read_bytes() for i, r in enumerate(gets) if (t / f"get{i}").exists()}
         return PicoRun(p.stdout, files, json.loads((t / "report.json").read_text()))
-
-
-def cut(code: str, cut_at: int, *, flash_in, flash_out, stimulus=None, seed=1,
-        timeout: float = 1800) -> dict:
-    """Boot from flash_in, run code, and cut the power cut_at cycles into it: the flash as it
-    was then goes to flash_out.  The report says how far it ran."""
-    with tempfile.TemporaryDirectory() as tmp:
-        src = Path(tmp) / "main.py"
-        src.write_text(code)
-        report = Path(tmp) / "report.json"
-        args = _node_args(stimulus, 0, seed, flash_in, flash_out) + [
-            "cut", "--cut-at", str(cut_at), "--exec", str(src), "--report", str(report)]
-        p = subprocess.run(args, capture_output=True, timeout=timeout, encoding="latin1")
-        if p.returncode != 0:
-            raise InterpreterFailed("rp2040", p)
-        return json.loads(report.read_text())
 
 
 def check_flash_image(path, stimulus=None) -> Path:
