@@ -10,7 +10,7 @@ import pytest
 
 from accelcal.board import virtual
 from accelcal.simulate.stimulus import calibration_dance
-from conftest import run_cli
+from conftest import run_cli, run_main
 
 TRUTH = [1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04]
 
@@ -75,3 +75,17 @@ def test_a_calibration_dance_on_the_emulated_pico(tmp_path, emulator):
           f"{rep['rest']['board']} rest records, {rep['cal']['board']} calibration(s); "
           f"largest parameter error {np.max(np.abs(got - TRUTH)):.4f}")
     assert np.max(np.abs(got - TRUTH)) < 0.02
+
+
+def test_bad_emulated_board_options_end_in_one_line(tmp_path, capsys):
+    """No file is taken for a flash image unless it is one; the unix port's options refused."""
+    stim = tmp_path / "stim.bin"
+    calibration_dance(stim, 100, TRUTH, seed=3, rounds=1, rest_s=1)
+    other = tmp_path / "notes.txt"
+    other.write_text("mine")
+    cases = [["--flash", other], ["--flash", stim], ["--heap", "100k"], ["--speed", "2"]]
+    for extra in cases:
+        code, out, err = run_main(capsys, ["board", "virtual", "--chip", "rp2040", "--stimulus",
+                                           stim, *extra])
+        assert code == 2 and len(err.strip().splitlines()) == 1 and not out, (extra, err)
+    assert other.read_text() == "mine" and stim.stat().st_size > 1000

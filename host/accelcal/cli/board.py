@@ -113,13 +113,14 @@ def cmd_replay(args) -> int:
     return 0 if r["identical"] else 1
 
 
-def add_parsers(sub) -> None:
-    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
-    bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
+def _add_virtual(bsub) -> None:
     q = bsub.add_parser("virtual", help="start the virtual board on a pseudo-terminal",
                         description="The MicroPython unix port on a pseudo-terminal, a folder as its "
                                     "flash, a simulated LIS3DH behind a fake machine.I2C fed by a "
                                     "stimulus (a simulated wrist day unless --stimulus), virtual time. "
+                                    "With --chip rp2040, an emulated Pico instead: the RP2040 running "
+                                    "MicroPython's own firmware, its USB serial on the pty, the LIS3DH "
+                                    "on its I2C bus, a flash image file as its flash. "
                                     "Prints the port on stdout; then any `mpremote connect PORT ...` works. "
                                     "Runs until Ctrl-C or SIGTERM.")
     q.add_argument("--chip", choices=["unix", "rp2040"], default="unix",
@@ -142,6 +143,12 @@ def add_parsers(sub) -> None:
     q.add_argument("--link", help="also make this symlink to the port")
     q.add_argument("--port-file", help="also write the port to this file")
     q.set_defaults(func=cmd_board_virtual)
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
+    bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
+    _add_virtual(bsub)
 
     def app_args(q):
         g = q.add_argument_group("app settings")
