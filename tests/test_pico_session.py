@@ -59,12 +59,13 @@ def test_mpremote_deploys_acquires_and_pulls_on_the_emulated_pico(tmp_path, emul
 
 @pytest.mark.slow
 def test_a_calibration_dance_on_the_emulated_pico(tmp_path, emulator):
-    """Five emulated minutes of a calibration dance at 100 Hz (the board on each face, four
-    rounds): the board calibrates, the host's replay of its capture gives the same rest points
+    """Seven emulated minutes of a calibration dance at 100 Hz (the board on each face and six
+    edges, three rounds; the paper's profile, which needs two points in each of its nine
+    subsets): the board calibrates, the host's replay of its capture gives the same rest points
     and the same calibration, integer for integer."""
-    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=4, rounds=4)
-    info, pulled, out = session(tmp_path, ["--fifo", "--capture-kb", 1000, "--profile", "paper"],
-                                300)
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=4, rounds=3, tilt_deg=20)
+    info, pulled, out = session(tmp_path, ["--fifo", "--capture-kb", 1500, "--profile", "paper"],
+                                420)
     assert pulled["calibrations"] and pulled["calibrations"][0]["status"] == "ok"
     r = run_cli("replay", out, "--json")
     rep = json.loads(r.stdout)

@@ -173,11 +173,12 @@ def run_cuts(n_per_workload: int, seed: int = 1, timeout: float = 7200) -> dict:
 
 
 def main(argv=None) -> int:
-    """python -m accelcal.board.powercut [CUTS_PER_WORKLOAD]: the counts, one JSON object."""
+    """python -m accelcal.board.powercut [CUTS_PER_WORKLOAD [SEED]]: the counts, one JSON
+    object."""
     import sys
-    n = int((argv or sys.argv[1:] or ["100"])[0])
+    args = (argv or sys.argv[1:]) + ["100", "1"][len(argv or sys.argv[1:]):]
     rp2040.emulator_index()
-    print(json.dumps(run_cuts(n)))
+    print(json.dumps(run_cuts(int(args[0]), int(args[1]))))
     return 0
 
 

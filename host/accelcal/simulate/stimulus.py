@@ -66,20 +66,22 @@ def read_stimulus(path: str | Path) -> tuple[int, np.ndarray, np.ndarray]:
     return rate, rec[:, :3] / 1e6, rec[:, 3] / 1e3
 
 
-def calibration_dance(path: str | Path, rate_hz: int, params, seed: int, rounds: int = 4,
+def calibration_dance(path: str | Path, rate_hz: int, params, seed: int, rounds: int = 2,
                       rest_s: float = 10.0, move_s: float = 2.0, tilt_deg: float = 12.0,
                       noise_g: float = 0.0016) -> np.ndarray:
-    """A calibration dance for a board on a bench: still on each of its six faces in turn, each
-    time tilted up to tilt_deg off the face (so that repeats differ), `rounds` times, with moves
-    between whose samples jump by tens of mg; seen through a sensor with the 9 parameters
+    """A calibration dance for a board on a bench, `rounds` times: still on each of its six faces
+    (the paper's n and p subsets), then on six edges, two in each plane (its 0 subsets: the
+    third axis level), each pose tilted up to tilt_deg at random so that repeats differ, with
+    moves between whose samples jump by tens of mg; seen through a sensor with the 9 parameters
     `params` (paper order).  Writes the stimulus; returns what the sensing element saw (g)."""
     from accelcal.simulate.scenarios import uncorrect
     rng = np.random.default_rng(seed)
-    faces = np.vstack([np.eye(3), -np.eye(3)])
+    edges = [(1, 1, 0), (-1, 1, 0), (1, 0, 1), (-1, 0, 1), (0, 1, 1), (0, -1, 1)]
+    poses = np.vstack([np.eye(3), -np.eye(3), np.array(edges) / np.sqrt(2)])
     parts = []
     for _ in range(rounds):
-        for f in faces:
-            d = f + rng.uniform(-1, 1, 3) * np.tan(np.radians(tilt_deg)) * (1 - np.abs(f))
+        for pose in poses:
+            d = pose + rng.uniform(-1, 1, 3) * np.tan(np.radians(tilt_deg))
             v = uncorrect(np.asarray(params, dtype=float), (d / np.linalg.norm(d))[None, :])[0]
             parts.append(v + rng.normal(scale=noise_g, size=(int(rate_hz * rest_s), 3)))
             parts.append(v + rng.normal(scale=0.3, size=(int(rate_hz * move_s), 3)))
