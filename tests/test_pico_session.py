@@ -2,8 +2,6 @@
 emulated chip's USB CDC on a pseudo-terminal, and `deploy`, `acquire` and `pull` use that port as
 a Pico's, unchanged.  What the board logged replays on the host bit for bit."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest

@@ -22,10 +22,10 @@ from accelcal.files.outputs import check_output
 from accelcal.locations import script
 
 DRIVER = script("pico.mjs")
-CDC_BAUD = 115200   # what the pty says it is; the emulated USB has no rate of its own
 
 
-def _node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None) -> list[str]:
+def node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None) -> list[str]:
+    """pico.mjs's command line up to its mode: the firmware, the chip, its flash."""
     uf2, rom = rp2040.firmware_files(rp2040.MICROPYTHON)
     args = ["node", DRIVER, "--rp2040js", rp2040.emulator_index(), "--firmware", str(uf2),
             "--bootrom", str(rom), "--bus-faults", str(bus_faults), "--seed", str(seed)]
@@ -52,7 +52,7 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
     flash_in = flash_in or rp2040.flash_image()
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
-        args = _node_args(stimulus, bus_faults, seed, flash_in, flash_out) + ["run"]
+        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out) + ["run"]
         for i, (remote, data) in enumerate((puts or {}).items()):
             (t / f"put{i}").write_bytes(data)
             args += ["--put", f"{t / f'put{i}'}={remote}"]
@@ -91,7 +91,7 @@ class EmulatedBoard:
         self.log = log or (lambda msg: None)
         if not self.flash.exists():    # a new board: the firmware formats its littlefs at boot
             self.log(f"new flash image {self.flash}")
-        self.args = _node_args(self.stimulus, bus_faults, seed,
+        self.args = node_args(self.stimulus, bus_faults, seed,
                                self.flash if self.flash.exists() else None, self.flash) + ["serve"]
         self.client_master, client_slave = pty.openpty()
         tty.setraw(client_slave)

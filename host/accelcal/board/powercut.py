@@ -16,6 +16,7 @@ appends to the log after what the cut left."""
 from __future__ import annotations
 
 import json
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -81,12 +82,11 @@ def _cuts(workload: str, cut_at: list, base: Path, stimulus: Path, folder: Path,
     (folder / "resume.py").write_text(RESUME)
     report = folder / f"{workload}.jsonl"
     report.unlink(missing_ok=True)
-    args = emulated._node_args(stimulus, 0, 1, base) + [
+    args = emulated.node_args(stimulus, 0, 1, base) + [
         "cuts", "--cut-at", ",".join(map(str, cut_at)), "--exec", str(folder / "workload.py"),
         "--exec", str(folder / "resume.py"), "--report", str(report)]
     for f in FILES:
         args += ["--get", f]
-    import subprocess
     p = subprocess.run(args, capture_output=True, timeout=timeout, encoding="latin1")
     if p.returncode != 0:
         raise InterpreterFailed("rp2040", p)
