@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from accelcal.locations import CHIP_DIR, script
-from accelcal.simulate.stimulus import write_stimulus
+from accelcal.simulate.stimulus import calibration_dance, write_stimulus
 from conftest import ROOT
 
 sys.path.insert(0, str(CHIP_DIR))
@@ -131,22 +131,6 @@ def pico():
     return emulated
 
 
-def dance(path, seed, n_rest=12, rest_s=6, move_s=2):
-    """A calibration dance at 100 Hz: still at random orientations (1.6 mg noise), moves in
-    between whose samples differ by tens of mg one from the next (a sample read at the wrong
-    position shows).  Returns the stimulus (g)."""
-    from accelcal import simulate
-    rng = np.random.default_rng(seed)
-    parts = []
-    for d in simulate.unit_points(rng, n_rest):
-        v = simulate.uncorrect(TRUTH, d[None, :])[0]
-        parts.append(v + rng.normal(scale=0.0016, size=(RATE * rest_s, 3)))
-        parts.append(v + rng.normal(scale=0.3, size=(RATE * move_s, 3)))
-    xyz = np.clip(np.concatenate(parts), -1.9, 1.9)
-    write_stimulus(path, RATE, xyz, 30 + np.linspace(0, 3, len(xyz)))
-    return xyz
-
-
 def fifo_q10(xyz_g):
     """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
     digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver scales."""
@@ -171,7 +155,7 @@ def test_the_app_on_pico_reads_the_stimulus_and_replays(tmp_path, pico):
     survives, every sample the app captured is the stimulus's at its time, and the capture
     replays on the host into the board's very log."""
     from accelcal.bridge import boardlog
-    xyz = dance(tmp_path / "stim.bin", seed=5, rest_s=9)
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
     r = pico.run([APP.format(seconds=10)], stimulus=tmp_path / "stim.bin", bus_faults=20,
                  puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()},
                  gets=["log.bin", "capture.bin"])
@@ -207,7 +191,7 @@ print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns)
 
 
 def test_a_late_app_overruns_the_fifo_and_counts_what_it_lost(tmp_path, pico):
-    dance(tmp_path / "stim.bin", seed=6)
+    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=1)
     r = pico.run([LATE], stimulus=tmp_path / "stim.bin",
                  puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()})
     samples, lost, overruns = map(int, r.out.split("ACAL_DONE")[1].split()[:3])

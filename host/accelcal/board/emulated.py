@@ -1,6 +1,6 @@
 """The emulated Pico: MicroPython's RPI_PICO firmware on rp2040js (bridge/rp2040.py) with the
 simulated LIS3DH on its I2C0 (bridge/scripts/lis3dh.mjs), fed by the stimulus files the virtual
-board reads.  Three ways in: run scripts on it (run), cut its power at a cycle (cut), and serve
+board reads.  Two ways in: run scripts on it (run; board/powercut.py cuts its power), and serve
 its USB CDC on a pseudo-terminal that mpremote, `deploy`, `acquire` and `pull` use as a Pico's
 port (EmulatedBoard).  Its flash is a 2 MB image file: littlefs as the firmware wrote it."""
 from __future__ import annotations
@@ -18,13 +18,14 @@ from pathlib import Path
 
 from accelcal.bridge import rp2040
 from accelcal.errors import InputError, InterpreterFailed
+from accelcal.files.outputs import check_output
 from accelcal.locations import script
 
 DRIVER = script("pico.mjs")
-CDC_BAUD = 115200   # what the pty says it is; the emulated USB has no rate of its own
 
 
-def _node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None) -> list[str]:
+def node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None) -> list[str]:
+    """pico.mjs's command line up to its mode: the firmware, the chip, its flash."""
     uf2, rom = rp2040.firmware_files(rp2040.MICROPYTHON)
     args = ["node", DRIVER, "--rp2040js", rp2040.emulator_index(), "--firmware", str(uf2),
             "--bootrom", str(rom), "--bus-faults", str(bus_faults), "--seed", str(seed)]
@@ -51,7 +52,7 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
     flash_in = flash_in or rp2040.flash_image()
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
-        args = _node_args(stimulus, bus_faults, seed, flash_in, flash_out) + ["run"]
+        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out) + ["run"]
         for i, (remote, data) in enumerate((puts or {}).items()):
             (t / f"put{i}").write_bytes(data)
             args += ["--put", f"{t / f'put{i}'}={remote}"]
@@ -68,20 +69,14 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
         return PicoRun(p.stdout, files, json.loads((t / "report.json").read_text()))
 
 
-def cut(code: str, cut_at: int, *, flash_in, flash_out, stimulus=None, seed=1,
-        timeout: float = 1800) -> dict:
-    """Boot from flash_in, run code, and cut the power cut_at cycles into it: the flash as it
-    was then goes to flash_out.  The report says how far it ran."""
-    with tempfile.TemporaryDirectory() as tmp:
-        src = Path(tmp) / "main.py"
-        src.write_text(code)
-        report = Path(tmp) / "report.json"
-        args = _node_args(stimulus, 0, seed, flash_in, flash_out) + [
-            "cut", "--cut-at", str(cut_at), "--exec", str(src), "--report", str(report)]
-        p = subprocess.run(args, capture_output=True, timeout=timeout, encoding="latin1")
-        if p.returncode != 0:
-            raise InterpreterFailed("rp2040", p)
-        return json.loads(report.read_text())
+def check_flash_image(path, stimulus=None) -> Path:
+    """The emulated Pico's flash: a new file, or one this board saved before (2 MB exactly), so
+    that no other file is ever taken for a flash image and overwritten."""
+    p = check_output(path, [stimulus], True, "--flash")
+    if p.exists() and p.stat().st_size != rp2040.FLASH_SIZE:
+        raise InputError(f"{path}: not an emulated Pico's flash image ({p.stat().st_size} bytes, "
+                         f"an image has {rp2040.FLASH_SIZE}); give a new file name")
+    return p
 
 
 class EmulatedBoard:
@@ -96,7 +91,7 @@ class EmulatedBoard:
         self.log = log or (lambda msg: None)
         if not self.flash.exists():    # a new board: the firmware formats its littlefs at boot
             self.log(f"new flash image {self.flash}")
-        self.args = _node_args(self.stimulus, bus_faults, seed,
+        self.args = node_args(self.stimulus, bus_faults, seed,
                                self.flash if self.flash.exists() else None, self.flash) + ["serve"]
         self.client_master, client_slave = pty.openpty()
         tty.setraw(client_slave)

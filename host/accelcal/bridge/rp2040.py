@@ -27,6 +27,7 @@ HZ = 125_000_000
 # Samples per B line of the protocol: a line is split into a str per value on the chip, and
 # 1000 samples (the other runtimes' batch) take ~100 kB of its ~180 kB free heap
 SAMPLES_PER_LINE = 100
+FLASH_SIZE = 2 * 1024 * 1024       # RPI_PICO's flash: the size of a saved image (rp2040.mjs)
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,11 @@
 //             closes or on SIGTERM.  Emulated time runs while the firmware has work (a script, a
 //             sleep with its timer armed) and stands still while it waits for the host, so an
 //             idle board costs nothing and a session's samples do not depend on the host's pace.
-// MODE cut:   --cut-at CYCLES [--put ...] [--exec SCRIPT]: run as `run` (after the boot from
-//             --flash-in; puts and soft reset not counted) but power off at CYCLES of the
-//             script's run, save the flash as it is then (--flash-out), and report how far it got.
+// MODE cuts:  --cut-at C1,C2,... --exec WORKLOAD --exec RESUME [--get REMOTE]... --report FILE:
+//             for each cut, from --flash-in: run WORKLOAD and power off C cycles into it ('end':
+//             no cut), then power up a second chip on the flash as the cut left it, read the
+//             --get files (as they are before anything runs), run RESUME, read them again; one
+//             JSON line per cut in FILE (files in hex; a boot or script that fails, its error).
 import fs from 'node:fs';
 import { parseArgs } from 'node:util';
 import { pathToFileURL } from 'node:url';
@@ -32,6 +34,57 @@ const OPTIONS = {
   get: { type: 'string', multiple: true, default: [] }, report: { type: 'string' },
   'cut-at': { type: 'string' },
 };
+
+// The files that exist among names, in hex, read by one script.
+const hexFiles = (chip, names) => {
+  const r = R.exec(chip, `import binascii\nfor n in ${JSON.stringify(names)}:
+    try:
+        f = open(n, 'rb')
+    except OSError:
+        continue
+    print(n, binascii.hexlify(f.read()).decode())
+    f.close()
+`);
+  if (r.err) throw new Error(r.err.trim().split('\n').pop());
+  const out = {};
+  for (const line of r.out.split('\n')) {
+    const [n, hex] = line.trim().split(' ');
+    if (n) out[n] = hex || '';
+  }
+  return out;
+};
+
+// One power cut and the power-up after it (MODE cuts).
+function cutAndReboot(emu, v, cutAt, tmpImage) {
+  const { chip } = bootPico(emu, v);
+  R.enterRawRepl(chip);
+  chip.send(fs.readFileSync(v.exec[0], 'utf8'));
+  chip.runUntil(chip.sent, 'the code upload');
+  const c0 = chip.cycles;
+  if (cutAt !== 'end') chip.stopAt = c0 + Number(cutAt);
+  chip.send('\x04');
+  let finished = false;
+  try {
+    chip.runUntil(() => chip.rx.eots >= 2 && chip.rx.endsWith('\x04>'), 'the workload end', R.HZ * 3600);
+    finished = true;
+  } catch (e) {
+    if (!(e instanceof R.PowerCut)) throw e;
+  }
+  const rec = { cut_at: cutAt, ran: chip.cycles - c0, finished, out: chip.rx.take().replace(/^OK/, '') };
+  fs.writeFileSync(tmpImage, chip.flashImage());
+  const again = bootPico(emu, { ...v, 'flash-in': tmpImage });
+  try {
+    R.enterRawRepl(again.chip);
+    rec.before = hexFiles(again.chip, v.get);
+    const r = R.exec(again.chip, fs.readFileSync(v.exec[1], 'utf8'), { maxCycles: R.HZ * 600 });
+    rec.resume_out = r.out;
+    rec.resume_err = r.err;
+    rec.after = hexFiles(again.chip, v.get);
+  } catch (e) {
+    rec.boot_error = e.message;
+  }
+  return rec;
+}
 
 export function bootPico(emu, v) {
   const chip = R.createChip(emu, { firmware: v.firmware, bootrom: v.bootrom,
@@ -74,36 +127,16 @@ function run(chip, sensor, v) {
   return { report, failed };
 }
 
-// Power off at cutAt cycles into the (single) script: what reached the flash stays.
-function cut(chip, sensor, v) {
-  R.enterRawRepl(chip);
-  putAll(chip, v.put);
-  R.softReset(chip);
-  const code = fs.readFileSync(v.exec[0], 'utf8');
-  chip.send(code);
-  chip.runUntil(chip.sent, 'the code upload');
-  const c0 = chip.cycles;
-  chip.stopAt = c0 + Number(v['cut-at']);
-  chip.send('\x04');
-  let finished = false;
-  try {
-    chip.runUntil(() => chip.rx.eots >= 2 && chip.rx.endsWith('\x04>'), 'the script end', R.HZ * 3600);
-    finished = true;
-  } catch (e) {
-    if (!(e instanceof R.PowerCut)) throw e;
-  }
-  const out = chip.rx.take();
-  const report = { cut_at: Number(v['cut-at']), ran: chip.cycles - c0, finished,
-    flash_writes: chip.flashWrites, out: out.slice(-2000) };
-  if (sensor) report.lis3dh = lis3dhReport(sensor);
-  return { report, failed: false };
-}
-
 // The USB CDC on stdin/stdout.  The chip runs in slices between the event loop's turns, so
 // host bytes arrive while it runs; with no work and nothing from the host it waits for stdin.
 function serve(chip, v) {
   let closing = false;
-  const save = () => { if (v['flash-out']) fs.writeFileSync(v['flash-out'], chip.flashImage()); };
+  const save = () => { // whole or not at all: a kill mid-write leaves the previous image
+    if (!v['flash-out']) return;
+    const part = `${v['flash-out']}.${process.pid}.partial`;
+    fs.writeFileSync(part, chip.flashImage());
+    fs.renameSync(part, v['flash-out']);
+  };
   const finish = () => { if (closing) return; closing = true; save(); process.exit(0); };
   process.on('SIGTERM', finish);
   process.stdin.on('end', finish);
@@ -115,8 +148,11 @@ function serve(chip, v) {
   const slice = () => {
     if (closing) return;
     const t0 = performance.now();
+    // short turns while the firmware has read all the host sent (a reply may be on its way):
+    // each turn lets stdin in, and a raw-REPL round trip costs a few of them
+    const turnMs = chip.sent() && chip.waitingForHost() ? 2 : 20;
     let busy = true;
-    while (performance.now() - t0 < 20) {
+    while (performance.now() - t0 < turnMs) {
       chip.feed();
       busy = chip.step(20000);
       if (chip.rx.length) process.stdout.write(Buffer.from(chip.rx.take(), 'latin1'));
@@ -135,9 +171,17 @@ async function main() {
   }
   const mode = positionals[0] || 'run';
   const emu = await R.loadEmulator(v.rp2040js);
+  if (mode === 'cuts') {
+    const tmpImage = `${v.report}.${process.pid}.img`;
+    for (const c of v['cut-at'].split(',')) {
+      fs.appendFileSync(v.report, JSON.stringify(cutAndReboot(emu, v, c, tmpImage)) + '\n');
+    }
+    fs.rmSync(tmpImage, { force: true });
+    return;
+  }
   const { chip, sensor } = bootPico(emu, v);
   if (mode === 'serve') { serve(chip, v); return; }
-  const { report, failed } = mode === 'cut' ? cut(chip, sensor, v) : run(chip, sensor, v);
+  const { report, failed } = run(chip, sensor, v);
   if (v['flash-out']) fs.writeFileSync(v['flash-out'], chip.flashImage());
   if (v.report) fs.writeFileSync(v.report, JSON.stringify(report) + '\n');
   process.exitCode = failed ? 1 : 0;
