@@ -1,6 +1,7 @@
 """Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
-unix port (a subprocess; 64-bit: small ints to 2**62), or under the 32-bit MicroPython
-(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32).
+unix port (a subprocess; 64-bit: small ints to 2**62), under the 32-bit MicroPython
+(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32),
+or on the emulated RP2040 running MicroPython (rp2040) or CircuitPython (circuitpython) firmware.
 All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py), so their
 answers can be compared bit for bit."""
 from __future__ import annotations
@@ -24,7 +25,7 @@ __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "circuitpython")
 
 
 def micropython_path() -> str:
@@ -102,4 +103,7 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
             return parse(script(str(RUNNER), str(inp)).splitlines())
     if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
         return parse(rp2040.run_protocol(list(protocol_lines(groups, cfg))).out.splitlines())
+    if runtime == "circuitpython":   # CircuitPython's Feather RP2040 firmware on the same chip
+        return parse(rp2040.run_protocol(list(protocol_lines(groups, cfg)),
+                                         rp2040.CIRCUITPYTHON).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

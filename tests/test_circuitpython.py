@@ -1,0 +1,104 @@
+"""The device package on real CircuitPython: Adafruit CircuitPython 10.2.1 for the Feather RP2040
+(firmware/circuitpython-feather_rp2040) on the emulated RP2040, the package installed as .mpy
+files from CircuitPython's own mpy-cross.  The same integers as CPython for both profiles and a
+composed model; 0 bytes allocated per sample and per fit slice (measured with gc.disable() and
+gc.mem_alloc(): CircuitPython has no heap_lock); the heap the app with the largest model leaves."""
+import json
+
+import numpy as np
+import pytest
+
+from accelcal import simulate
+from accelcal.bridge import protocol, rp2040, runtime
+from accelcal.errors import InputError
+from conftest import run_main
+from test_runtimes import random_recording
+
+FW = rp2040.CIRCUITPYTHON
+
+
+@pytest.fixture(scope="session")
+def chip():
+    """The emulated Feather with the package installed; skipped, saying why, where Node or
+    rp2040js is missing (make setup installs it; CI has both)."""
+    try:
+        rp2040.emulator_index()
+        rp2040.flash_image(FW)
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    return rp2040
+
+
+def test_calibrate_on_circuitpython_equals_cpython(tmp_path, chip, capsys):
+    """`accelcal calibrate --runtime circuitpython` (the paper's profile): the same record."""
+    pts = tmp_path / "pts.csv"
+    assert run_main(capsys, ["simulate", "paper", "--noise-mg", "1", "--scenarios", "1",
+                             "--seed", "7", "-o", str(pts)])[0] == 0
+    records = {}
+    for rt in ("cpython", "circuitpython"):
+        code, out, err = run_main(capsys, ["calibrate", str(pts), "--by", "device",
+                                           "--runtime", rt, "--json"])
+        assert code == 0, err
+        rec = json.loads(out)
+        assert rec.pop("runtime") == rt
+        records[rt] = rec
+    assert records["circuitpython"] == records["cpython"]
+    assert records["cpython"]["points"] >= 18
+
+
+@pytest.mark.slow   # ~2 min of emulation (6 min wall on a loaded machine): make bench
+def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
+    """In one boot: the wear profile on points with outliers and on recordings (its noise gauge,
+    rest detector, bins, Gauss-Newton with rejection), the paper's on recordings, and a
+    composed wear model (temperature offset) on points: every record as CPython's."""
+    from acal import effects
+    pts = []
+    for i in range(4):
+        n = int(rng.integers(40, 200))
+        _, v = simulate.paper_scenario(rng, n, float(rng.choice([1e-3, 5e-3])))
+        v[rng.integers(0, n, n // 20)] *= rng.uniform(1.02, 1.1)  # outliers
+        pts.append(runtime.Group(f"d{i}", points=v))
+    xyz, gaps = random_recording(rng, 16, 25)
+    recs = [runtime.Group("r", samples=xyz, gaps=gaps)]
+    truth = np.array([1.02, 0.97, 1.01, 0.01, -0.02, 0.01, 0.04, -0.05, 0.03])
+    n = 150
+    temp = rng.uniform(20, 36, n)
+    v = simulate.uncorrect(truth, simulate.unit_points(rng, n)) + \
+        0.0008 * (temp - 28)[:, None] + rng.normal(scale=5e-4, size=(n, 3))
+    composed = runtime.Group("c", points=v, temp=temp, t=np.arange(n) * 300.0)
+    wear = runtime.Config.for_profile("wear")
+    jobs = [(pts, wear), (recs, runtime.Config.for_profile("wear", rate_hz=25, seconds=2)),
+            (recs, runtime.Config(rate_hz=25, seconds=2)),
+            ([composed], runtime.Config.for_profile("wear", composed=True,
+                                                    kinds=(effects.TEMP_OFFSET,)))]
+    want, lines = [], []
+    for groups, cfg in jobs:
+        want += runtime.run(groups, cfg, "cpython")
+        lines += protocol.protocol_lines(groups, cfg)
+    got = protocol.parse(chip.run_protocol(lines, FW).out.splitlines())
+    assert got == want
+    assert sum(r.status == 0 for r in want[:4]) >= 3
+    assert sum(r.kept is not None and 0 in r.kept for r in want[:4]) >= 1   # rejections too
+    assert min(len(r.rest_int) for r in want[4:6]) >= 5
+    assert want[-1].status == 0 and want[-1].params_int[9] != 0               # the effect fitted
+
+
+def test_missing_emulator_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
+    with pytest.raises(InputError, match="rp2040js is not installed"):
+        rp2040.emulator_index()
+    assert "circuitpython" in runtime.RUNTIMES
+
+
+def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
+    """CircuitPython's own mpy-cross (committed with its firmware; make build uses it) compiles
+    the package; its .mpy files say CircuitPython ('C', version 6) where MicroPython's say 'M'
+    (which CircuitPython refuses)."""
+    from accelcal.locations import DEVICE_PACKAGE
+    sources = sorted(DEVICE_PACKAGE.glob("*.py"))
+    assert len(sources) >= 10
+    for src in sources:
+        cp, mp = tmp_path / f"{src.stem}.cp.mpy", tmp_path / f"{src.stem}.mp.mpy"
+        rp2040.mpy_cross(src, cp, None, FW)
+        rp2040.mpy_cross(src, mp, None)
+        assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
