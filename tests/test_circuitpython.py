@@ -29,6 +29,7 @@ def chip():
     return rp2040
 
 
+@pytest.mark.slow   # a boot of CircuitPython: ~40 s of CPU (the default run proves the heap below)
 def test_calibrate_on_circuitpython_equals_cpython(tmp_path, chip, capsys):
     """`accelcal calibrate --runtime circuitpython` (the paper's profile): the same record."""
     pts = tmp_path / "pts.csv"
@@ -102,3 +103,29 @@ def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
         rp2040.mpy_cross(src, cp, None, FW)
         rp2040.mpy_cross(src, mp, None)
         assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
+
+
+def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(chip):
+    """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
+    (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
+    every full scale (readings past it, parameters at the bounds' corner), and the default
+    (wear) fit of 72 points with outlier rejection, slice by slice as the app runs it: 0 bytes.
+    A list shows the counting sees an allocation.  Memory: after `import acal.app` and a
+    Processor of each of the largest models (four effects, a step among them), the heap keeps
+    room for the app (its buffers, log and bus: ~10 kB)."""
+    from accelcal.studies import bench_circuitpython
+    r = bench_circuitpython.run(whole=False)
+    assert r["bytes_control_list"] > 0
+    for k in ("bytes_rest_paper", "bytes_rest_wear", "bytes_apply", "bytes_fit_begin",
+              "bytes_fit_worst_slice", "bytes_fit_all_slices"):
+        assert r[k] == 0, (k, r)
+    assert r["rest_segments"] == "2 2"                         # the detectors saw the rests
+    status, iterations, rejected = map(int, r["fit_wear_status"].split())
+    assert status == 0 and rejected >= 2 and r["fit_wear_slices"] > 100
+    from acal.gaussnewton import GaussNewton
+    host = GaussNewton(72)
+    host.run(bench_circuitpython.fit_points(), 72)
+    assert r["fit_wear_params"] == " ".join(map(str, host.p[:9]))   # what CPython fits
+    largest = [v for k, v in r.items() if k.startswith("free_with_processor_")]
+    assert len(largest) == 2 and min(largest) > 40000
+    print({k: v for k, v in r.items() if k.startswith("free")})
