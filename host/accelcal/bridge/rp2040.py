@@ -28,6 +28,7 @@ from accelcal.locations import DEVICE_PACKAGE, checkout, script
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
 HZ = 125_000_000
+FLASH_SIZE = 2 * 1024 * 1024       # RPI_PICO's flash: the size of a saved image (rp2040.mjs)
 
 
 @dataclass(frozen=True)
@@ -129,8 +130,9 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
     if image.exists():
         return image
     cache.mkdir(parents=True, exist_ok=True)
-    for old in cache.glob(f"{fw.name}-*.bin"):
-        old.unlink()
+    for old in cache.glob(f"{fw.name}-*.bin"):     # an older package's image
+        if old != image:
+            old.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         puts = []
         for i, (data, remote) in enumerate(files):

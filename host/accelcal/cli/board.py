@@ -14,7 +14,7 @@ def cmd_board_virtual(args) -> int:
     from accelcal.board.virtual import serve_main
     return serve_main(flash_dir=args.flash, stimulus=args.stimulus, days=args.days, rate=args.rate,
                       seed=args.seed, bus_faults=args.bus_faults, heap=args.heap,
-                      speed=args.speed, link=args.link, port_file=args.port_file)
+                      speed=args.speed, link=args.link, port_file=args.port_file, chip=args.chip)
 
 
 def _app_settings(args) -> dict:
@@ -122,7 +122,13 @@ def add_parsers(sub) -> None:
                                     "stimulus (a simulated wrist day unless --stimulus), virtual time. "
                                     "Prints the port on stdout; then any `mpremote connect PORT ...` works. "
                                     "Runs until Ctrl-C or SIGTERM.")
-    q.add_argument("--flash", default="vboard-flash", help="folder that is the board's flash (default vboard-flash)")
+    q.add_argument("--chip", choices=["unix", "rp2040"], default="unix",
+                   help="unix (default): the MicroPython unix port; rp2040: an emulated Pico, "
+                        "MicroPython's own RPI_PICO firmware on rp2040js with the simulated LIS3DH "
+                        "on its I2C0 (make setup installs it), on its emulated clock")
+    q.add_argument("--flash", help="the board's flash: a folder for the unix port (default "
+                                   "vboard-flash), a 2 MB image file for rp2040 (default "
+                                   "vboard-pico.bin, made on first use, saved when the board stops)")
     q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
     q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
                    help="without --stimulus: days to simulate (default 1)")
