@@ -4,6 +4,7 @@ files from CircuitPython's own mpy-cross.  The same integers as CPython for both
 composed model; 0 bytes allocated per sample and per fit slice (measured with gc.disable() and
 gc.mem_alloc(): CircuitPython has no heap_lock); the heap the app with the largest model leaves."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import pytest
 from accelcal import simulate
 from accelcal.bridge import protocol, rp2040, runtime
 from accelcal.errors import InputError
-from conftest import run_main
+from conftest import ROOT, run_main
 from test_runtimes import random_recording
 
 FW = rp2040.CIRCUITPYTHON
@@ -129,3 +130,55 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     largest = [v for k, v in r.items() if k.startswith("free_with_processor_")]
     assert len(largest) == 2 and min(largest) > 40000
     print({k: v for k, v in r.items() if k.startswith("free")})
+
+
+# What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the
+# computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
+BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
+
+FEATHER_APP = """import board, adafruit_lis3dh
+lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
+print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
+import acal.app
+app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=200000,
+                    profile=0)
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+"""
+
+
+def site_package(name):
+    import importlib.util
+    spec = importlib.util.find_spec(name)
+    root = Path(spec.origin)
+    return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
+
+
+def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, chip):
+    """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
+    the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
+    (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
+    for 10 emulated seconds at 100 Hz, logs to the drive, and its capture replays on the host
+    into the board's very log."""
+    from accelcal.board import emulated
+    from accelcal.bridge import boardlog
+    from test_pico_lis3dh import dance
+    dance(tmp_path / "stim.bin", seed=5, rest_s=9)
+    puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
+            "boot.py": BOOT_PY}
+    for f in site_package("adafruit_lis3dh"):
+        puts[f"/lib/{f.name}"] = f.read_bytes()
+    for f in site_package("adafruit_bus_device"):
+        puts[f"/lib/adafruit_bus_device/{f.name}"] = f.read_bytes()
+    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin", puts=puts,
+                     gets=["log.bin", "capture.bin"], fw=FW, i2c="1,2,3")
+    rng_code, norm = map(int, r.out.split("ADAFRUIT")[1].split()[:2])
+    assert rng_code == 0 and 5 <= norm <= 15, r.out   # RANGE_2_G; |a| of gravity's order, m/s^2
+    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    chip_truth = r.report["lis3dh"]
+    assert samples >= 9 * 100 and overruns == 0 and bus_errors == chip_truth["faults"] == 0
+    assert samples + lost <= chip_truth["converted"]
+    for f in ("log.bin", "capture.bin"):
+        (tmp_path / f).write_bytes(r.files[f])
+    rep = boardlog.replay(tmp_path)
+    assert rep["identical"] and rep["samples_replayed"] == samples + lost
+    assert rep["rest"]["board"] >= 1, rep
