@@ -157,8 +157,9 @@ def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, 
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
     the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
     (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
-    for 10 emulated seconds at 100 Hz, logs to the drive, and its capture replays on the host
-    into the board's very log."""
+    for 10 emulated seconds at 100 Hz, logs to the drive (writable to it after a power-up with
+    boot.py, nothing remounted from the REPL), and its capture replays on the host into the
+    board's very log."""
     from accelcal.board import emulated
     from accelcal.bridge import boardlog
     from test_pico_lis3dh import dance
@@ -169,8 +170,10 @@ def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, 
         puts[f"/lib/{f.name}"] = f.read_bytes()
     for f in site_package("adafruit_bus_device"):
         puts[f"/lib/adafruit_bus_device/{f.name}"] = f.read_bytes()
-    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin", puts=puts,
-                     gets=["log.bin", "capture.bin"], fw=FW, i2c="1,2,3")
+    image = tmp_path / "feather.bin"   # installed, then powered up again: boot.py remounts
+    emulated.run(["print(1)"], puts=puts, flash_out=image, fw=FW)
+    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin",
+                     gets=["log.bin", "capture.bin"], flash_in=image, fw=FW, i2c="1,2,3")
     rng_code, norm = map(int, r.out.split("ADAFRUIT")[1].split()[:2])
     assert rng_code == 0 and 5 <= norm <= 15, r.out   # RANGE_2_G; |a| of gravity's order, m/s^2
     samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])

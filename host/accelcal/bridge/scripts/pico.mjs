@@ -6,8 +6,8 @@
 //        [--flavour micropython|circuitpython] [--i2c BUS,SDA,SCL] MODE ...
 //
 // --i2c: where the LIS3DH is wired (default 0,4,5: the Pico's I2C0; the Feather RP2040's
-// board.I2C() is 1,2,3).  CircuitPython (--flavour): its drive is made writable to code before
-// any --put, as a board's boot.py does.
+// board.I2C() is 1,2,3).  CircuitPython (--flavour): its drive is made writable to code for the
+// --put files (until the next power-up: a board that logs does it in boot.py).
 //
 // MODE run:   [--put LOCAL=REMOTE]... [--exec SCRIPT]... [--get REMOTE=LOCAL]... [--report FILE]
 //             as rp2040.mjs's command (boot, raw REPL, put, soft reset, run each script), then
@@ -118,7 +118,7 @@ function exists(chip, remote) {
 
 function run(chip, sensor, v) {
   R.enterRawRepl(chip);
-  R.makeWritable(chip);   // CircuitPython only; stays so across the soft reset
+  if (v.put.length) R.makeWritable(chip);   // CircuitPython only; until the next power-up
   putAll(chip, v.put);
   R.softReset(chip);
   const report = { scripts: [] };
