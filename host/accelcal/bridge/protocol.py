@@ -18,7 +18,7 @@ from accelcal.errors import InputError
 from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.fixedpoint import g_to_point, g_to_sample
 
-BATCH = 1000  # samples per B record
+BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
 
 
 @dataclass(frozen=True)

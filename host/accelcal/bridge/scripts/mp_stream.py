@@ -3,8 +3,6 @@
 # are read in blocks and split here: a line at a time from a USB CDC costs ~0.2 ms on an RP2040.
 import sys
 
-import micropython
-
 from mp_runner import print_record, run
 
 
@@ -25,9 +23,17 @@ def lines(stream, total, block=1024):
 
 
 def main():
-    micropython.kbd_intr(-1)    # the protocol is text, but a stray 0x03 must not interrupt it
+    # MicroPython: the protocol is text, but a stray 0x03 must not interrupt it.  CircuitPython
+    # has no kbd_intr (nor sys.stdin.buffer: its sys.stdin reads bytes into a buffer itself).
+    try:
+        from micropython import kbd_intr
+    except ImportError:
+        kbd_intr = None
+    if kbd_intr is not None:
+        kbd_intr(-1)
     try:
         total = int(sys.stdin.readline())
-        run(lines(sys.stdin.buffer, total), print_record)
+        run(lines(getattr(sys.stdin, "buffer", sys.stdin), total), print_record)
     finally:
-        micropython.kbd_intr(3)
+        if kbd_intr is not None:
+            kbd_intr(3)

@@ -2,7 +2,12 @@
 // (GP4/GP5, as boards/pico.py wires it), fed by a stimulus file.
 //
 //   node pico.mjs --rp2040js INDEX_JS --firmware FW.uf2 --bootrom ROM.bin [--flash-in IMG]
-//        [--flash-out IMG] [--stimulus STIM] [--bus-faults PER_MILLE] [--seed N] MODE ...
+//        [--flash-out IMG] [--stimulus STIM] [--bus-faults PER_MILLE] [--seed N]
+//        [--flavour micropython|circuitpython] [--i2c BUS,SDA,SCL] MODE ...
+//
+// --i2c: where the LIS3DH is wired (default 0,4,5: the Pico's I2C0; the Feather RP2040's
+// board.I2C() is 1,2,3).  CircuitPython (--flavour): its drive is made writable to code for the
+// --put files (until the next power-up: a board that logs does it in boot.py).
 //
 // MODE run:   [--put LOCAL=REMOTE]... [--exec SCRIPT]... [--get REMOTE=LOCAL]... [--report FILE]
 //             as rp2040.mjs's command (boot, raw REPL, put, soft reset, run each script), then
@@ -24,12 +29,14 @@ import { parseArgs } from 'node:util';
 import { pathToFileURL } from 'node:url';
 import * as R from './rp2040.mjs';
 import { attachLis3dh, lis3dhReport } from './lis3dh.mjs';
+import { attachProbeAck } from './i2c_probe.mjs';
 
 const OPTIONS = {
   rp2040js: { type: 'string' }, firmware: { type: 'string' }, bootrom: { type: 'string' },
   'flash-in': { type: 'string' }, 'flash-out': { type: 'string' },
   stimulus: { type: 'string' }, 'bus-faults': { type: 'string', default: '0' },
   seed: { type: 'string', default: '1' },
+  flavour: { type: 'string', default: 'micropython' }, i2c: { type: 'string', default: '0,4,5' },
   put: { type: 'string', multiple: true, default: [] }, exec: { type: 'string', multiple: true, default: [] },
   get: { type: 'string', multiple: true, default: [] }, report: { type: 'string' },
   'cut-at': { type: 'string' },
@@ -87,10 +94,13 @@ function cutAndReboot(emu, v, cutAt, tmpImage) {
 }
 
 export function bootPico(emu, v) {
-  const chip = R.createChip(emu, { firmware: v.firmware, bootrom: v.bootrom,
+  const chip = R.createChip(emu, { firmware: v.firmware, bootrom: v.bootrom, flavour: v.flavour,
     flashIn: v['flash-in'] && fs.existsSync(v['flash-in']) ? v['flash-in'] : null });
-  const sensor = v.stimulus ? attachLis3dh(chip, { stimulus: v.stimulus,
+  const [bus, sda, scl] = v.i2c.split(',').map(Number);
+  const sensor = v.stimulus ? attachLis3dh(chip, { stimulus: v.stimulus, bus, sda, scl,
     faultPerMille: Number(v['bus-faults']), seed: Number(v.seed) }) : null;
+  // CircuitPython bit-bangs its address probe on the pins
+  if (sensor && v.flavour === 'circuitpython') attachProbeAck(chip, { sda, scl, address: 0x18 });
   return { chip, sensor };
 }
 
@@ -108,6 +118,7 @@ function exists(chip, remote) {
 
 function run(chip, sensor, v) {
   R.enterRawRepl(chip);
+  if (v.put.length) R.makeWritable(chip);   // CircuitPython only; until the next power-up
   putAll(chip, v.put);
   R.softReset(chip);
   const report = { scripts: [] };
