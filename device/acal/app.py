@@ -177,9 +177,7 @@ class Processor:
         self.index += n
         if self.on_samples is not None and self.calibrations:
             out = self.calibrated
-            for i in range(3 * n):
-                out[i] = buf[i]
-            self.calibration.apply_samples(out, 0, n)
+            self.calibration.apply_samples(out, 0, n, buf)   # copied and applied in one pass
             self.on_samples(out, n)
         if self.fitting:
             for _ in range(FIT_STEPS_PER_FEED):
@@ -211,12 +209,7 @@ class Processor:
             self._cap_supply = self.supply
         b = c.buf
         struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
-        j = 9
-        for i in range(3 * n):
-            v = buf[i]
-            b[j] = v & 0xFF
-            b[j + 1] = (v >> 8) & 0xFF
-            j += 2
+        log.pack_int16(buf, 3 * n, b, 9)
         if not c.write_payload(log.SAMPLES, 6 + 6 * n):
             self.capture_full = True
 

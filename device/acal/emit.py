@@ -23,3 +23,7 @@ def viper(f):
 
 def ptr32(a):
     return a
+
+
+def ptr8(a):
+    return a
