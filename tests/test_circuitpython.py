@@ -162,8 +162,9 @@ def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, 
     board's very log."""
     from accelcal.board import emulated
     from accelcal.bridge import boardlog
-    from test_pico_lis3dh import dance
-    dance(tmp_path / "stim.bin", seed=5, rest_s=9)
+    from accelcal.simulate.stimulus import calibration_dance
+    from test_pico_lis3dh import RATE, TRUTH
+    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
     puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
             "boot.py": BOOT_PY}
     for f in site_package("adafruit_lis3dh"):
