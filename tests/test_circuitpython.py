@@ -136,8 +136,9 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
 # computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
 BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
 
-FEATHER_APP = """import board, adafruit_lis3dh
+FEATHER_APP = """import board, time, adafruit_lis3dh
 lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
+time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
 import acal.app
 app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=200000,
