@@ -51,7 +51,8 @@ WEAK_P = 0.05
 STEP_PARSIMONY = 1.5
 
 
-# held-out error / wrist floor up to which the model is complete: no lead is looked for
+# held-out error / wrist floor up to which a model with no lead is called complete (the floor's
+# pairs see fewer postures than the held-out points; complete models measured 1.0-1.8x it)
 COMPLETE_WITHIN = 1.25
 
 
@@ -92,12 +93,13 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         host = " --method lsq --points all (it runs on the host only)" \
             if CATALOGUE[named].kind is None else ""
         weak = "" if best["evidence"] == "clear" else (
-            f" Weak evidence: better in {best['blocks_improved']} of {best['blocks']} held-out "
-            "blocks, a count chance alone gives too often; confirm it on a longer recording.")
+            " Weak evidence: so few blocks better is a count chance alone gives too often; "
+            "confirm it on a longer recording.")
         explanation = (f"{named}: {CATALOGUE[named].explain(sensor_of(path))} Fitted here: "
                        + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
                        + f" {best['param_unit']}. Adding it lowers the held-out error "
-                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg "
+                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
+                       f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
                        f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
                        f"{spec.with_effect(named)}{host}")
     elif best:

@@ -74,16 +74,21 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
     body = [f"<p>File <code>{_e(f)}</code>, model <b>{_e(out['model'])}</b>, "
             f"{out['rest_points']['train']} training and {out['rest_points']['heldout']} held-out "
             f"rest points ({_e(out['split'])}).</p>"]
+    blocks = out.get("heldout_blocks")
     body.append("<h2>Held-out error</h2>" + _table(
-        ["model", "held-out error (mg)", "noise floor (mg)", "training points", "held-out points"],
+        ["model", "held-out error (mg)", "noise floor (mg)", "wrist floor (mg)", "training points",
+         "held-out points", "held-out blocks"],
         [[_e(out["model"]), _num(out["heldout_error_mg"]), _num(out["noise_floor_mg"]),
-          str(out["rest_points"]["train"]), str(out["rest_points"]["heldout"])]]))
+          _num(out.get("wrist_floor_mg")), str(out["rest_points"]["train"]),
+          str(out["rest_points"]["heldout"]), _num(blocks, "d")]])
+        + "<p>The noise floor is the sensor's noise alone; the wrist floor what a complete model "
+          f"would still leave, from {_num(out.get('wrist_floor_pairs'), 'd')} pairs of rest means "
+          "of nearly the same posture close in time and temperature (the model discovery "
+          "page of the docs, What remains).</p>")
     named = out.get("missing_effect")
-    if named:
-        from accelcal.model.effects import CATALOGUE
-        e = CATALOGUE[named]
-        body.append(f'<h2>Named effect: {_e(named)}</h2><div class="named"><p>{_e(e.explanation)}'
-                    f"</p><p>{_e(out['explanation'])}</p></div>")
+    if named:     # the explanation opens with the effect's physics: said once
+        body.append(f'<h2>Named effect: {_e(named)}</h2><div class="named"><p>'
+                    f"{_e(out['explanation'])}</p></div>")
     else:
         body.append(f'<h2>No effect named</h2><div class="none"><p>{_e(out["explanation"])}</p>'
                     "</div>")
@@ -93,8 +98,11 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
         ptxt = ", ".join(f"{k}={v:g}" for k, v in params.items())
         if params:
             ptxt += f" ({_e(c.get('param_unit', ''))})"
+        share = _num(c["blocks_improved_pct"], ".0f")
+        if c["blocks_improved_pct"] is not None and blocks:
+            share += f" of {blocks}"
         rows.append([_e("+" + c["effect"]), _num(c["heldout_error_mg"]),
-                     _num(c["improvement_pct"], ".1f"), _num(c["blocks_improved_pct"], ".0f"),
+                     _num(c["improvement_pct"], ".1f"), share,
                      _e(ptxt if params else c.get("untestable", ""))])
     body.append("<h2>Candidates</h2>" + _table(
         ["effect added", "held-out error (mg)", "improvement (%)", "held-out blocks improved (%)",
