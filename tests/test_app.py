@@ -214,6 +214,26 @@ def test_acquisition_and_simulator_allocate_nothing_on_the_32_bit_port(tmp_path,
     assert int(out[4]) * 10 ** 6 > (1 << 30) + 60 * 10 ** 6 and int(out[5]) < 200 * 10 ** 6  # wrapped
 
 
+def test_the_millisecond_clock_allocates_nothing_on_the_32_bit_port(tmp_path, stim, mp32):
+    """The app's per-sample steps with the clock of boards/feather_rp2040.py (MsTicksClock on a
+    2^29 ms counter, started 100 s before its wrap) heap-locked on the 32-bit port: nothing
+    allocated per tick, across the wrap, and no sample lost."""
+    path, _ = stim
+    script = tmp_path / "heap_ms32.py"
+    script.write_text(HEAP_SCRIPT.replace(
+        "app = App(SimBoard(sys.argv[1]),",
+        "from vclock import Clock\n"
+        "from acal.app import MsTicksClock\n"
+        "b = SimBoard(sys.argv[1], clock=Clock(0, %d))\n"
+        "b.clock = MsTicksClock(lambda: b.chip.clock.ticks_ms() & %d, b.chip.clock.sleep_us)\n"
+        "app = App(b," % (MS_WRAP * 1000 - 100 * 10 ** 6, MS_WRAP - 1)).replace(
+        'print("OK", k, app.samples, app.lost)',
+        'print("OK", k, app.samples, app.lost, app.board.clock._ms())'))
+    out = mp32(str(script), str(path), str(tmp_path), extra_path=[str(CHIP_DIR)]).split()
+    assert out[0] == "OK", out
+    assert int(out[1]) == 5000 and int(out[3]) == 0
+    assert int(out[4]) < 200 * 1000   # the counter wrapped
+
 def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
     """A wearer who rests 5 s in a new orientation every 5 s for 14 days (every rest segment
     differs, all of them logged were there no allowance), with hourly counters and calibrations
@@ -361,6 +381,75 @@ def test_the_app_across_the_tick_wrap(tmp_path, stim):
     assert app.samples + app.lost == b.chip.generated and app.lost > 0
     assert (app.samples, app.lost) == (plain.samples, plain.lost)
     assert cap == plain_cap and log_bytes == plain_log   # segments, means, calibrations alike
+
+
+MS_WRAP = 1 << 29   # CircuitPython's supervisor.ticks_ms() wraps at 2^29 ms (6.2 days)
+
+
+def ms_ticks_board(path, start_us, faults=30):
+    """The virtual board with the clock boards/feather_rp2040.py gives the app: MsTicksClock on
+    a millisecond counter that wraps at 2^29 (supervisor.ticks_ms, read off the virtual clock);
+    the same stalls as the tick-wrap test."""
+    from acal.app import MsTicksClock
+    clock = StallingClock(every=500, stall_us=400000)
+    clock.set_us(start_us)
+    b = board(path, faults=faults, clock=clock)
+    b.clock = MsTicksClock(lambda: clock.ticks_ms() & (MS_WRAP - 1), clock.sleep_us)
+    return b
+
+
+@pytest.mark.parametrize("fifo", [False, True], ids=["registers", "fifo"])
+def test_the_app_across_the_millisecond_counters_wrap(tmp_path, stim, fifo):
+    """On CircuitPython the app's time comes from supervisor.ticks_ms(), which wraps at 2^29 ms.
+    Started 5 min before that wrap, the app reads, loses and logs exactly what it does with the
+    same counter started at 0, and what it does on the microsecond ticks (time.ticks_us) from
+    0: the same samples, losses, capture and log (FIFO drains and fit slices alike)."""
+    path, _ = stim
+    runs = {}
+    for name, start in (("us ticks", None), ("ms from 0", 0),
+                        ("ms wrapping", MS_WRAP * 1000 - 300 * 10 ** 6)):
+        d = tmp_path / name.replace(" ", "_")
+        d.mkdir()
+        if start is None:
+            clock = StallingClock(every=500, stall_us=400000)
+            b = board(path, faults=30, clock=clock)
+        else:
+            b = ms_ticks_board(path, start)
+        app = run_app(d, b, fifo=fifo)
+        runs[name] = (app, b, (d / "log.bin").read_bytes(), (d / "capture.bin").read_bytes())
+    app, b, log_bytes, cap = runs["ms wrapping"]
+    assert b.chip.clock.now_us() > MS_WRAP * 1000 + 600 * 10 ** 6   # ran on well past the wrap
+    assert b.clock._ms() < 2000 * 1000                               # the counter did wrap
+    assert app.samples + app.lost == b.chip.generated and app.lost > 0
+    assert app.proc.calibrations >= 1
+    for name in ("ms from 0", "us ticks"):
+        other, _, other_log, other_cap = runs[name]
+        assert (app.samples, app.lost, app.fifo_overruns) == \
+            (other.samples, other.lost, other.fifo_overruns), name
+        assert cap == other_cap and log_bytes == other_log, name
+
+
+def test_the_millisecond_clock_against_the_modular_definitions(rng):
+    """MsTicksClock's ticks_us (whole ms, wrapping at 2^30 us) read after random waits from
+    random starts, across the 2^29 ms counter wrap: always (t // 1000 * 1000) mod 2^30, and
+    its ticks_diff the true difference for waits below 2^29 us."""
+    from acal.app import MsTicksClock
+    from vclock import TICKS_PERIOD
+    for start in (0, MS_WRAP * 1000 - 5, MS_WRAP * 1000 - 123456789, 10 ** 15 + 999999):
+        c = Clock(start_us=start)
+        m = MsTicksClock(lambda: c.ticks_ms() & (MS_WRAP - 1), c.sleep_us)
+        t = start
+        base = m.ticks_us() - (t // 1000 * 1000)   # ticks_us starts at 0: an offset, kept
+        prev = m.ticks_us()
+        for us in list(rng.integers(1, 1 << 28, size=300)) + [1] * 50 + [999, 1000, 1001]:
+            c.sleep_us(int(us))
+            before = t
+            t += int(us)
+            now = m.ticks_us()
+            assert 0 <= now < TICKS_PERIOD
+            assert (now - base - t // 1000 * 1000) % TICKS_PERIOD == 0
+            assert m.ticks_diff(now, prev) == t // 1000 * 1000 - before // 1000 * 1000
+            prev = now
 
 
 APP_LOG_SCRIPT = r'''

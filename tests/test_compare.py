@@ -122,3 +122,53 @@ def test_paper_farago_table3_command(tmp_path):
                   "LabVIEW global (de)"):
         assert label in r.stdout
     assert "3.06" in r.stdout and (tmp_path / "wrist00.csv").exists()
+
+
+def _sphere(rng, n, upper_only=False):
+    a = rng.normal(size=(n, 3))
+    if upper_only:
+        a[:, 2] = np.abs(a[:, 2]) + 0.3
+    return a / np.linalg.norm(a, axis=1, keepdims=True)
+
+
+def _timed_points(path, v, t):
+    with open(path, "w") as fh:
+        fh.write("x,y,z,t\n")
+        for (x, y, z), ti in zip(v, t):
+            fh.write(f"{x:.6f},{y:.6f},{z:.6f},{ti:.1f}\n")
+    return path
+
+
+def test_a_one_sided_split_is_replaced_by_blocks_that_cover(tmp_path, rng):
+    """Rest points that face up only in the even 2-hour blocks (a wrist that turns over only
+    in the odd ones): the standing split leaves the training half one-sided, and so does its
+    mirror; the blocks shifted by an hour cover both halves, and every method, the device's and
+    the seven float ones, fits on them (before, the float ones refused while the device fitted)."""
+    from accelcal.pipeline.restpoints import RestPoints, split
+    t = np.arange(0, 24 * 3600, 120.0)
+    even = (t // 7200) % 2 == 0
+    v = np.where(even[:, None], _sphere(rng, len(t), upper_only=True), _sphere(rng, len(t)))
+    v = v * 1.02 + 0.01 + rng.normal(0, 0.001, v.shape)
+    halves = split(RestPoints(v, t, None, np.zeros(len(t)), "p"))
+    assert "from 1 h" in halves.how and "training half one-sided" in halves.how
+    for half in halves[:2]:
+        assert methods.coverage_reason(half.v) is None
+    r = run_cli("compare", _timed_points(tmp_path / "p.csv", v, t), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["split"] == halves.how
+    assert all(x["status"] == "calibrated" for x in out["rows"]), out["rows"]
+
+
+def test_no_covering_split_is_said_in_one_line(tmp_path, rng):
+    """The far side seen only within one 20-minute stretch: no time blocks give it to both
+    halves; compare and diagnose say so in one line (before, diagnose went ahead on it)."""
+    t = np.arange(0, 24 * 3600, 120.0)
+    v = _sphere(rng, len(t), upper_only=True)
+    turned = (t > 5 * 3600) & (t < 5 * 3600 + 1200)
+    v[turned, 2] *= -1
+    path = _timed_points(tmp_path / "p.csv", v, t)
+    for cmd in ("compare", "diagnose"):
+        r = run_cli(cmd, path)
+        assert r.returncode == 2 and r.stdout == "", r.stdout
+        assert r.stderr.count("\n") == 1 and "no split into alternate time blocks" in r.stderr

@@ -3,6 +3,7 @@ thresholds): diagnose names the effect, adding it brings the held-out error with
 the true sensor model achieves on the same points; on clean recordings it names nothing; two
 effects are found one after the other.  Bad model specs and unsupported data: exit 2, one line."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,6 +52,11 @@ def test_names_the_hidden_effect_and_adding_it_reaches_the_true_model(recordings
             "explanation"} <= set(first)
     assert (tmp_path / "plots" / "residuals.png").stat().st_size > 10000
     assert effect in first["explanation"] and "Next: accelcal calibrate --model base+" in first["explanation"]
+    for c in first["candidates"]:   # the block count beside the share
+        if c["heldout_error_mg"] is not None:
+            assert round(100 * c["blocks_improved"] / c["blocks"], 6) == round(c["blocks_improved_pct"], 6)
+    named = next(c for c in first["candidates"] if c["effect"] == effect)
+    assert named["blocks"] >= 12 and named["evidence"] == "clear"   # days of 2-hour blocks
     second = diagnose(path, f"base+{effect}", "--history", hist)
     truth = true_error(path)
     assert second["heldout_error_mg"] <= 1.5 * truth, (second["heldout_error_mg"], truth)
@@ -180,3 +186,20 @@ def test_applying_the_composed_calibration_leaves_nothing_to_name(recordings, tm
     notemp.write_text("t,x,y,z\n0,0,0,1\n0.1,0,0,1\n")
     r = run_cli("apply", saved, notemp, "-o", tmp_path / "x.csv")
     assert r.returncode == 2 and "needs a temperature column" in r.stderr
+
+
+def test_few_blocks_are_weak_evidence_and_explanations_fit_the_device():
+    """3 of 3 held-out blocks better happens one time in eight by chance: weak; 6 of 6 (1 in 64)
+    and 12 of 14 (1 in 150) are clear.  An ActiGraph file's explanation quotes no LIS3DH
+    figure; a recording CSV (accelcal's LIS3DH) does."""
+    from accelcal.files.recordings import sensor_of
+    from accelcal.model.effects import CATALOGUE
+    from accelcal.pipeline.diagnose import block_evidence
+    assert [block_evidence(*c) for c in ((3, 3), (4, 5), (6, 6), (12, 14))] == \
+        ["weak", "weak", "clear", "clear"]
+    real = Path(__file__).parent / "data" / "real"
+    gt3x = sensor_of(real / "ggir" / "actigraph_testfile.gt3x")
+    assert gt3x == "ActiGraph GT3X" and sensor_of(real / "ax3_sample.cwa") == "Axivity CWA"
+    for name in ("nonlinear", "temp_offset", "temp_scale"):
+        assert "LIS3DH" not in CATALOGUE[name].explain(gt3x)
+        assert "Typical for the LIS3DH" in CATALOGUE[name].explain("LIS3DH")

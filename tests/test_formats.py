@@ -195,3 +195,68 @@ def test_the_same_rest_segments_on_a_day_with_non_wear(tmp_path):
     rec = json.loads(run_cli("calibrate", f, "--json").stdout.splitlines()[0])
     assert rec["excluded"]["nonwear"] > 0
     assert len(rest_points(str(f))) == rec["still_windows"]
+
+
+PYGT3X = REAL / "pygt3x"   # pygt3x's test files (GPL-3.0, beside them) and ActiLife's exports
+
+
+def actilife_csv(path: Path) -> np.ndarray:
+    """An ActiLife raw CSV export (10 header lines, then X,Y,Z in g): the vendor's own reading."""
+    return np.loadtxt(path, delimiter=",", skiprows=11)
+
+
+def test_gt3x_declares_its_range():
+    """A .gt3x declares its full scale in info.txt (Acceleration Max 8.0): apply takes it."""
+    from accelcal.pipeline.apply import apply_range
+    rec = open_recording(GT3X)
+    assert rec.range_g == 8.0 and apply_range(rec.range_g, None) == 8
+
+
+def test_agdc_reads_to_actilife():
+    """An ActiGraph CentrePoint .agdc reads to what ActiLife exports for it (the vendor's CSV):
+    the same samples in g; a second .agdc with the accelerometer chip's temperature reads it as
+    ActiGraph's export gives it, held until the next reading, and declares +-8 g."""
+    pytest.importorskip("pygt3x")
+    assert is_recording(PYGT3X / "WRIST_rawLSB_032Hz_test.agdc")
+    t, xyz, temp, rec = read_whole(PYGT3X / "WRIST_rawLSB_032Hz_test.agdc")
+    ref = actilife_csv(PYGT3X / "WRIST_rawCalibrated_032Hz.csv")
+    assert rec.format == "ActiGraph CentrePoint AGDC" and len(t) == len(ref) == 1920
+    assert np.abs(xyz - ref).max() < 1e-6
+    assert np.allclose(np.diff(t), 1 / 32)
+    t, xyz, temp, rec = read_whole(PYGT3X / "CPW1C48210013_baseline.agdc")
+    ref = np.loadtxt(PYGT3X / "CPW1C48210013_baseline_temperature_ADXL_calibrated.csv",
+                     delimiter=",", skiprows=1)
+    assert rec.has_temp and rec.range_g == 8.0 and len(ref) > 3000
+    at = np.searchsorted(t, ref[:, 0])       # the first sample at each reading's time
+    inside = at < len(t)
+    assert inside.sum() > 3000 and np.abs(temp[at[inside]] - ref[inside, 1]).max() < 1e-4
+    assert np.array_equal(np.unique(temp), np.unique(temp[at[inside]]))   # held, never blended
+
+
+def test_old_nhanes_gt3x_falls_back_to_pygt3x():
+    """actfast cannot read an old NHANES-format GT3X+ file (activity.bin, no log.bin); pygt3x
+    can, and the samples are ActiLife's export of the same file."""
+    pytest.importorskip("pygt3x")
+    import actfast
+    with pytest.raises(Exception):
+        actfast.read(str(PYGT3X / "neo.gt3x"))
+    t, xyz, temp, rec = read_whole(PYGT3X / "neo.gt3x")
+    ref = actilife_csv(PYGT3X / "neo.csv")
+    assert len(t) == len(ref) == 18004 and np.all(np.diff(t) > 0)
+    assert np.abs(xyz - ref).max() < 1e-6 and temp is None
+
+
+def test_actigraph_files_without_pygt3x_name_the_extra(monkeypatch):
+    """Without pygt3x, an ActiGraph file only it reads is one line naming the optional extra."""
+    import builtins
+    real_import = builtins.__import__
+
+    def no_pygt3x(name, *a, **k):
+        if name.startswith("pygt3x"):
+            raise ImportError(name)
+        return real_import(name, *a, **k)
+    monkeypatch.setattr(builtins, "__import__", no_pygt3x)
+    for name in ("neo.gt3x", "CPW1C48210013_baseline.agdc"):
+        with pytest.raises(InputError) as e:
+            open_recording(PYGT3X / name)
+        assert "accelcal[gt3x]" in str(e.value) and "\n" not in str(e.value)

@@ -8,7 +8,8 @@ import pytest
 from acal import fixed
 from acal.model import Calibration
 from acal.optimiser import Optimiser
-from acal.rest import RestDetector
+from acal import model, rest
+from acal.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import SMALL_INT_LIMIT, Tracer, traced
 from conftest import effect_orders
 
@@ -17,24 +18,33 @@ from conftest import effect_orders
 FULL_2G = {bits: (round(-2.048 * 1024), round(2.047 * 1024)) for bits in (12, 10, 8)}
 
 
-def detector_run(samples, length):
+def detector_run(samples, length, axis=0):
+    # The scans are viper on the boards (acal/emit.py): machine words there, so every value they
+    # make is traced here.  int() is viper's cast and the state an int32 array: for the trace
+    # the cast passes a traced int through and the state is a list of traced ints.
     tr = Tracer()
     T = traced(tr)
-    det = RestDetector(length, 1, T(123), 0)
+    det = RestDetector(length, 1, T(123), axis)
+    det.st = [T(v) for v in det.st]
     buf = [T(v) for v in samples]
     start, n = 0, len(samples) // 3
-    while n > 0:
-        used = det.add_samples(buf, start, n)
-        start += used
-        n -= used
+    rest.int = lambda v: v
+    try:
+        while n > 0:
+            used = det.add_samples(buf, start, n)
+            start += used
+            n -= used
+    finally:
+        del rest.int
     return tr, det
 
 
+@pytest.mark.parametrize("axis", [0, ALL_AXES])
 @pytest.mark.parametrize("value", [FULL_2G[12][0], FULL_2G[12][1], -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX])
-def test_rest_detector_longest_segment_at_full_scale(value):
+def test_rest_detector_longest_segment_at_full_scale(value, axis):
     # The largest sums: the longest segment (65535 samples) pinned at full scale, +-2 g and +-16 g.
     n = fixed.SEGMENT_MAX_SAMPLES
-    tr, det = detector_run([value] * (3 * n), n)
+    tr, det = detector_run([value] * (3 * n), n, axis)
     assert det.segments == 1 and det.still
     assert det.mean_x == value << 6
     assert tr.ops >= 3 * n  # the three sums; count and index are bounded by the segment length
@@ -72,6 +82,16 @@ def test_apply_worst_case_at_every_range(range_g):
                 for y in (lo, hi):
                     for z in (lo, hi):
                         cal.apply(T(x), T(y), T(z))
+                        one = [cal.x, cal.y, cal.z]
+                        # the block form (model._apply_block: viper on the boards, so every
+                        # value it makes is traced; int() is viper's cast, passed through)
+                        buf = [T(x), T(y), T(z)]
+                        model.int = lambda v: v
+                        try:
+                            cal.apply_samples(buf, 0, 1)
+                        finally:
+                            del model.int
+                        assert buf == one
         assert tr.ops > 0
         assert tr.max_abs < SMALL_INT_LIMIT, (range_g, p)
 
@@ -202,6 +222,7 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
     none to MU_MAX: no intermediate reaches 2^30; undamped, with condition numbers up to 10^4,
     it solves them, to 2e-3 of the float solution's size."""
     from acal.gaussnewton import MU_MAX
+    from acal import solve
     from acal.solve import Solver
     tr = Tracer()
     T = traced(tr)
@@ -221,8 +242,14 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
             want = np.linalg.solve(a.astype(float), b)
             k = int(20 - np.ceil(np.log2(np.abs(want).max())))   # x ~ 2^20
             x = [0] * n
-            ok = s.solve([T(int(v)) for v in a.ravel()], [T(int(v)) for v in b], x, n, T(mu),
-                         [T(k)] * n)
+            s.m = [0] * len(s.m)   # lists for its int32 arrays: the traced ints stay traced
+            s.c = [0] * len(s.c)
+            solve.int = lambda v: v   # viper's cast (solve._eliminate) passes them through
+            try:
+                ok = s.solve([T(int(v)) for v in a.ravel()], [T(int(v)) for v in b], x, n,
+                             T(mu), [T(k)] * n)
+            finally:
+                del solve.int
             if trial % 2 == 0 and np.linalg.cond(a) < 1e4:
                 assert ok, (n, decades)
                 err = np.abs(np.array(x, float) - want * 2.0 ** k).max() / 2.0 ** 20
@@ -236,7 +263,7 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
 def test_default_fit_stays_small_on_hostile_points(rng):
     """The whole default fit, traced: 72 points with outliers at the clamp, points past it,
     a composed model of all four effects with dT and dt past their clamps."""
-    from acal import effects
+    from acal import effects, gaussnewton
     from acal.gaussnewton import GaussNewton
     from accelcal import simulate
     d = rng.normal(size=(72, 3))
@@ -253,8 +280,14 @@ def test_default_fit_stays_small_on_hostile_points(rng):
         T = traced(tr)
         gn = GaussNewton(72, k)
         gn.aux = [T(0)] * len(gn.aux)   # a traced list for its int32 array: dT, dt, dV traced
+        for name in ("d", "a", "b", "bl"):  # likewise the sums (viper's ptr32 on a board)
+            setattr(gn, name, [T(0)] * len(getattr(gn, name)))
         gn.ts = T(0)
-        gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
+        gaussnewton.int = lambda v: v   # viper's cast: the traced int passes
+        try:
+            gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
+        finally:
+            del gaussnewton.int
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
 
 

@@ -8,6 +8,7 @@
 # (one capture record each).
 import gc
 import struct
+from array import array
 
 from acal import effects, log
 from acal import profile as profiles
@@ -19,6 +20,7 @@ from acal.pipeline import Pipeline
 VERSION = 2  # 2: profiles (BOOT carries the fit)
 BLOCK = log.SAMPLES_PER_RECORD
 RETRIES = 3
+WAKE_AFTER = 16   # a register read wakes 1/16 period after the conversion it reads
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
 # Q16 g: 8 mg) from the last one logged, or after REST_LOG_SECONDS; the rest segments in between
 # are counted in the next record.  Rest records also get a daily byte allowance so that 14 days
@@ -71,7 +73,7 @@ class Processor:
         # The calibrated samples of each block go to on_samples(buf, n) (Q10 g, interleaved),
         # once a calibration exists: the wearable's own use of the data hooks in there.
         self.on_samples = None
-        self.calibrated = [0] * (3 * log.SAMPLES_PER_RECORD)
+        self.calibrated = array("i", bytearray(12 * log.SAMPLES_PER_RECORD))
         self.params = [0] * self.calibration.n_params
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
@@ -176,9 +178,7 @@ class Processor:
         self.index += n
         if self.on_samples is not None and self.calibrations:
             out = self.calibrated
-            for i in range(3 * n):
-                out[i] = buf[i]
-            self.calibration.apply_samples(out, 0, n)
+            self.calibration.apply_samples(out, 0, n, buf)   # copied and applied in one pass
             self.on_samples(out, n)
         if self.fitting:
             for _ in range(FIT_STEPS_PER_FEED):
@@ -210,12 +210,7 @@ class Processor:
             self._cap_supply = self.supply
         b = c.buf
         struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
-        j = 9
-        for i in range(3 * n):
-            v = buf[i]
-            b[j] = v & 0xFF
-            b[j + 1] = (v >> 8) & 0xFF
-            j += 2
+        log.pack_int16(buf, 3 * n, b, 9)
         if not c.write_payload(log.SAMPLES, 6 + 6 * n):
             self.capture_full = True
 
@@ -285,6 +280,39 @@ class RealClock:
         self.time.sleep_us(us)
 
 
+_TICKS_HALF = 1 << 29   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
+
+
+class MsTicksClock:
+    """A board's time from a millisecond counter that wraps at 2^bits, with a sleep (both from
+    the board file; CircuitPython: supervisor.ticks_ms(), which wraps at 2^29 ms, 6.2 days).
+    ticks_us() is kept from the counter's differences and wraps at 2^30 as time.ticks_us does,
+    so the app's rules stay as they are, in whole milliseconds.  Only small ints (< 2^30),
+    nothing allocated: it must be read at least every 2^29 us (8.9 min; the app reads it at
+    every sample or FIFO drain)."""
+
+    def __init__(self, ticks_ms, sleep_us, bits=29):
+        self._ms = ticks_ms
+        self.sleep_us = sleep_us
+        self._mask = (1 << bits) - 1
+        self._last = ticks_ms()
+        self._us = 0
+
+    def ticks_us(self):
+        ms = self._ms()
+        d = ((ms - self._last) & self._mask) * 1000
+        self._last = ms
+        w = self._us - _TICKS_HALF + d - _TICKS_HALF   # (us + d) mod 2^30, below 2^30 throughout
+        self._us = w + _TICKS_HALF + _TICKS_HALF if w < 0 else w
+        return self._us
+
+    def ticks_diff(self, a, b):
+        d = a - b
+        if d >= _TICKS_HALF:
+            return d - _TICKS_HALF - _TICKS_HALF
+        return d + _TICKS_HALF + _TICKS_HALF if d < -_TICKS_HALF else d
+
+
 class App:
     """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
     range_g, fifo, capture_bytes, log_budget, plus Processor settings."""
@@ -302,8 +330,9 @@ class App:
         self.fifo_overruns = 0
         self.bus_errors = 0
         self.bus_retries = 0
-        self.buf = [0] * (3 * 32 if fifo else 3 * BLOCK)
-        self.block = [0] * (3 * BLOCK)
+        # int arrays: the hot loops read them through typed pointers (acal/emit.py)
+        self.buf = array("i", bytearray(12 * (32 if fifo else BLOCK)))
+        self.block = array("i", bytearray(12 * BLOCK))
         self.fill = 0
         self.log = log.Log(prefix + "log.bin", log_budget)
         cap = None
@@ -410,7 +439,11 @@ class App:
     # variables heap cells, allocated on every call.
     def _step_register(self):
         s = self.sensor
-        self.clock.sleep_us(self.period_us)
+        # Wake just past the chip's next conversion (its time from the count of periods), not a
+        # whole period after this read: the read and the processing take time of their own, and
+        # a whole period on top of them falls a sample behind every few dozen on a board.
+        self._elapsed()
+        self.clock.sleep_us(self.period_us - self.acc_us + self.period_us // WAKE_AFTER)
         for attempt in range(RETRIES):
             try:
                 s.read_sample()

@@ -31,6 +31,7 @@ from acal import effects
 from acal import model
 from acal.model import FIT_W_MAX
 from acal.wide import mul_shift
+from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 
@@ -100,10 +101,11 @@ class GaussNewton:
         self.srt = [0] * max_points     # |r| being sorted
         self.p = [0] * np_
         self.pt = [0] * np_
-        self.d = [0] * np_
-        self.a = [0] * (np_ * np_)      # sum d~ d~^T, lower triangle
-        self.b = [0] * np_              # sum d~ r~, high limb (units of 2**B_SPLIT)
-        self.bl = [0] * np_             # ... low limb, in [0, 2**B_SPLIT) between points
+        # int32 arrays: _accumulate reads them through typed pointers (acal/emit.py)
+        self.d = conditions(np_)
+        self.a = conditions(np_ * np_)  # sum d~ d~^T, lower triangle
+        self.b = conditions(np_)        # sum d~ r~, high limb (units of 2**B_SPLIT)
+        self.bl = conditions(np_)       # ... low limb, in [0, 2**B_SPLIT) between points
         self.sh = [0] * np_             # column scales s_k
         self.qd = [QD_BASE if k < N_PARAMS else QD_EFFECT for k in range(np_)]
         self.rhs = [0] * np_
@@ -300,23 +302,7 @@ class GaussNewton:
                 self.row_ready = True
                 return
         self.row_ready = False
-        d = self.d
-        a = self.a
-        b = self.b
-        bl = self.bl
-        rh = self.rh
-        rl = self.rl
-        np_ = self.n_params
-        for k in range(np_):
-            dk = d[k]
-            if dk:
-                row = k * np_
-                for j in range(k + 1):
-                    a[row + j] += dk * d[j]
-                b[k] += dk * rh
-                v = bl[k] + dk * rl
-                b[k] += v >> B_SPLIT
-                bl[k] = v & B_MASK
+        _accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl, SIGN_SHIFT)
         i += 1
         self.pos = i
         if i == self.n:
@@ -555,6 +541,31 @@ class GaussNewton:
         else:
             self.status = OK
         self.phase = _DONE
+
+
+@viper
+def _accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
+    # One point's scaled row d~ (row) and residual r~ = rh 2**B_SPLIT + rl into A (sums, the
+    # lower triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
+    # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
+    # (above; tests/test_ranges.py traces them).
+    d = ptr32(row)
+    a = ptr32(sums)
+    b = ptr32(high)
+    bl = ptr32(low)
+    k = 0
+    while k < n:
+        dk = int(d[k]) << w >> w
+        if dk:
+            at = k * n
+            j = 0
+            while j <= k:
+                a[at + j] = (int(a[at + j]) << w >> w) + dk * (int(d[j]) << w >> w)
+                j += 1
+            v = (int(bl[k]) << w >> w) + dk * rl
+            b[k] = (int(b[k]) << w >> w) + dk * rh + (v >> 9)
+            bl[k] = v & 511
+        k += 1
 
 
 def _scale_for(v, s, limit):

@@ -35,6 +35,8 @@
 #                          cut anywhere leaves the whole calibration or none of it
 import struct
 
+from acal.emit import viper, ptr8, ptr32
+
 SYNC = 0xA5
 BOOT = 1
 REST = 2
@@ -268,3 +270,20 @@ def _encode_values(rtype, values):
     payload = bytearray(struct.calcsize(FORMATS[rtype]))
     struct.pack_into(FORMATS[rtype], payload, 0, *values)
     return encode(rtype, payload)
+
+
+@viper
+def pack_int16(source, n: int, dest, at: int):
+    # n ints of source (an int32 array, each within int16) into the bytes dest[at:at + 2 n],
+    # little-endian: a SAMPLES record's payload, the capture's per-sample hot loop (viper on
+    # ports with emitters, acal/emit.py; only the low 16 bits of each word are read, so no sign
+    # extension is needed).
+    src = ptr32(source)
+    dst = ptr8(dest)
+    i = 0
+    while i < n:
+        v = int(src[i])
+        dst[at] = v & 0xFF
+        dst[at + 1] = (v >> 8) & 0xFF
+        at += 2
+        i += 1

@@ -10,7 +10,8 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
-from acal.bins import COND
+from acal.bins import COND, conditions
+from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.wide import mul_shift
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
@@ -215,7 +216,7 @@ class Calibration:
             raise ValueError("a composed model applies at +-2 g full scale")
         self.in_max = APPLY_IN_MAX << self.e
         self.n_params = N_PARAMS + 3 * len(self.kinds)
-        self.k = [0] * self.n_params
+        self.k = conditions(self.n_params)   # an int32 array: _apply_block's typed pointer
         self.w = [0, 0, 0]
         self.temp = 0
         self.time = 0
@@ -327,13 +328,71 @@ class Calibration:
                     w[i] = -APPLY_W_MAX
             j -= 1
 
-    def apply_samples(self, buf, start, n):
-        """Correct n interleaved samples x y z ... of an int array in place, from sample `start`."""
+    def apply_samples(self, buf, start, n, src=None):
+        """Correct n interleaved samples x y z ... of an int array in place, from sample `start`
+        (given src, an int array: read from src at the same indices, the copy and the apply in
+        one pass).  The last sample's result is also in self.x, self.y, self.z."""
+        if src is None:
+            src = buf
         i = 3 * start
         end = 3 * (start + n)
+        if not self.kinds:
+            if n > 0:
+                e = self.e
+                _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - e,
+                             APPLY_OUT_SHIFT - 2 * e, SIGN_SHIFT)
+                self.x = buf[end - 3]
+                self.y = buf[end - 2]
+                self.z = buf[end - 1]
+            return
         while i < end:
-            self.apply(buf[i], buf[i + 1], buf[i + 2])
+            self.apply(src[i], src[i + 1], src[i + 2])
             buf[i] = self.x
             buf[i + 1] = self.y
             buf[i + 2] = self.z
             i += 3
+
+
+@viper
+def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w: int):
+    # Calibration.apply over the samples source[i:end] (flat x y z, Q10 g) into dest, for a
+    # model without effects: the per-sample hot loop, viper on ports with emitters (acal/emit.py;
+    # w: emit.SIGN_SHIFT).  The same integers as apply(): readings clamped to +-m, u in Q14
+    # (<< s), products of Q14 parameters rounded down by o bits; every value below 2**30 at
+    # every full scale (tests/test_ranges.py traces them).
+    src = ptr32(source)
+    dst = ptr32(dest)
+    k = ptr32(coef)
+    kxx = int(k[0]) << w >> w
+    kyy = int(k[1]) << w >> w
+    kzz = int(k[2]) << w >> w
+    kxy = int(k[3]) << w >> w
+    kxz = int(k[4]) << w >> w
+    kyz = int(k[5]) << w >> w
+    ox = int(k[6]) << w >> w
+    oy = int(k[7]) << w >> w
+    oz = int(k[8]) << w >> w
+    half = 1 << (o - 1)
+    while i < end:
+        x = int(src[i]) << w >> w
+        y = int(src[i + 1]) << w >> w
+        z = int(src[i + 2]) << w >> w
+        if x > m:
+            x = m
+        elif x < -m:
+            x = -m
+        if y > m:
+            y = m
+        elif y < -m:
+            y = -m
+        if z > m:
+            z = m
+        elif z < -m:
+            z = -m
+        ux = (x << s) + ox
+        uy = (y << s) + oy
+        uz = (z << s) + oz
+        dst[i] = (kxx * ux + half) >> o
+        dst[i + 1] = (kxy * ux + kyy * uy + half) >> o
+        dst[i + 2] = (kxz * ux + kyz * uy + kzz * uz + half) >> o
+        i += 3

@@ -8,6 +8,9 @@
 #
 # Formats (fixed.py): samples Q10 g, sums < 2**30, means Q16 g.  Nothing is allocated per sample:
 # state lives in int attributes, and `add` returns a bool.
+from array import array
+
+from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.fixed import SAMPLE_ONE_G, SEGMENT_MAX_SAMPLES, POINT_FROM_SAMPLE_SHIFT
 
 # Default threshold 0.12 g in Q10 (122.88 -> 123) and segment length 5 s, as the paper.
@@ -113,161 +116,66 @@ class RestDetector:
         self.mean_x = 0
         self.mean_y = 0
         self.mean_z = 0
+        self.st = array("i", bytearray(4 * STATE))   # the open segment (indices below)
+        self.one = array("i", bytearray(12))         # add()'s sample
         self.reset()
 
     def reset(self):
         """Start a new segment (also after a gap in the stream)."""
-        self.count = 0
-        self.sum_x = 0
-        self.sum_y = 0
-        self.sum_z = 0
-        self.lo = SAMPLE_ONE_G * 64  # above any sample
-        self.hi = -SAMPLE_ONE_G * 64
-        self.lo_y = self.lo_z = self.lo   # ALL_AXES: lo/hi are x's, these y's and z's
-        self.hi_y = self.hi_z = self.hi
+        st = self.st
+        for c in range(LO_X, SUM_X, 2):    # (a tuple of indices would allocate)
+            st[c] = SAMPLE_ONE_G * 64    # above any sample
+            st[c + 1] = -SAMPLE_ONE_G * 64
+        for c in range(SUM_X, STATE):
+            st[c] = 0
+
+    @property
+    def count(self):
+        return self.st[COUNT]
 
     def add(self, x, y, z):
         """Take one sample (Q10 g ints); return True when it closes a segment."""
-        if self.axis == ALL_AXES:
-            if y < self.lo_y:
-                self.lo_y = y
-            if y > self.hi_y:
-                self.hi_y = y
-            if z < self.lo_z:
-                self.lo_z = z
-            if z > self.hi_z:
-                self.hi_z = z
-        s = x if self.axis == 0 or self.axis == ALL_AXES else (y if self.axis == 1 else z)
-        if s < self.lo:
-            self.lo = s
-        if s > self.hi:
-            self.hi = s
-        self.sum_x += x
-        self.sum_y += y
-        self.sum_z += z
-        self.count += 1
-        if self.count < self.length:
-            return False
-        self._close()
-        return True
+        b = self.one
+        b[0] = x
+        b[1] = y
+        b[2] = z
+        self.add_samples(b, 0, 1)
+        return self.st[COUNT] == 0   # a segment closed (and a new one began)
 
     def add_samples(self, buf, start, n):
         """Take n interleaved samples x y z x y z ... of an int array (e.g. a FIFO read), from
         sample index `start`.  Returns how many it consumed: it stops right after a segment
         closes, so the caller reads the result and calls again for the rest.  (Indices, not
-        slices: a slice would allocate.)"""
+        slices: a slice would allocate.)  On a port with emitters buf must be an int array
+        (array('i')): the scan reads it through a typed pointer."""
         if self.axis == ALL_AXES:
-            return self._add_samples_all(buf, start, n)
-        axis = self.axis
-        lo = self.lo
-        hi = self.hi
-        sx = self.sum_x
-        sy = self.sum_y
-        sz = self.sum_z
-        count = self.count
-        length = self.length
-        i = 3 * start
-        end = 3 * (start + n)
-        closed = False
-        while i < end:
-            x = buf[i]
-            y = buf[i + 1]
-            z = buf[i + 2]
-            s = buf[i + axis]
-            if s < lo:
-                lo = s
-            if s > hi:
-                hi = s
-            sx += x
-            sy += y
-            sz += z
-            count += 1
-            i += 3
-            if count >= length:
-                closed = True
-                break
-        self.lo = lo
-        self.hi = hi
-        self.sum_x = sx
-        self.sum_y = sy
-        self.sum_z = sz
-        self.count = count
-        if closed:
-            self._close()
-        return i // 3 - start
-
-    def _add_samples_all(self, buf, start, n):
-        # add_samples with every axis's max - min tracked (a loop of its own: the one-axis loop
-        # stays as lean as it was).
-        lx = self.lo
-        hx = self.hi
-        ly = self.lo_y
-        hy = self.hi_y
-        lz = self.lo_z
-        hz = self.hi_z
-        sx = self.sum_x
-        sy = self.sum_y
-        sz = self.sum_z
-        count = self.count
-        length = self.length
-        i = 3 * start
-        end = 3 * (start + n)
-        closed = False
-        while i < end:
-            x = buf[i]
-            y = buf[i + 1]
-            z = buf[i + 2]
-            if x < lx:
-                lx = x
-            if x > hx:
-                hx = x
-            if y < ly:
-                ly = y
-            if y > hy:
-                hy = y
-            if z < lz:
-                lz = z
-            if z > hz:
-                hz = z
-            sx += x
-            sy += y
-            sz += z
-            count += 1
-            i += 3
-            if count >= length:
-                closed = True
-                break
-        self.lo = lx
-        self.hi = hx
-        self.lo_y = ly
-        self.hi_y = hy
-        self.lo_z = lz
-        self.hi_z = hz
-        self.sum_x = sx
-        self.sum_y = sy
-        self.sum_z = sz
-        self.count = count
-        if closed:
+            i = _scan_all(buf, 3 * start, 3 * (start + n), self.st, self.length,
+                          SIGN_SHIFT)
+        else:
+            i = _scan_one(buf, 3 * start, 3 * (start + n), self.st, self.length, self.axis,
+                          SIGN_SHIFT)
+        if self.st[COUNT] >= self.length:
             self._close()
         return i // 3 - start
 
     def _close(self):
-        n = self.count
-        spread = self.hi - self.lo
+        st = self.st
+        n = st[COUNT]
+        spread = st[HI_X] - st[LO_X]
         if self.axis == ALL_AXES:
-            if self.hi_y - self.lo_y > spread:
-                spread = self.hi_y - self.lo_y
-            if self.hi_z - self.lo_z > spread:
-                spread = self.hi_z - self.lo_z
+            if st[HI_Y] - st[LO_Y] > spread:
+                spread = st[HI_Y] - st[LO_Y]
+            if st[HI_Z] - st[LO_Z] > spread:
+                spread = st[HI_Z] - st[LO_Z]
         self.spread = spread
         self.still = spread < self.threshold
         if self.auto:  # judged by the threshold in force, then counted for the next ones
             self.gauge.add(spread)
             self.threshold = self.gauge.threshold
         if self.still:
-            self.mean_x = mean_q16(self.sum_x, n)
-            self.mean_y = mean_q16(self.sum_y, n)
-            self.mean_z = mean_q16(self.sum_z, n)
+            self.mean_x = mean_q16(st[SUM_X], n)
+            self.mean_y = mean_q16(st[SUM_Y], n)
+            self.mean_z = mean_q16(st[SUM_Z], n)
         self.segments += 1
         self.ended = True
         self.reset()
@@ -281,3 +189,107 @@ def mean_q16(total, n):
     q = total // n
     r = total - q * n
     return (q << POINT_FROM_SAMPLE_SHIFT) + ((r << POINT_FROM_SAMPLE_SHIFT) // n)
+
+
+# The open segment's state, an int32 array: min and max of x, y, z (one-axis: the chosen axis's
+# in LO_X, HI_X), the three sums, the samples so far.  The scans below are the hot loop
+# (acal/emit.py: viper on ports with emitters; the literal indices are these, a viper function
+# reads no module constant).  Every value is a sample (|v| <= SAMPLE_MAX), a sum of at most
+# SEGMENT_MAX_SAMPLES of them (< 2**30) or an index below 3 * 65535 (tests/test_ranges.py).
+LO_X = 0
+HI_X = 1
+LO_Y = 2
+HI_Y = 3
+LO_Z = 4
+HI_Z = 5
+SUM_X = 6
+SUM_Y = 7
+SUM_Z = 8
+COUNT = 9
+STATE = 10
+
+
+@viper
+def _scan_one(buf, i: int, end: int, state, length: int, axis: int, w: int) -> int:
+    # Samples buf[i:end] (flat x y z) into the state, judging one axis; stops after the sample
+    # that fills the segment.  Returns the flat index it stopped at.  w: emit.SIGN_SHIFT (a
+    # 32-bit word read into a 64-bit one is sign-extended by << w >> w; 0 on a 32-bit port).
+    b = ptr32(buf)
+    st = ptr32(state)
+    lo = int(st[0]) << w >> w
+    hi = int(st[1]) << w >> w
+    sx = int(st[6]) << w >> w
+    sy = int(st[7]) << w >> w
+    sz = int(st[8]) << w >> w
+    count = int(st[9]) << w >> w
+    while i < end:
+        s = int(b[i + axis]) << w >> w
+        if s < lo:
+            lo = s
+        if s > hi:
+            hi = s
+        sx += int(b[i]) << w >> w
+        sy += int(b[i + 1]) << w >> w
+        sz += int(b[i + 2]) << w >> w
+        count += 1
+        i += 3
+        if count >= length:
+            break
+    st[0] = lo
+    st[1] = hi
+    st[6] = sx
+    st[7] = sy
+    st[8] = sz
+    st[9] = count
+    return i
+
+
+@viper
+def _scan_all(buf, i: int, end: int, state, length: int, w: int) -> int:
+    # _scan_one with every axis's min and max tracked.
+    b = ptr32(buf)
+    st = ptr32(state)
+    lx = int(st[0]) << w >> w
+    hx = int(st[1]) << w >> w
+    ly = int(st[2]) << w >> w
+    hy = int(st[3]) << w >> w
+    lz = int(st[4]) << w >> w
+    hz = int(st[5]) << w >> w
+    sx = int(st[6]) << w >> w
+    sy = int(st[7]) << w >> w
+    sz = int(st[8]) << w >> w
+    count = int(st[9]) << w >> w
+    while i < end:
+        x = int(b[i]) << w >> w
+        y = int(b[i + 1]) << w >> w
+        z = int(b[i + 2]) << w >> w
+        if x < lx:
+            lx = x
+        if x > hx:
+            hx = x
+        if y < ly:
+            ly = y
+        if y > hy:
+            hy = y
+        if z < lz:
+            lz = z
+        if z > hz:
+            hz = z
+        sx += x
+        sy += y
+        sz += z
+        count += 1
+        i += 3
+        if count >= length:
+            break
+    st[0] = lx
+    st[1] = hx
+    st[2] = ly
+    st[3] = hy
+    st[4] = lz
+    st[5] = hz
+    st[6] = sx
+    st[7] = sy
+    st[8] = sz
+    st[9] = count
+    return i

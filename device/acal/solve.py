@@ -20,6 +20,8 @@
 # a combination of the others (multiple correlation above 1 - 2**-GUARD_SHIFT): the data does not
 # determine it, and the solver says so instead of returning a huge step.  Rounding moves the
 # Schur complements by ~2**4 an update, far below the smallest floor (2**(DIAG_BITS-2-12)).
+from acal.bins import conditions
+from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.wide import mul_shift, div_shift
 
 DIAG_BITS = 24
@@ -41,8 +43,8 @@ class Solver:
 
     def __init__(self, n_max):
         self.n_max = n_max
-        self.m = [0] * (n_max * n_max)
-        self.c = [0] * n_max
+        self.m = conditions(n_max * n_max)   # int32 arrays: _eliminate's typed pointers
+        self.c = conditions(n_max)
         self.y = [0] * n_max
         self.s = [0] * n_max
         self.floor = [0] * n_max
@@ -195,9 +197,7 @@ class Solver:
             if (mji if mji > 0 else -mji) >> 9 >= piv:
                 return -1   # beyond any Schur complement of an SPD system: rounding won
             mul = div_shift(mji, piv, MUL_Q)
-            row = j * n
-            for k in range(i + 1, n):
-                m[row + k] -= mul_shift(mul, m[i * n + k], MUL_Q)
+            _eliminate(m, j * n, i * n, i + 1, n, mul, SIGN_SHIFT)
             c[j] -= mul_shift(mul, c[i], MUL_Q)
         if j + 1 >= n:
             self.i = i + 1
@@ -254,3 +254,23 @@ def _shift_sat(v, s):
     if v <= -(_SAT >> s):
         return -_SAT
     return v << s
+
+
+@viper
+def _eliminate(rows, row: int, pivot: int, k: int, n: int, mul: int, w: int):
+    # rows[row + k:row + n] -= mul_shift(mul, rows[pivot + k:pivot + n], MUL_Q): one row of the
+    # elimination, the solver's hot loop, viper on ports with emitters (acal/emit.py; w:
+    # emit.SIGN_SHIFT).  wide.mul_shift written out for s = MUL_Q = 20 (t = 5), mul's halves
+    # split once: the same integers, each below 2**30 (tests/test_ranges.py traces them).
+    m = ptr32(rows)
+    ah = mul >> 15
+    al = mul & 0x7FFF
+    while k < n:
+        b = int(m[pivot + k]) << w >> w
+        bh = b >> 15
+        bl = b & 0x7FFF
+        mm = ah * bl + al * bh
+        c = (al * bl) >> 15
+        m[row + k] = (int(m[row + k]) << w >> w) - (((ah * bh) << 10) + (mm >> 5) +
+                                                    (((mm & 31) + c) >> 5))
+        k += 1

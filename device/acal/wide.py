@@ -10,9 +10,14 @@
 # for negative a, as in CPython and MicroPython), so that
 #   a b = ah bh 2**30 + (ah bl + al bh) 2**15 + al bl,
 # each product < 2**30 when |a|, |b| < 2**29.
+#
+# mul_shift is viper on ports with emitters (acal/emit.py): a machine-word function of small
+# ints, every intermediate below 2**30 as above (its arguments must be small ints there).
+from acal.emit import viper
 
 
-def mul_shift(a, b, s):
+@viper
+def mul_shift(a: int, b: int, s: int) -> int:
     """floor(a * b / 2**s), exactly, for |a|, |b| < 2**29 and s >= 16, when the caller knows
     the result lies below 2**29 in magnitude."""
     ah = a >> 15

@@ -11,8 +11,9 @@ import tempfile
 from pathlib import Path
 
 from accelcal.bridge import boardlog
+from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError
-from accelcal.files.outputs import check_output_dir, write_text
+from accelcal.files.outputs import check_output_dir, pid_running, write_text
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
@@ -107,13 +108,6 @@ class Remote:
         return info
 
 
-def _compile(src: Path, dst: Path, arch: str) -> None:
-    p = subprocess.run([sys.executable, "-c", "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())",
-                        f"-march={arch}", "-o", str(dst), str(src)], capture_output=True, text=True)
-    if p.returncode != 0:
-        raise InputError(f"mpy-cross failed on {src.name} for {arch}: {p.stderr.strip()[-200:]}")
-
-
 def main_py(settings: dict) -> str:
     args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
     return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
@@ -143,7 +137,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
             src = DEVICE_PKG / f"{m}.py"
             if info["ARCH"]:
                 dst = pkg / f"{m}.mpy"
-                _compile(src, dst, info["ARCH"])
+                mpy_cross(src, dst, info["ARCH"])
             else:
                 dst = pkg / f"{m}.py"
                 shutil.copy(src, dst)
@@ -186,6 +180,10 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
     """pull's folder, checked before the board is touched: a folder (made if missing) that holds
     no earlier pull unless force."""
     out = check_output_dir(outdir, (), "-o/--output")
+    for stale in out.glob(".pull-*.partial"):   # a killed pull's copies: its PID is gone
+        pid = stale.name[len(".pull-"):-len(".partial")]
+        if pid.isdigit() and not pid_running(int(pid)):
+            shutil.rmtree(stale, ignore_errors=True)
     held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
     if held and not force:
         raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "
@@ -195,7 +193,8 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
 
 def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
     """Copy the logs off the board into outdir and decode them.  The files are copied into a
-    temporary folder inside it and renamed into place once all have arrived."""
+    temporary folder inside it and renamed into place once all have arrived; then the files of
+    an earlier pull (--force) that this one does not hold are removed."""
     out = check_pull_dir(outdir, force)
     r = Remote(port, timeout=3600)
     ident = r.identify()
@@ -215,6 +214,10 @@ def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
         r.run(*cmd[:-1])
         for f in present:
             os.replace(tmp / f, out / f)
+        # the whole earlier pull goes (--force): none of its files stays beside the new log
+        for f in (*boardlog.LOG_FILES, "summary.json"):
+            if f not in present and (out / f).exists():
+                (out / f).unlink()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     sizes = {f: (out / f).stat().st_size for f in present}

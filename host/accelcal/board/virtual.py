@@ -125,12 +125,21 @@ class VirtualBoard:
                 os.killpg(self.proc.pid, signal.SIGKILL)
 
 
-def serve_main(*, flash_dir: str, stimulus: str | None, days: float, rate: int, seed: int,
+def serve_main(*, flash_dir: str | None, stimulus: str | None, days: float, rate: int, seed: int,
                bus_faults: int, heap: str | None, speed: int, link: str | None,
-               port_file: str | None) -> int:
-    """`accelcal board virtual`: make a stimulus if none is given, print the port, relay."""
+               port_file: str | None, chip: str = "unix") -> int:
+    """`accelcal board virtual`: make a stimulus if none is given, print the port, relay.
+    chip: unix (the unix port, a folder as its flash) or rp2040 (the emulated Pico, a flash
+    image file)."""
     from accelcal.simulate import wearer
-    flash = check_output_dir(flash_dir, [stimulus], "--flash")
+    if chip == "rp2040":
+        from accelcal.board import emulated
+        if heap or speed:
+            raise InputError("--heap and --speed are the unix port's: the emulated Pico has its "
+                             "own heap and runs on its emulated clock")
+        flash = emulated.check_flash_image(flash_dir or "vboard-pico.bin", stimulus)
+    else:
+        flash = check_output_dir(flash_dir or "vboard-flash", [stimulus], "--flash")
     if link:
         # never replaces a file it did not make: the link must be new
         if Path(link).is_symlink() or Path(link).exists():
@@ -139,20 +148,23 @@ def serve_main(*, flash_dir: str, stimulus: str | None, days: float, rate: int, 
         check_output(link, [stimulus], False, "--link")
     if port_file:
         check_output(port_file, [stimulus], True, "--port-file")
-    stim = Path(stimulus) if stimulus else flash.parent / (flash.name + "-stimulus.bin")
+    stim = Path(stimulus) if stimulus else \
+        flash.parent / ((flash.stem if chip == "rp2040" else flash.name) + "-stimulus.bin")
     if not stimulus:
         rec = stim.with_suffix(".csv")
         print(f"simulating {days:g} day(s) of wrist wear at {rate} Hz (seed {seed}) "
               f"into {stim}", file=sys.stderr, flush=True)
         wearer.simulate_wrist(rec, days, rate, seed, stimulus=stim)
-    board = VirtualBoard(flash, stim, bus_faults, heap, speed,
-                         log=lambda m: print(f"virtual board: {m}", file=sys.stderr, flush=True))
+    say = lambda m: print(f"virtual board: {m}", file=sys.stderr, flush=True)  # noqa: E731
+    board = (emulated.EmulatedBoard(flash, stim, bus_faults, seed, log=say) if chip == "rp2040"
+             else VirtualBoard(flash, stim, bus_faults, heap, speed, log=say))
     if link:
         Path(link).symlink_to(board.port)
     if port_file:
         write_text(port_file, board.port + "\n")
     print(board.port, flush=True)
-    print(f"virtual board on {board.port} (flash {flash.resolve()}); try: mpremote connect "
+    what = "emulated Pico (RP2040, MicroPython firmware)" if chip == "rp2040" else "virtual board"
+    print(f"{what} on {board.port} (flash {flash.resolve()}); try: mpremote connect "
           f"{board.port} exec \"import sys; print(sys.platform)\"; Ctrl-C stops it",
           file=sys.stderr, flush=True)
     stopping = []

@@ -3,6 +3,7 @@ and replay a raw capture through the current device modules to diff against what
 logged - the check a firmware developer runs after changing device code."""
 from __future__ import annotations
 
+import os
 import struct
 import tempfile
 from dataclasses import dataclass, field
@@ -15,8 +16,10 @@ from acal import effects as deff
 from acal import fixed, log, optimiser
 from acal.app import Processor
 from accelcal.errors import InputError
+from accelcal.files.outputs import check_regular, note_input
 
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
+FILE_MAX_BYTES = 1 << 30    # a pulled file is read whole: the largest capture deploy allows
 FIELDS = {
     log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
                "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit"),
@@ -55,7 +58,18 @@ class Decoded:
         return out
 
 
+def check_pulled(path) -> None:
+    """A pulled file, before it is read whole: a regular file (a link to a device such as
+    /dev/zero is refused) of at most FILE_MAX_BYTES."""
+    check_regular(path)
+    size = Path(path).stat().st_size
+    if size > FILE_MAX_BYTES:
+        raise InputError(f"{path}: {size >> 20} MB is more than a board writes (at most "
+                         f"{FILE_MAX_BYTES >> 20} MB, the largest --capture-kb)")
+
+
 def decode(path: str | Path) -> Decoded:
+    check_pulled(path)
     try:
         data = Path(path).read_bytes()
     except OSError as e:
@@ -94,7 +108,10 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)
     if rtype == log.BOOT:
+        kinds = deff.model_kinds(v[14])
         checks = [(1 <= v[2] <= 5376, "rate_hz"), (v[5] <= 3, "axis"),
+                  (1 <= v[3] and v[2] * v[3] <= 65535, "seconds (a segment of 1..65535 samples)"),
+                  (all(k in deff.NAMES for k in kinds) and len(set(kinds)) == len(kinds), "model"),
                   (v[6] in (2, 4, 8, 16), "range_g"), (v[7] <= 1, "fifo"),
                   (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit")]
     elif rtype == log.REST:
@@ -133,6 +150,20 @@ def read_capture(dirpath: Path) -> Capture:
     return Capture(blocks, boots[-1] if boots else None)
 
 
+def _processor(lg, b: dict, profile: str | None):
+    """The device Processor with a BOOT record's settings (profile: that profile's pipeline
+    settings instead)."""
+    model = "+".join(["base"] + [deff.NAMES[k] for k in deff.model_kinds(b["model"])])
+    if profile is None:
+        return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                         threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
+                         max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
+                         model=model, fit=b["fit"], range_g=b["range_g"])
+    from acal import profile as dprofile
+    return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
+                     model=model, profile=dprofile.parse(profile), range_g=b["range_g"])
+
+
 def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None = None):
     """Feed a pulled capture through the current device Processor, configured from the board's
     BOOT record, logging to log_path.  profile: run that profile's pipeline settings instead
@@ -144,19 +175,16 @@ def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None =
             raise InputError(f"{d}: no {f} (pull a board that ran with capture on)")
     cap = read_capture(d)
     if cap.boot is None:
-        raise InputError(f"{d}/log.bin: no BOOT record, cannot tell the board's settings")
+        bad = [why for _, why in decode(d / "log.bin").malformed]
+        raise InputError(f"{d}/log.bin: no BOOT record, cannot tell the board's settings"
+                         + (f" (dropped: {bad[0]})" if bad else ""))
     b = dict(zip(FIELDS[log.BOOT], cap.boot))
     lg = log.Log(str(log_path))
-    model = "+".join(["base"] + [deff.NAMES[k] for k in deff.model_kinds(b["model"])])
-    if profile is None:
-        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                         threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
-                         max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                         model=model, fit=b["fit"], range_g=b["range_g"])
-    else:
-        from acal import profile as dprofile
-        proc = Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                         model=model, profile=dprofile.parse(profile), range_g=b["range_g"])
+    try:
+        proc = _processor(lg, b, profile)
+    except (ValueError, KeyError, OverflowError) as e:   # settings the app's checks refuse
+        raise InputError(f"{d}/log.bin: the BOOT record's settings are not ones the app runs "
+                         f"({' '.join(str(e).split())[:120]})") from None
     for blk in cap.blocks:
         if blk[0] == "gap":
             proc.gap(blk[2])
@@ -243,6 +271,10 @@ def summary(dirpath: str | Path) -> dict:
            "counters": lg.dicts(log.COUNTERS)[-1] if lg.of(log.COUNTERS) else None,
            "calibrations": cals, "rest_points": rests,
            "dropped": lg.dropped_report(data)}
+    for f in ("cal_a.bin", "cal_b.bin"):
+        note_input(d / f)
+        if os.path.lexists(d / f):
+            check_pulled(d / f)
     store = log.CalStore(str(d / "cal_a.bin"), str(d / "cal_b.bin"))
     slot, rec = store.load()
     out["stored_calibration"] = None if rec is None else {

@@ -18,7 +18,7 @@ from accelcal.errors import InputError
 from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.fixedpoint import g_to_point, g_to_sample
 
-BATCH = 1000  # samples per B record
+BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
 
 
 @dataclass(frozen=True)
@@ -195,22 +195,27 @@ class DeviceResult:
         return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
 
 
-def protocol_items(groups: list[Group], cfg: Config):
+def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH, bulk: bool = False):
     """The runner's calls, in order, as (method, args): configure, then per group its points or
-    samples with their conditions, gaps and wear, and end.  All ints."""
+    samples (batch a call at most) with their conditions, gaps and wear, and end.  All ints.
+    bulk: a group's points as one ("points", (q (n, 3) ints, their conditions (n, 3) or None))
+    for bridge/feed.py."""
     yield "configure", (cfg.values(),)
     composed = bool(cfg.kinds) or cfg.conditions
     for g in groups:
         yield "group", (g.name,)
         if g.points is not None or g.points_q16 is not None:
             q = g.point_ints()
-            cond = g.conditions(len(q)).tolist()
-            last = None
-            for (x, y, z), c in zip(q.tolist(), cond):
-                if composed and c != last:
-                    yield "conditions", (c[0], c[1], c[2])
-                    last = c
-                yield "point", (x, y, z)
+            if bulk:
+                yield "points", (np.asarray(q, np.int64),
+                                 np.asarray(g.conditions(len(q)), np.int64) if composed else None)
+            else:
+                last = None
+                for (x, y, z), c in zip(q.tolist(), g.conditions(len(q)).tolist()):
+                    if composed and c != last:
+                        yield "conditions", (c[0], c[1], c[2])
+                        last = c
+                    yield "point", (x, y, z)
         if g.samples is not None:
             q = g_to_sample(g.samples)
             n = len(q)
@@ -235,8 +240,8 @@ def protocol_items(groups: list[Group], cfg: Config):
                     yield "worn", (state,)
                 if composed:
                     yield "conditions", (int(cond[a, 0]), int(cond[a, 1]), int(cond[a, 2]))
-                for s in range(a, b, BATCH):
-                    chunk = q[s:min(b, s + BATCH)]
+                for s in range(a, b, batch):
+                    chunk = q[s:min(b, s + batch)]
                     yield "samples", (chunk.ravel().tolist(), len(chunk))
         yield "end", ()
 
@@ -245,9 +250,9 @@ _LINE_TAGS = {"configure": "C", "group": "G", "conditions": "T", "point": "P", "
               "worn": "W", "end": "E"}
 
 
-def protocol_lines(groups: list[Group], cfg: Config):
+def protocol_lines(groups: list[Group], cfg: Config, batch: int = BATCH):
     """The same calls as the text lines a MicroPython child reads (mp_runner.py's protocol)."""
-    for method, args in protocol_items(groups, cfg):
+    for method, args in protocol_items(groups, cfg, batch):
         if method == "samples":
             buf, n = args
             yield f"B {n} " + " ".join(map(str, buf))

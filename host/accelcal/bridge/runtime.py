@@ -1,10 +1,12 @@
 """Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
-unix port (a subprocess; 64-bit: small ints to 2**62), or under the 32-bit MicroPython
-(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32).
+unix port (a subprocess; 64-bit: small ints to 2**62), under the 32-bit MicroPython
+(WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32),
+or on the emulated RP2040 running MicroPython (rp2040) or CircuitPython (circuitpython) firmware.
 All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py), so their
 answers can be compared bit for bit."""
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
@@ -13,8 +15,10 @@ from pathlib import Path
 
 from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, condition_changes,
                                       device_conditions, parse, protocol_items, protocol_lines)
+from accelcal.bridge import rp2040
+from accelcal.bridge.feed import offer_points
 from accelcal.bridge.scripts import mp_runner
-from accelcal.errors import InputError
+from accelcal.errors import InputError, InterpreterFailed
 from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
 
 __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "device_conditions",
@@ -23,7 +27,7 @@ __all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "circuitpython")
 
 
 def micropython_path() -> str:
@@ -41,37 +45,42 @@ def micropython_path() -> str:
                      "into .venv-mpy) or set ACCELCAL_MICROPYTHON")
 
 
+def emitted_device_dir() -> str:
+    """device/ as a port with emitters compiles it (rp2040.emitted_source: the marked hot loops as
+    viper), written once per content under the temporary directory.  The unix port runs this copy,
+    so its identity tests exercise the viper code; the WebAssembly port (no emitters) runs device/
+    itself, the plain Python."""
+    files = sorted((DEVICE_DIR / "acal").glob("*.py"))
+    key = hashlib.sha256(b"".join(f.name.encode() + b"\0" + f.read_bytes() for f in files))
+    root = Path(tempfile.gettempdir()) / f"accelcal-emitted-{key.hexdigest()[:16]}"
+    if not root.exists():
+        part = Path(tempfile.mkdtemp(prefix="accelcal-emitted-"))
+        (part / "acal").mkdir()
+        for f in files:
+            (part / "acal" / f.name).write_text(rp2040.emitted_source(f.read_text()))
+        try:
+            part.rename(root)
+        except OSError:   # another process made it first
+            shutil.rmtree(part, ignore_errors=True)
+    return str(root)
+
+
 def run_micropython_script(script: str, *args: str, heap: str | None = None,
-                           timeout: float = 600, extra_path: list[str] = ()) -> str:
-    """Run a script file under the MicroPython unix port with device/ (and extra_path) on its
-    path."""
+                           timeout: float = 600, extra_path: list[str] = (),
+                           device_path: str | None = None) -> str:
+    """Run a script file under the MicroPython unix port with device/ as emitted for it
+    (emitted_device_dir; or device_path: a folder holding the package, e.g. compiled to .mpy)
+    and extra_path on its path."""
     cmd = [micropython_path()]
     if heap:
         cmd += ["-X", f"heapsize={heap}"]
     cmd += [script, *args]
-    env = dict(os.environ, MICROPYPATH=":".join([str(DEVICE_DIR), *extra_path, ".frozen"]))
+    env = dict(os.environ, MICROPYPATH=":".join([device_path or emitted_device_dir(), *extra_path,
+                                                 ".frozen"]))
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     if proc.returncode != 0:
         raise InterpreterFailed("micropython", proc)
     return proc.stdout
-
-
-class InterpreterFailed(InputError):
-    """A MicroPython child ended with an error: one line (its last error line), the whole
-    output kept in a file named in it (the protocol can be thousands of lines)."""
-
-    def __init__(self, name: str, proc: subprocess.CompletedProcess):
-        import tempfile
-        text = (proc.stdout or "") + (proc.stderr or "")
-        fd, path = tempfile.mkstemp(prefix=f"accelcal-{name}-", suffix=".log")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-        errs = [ln for ln in lines if "Error" in ln or "error" in ln]
-        last = (errs or lines or ["no output"])[-1][:200]
-        super().__init__(f"{name} failed (exit {proc.returncode}): {last}; its whole output is "
-                         f"in {path}")
-        self.output = text
 
 
 def micropython32_module() -> str:
@@ -101,13 +110,28 @@ def run_micropython32_script(script: str, *args: str, heap: int = 1 << 20,
     return proc.stdout
 
 
+def check(runtime: str) -> None:
+    """One line (InputError) now, not after the host's work, when the runtime cannot start."""
+    if runtime == "micropython":
+        micropython_path()
+    elif runtime == "micropython32":
+        micropython32_module()
+    elif runtime == "rp2040":
+        rp2040.check()
+    elif runtime == "circuitpython":
+        rp2040.check(rp2040.CIRCUITPYTHON)
+
+
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
     """Run the device pipeline on each group under the chosen runtime (RUNTIMES)."""
     if runtime == "cpython":   # in-process: ints in, ints out
         collector = Collector()
         runner = mp_runner.Runner(collector.emit)
-        for method, args in protocol_items(groups, cfg):
-            getattr(runner, method)(*args)
+        for method, args in protocol_items(groups, cfg, bulk=True):
+            if method == "points":   # the bins' refusals judged in bulk, the rest one at a time
+                offer_points(runner, collector, *args)
+            else:
+                getattr(runner, method)(*args)
         return collector.results
     if runtime in ("micropython", "micropython32"):
         script = run_micropython_script if runtime == "micropython" else run_micropython32_script
@@ -117,4 +141,10 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
                 for line in protocol_lines(groups, cfg):
                     fh.write(line + "\n")
             return parse(script(str(RUNNER), str(inp)).splitlines())
+    if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
+        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
+        return parse(rp2040.run_protocol(list(lines)).out.splitlines())
+    if runtime == "circuitpython":   # CircuitPython's Feather RP2040 firmware on the same chip
+        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
+        return parse(rp2040.run_protocol(list(lines), rp2040.CIRCUITPYTHON).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -8,7 +8,7 @@ import sys
 
 from accelcal.cli import board, calibrate, diagnose, simulate, studies
 from accelcal.cli.options import Parser
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line
 
 GROUPS = (calibrate, simulate, board, diagnose, studies)   # the order of `accelcal --help`
 
@@ -22,16 +22,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    from accelcal.files.outputs import forget_inputs
+    forget_inputs()
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
         return args.func(args)
     except InputError as e:
-        print(f"accelcal: error: {e}", file=sys.stderr)
+        print(f"accelcal: error: {one_line(e)}", file=sys.stderr)
         return 2
     except BrokenPipeError:
         return 0
     except OSError as e:   # the system refused a read or a write (disk full, permissions...)
         where = f"{e.filename}: " if e.filename else ""
-        print(f"accelcal: error: {where}{e.strerror or e}", file=sys.stderr)
+        print(f"accelcal: error: {one_line(f'{where}{e.strerror or e}')}", file=sys.stderr)
         return 2

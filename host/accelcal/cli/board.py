@@ -14,7 +14,7 @@ def cmd_board_virtual(args) -> int:
     from accelcal.board.virtual import serve_main
     return serve_main(flash_dir=args.flash, stimulus=args.stimulus, days=args.days, rate=args.rate,
                       seed=args.seed, bus_faults=args.bus_faults, heap=args.heap,
-                      speed=args.speed, link=args.link, port_file=args.port_file)
+                      speed=args.speed, link=args.link, port_file=args.port_file, chip=args.chip)
 
 
 def _app_settings(args) -> dict:
@@ -113,16 +113,23 @@ def cmd_replay(args) -> int:
     return 0 if r["identical"] else 1
 
 
-def add_parsers(sub) -> None:
-    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
-    bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
+def _add_virtual(bsub) -> None:
     q = bsub.add_parser("virtual", help="start the virtual board on a pseudo-terminal",
                         description="The MicroPython unix port on a pseudo-terminal, a folder as its "
                                     "flash, a simulated LIS3DH behind a fake machine.I2C fed by a "
                                     "stimulus (a simulated wrist day unless --stimulus), virtual time. "
+                                    "With --chip rp2040, an emulated Pico instead: the RP2040 running "
+                                    "MicroPython's own firmware, its USB serial on the pty, the LIS3DH "
+                                    "on its I2C bus, a flash image file as its flash. "
                                     "Prints the port on stdout; then any `mpremote connect PORT ...` works. "
                                     "Runs until Ctrl-C or SIGTERM.")
-    q.add_argument("--flash", default="vboard-flash", help="folder that is the board's flash (default vboard-flash)")
+    q.add_argument("--chip", choices=["unix", "rp2040"], default="unix",
+                   help="unix (default): the MicroPython unix port; rp2040: an emulated Pico, "
+                        "MicroPython's own RPI_PICO firmware on rp2040js with the simulated LIS3DH "
+                        "on its I2C0 (make setup installs it), on its emulated clock")
+    q.add_argument("--flash", help="the board's flash: a folder for the unix port (default "
+                                   "vboard-flash), a 2 MB image file for rp2040 (default "
+                                   "vboard-pico.bin, made on first use, saved when the board stops)")
     q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
     q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
                    help="without --stimulus: days to simulate (default 1)")
@@ -136,6 +143,12 @@ def add_parsers(sub) -> None:
     q.add_argument("--link", help="also make this symlink to the port")
     q.add_argument("--port-file", help="also write the port to this file")
     q.set_defaults(func=cmd_board_virtual)
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
+    bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
+    _add_virtual(bsub)
 
     def app_args(q):
         g = q.add_argument_group("app settings")
@@ -182,7 +195,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--port", required=True)
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="folder for the logs (made if missing; the files arrive whole or not at all)")
-    p.add_argument("--force", action="store_true", help="replace an earlier pull's files in DIR")
+    p.add_argument("--force", action="store_true", help="replace an earlier pull in DIR: all of it (its files this board does not "
+                        "hold are removed, so DIR holds this pull only)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_pull)
 

@@ -4,15 +4,17 @@ from __future__ import annotations
 import argparse
 import sys
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
                                   pipeline_config, register_effects)
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line, printable
 from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.readers import RULE
 
 
-EPILOG_CAL = """\
-Input: a recording (CSV header t,x,y,z or t,x,y,z,temp in s, g, degC; or an Axivity .cwa,
-GENEActiv .bin, ActiGraph .gt3x) goes through rest detection, bins and the optimiser, streamed in
+EPILOG_CAL = RULE + """
+
+A recording goes through rest detection, bins and the optimiser, streamed in
 constant memory; a points file (CSV with x,y,z and optional temp,t,device) through bins and the
 optimiser.  The float reference methods (lsq, de, linauto, linminvar, campolo, merayo, minvol) are
 fitted on the points the device's bins selected; `accelcal compare` runs them all side by side.
@@ -46,35 +48,40 @@ def cmd_calibrate(args) -> int:
         raise InputError("--points applies to the float methods (--method lsq, ...); the device "
                          "method fits the points its bins select")
     engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
+    from accelcal.bridge.runtime import check
+    check(args.runtime)
     inputs = args.input
-    reads = [*inputs, args.fallback]
+    reads = [*inputs, args.fallback, args.effects]
     if args.save:
         check_output(args.save, reads, args.force, "--save")
     if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
         return _calibrate_batch(args, spec, engine)
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     if is_recording(inputs[0]):
         if args.by:
             raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
         from accelcal.pipeline.calibrate import calibrate_recording
-        from tqdm import tqdm
-        bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(),
-                   desc="reading")
+        bar = progress = None
+        if not args.quiet and sys.stderr.isatty():   # tqdm imported only to be shown
+            from tqdm import tqdm
+            bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, desc="reading")
+            progress = lambda n: bar.update(n - bar.n)  # noqa: E731
         recs = [calibrate_recording(inputs[0], pipeline_config(args, bool(spec.effects)), args.method,
-                                    args.runtime, spec, engine, progress=lambda n: bar.update(n - bar.n),
+                                    args.runtime, spec, engine, progress=progress,
                                     fallback=args.fallback, points=args.points or "bins")]
-        bar.close()
+        if bar is not None:
+            bar.close()
     else:
         recs = calibrate_groups(read_table(inputs[0]), args.by, pipeline_config(args, bool(spec.effects)),
                                 args.method, args.runtime, spec, args.points or "bins")
         if args.fallback:
             raise InputError("--fallback applies to recordings")
     failed = [r for r in recs if not r.usable]
-    for r in recs:
-        print(r.to_json() if args.json else r.report(args.by))
+    for r in recs:   # a --by column's values come from the file: printable, as every echo
+        print(r.to_json() if args.json else "\n".join(map(printable, r.report(args.by).split("\n"))))
     for r in failed:
         who = f"{args.by} {r[args.by]}: " if args.by else ""
-        print(f"accelcal: {who}{r['reason']}", file=sys.stderr)
+        print(f"accelcal: {one_line(who + str(r['reason']))}", file=sys.stderr)
     if args.save:
         ok = [r for r in recs if r.ok]
         if ok:
@@ -89,7 +96,8 @@ def _calibrate_batch(args, spec, engine) -> int:
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
     summary = args.summary or "accelcal-summary.csv"
-    check_output(summary, [*args.input, args.fallback, args.save], args.force, "--summary")
+    check_output(summary, [*args.input, args.fallback, args.save, args.effects], args.force,
+                 "--summary")
     job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
                     args.fallback, args.points or "bins", args.effects)
     if args.fallback:
@@ -117,14 +125,14 @@ def _calibrate_batch(args, spec, engine) -> int:
 def cmd_apply(args) -> int:
     from accelcal.pipeline.apply import apply_file
     from accelcal.files.params import load_params
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     from accelcal.model.effects import ModelSpec
     register_effects(args)
     model, p_int, ref = load_params(args.params, args.device)
     if not is_recording(args.input):
         raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
                          "or .cwa/.bin/.gt3x)")
-    check_output(args.output, [args.params, args.input], args.force, "-o/--output")
+    check_output(args.output, [args.params, args.input, args.effects], args.force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
     host_only = ModelSpec.parse(model).host_only
     if host_only:
@@ -163,10 +171,11 @@ def add_parsers(sub) -> None:
                         "kept (bins, the default), or every usable rest point (all: |v| within "
                         "0.5-1.5 g; the bins need not fill).  The same for the paper's model and "
                         "composed ones; the record says which (points_from)")
-    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+    p.add_argument("--runtime", choices=RUNTIMES, default="cpython",
                    help="interpreter that runs the device modules: micropython, the real unix port "
                         "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
-                        "ints past 2^30 allocate as on an RP2040)")
+                        "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
+                        "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "
@@ -202,7 +211,8 @@ def add_parsers(sub) -> None:
                                    "integer per-sample code (the paper's model through its numpy "
                                    "twin, bit-exact); writes t,x,y,z[,temp] in g, then the "
                                    "recording's further columns as read.  Streams: any length "
-                                   "of recording in constant memory.")
+                                   "of recording in constant memory.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("params", help="parameters JSON from calibrate --save")
     p.add_argument("input", help="recording CSV")
     p.add_argument("-o", "--output", required=True,

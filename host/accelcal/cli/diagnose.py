@@ -2,10 +2,13 @@
 a board's calibrations) and `compare` (every method on the same data)."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
-from accelcal.files.outputs import FORCE_HELP, check_output
+from accelcal.files.outputs import FORCE_HELP, check_figure_name, check_output
+from accelcal.files.readers import RULE
 
 
 def cmd_diagnose(args) -> int:
@@ -13,12 +16,19 @@ def cmd_diagnose(args) -> int:
     register_effects(args)
     return diagnose_main(path=args.input, model=args.model, history=args.history,
                          plots=args.plots, report_dir=args.report, force=args.force,
-                         as_json=args.json)
+                         as_json=args.json, effects=args.effects)
 
 
 def cmd_report(args) -> int:
+    reads = [args.history]
+    if Path(args.history).is_dir():   # a pulled folder: every file of the pull is read
+        from accelcal.bridge.boardlog import LOG_FILES
+        reads += [Path(args.history) / f for f in (*LOG_FILES, "summary.json")]
     if args.plot:   # a figure, regenerated from what it reads: replaced if it exists
-        check_output(args.plot, [args.history], True, "--plot")
+        check_output(args.plot, reads, True, "--plot")
+        check_figure_name(args.plot, "--plot")
+    if args.html:
+        check_output(args.html, [*reads, args.plot], args.force, "--html")
     if Path(args.history).is_dir():
         from accelcal.board.report import board_report
         return board_report(pulled_dir=args.history, html=args.html, force=args.force,
@@ -29,8 +39,10 @@ def cmd_report(args) -> int:
 
 
 def cmd_compare(args) -> int:
+    from accelcal.bridge.runtime import check
     from accelcal.pipeline.compare import compare_main
     register_effects(args)
+    check(args.runtime)
     return compare_main(pipeline_config(args, args.model != "base"), path=args.input,
                         methods_list=args.methods, train=args.train, runtime_name=args.runtime,
                         plots=args.plots, as_json=args.json, model=args.model)
@@ -43,7 +55,8 @@ def add_parsers(sub) -> None:
                                    "measures on the odd ones: held-out calibration error beside the "
                                    "noise floor, residuals against time, temperature, each axis and "
                                    "|a|, and for every catalogue effect not in the model the held-out "
-                                   "error with it added; names the missing effect, or none.")
+                                   "error with it added; names the missing effect, or none.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
                                  "as supply_mv are regressors too) or points file")
     p.add_argument("--model", default="base", help="model spec: base, base+temp_offset, ... (default base)")
@@ -83,7 +96,8 @@ def add_parsers(sub) -> None:
                                    "training point).  All are scored on the held-out part: mean "
                                    "| |a| - 1 g | in mg before and after, R (Farago eq. 21), fit "
                                    "time measured in this run.  A method that cannot fit shows "
-                                   "its reason; the others still run.")
+                                   "its reason; the others still run.",
+                       epilog=RULE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="recording CSV (t,x,y,z[,temp][,NAME...]: further columns such "
                                  "as supply_mv are regressors too) or points file")
     p.add_argument("--methods", metavar="M1,M2,...",
@@ -93,7 +107,7 @@ def add_parsers(sub) -> None:
                         "as Farago Table 3; thinned when the bins do not fill), the training points "
                         "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
                         "then costs O(points) per generation: minutes on days of data)")
-    p.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython",
+    p.add_argument("--runtime", choices=RUNTIMES, default="cpython",
                    help="interpreter for the device method")
     p.add_argument("--plots", metavar="DIR",
                    help="write training_curve.png: held-out error against the number of training "

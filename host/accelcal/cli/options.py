@@ -7,7 +7,7 @@ import argparse
 import math
 from dataclasses import replace
 
-from accelcal.errors import InputError
+from accelcal.errors import InputError, one_line
 
 
 class Parser(argparse.ArgumentParser):
@@ -15,7 +15,7 @@ class Parser(argparse.ArgumentParser):
     --help named for the details."""
 
     def error(self, message):
-        self.exit(2, f"accelcal: error: {message} (see `{self.prog} --help`)\n")
+        self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
 def int_in(lo, hi):
@@ -139,7 +139,10 @@ def pipeline_config(args, composed=False):
 EFFECTS_HELP = ("a Python file declaring effects of your own (EFFECTS = [dict(name=..., regressor="
                 "'temperature'|'time'|'reading'|'column:NAME', power=..., form='offset'|'gain', unit=..., "
                 "bound=..., explanation=...)]): they join the catalogue for this command "
-                "(docs/model-discovery.md \"Effects you declare\")")
+                "(docs/model-discovery.md \"Effects you declare\").  The file is run as Python "
+                "code, first, before any output is touched: name only a file you trust, as you "
+                "would a config file.  At most 64 effects; anything it raises or exits with is "
+                "one line, exit 2")
 
 
 def add_effects_arg(p) -> None:
@@ -149,5 +152,7 @@ def add_effects_arg(p) -> None:
 def register_effects(args) -> None:
     """The user's declared effects into the catalogue, checked (one line, exit 2, if bad)."""
     if getattr(args, "effects", None):
+        from accelcal.files.outputs import note_input
         from accelcal.model.declared import register
+        note_input(args.effects)   # run as code, and never an output (--force or not)
         register(args.effects)

@@ -49,8 +49,8 @@ def cmd_simulate_wrist(args) -> int:
                              "or one --effects FILE declares)")
     if len(set(args.effect)) != len(args.effect):
         raise InputError("--effect: the same effect twice")
-    out = check_output(args.output, (), args.force, "-o/--output")
-    check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
+    out = check_output(args.output, [args.effects], args.force, "-o/--output")
+    check_output(out.with_suffix(".truth.json"), [args.effects], args.force, "its truth file")
     if args.stimulus:
         check_output(args.stimulus, [out], args.force, "--stimulus")
 

@@ -2,11 +2,14 @@
 `bench`."""
 from __future__ import annotations
 
+from accelcal.bridge.runtime import RUNTIMES
 from accelcal.cli.options import float_in, int_in
 
 
 def cmd_table2(args) -> int:
+    from accelcal.bridge.runtime import check
     from accelcal.studies.paper import table2_main
+    check(args.runtime)
     return table2_main(scenarios=args.scenarios, candidates=args.candidates,
                        noise_dist=args.noise_dist, runtime_name=args.runtime,
                        no_first=args.no_first, profile=args.profile, seed=args.seed,
@@ -27,7 +30,7 @@ def cmd_table3(args) -> int:
 
 def cmd_bench(args) -> int:
     from accelcal.studies.bench import bench_main
-    return bench_main(as_json=args.json)
+    return bench_main(runtime_name=args.runtime, as_json=args.json)
 
 
 def add_parsers(sub) -> None:
@@ -42,7 +45,7 @@ def add_parsers(sub) -> None:
     q.add_argument("--candidates", type=int_in(1, 100000), default=300,
                    help="random rest means offered to the bins per scenario (default 300)")
     q.add_argument("--noise-dist", choices=["normal", "uniform"], default="normal")
-    q.add_argument("--runtime", choices=["cpython", "micropython", "micropython32"], default="cpython")
+    q.add_argument("--runtime", choices=RUNTIMES, default="cpython")
     q.add_argument("--no-first", action="store_true", help="skip the first-come comparison")
     q.add_argument("--profile", choices=["paper", "wear"], default="paper",
                    help="paper (default: the paper's Table 2), or wear: the default profile's "
@@ -85,7 +88,15 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("bench", help="timings and allocations under MicroPython and CPython",
                        description="Measured in one run: optimiser time (N=18, M=50) under both "
                                    "runtimes, rest-detector cost per sample as a ratio to a bare "
-                                   "loop, bytes allocated per sample and per optimiser run.")
+                                   "loop, bytes allocated per sample and per optimiser run, "
+                                   "the fits' slices, the app on the simulated LIS3DH.")
+    p.add_argument("--runtime", choices=["micropython", "rp2040"], default="micropython",
+                   help="micropython (default): the unix port, the 32-bit port and CPython, with "
+                        "RP2040 figures estimated as unix x 70; rp2040: also every device figure "
+                        "on the emulated RP2040 (MicroPython's Pico firmware on rp2040js: cycles "
+                        "and emulated ms of the per-sample paths, each fit's whole time and worst "
+                        "slice, import time, free heap) beside the unix port's, with their ratios "
+                        "(a few minutes more); its fit figures replace the estimates")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_bench)
 

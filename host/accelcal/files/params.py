@@ -9,9 +9,12 @@ from pathlib import Path
 from acal import fixed
 from acal import model as dmodel
 from accelcal.errors import InputError
-from accelcal.files.outputs import write_text
+from accelcal.files.outputs import check_regular, write_text
 from accelcal.fixedpoint import params_to_float
 from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
+
+
+PARAMS_MAX_BYTES = 16 << 20   # a calibrate --by file of thousands of devices is ~ 2 MB
 
 
 def params_record(p_int, model="base", method="device", **extra) -> dict:
@@ -55,6 +58,10 @@ def load_params(path: str, device: str | None = None) -> tuple[str, list[int], d
     `calibrate --by` file.  The reference (T0 degC, t0 s) is a composed model's; {} for base.
     Everything is checked: the shape, integer parameters inside the device's calibration bounds
     (a file no fit could have written is refused), a finite reference."""
+    check_regular(path)
+    if Path(path).stat().st_size > PARAMS_MAX_BYTES:
+        raise InputError(f"{path}: not a parameters file (larger than "
+                         f"{PARAMS_MAX_BYTES >> 20} MB)")
     try:
         text = Path(path).read_bytes().decode("utf-8")
         rec = json.loads(text, parse_constant=_reject_constant)
@@ -66,6 +73,8 @@ def load_params(path: str, device: str | None = None) -> tuple[str, list[int], d
         raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno})") from None
     except ValueError as e:
         raise InputError(f"{path}: {e}") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a parameters file (JSON nested too deeply)") from None
     if not isinstance(rec, dict):
         raise InputError(f"{path}: a parameters file is a JSON object (from calibrate --save); "
                          f"found {type(rec).__name__}")

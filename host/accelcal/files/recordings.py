@@ -26,15 +26,13 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
-from accelcal.model.effects import COLUMN_NAME, RESERVED
+from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
-RECORDING_HEADERS = (["t", "x", "y", "z"], ["t", "x", "y", "z", "temp"])
-# Further named columns after those (battery voltage, say: a regressor an effect may follow,
-# model/effects.py COLUMN_NAME, RESERVED, SUPPLY_COLUMN).
+# Which file is a recording, and its header's names: files/readers.py (the one rule).
 COLUMN_MAX = 1e9     # |value| of an extra column: beyond it a float fit loses its digits
 GAP_S = 1.0
 CHUNK = 1 << 20                      # samples per chunk handed on
-ACTIGRAPHY = {".cwa": "Axivity CWA", ".bin": "GENEActiv BIN", ".gt3x": "ActiGraph GT3X"}
+GT3X_EXTRA = ("install the optional ActiGraph reader: pip install 'accelcal[gt3x]' (pygt3x)")
 STANDARD_RANGES_G = (2, 4, 8, 16)
 
 
@@ -49,16 +47,26 @@ class Chunk:
     cols: dict = field(default_factory=dict)
 
 
-def recording_columns(header: list[str]) -> list[str] | None:
-    """The further columns of a recording's CSV header (t,x,y,z[,temp][,NAME...]), in order;
-    None when the header is not a recording's (a points file, or anything else)."""
-    if header[:4] != ["t", "x", "y", "z"]:
-        return None
-    rest = header[5:] if header[4:5] == ["temp"] else header[4:]
-    if any(h in RESERVED or not COLUMN_NAME.fullmatch(h) for h in rest) or \
-            len(set(rest)) != len(rest):
-        return None
-    return rest
+def arrow():
+    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
+    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
+    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
+    for whatever imports it itself (pygt3x)."""
+    import sys
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    if "pandas" not in sys.modules:
+        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
+            def find_spec(self, name, path=None, target=None):
+                if name == "pandas":
+                    raise ModuleNotFoundError("pandas", name="pandas")
+        blocker = NoPandas()
+        sys.meta_path.insert(0, blocker)
+        try:
+            pa.array([0.0]).to_numpy()
+        finally:
+            sys.meta_path.remove(blocker)
+    return pa, pacsv
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -84,47 +92,42 @@ class Recording:
 
 
 def open_recording(path: str | Path) -> Recording:
-    """The reader for a file, chosen by its name: .cwa/.bin/.gt3x are actigraphy files,
-    anything else is CSV."""
+    """The reader for a file, by the rule of files/readers.py: .cwa/.bin/.gt3x are actigraphy
+    files, a CSV is a recording by its header (a points file or anything else: InputError)."""
     path = str(path)
-    if not Path(path).is_file():
-        raise InputError(f"{path}: no such file")
+    lay = layout(path)
     ext = Path(path).suffix.lower()
     if ext == ".cwa":
         return CwaRecording(path)
     if ext in ACTIGRAPHY:
         return ActigraphyRecording(path)
-    return CsvRecording(path)
+    return CsvRecording(path, lay)
 
 
 class CsvRecording(Recording):
     format = "CSV"
 
-    def __init__(self, path: str):
+    def __init__(self, path: str, lay=None):
         super().__init__(path)
-        header = csv_header(path)
-        if not header:
-            raise InputError(f"{path}: empty file")
-        columns = recording_columns(header)
-        if columns is None:
-            raise InputError(f"{path}: a recording's header is t,x,y,z or t,x,y,z,temp, then any "
-                             f"further named columns (lower-case, not device); found "
-                             f"{','.join(header)[:200]}")
-        self.header = header
-        self.has_temp = "temp" in header
-        self.columns = columns
+        lay = lay or layout(path)
+        if lay.kind != "recording":
+            raise InputError(f"{path}: a points file, not a recording: a recording's header begins "
+                             f"with its time column, then x,y,z (found {','.join(lay.raw)[:120]})")
+        self.header = lay.header     # the rule's names (t, temp) for the file's spellings
+        self.has_temp = "temp" in self.header
+        self.columns = lay.further
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
         constant; `size` is not used (Arrow's blocks are the natural unit)."""
-        import pyarrow as pa
-        import pyarrow.csv as pacsv
+        pa, pacsv = arrow()
         types = {h: pa.float64() for h in self.header}
         first = 0
         self._last_t = None
         try:
             reader = pacsv.open_csv(
-                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True),
+                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True,
+                                                          column_names=self.header, skip_rows=1),
                 convert_options=pacsv.ConvertOptions(column_types=types, null_values=[""]))
             for batch in reader:
                 if batch.num_rows:
@@ -163,6 +166,8 @@ class CsvRecording(Recording):
 
 
 def _arrow_message(e: Exception) -> str:
+    if "straddl" in str(e):   # a row longer than Arrow's 1 MB block: no recording's line is
+        return "a line longer than 1 MB (not a recording's line)"
     return " ".join(str(e).split())[:300]
 
 
@@ -200,24 +205,52 @@ def _columns(data: dict):
     return t, hf["acceleration"], temp
 
 
-def _pygt3x_columns(path: str):
-    """ActiGraph files actfast gives no samples for (GT9X Link): pygt3x, if installed (the
-    optional extra `accelcal[gt3x]`).  Its idle-sleep rows (the device stopped sampling while
-    still and the reader repeats a sample) are left out: a gap, never rest."""
+def _pygt3x_read(path: str):
+    """An ActiGraph file through pygt3x, if installed (the optional extra `accelcal[gt3x]`):
+    ((t s, xyz (n, 3) g float32, temp degC held per reading or None), metadata, its log
+    messages) or None when
+    pygt3x is not installed.  pygt3x reads what actfast does not: GT9X Link files (no samples
+    from actfast), old NHANES-format .gt3x (activity.bin, no log.bin) and CentrePoint .agdc (the
+    same zip of log.bin and info.txt as a .gt3x; pygt3x's README).  Idle-sleep rows (the
+    device stopped sampling while still and the reader repeats a sample) are left out: a gap,
+    never rest.  Temperature: the accelerometer chip's own (ADXL) reading, held until the
+    next; the board's (MCU) is kept out, it warms with the electronics, not the sensor."""
     try:
         from pygt3x.reader import FileReader
     except ImportError:
         return None
+    import logging
+    said: list[str] = []     # what pygt3x logs of the file: the record's reader warnings
+
+    class Said(logging.Handler):
+        def emit(self, record):
+            said.append(record.getMessage())
+    log = logging.getLogger("pygt3x")
+    handler, propagate = Said(), log.propagate
+    log.addHandler(handler)
+    log.propagate = False
+    import warnings
     try:
-        with FileReader(path) as r:
+        with FileReader(path) as r, warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # pandas' deprecations inside pygt3x, not ours
             df = r.to_pandas()
+            info = {k: v for k, v in vars(r.info).items() if isinstance(v, (int, float, str))}
+            temp_df = r.temperature_to_pandas() if "log.bin" in r.zipfile.namelist() else None
     except Exception as e:   # pygt3x's own errors for files it cannot read
         raise InputError(f"{path}: not a readable ActiGraph file ({' '.join(str(e).split())[:200]})"
                          ) from None
+    finally:
+        log.removeHandler(handler)
+        log.propagate = propagate
     if "IdleSleepMode" in df:
         df = df[~df["IdleSleepMode"].astype(bool)]
-    return (df.index.values.astype(np.float64), df[["X", "Y", "Z"]].values.astype(np.float32),
-            None)
+    t = df.index.values.astype(np.float64)
+    temp = None
+    if temp_df is not None and len(temp_df) and "TemperatureADXL" in temp_df:
+        tl = temp_df.index.values.astype(np.float64)
+        held = np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
+        temp = temp_df["TemperatureADXL"].values.astype(np.float64)[held]
+    return (t, df[["X", "Y", "Z"]].values.astype(np.float32), temp), {"info": info}, said
 
 
 class ActigraphyRecording(Recording):
@@ -225,17 +258,27 @@ class ActigraphyRecording(Recording):
 
     def __init__(self, path: str):
         super().__init__(path)
-        self.format = ACTIGRAPHY[Path(path).suffix.lower()]
-        data = _actfast(path, self.format)
-        self.format = data.get("format", self.format)
-        cols = _columns(data)
-        if cols is None and Path(path).suffix.lower() == ".gt3x":
-            cols = _pygt3x_columns(path)
-            if cols is None:
-                raise InputError(f"{path}: actfast reads no samples from this ActiGraph file "
-                                 "(a GT9X Link?); install the optional reader: pip install "
-                                 "'accelcal[gt3x]' (pygt3x)")
-            self.meta_reader = "pygt3x"
+        ext = Path(path).suffix.lower()
+        self.format = ACTIGRAPHY[ext]
+        data, cols = {}, None
+        why = "CentrePoint .agdc files are read by pygt3x"
+        if ext != ".agdc":    # actfast does not know CentrePoint files: pygt3x reads them
+            try:
+                data = _actfast(path, self.format)
+            except InputError as e:
+                if ext != ".gt3x":
+                    raise
+                why = str(e).removeprefix(f"{path}: ")   # an old NHANES-format .gt3x, say
+            self.format = data.get("format", self.format)
+            cols = _columns(data) if data else None
+            if data and cols is None:
+                why = "actfast reads no samples from this ActiGraph file (a GT9X Link?)"
+        if cols is None and ext in (".gt3x", ".agdc"):
+            read = _pygt3x_read(path)
+            if read is None:
+                raise InputError(f"{path}: {why}; {GT3X_EXTRA}")
+            cols, data["metadata"], data["warnings"] = read
+            self.reader = "pygt3x"
         if cols is None or not len(cols[0]):
             raise InputError(f"{path}: {self.format} file holds no acceleration samples")
         self.t, self.xyz, self.temp = cols
@@ -315,12 +358,14 @@ class CwaRecording(Recording):
 
 def _declared_range(meta: dict) -> float | None:
     """The full scale a file's header declares: Axivity's accelerometer_range_g, GENEActiv's
-    "Accelerometer Range" ("-8 to 8")."""
+    "Accelerometer Range" ("-8 to 8"), ActiGraph's info.txt "Acceleration Max" ("8.0", as
+    actfast gives it; acceleration_max as pygt3x does; 0 in files that leave it out)."""
     for sec in meta.values():
         if not isinstance(sec, dict):
             continue
         for k, v in sec.items():
-            if k in ("accelerometer_range_g", "Accelerometer Range"):
+            if k in ("accelerometer_range_g", "Accelerometer Range", "Acceleration Max",
+                     "acceleration_max"):
                 try:
                     g = float(str(v).split()[-1])
                 except (ValueError, IndexError):
@@ -340,21 +385,14 @@ def read_whole(path: str | Path):
     return t, xyz, temp, rec
 
 
-def is_recording(path: str | Path) -> bool:
-    """A recording (to stream) rather than a points file: an actigraphy file, or a CSV whose
-    header is t,x,y,z[,temp] and any further named columns (recording_columns)."""
-    if Path(path).suffix.lower() in ACTIGRAPHY:
-        return True
-    return recording_columns(csv_header(path)) is not None
-
-
-def csv_header(path: str | Path) -> list[str]:
-    """A CSV file's header cells, stripped ([] for an empty file)."""
-    import csv
+def sensor_of(path: str | Path) -> str | None:
+    """The accelerometer a file's figures may be worded for: the LIS3DH of accelcal's boards
+    and simulator for a recording CSV; a device file's format name (whose sensor is not the
+    LIS3DH); None for anything else (a points file)."""
     try:
-        with open(path, newline="") as fh:
-            return [h.strip() for h in next(csv.reader([fh.readline()]), [])]
-    except OSError as e:
-        raise InputError(f"{path}: cannot open ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a CSV text file (nor .cwa/.bin/.gt3x)") from None
+        lay = layout(path)
+    except InputError:
+        return None
+    if lay.kind != "recording":
+        return None
+    return ACTIGRAPHY.get(Path(path).suffix.lower(), "LIS3DH")

@@ -12,7 +12,12 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
-from accelcal.files.recordings import ACTIGRAPHY, read_whole, recording_columns
+from accelcal.files.readers import ACTIGRAPHY, layout
+from accelcal.files.recordings import read_whole
+
+# A points file is read whole: beyond this it is not rest means (a 14-day recording gives ~10 MB)
+POINTS_MAX_BYTES = 32 << 20
+MIN_POINT_STEP_S = 1.0     # the shortest rest segment (--seconds >= 1)
 
 
 @dataclass
@@ -43,22 +48,21 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
         if temp is not None:
             cols["temp"] = temp
         return Table(path, cols, "recording", {})
+    lay = layout(path)     # the one rule: the kind, the header's names (files/readers.py)
+    header = lay.header
+    kind = lay.kind
+    size = Path(path).stat().st_size
+    if kind == "points" and size > POINTS_MAX_BYTES:
+        raise InputError(f"{path}: a points file of {size >> 20} MB (at most "
+                         f"{POINTS_MAX_BYTES >> 20} MB; a recording's header begins with its time "
+                         "column)")
     try:
         fh = open(path, newline="")
     except OSError as e:
         raise InputError(f"{path}: cannot open ({e.strerror})") from None
     with fh:
         reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise InputError(f"{path}: empty file") from None
-        for need in ("x", "y", "z"):
-            if need not in header:
-                raise InputError(f"{path}: header needs columns x,y,z (and t first for a recording); "
-                                 f"found {','.join(header)}")
-        if len(set(header)) != len(header):
-            raise InputError(f"{path}: repeated column in header {','.join(header)}")
+        fh.readline()     # the header, read above within its bound
         if not any(h in text_ok for h in header):
             # Fast path: numpy's C parser.  Anything it rejects goes through the checks below,
             # which name the line and column.
@@ -70,13 +74,16 @@ def read_table(path: str | Path, text_ok: tuple[str, ...] = ("device",)) -> Tabl
                 data = None
             if data is not None and data.shape[1] == len(header) and len(data) \
                     and np.isfinite(data).all():
-                kind = "recording" if recording_columns(header) is not None else "points"
                 return _checked(Table(path, {h: np.ascontiguousarray(data[:, i])
                                              for i, h in enumerate(header)}, kind, {}))
             fh.seek(0)
-            next(reader)
-        rows = list(reader)
-    kind = "recording" if recording_columns(header) is not None else "points"
+            fh.readline()
+        try:
+            rows = list(reader)
+        except csv.Error as e:   # a cell past the csv module's limit, a NUL
+            raise InputError(f"{path}:{reader.line_num}: not CSV ({e})") from None
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: not a CSV text file (not UTF-8)") from None
     ncol = len(header)
     cols: dict[str, list] = {h: [] for h in header}
     for lineno, row in enumerate(rows, start=2):
@@ -116,6 +123,12 @@ def _checked(table: "Table") -> "Table":
     c = table.columns
     xyz = np.column_stack([c["x"], c["y"], c["z"]])
     check_values(table.path, c.get("t", np.empty(0)), xyz, c.get("temp"), 0)
+    if table.kind == "points" and "t" in c and len(c["t"]) > 2:
+        step = float(np.median(np.diff(c["t"])))
+        if step < MIN_POINT_STEP_S:   # rest means lie a segment (>= 1 s) apart: samples do not
+            raise InputError(f"{table.path}: a points file whose t steps by {step:.3g} s holds "
+                             f"samples, not rest means; a recording's header begins with its "
+                             f"time column (t,x,y,z...)")
     return table
 
 

@@ -13,7 +13,8 @@ one in device/acal, run through accelcal.bridge.runtime.
 | minvol    | minvolellipsoid.py    | Bonnet 2009, minimum-volume enclosing ellipsoid (Khachiyan) |
 """
 from accelcal.methods.base import (P0, REGISTRY, FitError, Method, calibration_error_mg,  # noqa: F401
-                                   check_points, correct, fisher_bound, k_matrix, one_side_margin,
+                                   check_points, correct, coverage_reason, fisher_bound, k_matrix,
+                                   one_side_margin,
                                    upper_factor)
 from accelcal.methods.float_device import float_device  # noqa: F401
 from accelcal.methods.global_search import de  # noqa: F401

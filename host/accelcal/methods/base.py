@@ -77,26 +77,34 @@ def calibration_error_mg(p: np.ndarray | None, v: np.ndarray) -> float:
 
 def check_points(v, need: int, name: str) -> np.ndarray:
     """The points as (N, 3) float64, or FitError naming what makes them unusable for a method
-    that estimates `need` parameters: too few, not finite, collinear, coplanar, or all on one
-    side of a plane through 0 g (one hemisphere: the centre is then an extrapolation)."""
+    that estimates `need` parameters (coverage_reason)."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+    why = coverage_reason(v, need, name)
+    if why:
+        raise FitError(why)
+    return v
+
+
+def coverage_reason(v: np.ndarray, need: int = 9, name: str = "a calibration") -> str | None:
+    """Why points (N, 3) g cannot pin `need` parameters, or None: too few, not finite, collinear,
+    coplanar, or all on one side of a plane through 0 g (one hemisphere: the centre is then an
+    extrapolation).  The one coverage rule: every float method checks it, and compare and
+    diagnose ask it of the points they fit (and hand the device) and of those they score."""
     if len(v) < need:
-        raise FitError(f"{name} estimates {need} parameters and needs at least {need} points, "
-                       f"got {len(v)}")
+        return f"{name} estimates {need} parameters and needs at least {need} points, got {len(v)}"
     if not np.isfinite(v).all():
-        raise FitError(f"{name}: points contain NaN or infinite values")
+        return f"{name}: points contain NaN or infinite values"
     sv = np.linalg.svd(v - v.mean(axis=0), compute_uv=False)
     if sv[1] <= 1e-9 * max(sv[0], 1e-300):
-        raise FitError(f"{name}: the {len(v)} points are collinear; an ellipsoid needs points "
-                       "in all directions")
+        return (f"{name}: the {len(v)} points are collinear; an ellipsoid needs points in all "
+                "directions")
     if sv[2] <= 1e-9 * sv[0]:
-        raise FitError(f"{name}: the {len(v)} points lie in one plane; an ellipsoid needs points "
-                       "off it")
-    margin = one_side_margin(v)
-    if margin > 1e-9:
-        raise FitError(f"{name}: the points cover one hemisphere only (all lie on one side of "
-                       "a plane through 0 g); the other side is needed")
-    return v
+        return f"{name}: the {len(v)} points lie in one plane; an ellipsoid needs points off it"
+    if one_side_margin(v) > 1e-9:
+        return (f"{name}: the {len(v)} points cover one hemisphere only (all lie on one side of a "
+                "plane through 0 g: one orientation, or a device that never turned over); the "
+                "other side is needed")
+    return None
 
 
 def one_side_margin(v: np.ndarray) -> float:

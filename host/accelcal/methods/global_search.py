@@ -10,7 +10,6 @@ not numerical precision.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import differential_evolution
 
 from accelcal.methods.base import FitError, check_points, method
 
@@ -31,6 +30,7 @@ def _objective(P: np.ndarray, v: np.ndarray) -> np.ndarray:
 @method("de", 9, "differential evolution, global search (LabVIEW's role)")
 def de(v: np.ndarray) -> np.ndarray:
     v = check_points(v, 9, "de")
+    from scipy.optimize import differential_evolution   # here: scipy costs 0.4 s to import
     res = differential_evolution(_objective, BOUNDS, args=(v,), vectorized=True, seed=SEED,
                                  popsize=20, maxiter=4000, tol=1e-14, atol=0, mutation=(0.5, 1.0),
                                  recombination=0.9, polish=False, updating="deferred")

@@ -13,7 +13,6 @@ exact on noise-free points, the worst of all methods on noisy ones.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
 
 from accelcal.methods.base import (FitError, check_points, correct, from_ellipsoid, jacobian_along,
                                    method)
@@ -85,6 +84,7 @@ def polish(v: np.ndarray, p0: np.ndarray, rounds: int = 5) -> np.ndarray:
     def inside_jac(p, w):
         return -2 * jacobian_along(p, w, correct(p, w))
 
+    from scipy.optimize import minimize   # here: scipy costs 0.4 s to import
     p = p0
     for _ in range(rounds):
         w = v[near]

@@ -7,7 +7,6 @@ knowledge that the data is in g).  Represents everything the 9-parameter model c
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from accelcal.methods.base import P0, FitError, check_points, correct, jacobian_along, method
 
@@ -22,6 +21,7 @@ def residual_jacobian(p: np.ndarray, v: np.ndarray) -> np.ndarray:
 def lsq(v: np.ndarray) -> np.ndarray:
     """Optimal 9-parameter least squares on |K (v + o)| - 1, started at p0."""
     v = check_points(v, 9, "lsq")
+    from scipy.optimize import least_squares   # here: scipy costs 0.4 s to import
     res = least_squares(lambda p: np.linalg.norm(correct(p, v), axis=1) - 1.0, P0,
                         jac=lambda p: residual_jacobian(p, v), method="lm",
                         xtol=1e-15, ftol=1e-15, gtol=1e-15)

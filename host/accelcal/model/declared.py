@@ -32,6 +32,8 @@ from pathlib import Path
 from accelcal.errors import InputError
 from accelcal.model.effects import CATALOGUE, COLUMN_NAME, RESERVED, Effect
 
+MAX_EFFECTS = 64     # one file's effects: each is a candidate fit in diagnose
+MAX_FILE_BYTES = 1 << 20
 REGRESSORS = {"temperature": "temp", "time": "t", "reading": None}
 REQUIRED = ("name", "regressor", "unit", "bound", "explanation")
 OPTIONAL = ("power", "step", "form")
@@ -96,17 +98,24 @@ def load_effects(path: str) -> list[Effect]:
     one: missing, a syntax error, an error running it, no EFFECTS list, a bad field."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{path}: no such effects file")
+        raise InputError(f"{path}: no such effects file (a regular file)")
+    if p.stat().st_size > MAX_FILE_BYTES:
+        raise InputError(f"{path}: an effects file of more than {MAX_FILE_BYTES >> 10} KiB")
     try:
         ns = runpy.run_path(str(p), run_name="accelcal_effects")
     except SyntaxError as e:
         raise InputError(f"{path}:{e.lineno}: syntax error ({e.msg})") from None
-    except Exception as e:  # the user's code: whatever it raises is its message, on one line
+    except BaseException as e:  # noqa: B036 - the user's code: sys.exit(0), SystemExit(3),
+        # KeyboardInterrupt or any BaseException subclass it raises ends the command as one
+        # line, exit 2, before any output is touched
         raise InputError(f"{path}: running it failed: {type(e).__name__}: "
                          f"{' '.join(str(e).split())[:160]}") from None
     effects = ns.get("EFFECTS")
     if not isinstance(effects, (list, tuple)) or not effects:
         raise InputError(f"{path}: must define EFFECTS, a non-empty list of effect dicts")
+    if len(effects) > MAX_EFFECTS:
+        raise InputError(f"{path}: declares {len(effects)} effects (at most {MAX_EFFECTS}: "
+                         "diagnose tries each as a candidate)")
     out = [_check(path, i, d) for i, d in enumerate(effects)]
     names = [e.name for e in out]
     if len(set(names)) != len(names):

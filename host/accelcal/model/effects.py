@@ -72,6 +72,15 @@ class Effect:
     declared_in: str | None = None   # a user's effects file (model/declared.py); None: built in
     candidate: bool = True  # diagnose tries it (the device's generic shapes: only when named)
     column: str | None = None    # needs "col": the recording column it follows (battery_v, ...)
+    lis3dh: str = ""        # the LIS3DH datasheet's typical size: quoted only for its files
+
+    def explain(self, sensor: str | None) -> str:
+        """The explanation worded for the sensor a file came from: the LIS3DH's datasheet
+        figure for an LIS3DH (accelcal's boards and simulator), none for another device, whose
+        sensor's figures are not the LIS3DH's (an ActiGraph, an Axivity...)."""
+        if self.lis3dh and sensor == "LIS3DH":
+            return f"{self.explanation} Typical for the LIS3DH: {self.lis3dh}."
+        return self.explanation
 
     @property
     def param_names(self) -> list[str]:
@@ -191,9 +200,9 @@ def _shape(name: str, needs: str, power: int, unit: str, report_unit: str, bound
 
 CATALOGUE: dict[str, Effect] = {e.name: e for e in (
     Effect("temp_offset", "c", "g/degC", 1e3, "mg/degC", 0.005, (0.0004, 0.001), "temp", "temperature",
-           "The zero-g level moves with temperature (LIS3DH: +-0.5 mg/degC typical): thermal "
-           "stress in the package bends the MEMS proof mass's suspension, so rest readings shift "
-           "with the chip's temperature whatever the orientation."),
+           "The zero-g level moves with temperature: thermal stress in the package bends the MEMS "
+           "proof mass's suspension, so rest readings shift with the chip's temperature whatever "
+           "the orientation.", lis3dh="+-0.5 mg/degC"),
     Effect("temp_offset2", "e", "g/degC^2", 1e3, "mg/degC^2", 0.001, (0.00008, 0.0002), "temp",
            "temperature",
            "The zero-g level curves with temperature: the package's thermal stress is not linear "
@@ -201,9 +210,9 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
            "bow away from a straight line as the chip warms and cools - a curvature a linear "
            "temperature offset leaves behind.", power=2),
     Effect("temp_scale", "s", "1/degC", 1e2, "%/degC", 0.002, (0.0003, 0.0006), "temp", "temperature",
-           "Sensitivity changes with temperature (LIS3DH: 0.01 %/degC typical, more on some parts): "
-           "the spring constant and the capacitive readout's gain drift, so the error grows with "
-           "the size of the reading along each axis and with the temperature change.", "gain"),
+           "Sensitivity changes with temperature: the spring constant and the capacitive readout's "
+           "gain drift, so the error grows with the size of the reading along each axis and with "
+           "the temperature change.", "gain", lis3dh="0.01 %/degC, more on some parts"),
     Effect("drift", "d", "g/day", 1e3, "mg/day", 0.02, (0.0015, 0.004), "t", "time",
            "The offset moves with time (ageing of the package and its solder stress, supply "
            "changes): rest readings shift steadily over days whatever the temperature."),
@@ -214,9 +223,9 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
            change_point=True),
     Effect("nonlinear", "q", "1/g", 1e2, "%/g", 0.05, (0.004, 0.01), None, "axis reading",
            "The response is not linear: each axis reads a little more (or less) than "
-           "proportionally at larger accelerations (LIS3DH: +-0.5 % of full scale), so the error "
-           "depends on the squared reading of that axis, and on which side of zero it is.",
-           power=2),
+           "proportionally at larger accelerations, so the error depends on the squared reading "
+           "of that axis, and on which side of zero it is.", power=2,
+           lis3dh="+-0.5 % of full scale"),
     # bounds: the device's 0.05 g per unit of its normalised regressor
     _shape("time_offset2", "t", 2, "g/day^2", "mg/day^2", _GENERIC_BOUND / _GENERIC_DAYS ** 2,
            "the square of time"),

@@ -92,9 +92,8 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
     the device's per-sample code at the full scale apply_range() picks (readings past it are
     clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3), then the
     file's further columns as read.  Returns (samples, samples clipped, full scale in g)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    from accelcal.files.recordings import open_recording
+    from accelcal.files.recordings import arrow, open_recording
+    pa, pacsv = arrow()
     rec = open_recording(path)
     rng = apply_range(rec.range_g, range_g)
     limit = (fixed.APPLY_IN_MAX << fixed.apply_range_shift(rng)) / fixed.SAMPLE_ONE_G

@@ -31,7 +31,7 @@ def calibrate_file(path: str, job: Job) -> CalibrationResult:
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
     from accelcal.model.effects import ModelSpec
     from accelcal.files.table import read_table
-    from accelcal.files.recordings import is_recording
+    from accelcal.files.readers import is_recording
     from accelcal.model.declared import register
     t0 = time.perf_counter()
     cfg = job.cfg   # immutable: each step makes its own (dataclasses.replace)

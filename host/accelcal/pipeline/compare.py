@@ -33,7 +33,7 @@ from accelcal.errors import InputError
 from accelcal.fixedpoint import params_to_float
 from accelcal.files.table import read_table
 from accelcal.files.outputs import check_output_dir, save_figure
-from accelcal.files.recordings import is_recording
+from accelcal.files.readers import is_recording
 
 ALL = ["device"] + methods.ORDER
 CURVE_MAX = 1000   # training vectors: Gietzelt's figure 3 goes to ~300; de costs O(n) per step
@@ -66,8 +66,9 @@ def split_points(path: str, cfg: runtime.Config | None = None) -> Split:
         p, timed = usable(rest_points(table)), "t" in table.columns
     check_coverage(p)
     if timed:
-        train, test, _ = split(p)
-        how = "2-hour blocks: even train, odd held out"
+        halves = split(p)   # both halves pass the coverage rule every fit shares
+        train, test, _ = halves
+        how = halves.how
     else:
         idx = np.arange(len(p))
         train, test = p.take(idx % 2 == 0), p.take(idx % 2 == 1)

@@ -5,7 +5,6 @@ diagnose scores its candidates with."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from accelcal.errors import InputError
 from accelcal.methods import calibration_error_mg
@@ -63,6 +62,7 @@ def fit(spec: ModelSpec, p: RestPoints, ref: dict, start: np.ndarray | None = No
 
     def resid(th):
         return np.linalg.norm(spec.correct(th, p.v, temp, p.t, ref, p.cols), axis=1) - 1.0
+    from scipy.optimize import least_squares   # here: scipy costs 0.4 s to import
     return least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf").x
 
 

@@ -29,16 +29,21 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
+from accelcal.files.recordings import sensor_of
 from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.composed_lsq import (check_model, fit, fit_with_reference, prepare, refs,
                                             residuals)
-from accelcal.pipeline.history import append_history, read_history
+from accelcal.pipeline.history import append_history, check_history, read_history
 from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
 
 MIN_IMPROVEMENT_PCT = 10.0
 MIN_BLOCK_SHARE = 0.7
+# A share of few blocks is weak evidence: 3 of 3 blocks better happens one time in eight by
+# chance alone.  A named effect whose blocks would pass a one-sided sign test at this level only
+# with more of them is named as weak evidence, to be confirmed on a longer recording.
+WEAK_P = 0.05
 # A step's time is searched over every split of the training points, and the 2-hour held-out
 # blocks sit between training ones: a step can pass for a drift or a temperature pattern there.
 # So a change-point effect is preferred only when it beats the best effect without one by this
@@ -58,7 +63,8 @@ def diagnose(path: str, model: str = "base", plots: str | None = None) -> Diagno
 
 def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> DiagnoseResult:
     """diagnose() of usable rest points p (pipeline/restpoints.py) under model spec."""
-    train, test, test_block = split(p)
+    halves = split(p)   # both halves pass the coverage rule every fit shares
+    train, test, test_block = halves
     if len(train) < 30 or len(test) < 30:
         raise InputError(f"{path}: {len(train)} training and {len(test)} held-out rest points; "
                          "need >= 30 each (a longer recording)")
@@ -86,18 +92,23 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     if named:
         host = " --method lsq --points all (it runs on the host only)" \
             if CATALOGUE[named].kind is None else ""
-        explanation = (f"{named}: {CATALOGUE[named].explanation} Adding it lowers the held-out error "
-                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, in "
-                       f"{best['blocks_improved_pct']:.0f} % of the {len(np.unique(test_block))} "
-                       "held-out blocks "
-                       f"(noise floor {floor:.2f} mg). Next: accelcal calibrate --model "
+        weak = "" if best["evidence"] == "clear" else (
+            " Weak evidence: so few blocks better is a count chance alone gives too often; "
+            "confirm it on a longer recording.")
+        explanation = (f"{named}: {CATALOGUE[named].explain(sensor_of(path))} Fitted here: "
+                       + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
+                       + f" {best['param_unit']}. Adding it lowers the held-out error "
+                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
+                       f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
+                       f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
                        f"{spec.with_effect(named)}{host}")
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
-                       f"{best['blocks_improved_pct']:.0f} % of the {len(np.unique(test_block))} "
-                       f"held-out blocks (naming needs >= {MIN_IMPROVEMENT_PCT:g} % in >= "
-                       f"{100 * MIN_BLOCK_SHARE:.0f} %).")
+                       f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
+                       f"({best['blocks_improved_pct']:.0f} %; naming needs >= "
+                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %). Error "
+                       f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
     else:
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
     _, r_all = residuals(spec, theta, p, ref)
@@ -109,7 +120,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                                test_block)
         explanation += " " + (remains["text"] if remains else
                               complete_text(err, floor, wrist["floor_mg"]))
-    out = DiagnoseResult(model=str(spec), input=path, split="2-hour blocks: even train, odd held out",
+    out = DiagnoseResult(model=str(spec), input=path, split=halves.how,
                          rest_points={"train": len(train), "heldout": len(test)},
                          heldout_error_mg=err, noise_floor_mg=floor,
                          wrist_floor_mg=wrist["floor_mg"], wrist_floor_pairs=wrist["pairs"],
@@ -156,14 +167,26 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
     ec = float(np.mean(np.abs(rc)) * 1e3)
     gain = np.abs(r) - np.abs(rc)
     blocks = np.unique(test_block)
-    share = float(np.mean([gain[test_block == b].mean() > 0 for b in blocks]))
+    better = sum(bool(gain[test_block == b].mean() > 0) for b in blocks)
     out = {"effect": name, "heldout_error_mg": ec, "improvement_pct": 100 * (err - ec) / err,
-           "blocks_improved_pct": 100 * share,
+           "blocks_improved_pct": 100 * better / len(blocks), "blocks_improved": better,
+           "blocks": len(blocks),
+           # judged where the share would name it: few blocks are weak evidence (block_evidence)
+           "evidence": block_evidence(better, len(blocks))
+           if better >= MIN_BLOCK_SHARE * len(blocks) else None,
            "params": dict(zip(e.param_names, (th[-3:] * e.scale).round(4).tolist())),
            "param_unit": e.report_unit}
     if "ts" in cref and "ts" not in ref:
         out["step_time_s"] = cref["ts"]
     return out
+
+
+def block_evidence(better: int, blocks: int) -> str:
+    """"clear" when `better` of `blocks` held-out blocks improving would happen by chance (each
+    block a coin toss) at most WEAK_P of the time (one-sided sign test), else "weak"."""
+    from math import comb
+    p = sum(comb(blocks, k) for k in range(better, blocks + 1)) / 2 ** blocks
+    return "clear" if p <= WEAK_P else "weak"
 
 
 def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:
@@ -231,15 +254,18 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None
 
 
 def diagnose_main(*, path: str, model: str, history: str | None, plots: str | None,
-                  report_dir: str | None, force: bool = False, as_json: bool = False) -> int:
-    if history:   # appended to: checked here, before the analysis, not replaced
-        check_output(history, [path], True, "--history")
+                  report_dir: str | None, force: bool = False, as_json: bool = False,
+                  effects: str | None = None) -> int:
+    reads = [path, effects]
+    if history:   # appended to, only if a history: checked here, before the analysis
+        check_output(history, reads, True, "--history")
+        check_history(history)
     if plots:
-        check_output_dir(plots, [path], "--plots")
+        check_output_dir(plots, reads, "--plots")
     page = None
     if report_dir:
-        rdir = check_output_dir(report_dir, [path], "--report")
-        page = check_output(rdir / "report.html", [path], force, "--report")
+        rdir = check_output_dir(report_dir, reads, "--report")
+        page = check_output(rdir / "report.html", [*reads, history], force, "--report")
     out = diagnose(path, model, plots or report_dir)
     if history:
         append_history(history, out.history_step())

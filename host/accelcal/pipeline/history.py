@@ -8,21 +8,43 @@ import math
 import sys
 from pathlib import Path
 
-from accelcal.errors import InputError
+from accelcal.errors import InputError, printable
 from accelcal.files.outputs import check_output, save_figure, write_text
 
 
+HISTORY_MAX_BYTES = 16 << 20    # a history is one short line per model step
+LINE_MAX = 64 * 1024
+
+
+def check_history(path) -> None:
+    """diagnose --history FILE, before the analysis: FILE is missing, empty or a history (every
+    line one); anything else (a parameters JSON, a recording) is refused, never appended to."""
+    p = Path(path)
+    if not p.exists():
+        return
+    read_history(path, what="refusing to append to it")
+
+
 def append_history(path: str, step: dict) -> None:
-    """Append one step (DiagnoseResult.history_step) to the history at path."""
-    rec = step
-    # the old steps and the new one, written whole: a cut leaves the old history or the new one
+    """Append one step (DiagnoseResult.history_step) to the history at path: one line written at
+    the end of the file under an exclusive lock (fcntl.flock), after the file was checked under
+    the same lock to be a history.  Concurrent writers each add their line; none is lost."""
+    import fcntl
+    line = (json.dumps(step) + "\n").encode()
     try:
-        old = Path(path).read_text() if Path(path).exists() else ""
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{path}: cannot read the history to append to ({e})") from None
-    if old and not old.endswith("\n"):
-        old += "\n"
-    write_text(path, old + json.dumps(rec) + "\n")
+        fh = open(path, "a+b")
+    except OSError as e:
+        raise InputError(f"{path}: cannot append to the history ({e.strerror})") from None
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)    # released when the file closes
+        read_history(path, what="refusing to append to it")
+        fh.seek(0, 2)
+        if fh.tell():
+            fh.seek(-1, 2)
+            if fh.read(1) != b"\n":
+                line = b"\n" + line
+        fh.write(line)
+        fh.flush()
 
 
 def _history_step(path, i, line):
@@ -30,7 +52,7 @@ def _history_step(path, i, line):
     bad = f"{path}:{i}: not a diagnose history line"
     try:
         rec = json.loads(line, parse_constant=lambda c: float("nan"))
-    except ValueError:
+    except (ValueError, RecursionError):   # RecursionError: nested deeper than Python's stack
         raise InputError(bad + " (not JSON)") from None
     if not isinstance(rec, dict):
         raise InputError(bad + " (not a JSON object)")
@@ -53,15 +75,33 @@ def _history_step(path, i, line):
             "missing_effect": named, "input": str(rec.get("input", ""))}
 
 
-def read_history(path) -> list[dict]:
-    """The steps of a diagnose history, each line checked (_history_step)."""
+def read_history(path, what: str = "") -> list[dict]:
+    """The steps of a diagnose history, each line checked (_history_step); at most
+    HISTORY_MAX_BYTES, lines of at most LINE_MAX."""
+    from accelcal.files.outputs import check_regular
+    check_regular(path)
+    why = f"; {what}" if what else ""
+    size = Path(path).stat().st_size
+    if size > HISTORY_MAX_BYTES:
+        raise InputError(f"{path}: not a diagnose history ({size >> 20} MB; a history is at most "
+                         f"{HISTORY_MAX_BYTES >> 20} MB){why}")
     try:
         lines = Path(path).read_bytes().decode("utf-8").splitlines()
     except OSError as e:
         raise InputError(f"{path}: cannot read ({e.strerror})") from None
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a diagnose history (not UTF-8 text)") from None
-    return [_history_step(path, i, line) for i, line in enumerate(lines, 1) if line.strip()]
+        raise InputError(f"{path}: not a diagnose history (not UTF-8 text){why}") from None
+    steps = []
+    for i, line in enumerate(lines, 1):
+        if len(line) > LINE_MAX:
+            raise InputError(f"{path}:{i}: not a diagnose history line (longer than "
+                             f"{LINE_MAX // 1024} KiB){why}")
+        if line.strip():
+            try:
+                steps.append(_history_step(path, i, line))
+            except InputError as e:
+                raise InputError(f"{e}{why}") from None
+    return steps
 
 
 def history_report(*, history: str, plot: str | None, html: str | None, force: bool = False,
@@ -80,8 +120,9 @@ def history_report(*, history: str, plot: str | None, html: str | None, force: b
         for k, st in enumerate(steps, 1):
             e = st["heldout_error_mg"]
             ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
-            print(f"{k:<5}{st['model']:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
-                  f"{st['missing_effect'] or '-'}")
+            model = printable(st["model"])[:200]   # from the file: no terminal escapes
+            print(f"{k:<5}{model:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
+                  f"{printable(st['missing_effect'] or '-')[:100]}")
             prev = e
     if plot or html:
         import io

@@ -6,7 +6,11 @@ and held-out blocks.
 Split (why it is fair): the recording is cut into 2-hour blocks; even blocks train, odd blocks
 test.  Both halves span the whole recording's time and temperature range, so an effect that
 depends on either is seen by the fit and tested on it; no rest segment is split between them, and
-postures held across a block edge are the only shared context."""
+postures held across a block edge are the only shared context.  Each half must pass the one
+coverage rule every fit here shares (coverage_reason: the float methods' own check, and what
+compare and diagnose ask of the points they hand the device): a wrist that turns over in only a
+few hours can leave the even blocks one-sided, so other blocks are tried in a fixed order
+(SPLITS) and the first whose halves both cover is used, or the reason none does is given."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -15,9 +19,10 @@ import numpy as np
 
 from acal import fixed
 from accelcal.errors import InputError
-from accelcal.files.recordings import is_recording, open_recording
+from accelcal.files.readers import is_recording
+from accelcal.files.recordings import open_recording
 from accelcal.files.table import Table, read_table
-from accelcal.methods import one_side_margin
+from accelcal.methods import coverage_reason
 
 BLOCK_S = 2 * 3600
 
@@ -76,20 +81,46 @@ def usable(p: RestPoints) -> RestPoints:
 
 
 def check_coverage(p: RestPoints) -> None:
-    """Exit-2 reason for rest points that cannot pin a calibration: fewer than the 9 parameters,
-    or all on one side of a plane through 0 g (one orientation or one hemisphere: a device lying
-    still, in a temperature chamber say); the fit would only extrapolate to the other side.
-    calibrate (its bins, its methods' checks) and compare refuse the same data."""
-    if len(p) < 9:
-        raise InputError(f"{p.source}: {len(p)} usable rest points; a calibration needs at "
-                         "least 9, in different orientations")
-    if one_side_margin(p.v) > 1e-9:
-        raise InputError(f"{p.source}: the {len(p)} rest points cover one hemisphere only (all lie "
-                         "on one side of a plane through 0 g: one orientation, or a device that "
-                         "never turned over); a calibration needs both sides of every axis")
+    """Exit 2 (methods.coverage_reason, the one rule) for rest points that cannot pin a
+    calibration: calibrate (its bins, its methods' checks), compare and diagnose refuse the same
+    data."""
+    why = coverage_reason(p.v, 9, "a calibration")
+    if why:
+        raise InputError(f"{p.source}: {why}")
 
 
-def split(p: RestPoints):
-    block = ((p.t - p.t.min()) // BLOCK_S).astype(int)
-    train = block % 2 == 0
-    return p.take(train), p.take(~train), block[~train]
+# The blocks tried, in order, for a split whose halves both cover (coverage_reason): (block
+# length s, offset of the first edge s, which parity trains).  The first is the standing split.
+SPLITS = [(BLOCK_S, 0, 0), (BLOCK_S, 0, 1), (BLOCK_S, BLOCK_S // 2, 0), (BLOCK_S, BLOCK_S // 2, 1),
+          (BLOCK_S // 2, 0, 0), (BLOCK_S // 2, 0, 1), (BLOCK_S // 4, 0, 0), (BLOCK_S // 4, 0, 1)]
+
+
+class Halves(tuple):
+    """(train, held out, each held-out point's block) and `how`: the blocks in words."""
+    how: str
+
+
+def split(p: RestPoints) -> Halves:
+    """The rest points into training and held-out halves by time blocks (module doc): the first
+    of SPLITS whose halves both pass the coverage rule; InputError saying why when none does."""
+    first_why = None
+    for length, offset, parity in SPLITS:
+        block = ((p.t - p.t.min() + offset) // length).astype(int)
+        train = block % 2 == parity
+        bad = [(half, why) for half, why in
+               (("training", coverage_reason(p.v[train], 9, "a fit on the training half")),
+                ("held-out", coverage_reason(p.v[~train], 9, "a fit on the held-out half"))) if why]
+        if not bad:
+            out = Halves((p.take(train), p.take(~train), block[~train]))
+            first, other = ("even", "odd") if parity == 0 else ("odd", "even")
+            shift = f" from {offset / 3600:g} h" if offset else ""
+            out.how = f"{length / 3600:g}-hour blocks{shift}: {first} train, {other} held out"
+            if first_why:
+                out.how += f" (2-hour even/odd blocks left the {first_why[0]} half one-sided " \
+                           "or too small)"
+            return out
+        first_why = first_why or bad[0]
+    raise InputError(f"{p.source}: no split into alternate time blocks (2 h, 1 h or 30 min, "
+                     f"either half training) leaves both halves covering the sphere; with 2-hour "
+                     f"even/odd blocks, {first_why[1]}.  A held-out score needs a recording in which "
+                     "the device turns over more often")

@@ -164,7 +164,9 @@ class DiagnoseResult(dict):
             else:
                 lines.append(f"  +{c['effect']:<{ew}} {c['heldout_error_mg']:6.2f} mg  "
                              f"{c['improvement_pct']:+6.1f} %  better in "
-                             f"{c['blocks_improved_pct']:3.0f} % of blocks")
+                             f"{c['blocks_improved']:2d} of {c['blocks']:2d} blocks "
+                             f"({c['blocks_improved_pct']:3.0f} %"
+                             + (", weak evidence)" if c["evidence"] == "weak" else ")"))
         lines.append(f"missing effect: {self['missing_effect'] or 'none'}")
         lines.append(self["explanation"])
         lines += [f"plot: {f}" for f in self.get("plots", [])]

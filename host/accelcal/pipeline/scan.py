@@ -130,6 +130,44 @@ class Scan:
         return np.column_stack([end - self.length + 1, end + 1]).astype(np.int64).reshape(-1, 2)
 
 
+def prefetched(chunks, depth: int = 2):
+    """The chunks of an iterator read ahead in a thread: the reader (Arrow's parser, actfast,
+    the checks) and the detector's twin work on both cores at once, numpy and Arrow releasing
+    the GIL; the same chunks in the same order, the reader's exception raised here."""
+    import queue
+    import threading
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    done = object()
+    stop = threading.Event()
+
+    def read():
+        try:
+            for ch in chunks:
+                while not stop.is_set():
+                    try:
+                        q.put(ch, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            q.put(done)
+        except BaseException as e:   # handed to the consumer, raised there
+            q.put(e)
+    th = threading.Thread(target=read, daemon=True)
+    th.start()
+    try:
+        while True:
+            item = q.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+
+
 def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int | None = None,
          keep_samples: bool = False, progress=None, extras: bool = False):
     """Stream rec through the twin's detector.  rate_hz None: from the first chunk's median time
@@ -141,7 +179,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
     parts, seg_t, seg_temp = [], [], []
     kept_t, kept_q, kept_temp = [], [], []
     last_t = None
-    for ch in rec.chunks():
+    for ch in prefetched(rec.chunks()):
         t = ch.t
         if sc is None:
             if len(t) < 2:

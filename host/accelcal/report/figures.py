@@ -196,6 +196,12 @@ def before_after_figure(test, a0, r0_mg, a1, r1_mg, floor_mg, before: str, after
     return fig
 
 
+def _plain(text: str, limit: int = 40) -> str:
+    """Text from a file as a label: shown as written ('$' is not matplotlib's mathtext), cut."""
+    text = text if len(text) <= limit else text[:limit - 3] + "..."
+    return text.replace("$", r"\$")
+
+
 def steps_figure(steps: list[dict]):
     """The held-out error and noise floor at each model step of a diagnose history."""
     plt = pyplot()
@@ -203,7 +209,7 @@ def steps_figure(steps: list[dict]):
     x = np.arange(len(steps))
     ax.plot(x, [s["heldout_error_mg"] for s in steps], "o-", label="held-out error")
     ax.plot(x, [s["noise_floor_mg"] for s in steps], "r--", label="noise floor")
-    ax.set_xticks(x, [s["model"].replace("base+", "+") for s in steps], rotation=20)
+    ax.set_xticks(x, [_plain(s["model"].replace("base+", "+")) for s in steps], rotation=20)
     ax.set_ylabel("calibration error (mg)")
     ax.set_title("held-out calibration error at each model step", fontsize=10)
     ax.set_ylim(bottom=0)

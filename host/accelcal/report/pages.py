@@ -44,7 +44,10 @@ def _figure(png: bytes, caption: str) -> str:
 
 
 def _page(title: str, body: str, data: dict) -> str:
-    blob = json.dumps(data).replace("</", "<\\/")
+    # Script data ends at "</script" and "<!--" changes how it is parsed (HTML spec, "script
+    # data"): every <, > and & in the JSON (only ever inside strings) becomes its \\u escape,
+    # which JSON.parse reads back to the same text.
+    blob = json.dumps(data).replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
     return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}'
             f"</title><style>{STYLE}</style></head><body><h1>{_e(title)}</h1>{body}"
             f'<script type="application/json" id="accelcal-data">{blob}</script></body></html>\n')

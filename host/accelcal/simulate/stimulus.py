@@ -64,3 +64,27 @@ def read_stimulus(path: str | Path) -> tuple[int, np.ndarray, np.ndarray]:
     k = 5 if version == 2 else 4
     rec = np.frombuffer(data, dtype="<i4", offset=HEADER.size, count=k * n).reshape(n, k)
     return rate, rec[:, :3] / 1e6, rec[:, 3] / 1e3
+
+
+def calibration_dance(path: str | Path, rate_hz: int, params, seed: int, rounds: int = 2,
+                      rest_s: float = 10.0, move_s: float = 2.0, tilt_deg: float = 12.0,
+                      noise_g: float = 0.0016) -> np.ndarray:
+    """A calibration dance for a board on a bench, `rounds` times: still on each of its six faces
+    (the paper's n and p subsets), then on six edges, two in each plane (its 0 subsets: the
+    third axis level), each pose tilted up to tilt_deg at random so that repeats differ, with
+    moves between whose samples jump by tens of mg; seen through a sensor with the 9 parameters
+    `params` (paper order).  Writes the stimulus; returns what the sensing element saw (g)."""
+    from accelcal.simulate.scenarios import uncorrect
+    rng = np.random.default_rng(seed)
+    edges = [(1, 1, 0), (-1, 1, 0), (1, 0, 1), (-1, 0, 1), (0, 1, 1), (0, -1, 1)]
+    poses = np.vstack([np.eye(3), -np.eye(3), np.array(edges) / np.sqrt(2)])
+    parts = []
+    for _ in range(rounds):
+        for pose in poses:
+            d = pose + rng.uniform(-1, 1, 3) * np.tan(np.radians(tilt_deg))
+            v = uncorrect(np.asarray(params, dtype=float), (d / np.linalg.norm(d))[None, :])[0]
+            parts.append(v + rng.normal(scale=noise_g, size=(int(rate_hz * rest_s), 3)))
+            parts.append(v + rng.normal(scale=0.3, size=(int(rate_hz * move_s), 3)))
+    xyz = np.clip(np.concatenate(parts), -1.9, 1.9)
+    write_stimulus(path, rate_hz, xyz, 30 + np.linspace(0, 2, len(xyz)))
+    return xyz

@@ -65,8 +65,10 @@ def throughput(n: int = 20_000_000) -> dict:
             "apply_samples_per_s": best(apply) * len(q) / n}
 
 
-def measured(cmd: list[str], env=None) -> tuple[float, float, str, str]:
-    """(wall s, peak RSS MB, stdout, stderr) of a command, its RSS from the kernel (wait4)."""
+def measured(cmd: list[str], env=None) -> tuple[float, float, str, str, float]:
+    """(wall s, peak RSS MB, stdout, stderr, CPU s) of a command, its RSS and CPU time (user +
+    system, all its threads) from the kernel (wait4): on a machine others share, the CPU time
+    is the figure their load does not inflate much."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     out, err = proc.communicate()
@@ -74,20 +76,36 @@ def measured(cmd: list[str], env=None) -> tuple[float, float, str, str]:
     # communicate() reaped it; ru_maxrss of all children is the largest child's peak so far,
     # so each measured command runs before any larger one (ours first).
     import resource
-    rss_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode not in (0, 2):
         raise RuntimeError(f"{cmd[:3]} failed ({proc.returncode}): {err[-2000:]}")
-    return wall, rss_kb / 1024.0, out, err
+    return wall, use.ru_maxrss / 1024.0, out, err, use.ru_utime + use.ru_stime
 
 
-def measured_alone(cmd: list[str]) -> tuple[float, float, str, str]:
+def measured_alone(cmd: list[str], env=None) -> tuple[float, float, str, str, float]:
     """As measured, in a fresh helper process so that RUSAGE_CHILDREN holds this command only."""
     helper = ("import json,sys;from accelcal.studies.bench_files import measured;"
               "print(json.dumps(measured(json.loads(sys.argv[1]))))")
-    r = subprocess.run([sys.executable, "-c", helper, json.dumps(cmd)], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-c", helper, json.dumps(cmd)], capture_output=True, text=True,
+                       env=env)
     if r.returncode != 0:
         raise RuntimeError(r.stderr[-2000:])
     return tuple(json.loads(r.stdout))
+
+
+def compiled_env() -> dict:
+    """The environment for our command with its bytecode compiled once, as an installed package's
+    is at install (the peers' are, in .venv-bench's site-packages): a checkout run with
+    PYTHONDONTWRITEBYTECODE would compile every module on each start (0.1-1 s here).  The cache
+    goes under build/pycache, outside the source tree."""
+    import os
+    env = dict(os.environ, PYTHONPYCACHEPREFIX=str(ROOT / "build" / "pycache"))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    import accelcal
+    import acal
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(accelcal.__file__).parent),
+                    str(Path(acal.__file__).parent)], env=env, check=False, capture_output=True)
+    return env
 
 
 def ensure_recording(days: float, rate: int, seed: int = 14) -> Path:
@@ -122,25 +140,27 @@ def main(argv=None) -> int:
     ap.add_argument("--rate", type=int, default=100)
     ap.add_argument("--others", metavar="PYTHON", help="interpreter with scikit-digital-health and "
                                                         "actipy (default: .venv-bench/bin/python)")
+    ap.add_argument("--no-throughput", action="store_true", help="only the end-to-end runs")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
-    res: dict = {"throughput": throughput()}
-    tp = res["throughput"]
-    print(f"vectorised path, one core: g -> Q10 {tp['convert_samples_per_s'] / 1e6:.0f} M samples/s, "
-          f"rest twin {tp['rest_samples_per_s'] / 1e6:.0f} M/s, both {tp['convert_and_rest_samples_per_s'] / 1e6:.0f} M/s, "
-          f"apply {tp['apply_samples_per_s'] / 1e6:.0f} M/s", flush=True)
+    res: dict = {}
+    if not a.no_throughput:
+        res["throughput"] = tp = throughput()
+        print(f"vectorised path, one core: g -> Q10 {tp['convert_samples_per_s'] / 1e6:.0f} M samples/s, "
+              f"rest twin {tp['rest_samples_per_s'] / 1e6:.0f} M/s, both {tp['convert_and_rest_samples_per_s'] / 1e6:.0f} M/s, "
+              f"apply {tp['apply_samples_per_s'] / 1e6:.0f} M/s", flush=True)
     f = ensure_recording(a.days, a.rate)
     n = a.days * 86400 * a.rate
     size_gb = f.stat().st_size / 1e9
-    wall, rss, out, err = measured_alone([sys.executable, "-m", "accelcal.cli", "calibrate", str(f),
-                                          "--json", "--quiet"])
+    wall, rss, out, err, cpu = measured_alone([sys.executable, "-m", "accelcal.cli", "calibrate",
+                                               str(f), "--json", "--quiet"], compiled_env())
     rec = json.loads(out)
-    res["accelcal"] = {"wall_s": wall, "peak_rss_mb": rss, "status": rec["status"],
+    res["accelcal"] = {"wall_s": wall, "cpu_s": cpu, "peak_rss_mb": rss, "status": rec["status"],
                        "error_before_mg": rec["error_before_mg"],
                        "error_after_mg": rec.get("error_after_mg"), "still_windows": rec["still_windows"],
                        "samples_per_s": n / wall}
     print(f"{a.days:g} days at {a.rate} Hz ({n / 1e6:.0f} M samples, {size_gb:.1f} GB of CSV), end to "
-          f"end: accelcal {wall:.1f} s ({n / wall / 1e6:.1f} M samples/s), peak RSS {rss:.0f} MB, "
+          f"end: accelcal {wall:.1f} s ({n / wall / 1e6:.1f} M samples/s; CPU {cpu:.1f} s), peak RSS {rss:.0f} MB, "
           f"{rec['status']}, calibration error {rec['error_before_mg']:.2f} -> "
           f"{rec.get('error_after_mg', float('nan')):.2f} mg on {rec['still_windows']} still windows", flush=True)
     py = a.others or str(ROOT / ".venv-bench" / "bin" / "python")
@@ -148,17 +168,19 @@ def main(argv=None) -> int:
         win = still_windows(f)
         for tool in ("skdh", "actipy"):
             try:
-                wall_o, rss_o, out_o, _ = measured_alone([py, "-m", "accelcal.studies.bench_others", tool, str(f),
-                                                          str(win)])
+                wall_o, rss_o, out_o, _, cpu_o = measured_alone(
+                    [py, "-m", "accelcal.studies.bench_others", tool, str(f), str(win)])
                 o = json.loads(out_o.strip().splitlines()[-1])
-                o.update(wall_s=wall_o, peak_rss_mb=rss_o)
+                o.update(wall_s=wall_o, cpu_s=cpu_o, peak_rss_mb=rss_o,
+                         accelcal_share_wall=wall / wall_o, accelcal_share_cpu=cpu / cpu_o)
             except (RuntimeError, ValueError, IndexError) as e:
                 o = {"tool": tool, "error": " ".join(str(e).split())[-300:]}
             res[tool] = o
             if "error" in o:
                 print(f"  {tool}: FAILED {o['error']}", flush=True)
             else:
-                print(f"  {tool}: {o['wall_s']:.1f} s ({wall_o / wall:.1f}x accelcal; read {o['read_s']:.1f} s, "
+                print(f"  {tool}: {o['wall_s']:.1f} s, CPU {cpu_o:.1f} s (accelcal takes "
+                      f"{wall / wall_o:.2f}x its wall time, {cpu / cpu_o:.2f}x its CPU; read {o['read_s']:.1f} s, "
                       f"calibrate {o['calibrate_s']:.1f} s), peak RSS {o['peak_rss_mb']:.0f} MB, "
                       f"calibration error {o['error_before_mg']:.2f} -> {o['error_after_mg']:.2f} mg "
                       "on the same windows", flush=True)

@@ -1,5 +1,8 @@
-# Benchmarks that run inside the MicroPython unix port (host/accelcal/bench.py starts it).
-# Prints "key value" lines.  Input: a file with 54 ints (18 points, Q16 g) on one line.
+# Benchmarks that run inside the MicroPython unix port (host/accelcal/studies/bench.py starts it)
+# or on the emulated RP2040 (studies/bench_chip.py: the script's text with main(...) appended).
+# Prints "key value" lines.  Input (the unix port): a file with 54 ints (18 points, Q16 g) on one
+# line and the sample count.  Where the firmware has no micropython.mem_total (the RP2040's), the
+# byte counts are left out; the heap_lock proofs are not.
 import sys
 import time
 import micropython
@@ -49,26 +52,40 @@ def best_us(fn, repeat):
     return best
 
 
-def main():
-    with open(sys.argv[1]) as fh:
-        pts = [int(v) for v in fh.read().split()]
-    n_samples = int(sys.argv[2])
+def main(pts, n_samples, repeat):
+    """repeat: timed runs of each, the shortest kept (1 on the deterministic emulator)."""
+    counts = hasattr(micropython, "mem_total")
     opt = Optimiser(18)
-    opt.run(pts, 18)  # warm-up
-    t_opt = best_us(lambda: opt.run(pts, 18, 50), 7)
+    if repeat > 1:
+        opt.run(pts, 18)  # warm-up
+    t_opt = best_us(lambda: opt.run(pts, 18, 50), repeat + 2 if repeat > 1 else 1)
     print("optimiser_us", t_opt)
     print("optimiser_status", opt.status)
-    m0 = micropython.mem_total()
-    opt.run(pts, 18, 50)
-    print("bytes_per_optimiser_run", micropython.mem_total() - m0)
+    if counts:
+        m0 = micropython.mem_total()
+        opt.run(pts, 18, 50)
+        print("bytes_per_optimiser_run", micropython.mem_total() - m0)
 
     buf = samples(n_samples)
     det = RestDetector(100, 5)
     detect(det, buf, n_samples)
-    t_bare = best_us(lambda: bare(buf, n_samples), 5)
-    t_det = best_us(lambda: detect(det, buf, n_samples), 5)
+    t_bare = best_us(lambda: bare(buf, n_samples), repeat)
+    t_det = best_us(lambda: detect(det, buf, n_samples), repeat)
     print("bare_us", t_bare)
     print("rest_us", t_det)
+    if counts:
+        per_sample_bytes(buf, n_samples)
+    print("rest_heap_locked_ok", locked_ok(det, buf, n_samples))
+    print("segments", det.segments)
+    # The wear profile's detector: every axis, the threshold from the noise gauge.
+    wear = RestDetector(100, 5, AUTO, ALL_AXES)
+    detect(wear, buf, n_samples)
+    print("rest_wear_us", best_us(lambda: detect(wear, buf, n_samples), repeat))
+    print("rest_wear_heap_locked_ok", locked_ok(wear, buf, n_samples))
+    print("rest_wear_threshold", wear.threshold)
+
+
+def per_sample_bytes(buf, n_samples):
     # Bytes per sample as a slope: one call over n/2 and one over n samples, inside one long
     # segment, so both runs make the same calls.  A call itself may take a frame from the heap
     # (MicroPython does so for functions with many locals, frees it on return, and uses the C
@@ -83,14 +100,6 @@ def main():
     m2 = micropython.mem_total()
     print("bytes_half", m1 - m0)
     print("bytes_full", m2 - m1)
-    print("rest_heap_locked_ok", locked_ok(det, buf, n_samples))
-    print("segments", det.segments)
-    # The wear profile's detector: every axis, the threshold from the noise gauge.
-    wear = RestDetector(100, 5, AUTO, ALL_AXES)
-    detect(wear, buf, n_samples)
-    print("rest_wear_us", best_us(lambda: detect(wear, buf, n_samples), 5))
-    print("rest_wear_heap_locked_ok", locked_ok(wear, buf, n_samples))
-    print("rest_wear_threshold", wear.threshold)
 
 
 def locked_ok(det, buf, n):
@@ -106,4 +115,6 @@ def locked_ok(det, buf, n):
     return ok
 
 
-main()
+if len(sys.argv) > 2:
+    with open(sys.argv[1]) as fh:
+        main([int(v) for v in fh.read().split()], int(sys.argv[2]), 5)

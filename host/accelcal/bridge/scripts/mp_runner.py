@@ -32,6 +32,7 @@
 #   N threshold level          the rest threshold in force at the end and the noise level it
 #                              came from (Q10 g; AUTO only)
 import sys
+from array import array
 
 from acal.pipeline import Pipeline
 from acal.profile import NEWTON
@@ -119,7 +120,7 @@ def run(lines, emit):
         if tag == "B":
             n = int(f[1])
             if buf is None or len(buf) < 3 * n:
-                buf = [0] * (3 * n)
+                buf = array("i", bytearray(12 * n))   # viper scans read int arrays
             for i in range(3 * n):
                 buf[i] = int(f[2 + i])
             r.samples(buf, n)

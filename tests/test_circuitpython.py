@@ -1,0 +1,189 @@
+"""The device package on real CircuitPython: Adafruit CircuitPython 10.2.1 for the Feather RP2040
+(firmware/circuitpython-feather_rp2040) on the emulated RP2040, the package installed as .mpy
+files from CircuitPython's own mpy-cross.  The same integers as CPython for both profiles and a
+composed model; 0 bytes allocated per sample and per fit slice (measured with gc.disable() and
+gc.mem_alloc(): CircuitPython has no heap_lock); the heap the app with the largest model leaves."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from accelcal import simulate
+from accelcal.bridge import protocol, rp2040, runtime
+from accelcal.errors import InputError
+from conftest import ROOT, run_main
+from test_runtimes import random_recording
+
+FW = rp2040.CIRCUITPYTHON
+
+
+@pytest.fixture(scope="session")
+def chip():
+    """The emulated Feather with the package installed; skipped, saying why, where Node or
+    rp2040js is missing (make setup installs it; CI has both)."""
+    try:
+        rp2040.emulator_index()
+        rp2040.flash_image(FW)
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    return rp2040
+
+
+@pytest.mark.slow   # a boot of CircuitPython: ~40 s of CPU (the default run proves the heap below)
+def test_calibrate_on_circuitpython_equals_cpython(tmp_path, chip, capsys):
+    """`accelcal calibrate --runtime circuitpython` (the paper's profile): the same record."""
+    pts = tmp_path / "pts.csv"
+    assert run_main(capsys, ["simulate", "paper", "--noise-mg", "1", "--scenarios", "1",
+                             "--seed", "7", "-o", str(pts)])[0] == 0
+    records = {}
+    for rt in ("cpython", "circuitpython"):
+        code, out, err = run_main(capsys, ["calibrate", str(pts), "--by", "device",
+                                           "--runtime", rt, "--json"])
+        assert code == 0, err
+        rec = json.loads(out)
+        assert rec.pop("runtime") == rt
+        records[rt] = rec
+    assert records["circuitpython"] == records["cpython"]
+    assert records["cpython"]["points"] >= 18
+
+
+@pytest.mark.slow   # ~2 min of emulation (6 min wall on a loaded machine): make bench
+def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
+    """In one boot: the wear profile on points with outliers and on recordings (its noise gauge,
+    rest detector, bins, Gauss-Newton with rejection), the paper's on recordings, and a
+    composed wear model (temperature offset) on points: every record as CPython's."""
+    from acal import effects
+    pts = []
+    for i in range(4):
+        n = int(rng.integers(40, 200))
+        _, v = simulate.paper_scenario(rng, n, float(rng.choice([1e-3, 5e-3])))
+        v[rng.integers(0, n, n // 20)] *= rng.uniform(1.02, 1.1)  # outliers
+        pts.append(runtime.Group(f"d{i}", points=v))
+    xyz, gaps = random_recording(rng, 16, 25)
+    recs = [runtime.Group("r", samples=xyz, gaps=gaps)]
+    truth = np.array([1.02, 0.97, 1.01, 0.01, -0.02, 0.01, 0.04, -0.05, 0.03])
+    n = 150
+    temp = rng.uniform(20, 36, n)
+    v = simulate.uncorrect(truth, simulate.unit_points(rng, n)) + \
+        0.0008 * (temp - 28)[:, None] + rng.normal(scale=5e-4, size=(n, 3))
+    composed = runtime.Group("c", points=v, temp=temp, t=np.arange(n) * 300.0)
+    wear = runtime.Config.for_profile("wear")
+    jobs = [(pts, wear), (recs, runtime.Config.for_profile("wear", rate_hz=25, seconds=2)),
+            (recs, runtime.Config(rate_hz=25, seconds=2)),
+            ([composed], runtime.Config.for_profile("wear", composed=True,
+                                                    kinds=(effects.TEMP_OFFSET,)))]
+    want, lines = [], []
+    for groups, cfg in jobs:
+        want += runtime.run(groups, cfg, "cpython")
+        lines += protocol.protocol_lines(groups, cfg)
+    got = protocol.parse(chip.run_protocol(lines, FW).out.splitlines())
+    assert got == want
+    assert sum(r.status == 0 for r in want[:4]) >= 3
+    assert sum(r.kept is not None and 0 in r.kept for r in want[:4]) >= 1   # rejections too
+    assert min(len(r.rest_int) for r in want[4:6]) >= 5
+    assert want[-1].status == 0 and want[-1].params_int[9] != 0               # the effect fitted
+
+
+def test_missing_emulator_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
+    with pytest.raises(InputError, match="rp2040js is not installed"):
+        rp2040.emulator_index()
+    assert "circuitpython" in runtime.RUNTIMES
+
+
+def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
+    """CircuitPython's own mpy-cross (committed with its firmware; make build uses it) compiles
+    the package; its .mpy files say CircuitPython ('C', version 6) where MicroPython's say 'M'
+    (which CircuitPython refuses)."""
+    from accelcal.locations import DEVICE_PACKAGE
+    sources = sorted(DEVICE_PACKAGE.glob("*.py"))
+    assert len(sources) >= 10
+    for src in sources:
+        cp, mp = tmp_path / f"{src.stem}.cp.mpy", tmp_path / f"{src.stem}.mp.mpy"
+        rp2040.mpy_cross(src, cp, None, FW)
+        rp2040.mpy_cross(src, mp, None)
+        assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
+
+
+def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(chip):
+    """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
+    (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
+    every full scale (readings past it, parameters at the bounds' corner), and the default
+    (wear) fit of 72 points with outlier rejection, slice by slice as the app runs it: 0 bytes.
+    A list shows the counting sees an allocation.  Memory: after `import acal.app` and a
+    Processor of each of the largest models (four effects, a step among them), the heap keeps
+    room for the app (its buffers, log and bus: ~10 kB)."""
+    from accelcal.studies import bench_circuitpython
+    r = bench_circuitpython.run(whole=False)
+    assert r["bytes_control_list"] > 0
+    for k in ("bytes_rest_paper", "bytes_rest_wear", "bytes_apply", "bytes_fit_begin",
+              "bytes_fit_worst_slice", "bytes_fit_all_slices"):
+        assert r[k] == 0, (k, r)
+    assert r["rest_segments"] == "2 2"                         # the detectors saw the rests
+    status, iterations, rejected = map(int, r["fit_wear_status"].split())
+    assert status == 0 and rejected >= 2 and r["fit_wear_slices"] > 100
+    from acal.gaussnewton import GaussNewton
+    host = GaussNewton(72)
+    host.run(bench_circuitpython.fit_points(), 72)
+    assert r["fit_wear_params"] == " ".join(map(str, host.p[:9]))   # what CPython fits
+    largest = [v for k, v in r.items() if k.startswith("free_with_processor_")]
+    assert len(largest) == 2 and min(largest) > 40000
+    print({k: v for k, v in r.items() if k.startswith("free")})
+
+
+# What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the
+# computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
+BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
+
+FEATHER_APP = """import board, time, adafruit_lis3dh
+lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
+time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
+print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
+import acal.app
+app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=200000,
+                    profile=0)
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+"""
+
+
+def site_package(name):
+    import importlib.util
+    spec = importlib.util.find_spec(name)
+    root = Path(spec.origin)
+    return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
+
+
+def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, chip):
+    """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
+    the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
+    (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
+    for 10 emulated seconds at 100 Hz, logs to the drive (writable to it after a power-up with
+    boot.py, nothing remounted from the REPL), and its capture replays on the host into the
+    board's very log."""
+    from accelcal.board import emulated
+    from accelcal.bridge import boardlog
+    from accelcal.simulate.stimulus import calibration_dance
+    from test_pico_lis3dh import RATE, TRUTH
+    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
+            "boot.py": BOOT_PY}
+    for f in site_package("adafruit_lis3dh"):
+        puts[f"/lib/{f.name}"] = f.read_bytes()
+    for f in site_package("adafruit_bus_device"):
+        puts[f"/lib/adafruit_bus_device/{f.name}"] = f.read_bytes()
+    image = tmp_path / "feather.bin"   # installed, then powered up again: boot.py remounts
+    emulated.run(["print(1)"], puts=puts, flash_out=image, fw=FW)
+    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin",
+                     gets=["log.bin", "capture.bin"], flash_in=image, fw=FW, i2c="1,2,3")
+    rng_code, norm = map(int, r.out.split("ADAFRUIT")[1].split()[:2])
+    assert rng_code == 0 and 5 <= norm <= 15, r.out   # RANGE_2_G; |a| of gravity's order, m/s^2
+    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    chip_truth = r.report["lis3dh"]
+    assert samples >= 9 * 100 and overruns == 0 and bus_errors == chip_truth["faults"] == 0
+    assert samples + lost <= chip_truth["converted"]
+    for f in ("log.bin", "capture.bin"):
+        (tmp_path / f).write_bytes(r.files[f])
+    rep = boardlog.replay(tmp_path)
+    assert rep["identical"] and rep["samples_replayed"] == samples + lost
+    assert rep["rest"]["board"] >= 1, rep

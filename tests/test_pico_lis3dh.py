@@ -1,0 +1,221 @@
+"""The LIS3DH on the emulated Pico's I2C0 (bridge/scripts/lis3dh.mjs): one chip behaviour, held to
+the virtual board's Python model (simulate/chip/vlis3dh.py) register operation by register
+operation; then the app on boards/pico.py, unchanged, reading it through the real machine.I2C."""
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from accelcal.locations import CHIP_DIR, script
+from accelcal.simulate.stimulus import calibration_dance, write_stimulus
+from conftest import ROOT
+
+sys.path.insert(0, str(CHIP_DIR))
+from vclock import Clock  # noqa: E402
+from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
+
+# register addresses (datasheet DocID17530), written out here rather than taken from either model
+CTRL1, CTRL4, CTRL5, TEMP_CFG, FIFO_CTRL = 0x20, 0x23, 0x24, 0x1F, 0x2E
+STATUS, OUT_X_L, FIFO_SRC, OUT_ADC3, WHO_AM_I = 0x27, 0x28, 0x2F, 0x0C, 0x0F
+AUTO = 0x80
+
+
+def random_ops(rng, n_ops=2500):
+    """Register traffic a driver could make, at increasing times: configurations (every ODR
+    including 1344 Hz, low-power, normal and high resolution, each range, each FIFO mode, BOOT),
+    reads of every kind, and waits from microseconds to past a full FIFO."""
+    ops, t = [], 0
+    fifo = [0, 0]  # CTRL_REG5, FIFO_CTRL_REG as written: multi-sample reads only with the FIFO on
+    for _ in range(n_ops):
+        t += int(rng.choice([0, 7, 333, 2500, 10000, 40000, 400000]))
+        k = rng.integers(12)
+        if k == 0:
+            ops.append([t, "w", CTRL1, [int(rng.integers(0, 11)) << 4 | int(rng.choice([0x07, 0x0F]))]])
+        elif k == 1:
+            ops.append([t, "w", CTRL4, [int(rng.choice([0, 0x80])) | int(rng.integers(4)) << 4
+                                        | int(rng.choice([0, 0x08]))]])
+        elif k == 2:
+            ops.append([t, "w", CTRL5, [int(rng.choice([0x00, 0x40, 0x40, 0x80]))]])
+        elif k == 3:
+            ops.append([t, "w", FIFO_CTRL, [int(rng.integers(4)) << 6]])
+        elif k == 4:
+            ops.append([t, "w", TEMP_CFG | AUTO, [int(rng.choice([0, 0xC0])), 0]])
+        elif k == 5:
+            ops.append([t, "r", FIFO_SRC, 1])
+        elif k == 6 and fifo[0] & 0x40 and fifo[1] >> 6:
+            ops.append([t, "r", OUT_X_L | AUTO, 6 * int(rng.integers(1, 33))])
+        elif k == 7:
+            ops.append([t, "r", OUT_X_L | AUTO, 6])
+        elif k == 8:
+            ops.append([t, "r", OUT_ADC3 | AUTO, 2])
+        elif k == 9:
+            ops.append([t, "r", STATUS, 1])
+        elif k == 10:
+            # not into the outputs: a read that stops between an axis's two bytes leaves BDU
+            # holding it on the wire model, which the Python model (whole transactions) lacks
+            reg = int(rng.choice([r for r in range(0x3D) if not 0x26 <= r < 0x2E]))
+            ops.append([t, "r", reg | AUTO, int(rng.integers(1, 4))])
+        else:
+            ops.append([t, "r", WHO_AM_I, 1])
+        if ops[-1][1] == "w" and ops[-1][2] in (CTRL5, FIFO_CTRL):
+            v = ops[-1][3][0]
+            fifo[ops[-1][2] == FIFO_CTRL] = v
+            if ops[-1][2] == CTRL5 and v & 0x80:
+                fifo[:] = [0, 0]      # BOOT
+    return ops
+
+
+def python_model(stim, ops):
+    clock = Clock()
+    chip = SimLIS3DH(Stimulus(str(stim)), clock)
+    reads = []
+    for t, op, reg, arg in ops:
+        clock.set_us(t)
+        if op == "w":
+            chip.write(reg, bytes(arg), 0, len(arg))
+        else:
+            buf = bytearray(arg)
+            chip.read(reg, buf, 0, arg)
+            reads.append(list(buf))
+    return {"reads": reads, "dropped": chip.dropped}
+
+
+@pytest.fixture(scope="module")
+def node():
+    if not shutil.which("node"):
+        pytest.skip("Node is not on PATH")
+    return "node"
+
+
+def test_js_model_reads_what_the_python_model_reads(tmp_path, node, rng):
+    n = 40000
+    t = np.arange(n) / 400
+    xyz = np.column_stack([1.9 * np.sin(t), 2.5 * np.cos(3 * t), 0.8 + 0.01 * t])
+    xyz += rng.normal(scale=0.003, size=(n, 3))
+    stim = tmp_path / "stim.bin"
+    write_stimulus(stim, 400, xyz, 20 + 0.001 * np.arange(n))
+    ops = random_ops(rng)
+    (tmp_path / "ops.json").write_text(json.dumps(ops))
+    p = subprocess.run([node, script("lis3dh.mjs"), "--ops", str(tmp_path / "ops.json"),
+                        "--stimulus", str(stim)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    js = json.loads(p.stdout)
+    py = python_model(stim, ops)
+    assert len(js["reads"]) == len(py["reads"]) > 1000
+    first = next((i for i, (a, b) in enumerate(zip(js["reads"], py["reads"])) if a != b), None)
+    assert first is None, f"read {first} differs: js {js['reads'][first]} python {py['reads'][first]}"
+    assert js["dropped"] == py["dropped"] > 0          # stream overwrites happened, alike
+    # the traffic reached every corner that matters: full FIFOs, outputs past the 2 g clip
+    assert any(r[0] & 0x80 for r, o in zip(py["reads"], [o for o in ops if o[1] == "r"])
+               if o[2] == FIFO_SRC)
+
+
+# ---------------------------------------------------------------- the app on the emulated Pico
+RATE = 100
+TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
+
+
+@pytest.fixture(scope="module")
+def pico():
+    from accelcal.bridge import rp2040
+    from accelcal.errors import InputError
+    try:
+        rp2040.emulator_index()
+        rp2040.flash_image()
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    from accelcal.board import emulated
+    return emulated
+
+
+def fifo_q10(xyz_g):
+    """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
+    digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver scales."""
+    from acal.lis3dh import LIS3DH
+    ug = np.rint(xyz_g * 1e6).astype(np.int64)
+    d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
+    d10 = np.clip(d12, -2048, 2047) >> 2
+    return np.vectorize(lambda d: LIS3DH._to_q10(None, int(d) << 6, 6, 4))(d10)
+
+
+# the paper's profile: the wear profile judges no segment still before 80 s of quiet ones
+APP = """import acal.app
+app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=400000,
+                    profile=0)
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+"""
+
+
+def test_the_app_on_pico_reads_the_stimulus_and_replays(tmp_path, pico):
+    """boards/pico.py and the app, unchanged, on the emulated Pico for 10 emulated seconds at
+    100 Hz with the FIFO and 2 % of bus transactions NACKed: every fault is one bus error the app
+    survives, every sample the app captured is the stimulus's at its time, and the capture
+    replays on the host into the board's very log."""
+    from accelcal.bridge import boardlog
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    r = pico.run([APP.format(seconds=10)], stimulus=tmp_path / "stim.bin", bus_faults=20,
+                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()},
+                 gets=["log.bin", "capture.bin"])
+    done = r.out.split("ACAL_DONE")[1].split()
+    samples, lost, overruns, bus_errors = map(int, done[:4])
+    chip = r.report["lis3dh"]
+    assert chip["faults"] > 0 and bus_errors == chip["faults"]
+    assert overruns == 0 and chip["dropped"] == 0
+    assert 10 * RATE <= samples + lost <= chip["converted"]   # it converts on after the app ends
+    for f in ("log.bin", "capture.bin"):
+        (tmp_path / f).write_bytes(r.files[f])
+    # the samples, in the order the FIFO gave them, are the chip's conversions 1, 2, ... of the
+    # last ODR start; conversion n reads the stimulus at that start + n periods
+    got = np.concatenate([b[3] for b in boardlog.read_capture(tmp_path).blocks if b[0] == "samples"])
+    assert len(got) == samples
+    s, us = chip["starts"][-1]
+    k = (s * 1_000_000 + us + np.arange(1, samples + 1) * 10_000) * RATE // 1_000_000
+    assert np.array_equal(got, fifo_q10(xyz[k]))
+    rep = boardlog.replay(tmp_path)
+    assert rep["identical"] and rep["samples_replayed"] == samples + lost
+    assert rep["rest"]["board"] >= 1, rep      # the replay compared the rest means it logged
+
+
+LATE = """import time, acal.app, acal_board
+app = acal.app.App(acal_board, rate_hz=100, fifo=True, profile=0)
+for _ in range(4):
+    app.step()
+time.sleep_ms(700)   # late: 70 samples come due in a 32-level FIFO (a long flash erase, say)
+for _ in range(4):
+    app.step()
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns)
+"""
+
+
+def test_a_late_app_overruns_the_fifo_and_counts_what_it_lost(tmp_path, pico):
+    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=1)
+    r = pico.run([LATE], stimulus=tmp_path / "stim.bin",
+                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()})
+    samples, lost, overruns = map(int, r.out.split("ACAL_DONE")[1].split()[:3])
+    chip = r.report["lis3dh"]
+    assert overruns == 1
+    assert chip["dropped"] >= 70 - 32
+    # The app counts one sample more than the chip dropped: its time-based count is taken after
+    # the FIFO read, and a sample the chip converts during the read (25 samples: 3.4 ms of bus at
+    # 400 kHz) is counted lost though it waits in the FIFO.  At most one: reported, not fixed here.
+    assert lost - chip["dropped"] in (0, 1), (lost, chip)
+
+
+REGISTERS = """import acal.app
+app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=False, profile=0)
+print('ACAL_DONE', app.samples, app.lost)
+"""
+
+
+def test_the_app_reading_registers_keeps_up_at_100_hz(tmp_path, pico):
+    """The app's default, one sample read from the output registers per period, on the chip's
+    clock: it wakes just past each conversion (not a whole period after its last read, which lost
+    a sample every ~11 here), so ten emulated seconds at 100 Hz lose none."""
+    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=7, rounds=1, rest_s=9)
+    r = pico.run([REGISTERS.format(seconds=10)], stimulus=tmp_path / "stim.bin",
+                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()})
+    samples, lost = map(int, r.out.split("ACAL_DONE")[1].split()[:2])
+    assert samples >= 10 * RATE - 1 and lost == 0, (samples, lost)

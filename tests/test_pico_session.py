@@ -1,0 +1,90 @@
+"""The real mpremote to the emulated Pico: `accelcal board virtual --chip rp2040` serves the
+emulated chip's USB CDC on a pseudo-terminal, and `deploy`, `acquire` and `pull` use that port as
+a Pico's, unchanged.  What the board logged replays on the host bit for bit."""
+import json
+
+import numpy as np
+import pytest
+
+from accelcal.board import virtual
+from accelcal.simulate.stimulus import calibration_dance
+from conftest import run_cli, run_main
+
+TRUTH = [1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04]
+
+
+@pytest.fixture(scope="module")
+def emulator():
+    from accelcal.bridge import rp2040
+    from accelcal.errors import InputError
+    try:
+        rp2040.emulator_index()
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+
+
+def session(tmp_path, app_args, seconds):
+    """deploy, acquire `seconds` of board time, pull: (deploy's JSON, pull's JSON, the pulled
+    folder)."""
+    with virtual.Running(tmp_path / "pico.bin", tmp_path / "stim.bin", "--chip", "rp2040") as b:
+        r = run_cli("deploy", "--port", b.port, *app_args, "--json")
+        assert r.returncode == 0, r.stderr
+        info = json.loads(r.stdout)
+        r = run_cli("acquire", "--port", b.port, "--hours", seconds / 3600, *app_args)
+        assert r.returncode == 0, r.stderr
+        out = tmp_path / "pulled"
+        r = run_cli("pull", "--port", b.port, "-o", out, "--json")
+        assert r.returncode == 0, r.stderr
+        pulled = json.loads(r.stdout)
+    return info, pulled, out
+
+
+def test_mpremote_deploys_acquires_and_pulls_on_the_emulated_pico(tmp_path, emulator):
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=3, rounds=1)
+    info, pulled, out = session(tmp_path, ["--fifo", "--capture-kb", 200, "--profile", "paper"], 12)
+    assert info["board"] == "pico" and info["platform"] == "rp2" and info["format"] == "mpy"
+    c = pulled["counters"]
+    assert c["samples"] + c["lost"] >= 12 * 100 and c["fifo_overruns"] == 0
+    assert len(pulled["rest_points"]) >= 1
+    assert not pulled["dropped"]
+    r = run_cli("replay", out, "--json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert json.loads(r.stdout)["identical"]
+    # the flash image the board saved when it stopped holds what it ran: littlefs, as written
+    img = (tmp_path / "pico.bin").read_bytes()
+    assert len(img) == 2 * 1024 * 1024 and b"littlefs" in img
+
+
+@pytest.mark.slow
+def test_a_calibration_dance_on_the_emulated_pico(tmp_path, emulator):
+    """Seven emulated minutes of a calibration dance at 100 Hz (the board on each face and six
+    edges, three rounds; the paper's profile, which needs two points in each of its nine
+    subsets): the board calibrates, the host's replay of its capture gives the same rest points
+    and the same calibration, integer for integer."""
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=4, rounds=3, tilt_deg=20)
+    info, pulled, out = session(tmp_path, ["--fifo", "--capture-kb", 1500, "--profile", "paper"],
+                                420)
+    assert pulled["calibrations"] and pulled["calibrations"][0]["status"] == "ok"
+    r = run_cli("replay", out, "--json")
+    rep = json.loads(r.stdout)
+    assert r.returncode == 0 and rep["identical"] and rep["cal"]["board"] >= 1, rep
+    got = np.array([pulled["calibrations"][-1][n] for n in
+                    ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")])
+    print(f"\nemulated Pico, calibration dance: {rep['samples_replayed']} samples, "
+          f"{rep['rest']['board']} rest records, {rep['cal']['board']} calibration(s); "
+          f"largest parameter error {np.max(np.abs(got - TRUTH)):.4f}")
+    assert np.max(np.abs(got - TRUTH)) < 0.02
+
+
+def test_bad_emulated_board_options_end_in_one_line(tmp_path, capsys):
+    """No file is taken for a flash image unless it is one; the unix port's options refused."""
+    stim = tmp_path / "stim.bin"
+    calibration_dance(stim, 100, TRUTH, seed=3, rounds=1, rest_s=1)
+    other = tmp_path / "notes.txt"
+    other.write_text("mine")
+    cases = [["--flash", other], ["--flash", stim], ["--heap", "100k"], ["--speed", "2"]]
+    for extra in cases:
+        code, out, err = run_main(capsys, ["board", "virtual", "--chip", "rp2040", "--stimulus",
+                                           stim, *extra])
+        assert code == 2 and len(err.strip().splitlines()) == 1 and not out, (extra, err)
+    assert other.read_text() == "mine" and stim.stat().st_size > 1000

@@ -1,0 +1,129 @@
+"""The emulated RP2040 as a runtime: MicroPython's own RPI_PICO firmware on rp2040js, the device
+package installed as armv6m .mpy files, gives the same integers as CPython: both profiles on a
+point set, a composed model on a simulated wrist recording's rest points, and a short recording
+fed sample by sample over the emulated USB.  The emulator runs ~20-70 M cycles a wall second, so
+each case is kept to a few emulated seconds."""
+import json
+
+import numpy as np
+import pytest
+
+from accelcal.bridge import rp2040, runtime
+from accelcal.errors import InputError
+from conftest import run_main
+
+
+@pytest.fixture(scope="session")
+def chip():
+    """The emulated chip with the package installed; skipped, saying why, where Node, rp2040js
+    or the firmware is missing (make setup installs rp2040js; CI has all three)."""
+    try:
+        rp2040.check()
+        rp2040.flash_image()
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    return rp2040
+
+
+def test_firmware_is_micropython_on_an_rp2040(chip):
+    out = chip.run_script("import sys, gc\nprint(sys.implementation._machine)\n"
+                          "print(sys.maxsize)\nimport acal.fixed\nprint(acal.fixed.__file__)\n").out
+    machine, maxsize, where = out.split("\n")[:3]
+    assert "RP2040" in machine
+    assert int(maxsize) == 2**31 - 1             # 32-bit words: small ints stop at 2^30
+    assert where.endswith("acal/fixed.mpy")      # installed as .mpy, as a deployment is
+
+
+def test_cycles_are_counted(chip):
+    short = chip.run_script("x = 0\n").cycles
+    loop = chip.run_script("x = 0\nfor i in range(2000):\n    x += i\n").cycles
+    assert loop > short + 2000 * 10              # every bytecode costs cycles
+
+
+def calibrate_both(capsys, *argv):
+    """The same calibrate under CPython and on the chip: (CPython's record, the chip's), each
+    without its runtime field; the exit status must be the same."""
+    records, codes = {}, {}
+    for rt in ("cpython", "rp2040"):
+        code, out, err = run_main(capsys, ["calibrate", *map(str, argv), "--runtime", rt, "--json"])
+        assert code in (0, 2) and out, err
+        rec = json.loads(out)
+        assert rec.pop("runtime") == rt
+        records[rt], codes[rt] = rec, code
+    assert codes["rp2040"] == codes["cpython"]
+    return records["cpython"], records["rp2040"]
+
+
+@pytest.fixture(scope="module")
+def paper_points(tmp_path_factory):
+    pts = tmp_path_factory.mktemp("paper") / "pts.csv"
+    from accelcal import cli
+    assert cli.main(["simulate", "paper", "--noise-mg", "1", "--scenarios", "1", "--seed", "7",
+                     "-o", str(pts)]) == 0
+    return pts
+
+
+def test_calibrate_on_the_chip_equals_cpython(paper_points, chip, capsys):
+    cp, rp = calibrate_both(capsys, paper_points, "--by", "device")
+    assert rp == cp
+    assert cp["points"] >= 18 and cp["status"] == "calibrated" and cp["profile"] == "wear"
+
+
+def test_paper_profile_on_the_chip_equals_cpython(paper_points, chip, capsys):
+    """The paper's gradient descent (18 points, 50 iterations: ~3.7 emulated s, its longs past
+    2^30 allocated on the chip's heap and collected)."""
+    cp, rp = calibrate_both(capsys, paper_points, "--by", "device", "--profile", "paper")
+    assert rp == cp
+    assert cp["points"] == 18 and cp["status"] == "calibrated" and cp["profile"] == "paper"
+
+
+def test_composed_model_on_the_chip_equals_cpython(tmp_path, chip, capsys):
+    """base+temp_offset on every 32nd rest point of a simulated wrist day with a temperature
+    offset (tests/test_diagnose.py takes every 8th for the unix port; the fits, not the points,
+    cost the chip's time): bins spread in temperature and time, the base fit, then the composed
+    Gauss-Newton fit, all on the chip."""
+    from accelcal import cli
+    from accelcal.pipeline.restpoints import rest_points
+    rec = tmp_path / "day.csv"
+    assert cli.main(["simulate", "wrist", "--days", "1", "--rate", "10", "--seed", "17",
+                     "--effect", "temp_offset", "-o", str(rec)]) == 0
+    p = rest_points(str(rec))
+    pts = tmp_path / "points.csv"
+    np.savetxt(pts, np.column_stack([p.v, p.t, p.temp])[::32], delimiter=",", fmt="%.6f",
+               header="x,y,z,t,temp", comments="")
+    cp, rp = calibrate_both(capsys, pts, "--model", "base+temp_offset")
+    assert rp == cp
+    assert cp["status"] == "calibrated" and cp["model"] == "base+temp_offset"
+    assert len(cp["params_int"]) == 12          # the nine and temp_offset's three
+
+
+def test_recording_sample_by_sample_on_the_chip_equals_cpython(tmp_path, chip, capsys):
+    """A simulated wrist recording of 4320 samples (25 Hz, 173 s) through the device engine:
+    every sample streamed to the chip's rest detector over the emulated USB (~35 kB a wall
+    second), its rest points into the bins; too short to calibrate, the same record either way."""
+    from accelcal import cli
+    rec = tmp_path / "short.csv"
+    assert cli.main(["simulate", "wrist", "--days", "0.002", "--rate", "25", "--seed", "3",
+                     "-o", str(rec)]) == 0
+    cp, rp = calibrate_both(capsys, rec, "--engine", "device")
+    assert rp == cp
+    assert cp["rest_points"] > 5 and "4320 samples" in cp["reason"], cp
+
+
+def test_missing_emulator_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
+    with pytest.raises(InputError, match="rp2040js is not installed"):
+        rp2040.emulator_index()
+    assert "rp2040" in runtime.RUNTIMES
+
+
+def test_missing_node_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path))          # no node on it
+    with pytest.raises(InputError, match="needs Node"):
+        rp2040.emulator_index()
+
+
+def test_missing_firmware_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setattr(rp2040, "_root", lambda: tmp_path)   # a checkout without firmware/
+    with pytest.raises(InputError, match="firmware.uf2 is missing"):
+        rp2040.run_script("print(1)\n")
