@@ -46,8 +46,9 @@ $(STAMP_RP2040JS):
 demo: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo
 
+# on both cores (pytest-xdist): the suite is CPU-bound, its emulated chips most of all
 test: setup
-	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -n 2
 
 $(STAMP_BENCH): pyproject.toml
 	$(PY) -m venv $(VENV_BENCH)

@@ -169,3 +169,18 @@ def effect_orders():
                if o[0] in effects.SHAPES or o[1] in effects.SHAPES]
     orders += [(k,) for k in effects.SHAPES]
     return orders
+
+
+def emulated_chip(firmware=None):
+    """bridge/rp2040 with the firmware's flash image made (MicroPython's by default); the test is
+    skipped, saying why, where Node, rp2040js or the firmware is missing (make setup installs
+    rp2040js; CI has all three)."""
+    from accelcal.bridge import rp2040
+    from accelcal.errors import InputError
+    fw = firmware or rp2040.MICROPYTHON
+    try:
+        rp2040.check(fw)
+        rp2040.flash_image(fw)
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    return rp2040

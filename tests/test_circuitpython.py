@@ -12,7 +12,7 @@ import pytest
 from accelcal import simulate
 from accelcal.bridge import protocol, rp2040, runtime
 from accelcal.errors import InputError
-from conftest import ROOT, run_main
+from conftest import ROOT, emulated_chip, run_main
 from test_runtimes import random_recording
 
 FW = rp2040.CIRCUITPYTHON
@@ -22,12 +22,7 @@ FW = rp2040.CIRCUITPYTHON
 def chip():
     """The emulated Feather with the package installed; skipped, saying why, where Node or
     rp2040js is missing (make setup installs it; CI has both)."""
-    try:
-        rp2040.emulator_index()
-        rp2040.flash_image(FW)
-    except InputError as e:
-        pytest.skip(f"emulated RP2040 not available: {e}")
-    return rp2040
+    return emulated_chip(FW)
 
 
 @pytest.mark.slow   # a boot of CircuitPython: ~40 s of CPU (the default run proves the heap below)

@@ -11,7 +11,7 @@ import pytest
 
 from accelcal.locations import CHIP_DIR, script
 from accelcal.simulate.stimulus import calibration_dance, write_stimulus
-from conftest import ROOT
+from conftest import ROOT, emulated_chip
 
 sys.path.insert(0, str(CHIP_DIR))
 from vclock import Clock  # noqa: E402
@@ -120,13 +120,7 @@ TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
 
 @pytest.fixture(scope="module")
 def pico():
-    from accelcal.bridge import rp2040
-    from accelcal.errors import InputError
-    try:
-        rp2040.emulator_index()
-        rp2040.flash_image()
-    except InputError as e:
-        pytest.skip(f"emulated RP2040 not available: {e}")
+    emulated_chip()
     from accelcal.board import emulated
     return emulated
 
@@ -203,19 +197,3 @@ def test_a_late_app_overruns_the_fifo_and_counts_what_it_lost(tmp_path, pico):
     # 400 kHz) is counted lost though it waits in the FIFO.  At most one: reported, not fixed here.
     assert lost - chip["dropped"] in (0, 1), (lost, chip)
 
-
-REGISTERS = """import acal.app
-app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=False, profile=0)
-print('ACAL_DONE', app.samples, app.lost)
-"""
-
-
-def test_the_app_reading_registers_keeps_up_at_100_hz(tmp_path, pico):
-    """The app's default, one sample read from the output registers per period, on the chip's
-    clock: it wakes just past each conversion (not a whole period after its last read, which lost
-    a sample every ~11 here), so ten emulated seconds at 100 Hz lose none."""
-    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=7, rounds=1, rest_s=9)
-    r = pico.run([REGISTERS.format(seconds=10)], stimulus=tmp_path / "stim.bin",
-                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()})
-    samples, lost = map(int, r.out.split("ACAL_DONE")[1].split()[:2])
-    assert samples >= 10 * RATE - 1 and lost == 0, (samples, lost)

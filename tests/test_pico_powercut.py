@@ -6,17 +6,12 @@ import pytest
 
 from acal import log
 from accelcal.board import powercut
+from conftest import emulated_chip
 
 
 @pytest.fixture(scope="module")
 def emulator():
-    from accelcal.bridge import rp2040
-    from accelcal.errors import InputError
-    try:
-        rp2040.emulator_index()
-        rp2040.flash_image()
-    except InputError as e:
-        pytest.skip(f"emulated RP2040 not available: {e}")
+    emulated_chip()
 
 
 def _log_bytes(values):

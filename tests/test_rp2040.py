@@ -10,19 +10,14 @@ import pytest
 
 from accelcal.bridge import rp2040, runtime
 from accelcal.errors import InputError
-from conftest import run_main
+from conftest import emulated_chip, run_main
 
 
 @pytest.fixture(scope="session")
 def chip():
     """The emulated chip with the package installed; skipped, saying why, where Node, rp2040js
     or the firmware is missing (make setup installs rp2040js; CI has all three)."""
-    try:
-        rp2040.check()
-        rp2040.flash_image()
-    except InputError as e:
-        pytest.skip(f"emulated RP2040 not available: {e}")
-    return rp2040
+    return emulated_chip()
 
 
 def test_firmware_is_micropython_on_an_rp2040(chip):

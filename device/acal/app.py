@@ -20,7 +20,6 @@ from acal.pipeline import Pipeline
 VERSION = 2  # 2: profiles (BOOT carries the fit)
 BLOCK = log.SAMPLES_PER_RECORD
 RETRIES = 3
-WAKE_AFTER = 16   # a register read wakes 1/16 period after the conversion it reads
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
 # Q16 g: 8 mg) from the last one logged, or after REST_LOG_SECONDS; the rest segments in between
 # are counted in the next record.  Rest records also get a daily byte allowance so that 14 days
@@ -439,11 +438,7 @@ class App:
     # variables heap cells, allocated on every call.
     def _step_register(self):
         s = self.sensor
-        # Wake just past the chip's next conversion (its time from the count of periods), not a
-        # whole period after this read: the read and the processing take time of their own, and
-        # a whole period on top of them falls a sample behind every few dozen on a board.
-        self._elapsed()
-        self.clock.sleep_us(self.period_us - self.acc_us + self.period_us // WAKE_AFTER)
+        self.clock.sleep_us(self.period_us)
         for attempt in range(RETRIES):
             try:
                 s.read_sample()
