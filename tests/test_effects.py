@@ -126,3 +126,23 @@ def test_the_host_and_device_bounds_are_one_bound(name):
     assert deff.NAMES[e.kind] == name
     assert e.to_int([e.bound])[0] == deff.BOUNDS[e.kind]
     assert set(deff.NAMES.values()) == {n for n in device_effects() if not CATALOGUE[n].declared_in}
+
+
+def test_effect_kinds_fit_the_logs_model_field():
+    """The log packs a model as 4 bits per effect into BOOT's 16-bit field: every id fits
+    KIND_MAX, the longest model round-trips, and past either limit model_code refuses rather
+    than wrap.  is_generic() is the one test of a generic offset: exactly SHAPES's kinds."""
+    import struct
+    from acal import effects as E, log
+    assert all(0 < k <= E.KIND_MAX == (1 << E.KIND_BITS) - 1 for k in E.NAMES)
+    longest = tuple(sorted(E.NAMES)[-E.MODEL_EFFECTS_MAX:])
+    code = E.model_code(longest)
+    assert E.model_kinds(code) == longest
+    struct.pack(log.FORMATS[log.BOOT][-2:], code, 0)          # the field holds it
+    with pytest.raises(ValueError):
+        E.model_code(tuple(sorted(E.NAMES)[:E.MODEL_EFFECTS_MAX + 1]))
+    with pytest.raises(ValueError):
+        E.model_code((E.KIND_MAX + 1,))
+    assert {k for k in E.NAMES if E.is_generic(k)} == set(E.SHAPES)
+    assert not any(E.is_generic(k) for k in (E.TEMP_OFFSET, E.TEMP_SCALE, E.DRIFT, E.NONLINEAR,
+                                             E.TEMP_OFFSET2))

@@ -69,6 +69,11 @@ SOURCE_SUPPLY = const(4)
 SHAPES = {STEP: (SOURCE_STEP, 1), TIME_OFFSET2: (SOURCE_TIME, 2), TIME_OFFSET3: (SOURCE_TIME, 3),
           TIME_OFFSET4: (SOURCE_TIME, 4), TEMP_OFFSET3: (SOURCE_TEMP, 3),
           TEMP_OFFSET4: (SOURCE_TEMP, 4), SUPPLY_OFFSET: (SOURCE_SUPPLY, 1)}
+# The log packs a model as KIND_BITS per effect into BOOT's 16-bit model field (model_code):
+# ids 1..KIND_MAX (three are left after SUPPLY_OFFSET) and at most MODEL_EFFECTS_MAX effects.
+KIND_BITS = const(4)
+KIND_MAX = const(15)
+MODEL_EFFECTS_MAX = const(4)
 X_Q = const(12)                   # the generic regressor's format
 GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
 GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
@@ -90,10 +95,16 @@ BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
           SUPPLY_OFFSET: GENERIC_BOUND}
 
 
+def is_generic(kind):
+    """True for a generic offset (SHAPES: a regressor from a source, to a power), the kinds
+    regressor() serves; the one test of it (a new kind is generic by its entry in SHAPES)."""
+    return kind in SHAPES
+
+
 def source_of(kind):
     """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
     SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""
-    if kind in SHAPES:
+    if is_generic(kind):
         source = SHAPES[kind][0]
         return SOURCE_TIME if source == SOURCE_STEP else source
     if kind == DRIFT:
@@ -106,7 +117,7 @@ def source_of(kind):
 def uses_source(kinds, source):
     """True when a model has a generic offset whose regressor comes from `source`."""
     for k in kinds:
-        if k in SHAPES and SHAPES[k][0] == source:
+        if is_generic(k) and SHAPES[k][0] == source:
             return True
     return False
 
@@ -136,10 +147,15 @@ def parse_model(spec):
 
 
 def model_code(kinds):
-    """The effect ids as one int for the log: kinds[i] in bits 4i..4i+3 (up to 4 effects)."""
+    """The effect ids as one int for the log: kinds[i] in bits 4i..4i+3; ValueError past
+    MODEL_EFFECTS_MAX effects or an id past KIND_MAX (the log's field would wrap)."""
+    if len(kinds) > MODEL_EFFECTS_MAX:
+        raise ValueError("the log holds a model of at most 4 effects")
     code = 0
     for i in range(len(kinds)):
-        code |= kinds[i] << (4 * i)
+        if not 0 < kinds[i] <= KIND_MAX:
+            raise ValueError("an effect id the log cannot hold")
+        code |= kinds[i] << (KIND_BITS * i)
     return code
 
 
@@ -147,8 +163,8 @@ def model_kinds(code):
     """model_code's inverse."""
     kinds = []
     while code:
-        kinds.append(code & 15)
-        code >>= 4
+        kinds.append(code & KIND_MAX)
+        code >>= KIND_BITS
     return tuple(kinds)
 
 
@@ -188,7 +204,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
     place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
     see the formats above); ts: a step's time (as dt); dV: the board's integer (mV from its
     reference).  Every intermediate stays below 2**30 (acal/wide.py)."""
-    if kind >= STEP:
+    if kind in SHAPES:   # is_generic(), inline: per point / per sample
         x = regressor(kind, dT, dt, ts, dV)
         for i in range(3):
             u[at + i] -= mul_shift(p[j + i], x, 16)
@@ -223,7 +239,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
 
 def apply_params(kind, p, j, k, m):
     """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
-    if kind >= STEP:
+    if is_generic(kind):
         shift = 8
     elif kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2:
         shift = 10
@@ -245,7 +261,7 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
     accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result);
     ts: a step's time (as dt); dV: the board's integer (mV from its reference)."""
-    if kind >= STEP:
+    if kind in SHAPES:   # is_generic(), inline: per point / per sample
         offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4)
         return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:

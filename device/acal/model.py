@@ -228,6 +228,7 @@ class Calibration:
         # the generic offsets' regressors (Q12), computed when temp, time or supply changes,
         # not per sample (effects.regressor: up to three wide products)
         self.r = [0] * len(self.kinds)
+        self.generic = [effects.is_generic(k) for k in self.kinds]
         self.r_valid = False
         self.r_temp = 0
         self.r_time = 0
@@ -309,7 +310,7 @@ class Calibration:
                 self.supply != self.r_supply:
             dV = self.supply - self.ref_supply
             for j in range(len(kinds)):
-                if kinds[j] >= effects.STEP:
+                if self.generic[j]:
                     r[j] = effects.regressor(kinds[j], dT, dt, self.step_time, dV) >> 4
             self.r_valid = True
             self.r_temp = self.temp
@@ -317,7 +318,7 @@ class Calibration:
             self.r_supply = self.supply
         j = len(kinds) - 1
         while j >= 0:
-            if kinds[j] >= effects.STEP:   # correct_sample's form, with the regressor kept
+            if self.generic[j]:   # correct_sample's form, with the regressor kept
                 effects.offset_sample(self.k, N_PARAMS + 3 * j, w, r[j])
             else:
                 effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)

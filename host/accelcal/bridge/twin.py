@@ -243,7 +243,7 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
             ke = [0, 0, 0]
             deff.apply_params(kind, [int(v) for v in p_int[9 + 3 * j:12 + 3 * j]], 0, ke, 0)
             ke = np.array(ke, dtype=np.int64)
-            if kind in deff.SHAPES:
+            if deff.is_generic(kind):
                 w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> 14
             elif kind == deff.TEMP_OFFSET:
                 w -= (ke * dT) >> 4
