@@ -78,11 +78,11 @@ def true_heldout_error(rec, effects_file=None) -> float:
 
 def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):
     """deploy MODEL to the virtual board (the MicroPython unix port on a pty, an RP2040-sized
-    160 kB heap) with the real mpremote, acquire `hours` of the stimulus, pull: (the pulled
+    240 kB heap, the Pico firmware's) with the real mpremote, acquire `hours` of the stimulus, pull: (the pulled
     summary, its folder)."""
     import json
     from accelcal.board import virtual
-    with virtual.Running(tmp_path / "flash", stim, "--heap", "160k") as b:
+    with virtual.Running(tmp_path / "flash", stim, "--heap", "240k") as b:
         app = ["--rate", rate, "--capture-kb", 12000, "--model", model, "--recal-hours", 6]
         r = run_cli("deploy", "--port", b.port, *app)
         assert r.returncode == 0, r.stderr

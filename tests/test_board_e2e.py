@@ -28,7 +28,7 @@ def board(tmp_path_factory):
         test_app.stimulus(d / "stim.bin", np.random.default_rng(7), n_rest=600)
     finally:
         test_app.RATE = 25
-    with virtual.Running(d / "flash", d / "stim.bin", "--heap", "160k", "--bus-faults", "20") as b:
+    with virtual.Running(d / "flash", d / "stim.bin", "--heap", "240k", "--bus-faults", "20") as b:
         b.dir = d
         yield b
 
