@@ -79,8 +79,9 @@ def processor_us(log, Processor, repeat):
     n = log.SAMPLES_PER_RECORD
     blocks = []
     s = 12345
+    from array import array
     for b in range(N_FEED // n):
-        buf = [0] * (3 * n)
+        buf = array("i", [0] * (3 * n))   # as a FIFO read gives it (the scans' typed pointer)
         for i in range(3 * n):
             s = (s * 1103515245 + 12345) & 0x7FFFFFFF
             buf[i] = (102, -205, 993)[i % 3] + (s >> 16) % 7 - 3
