@@ -177,11 +177,15 @@ def test_gauss_newton_rows_stay_small_at_the_fit_region_corners():
     T = traced(tr)
     w = model.FIT_W_MAX
     d = [0] * 9
-    for p in _fit_corners():
-        pt = [T(v) for v in p]
-        for u in itertools.product((-w, w), repeat=3):
-            model.residual(pt, T(u[0]), T(u[1]), T(u[2]))
-            model.residual_jacobian(pt, T(u[0]), T(u[1]), T(u[2]), d)
+    model.int = lambda v: v   # viper's cast (on the boards): the traced parameters pass
+    try:
+        for p in _fit_corners():
+            pt = [T(v) for v in p]
+            for u in itertools.product((-w, w), repeat=3):
+                model.residual(pt, T(u[0]), T(u[1]), T(u[2]))
+                model.residual_jacobian(pt, T(u[0]), T(u[1]), T(u[2]), d)
+    finally:
+        del model.int
     assert tr.ops > 100000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
 
 
@@ -244,7 +248,9 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
             x = [0] * n
             s.m = [0] * len(s.m)   # lists for its int32 arrays: the traced ints stay traced
             s.c = [0] * len(s.c)
-            solve.int = lambda v: v   # viper's cast (solve._eliminate) passes them through
+            s.y = [0] * len(s.y)
+            s.s = [0] * len(s.s)
+            solve.int = lambda v: v   # viper's cast (solve._eliminate_rows) passes them through
             try:
                 ok = s.solve([T(int(v)) for v in a.ravel()], [T(int(v)) for v in b], x, n,
                              T(mu), [T(k)] * n)
@@ -263,7 +269,7 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
 def test_default_fit_stays_small_on_hostile_points(rng):
     """The whole default fit, traced: 72 points with outliers at the clamp, points past it,
     a composed model of all four effects with dT and dt past their clamps."""
-    from acal import effects, gaussnewton
+    from acal import effects, normal_sums
     from acal.gaussnewton import GaussNewton
     from accelcal import simulate
     d = rng.normal(size=(72, 3))
@@ -280,14 +286,17 @@ def test_default_fit_stays_small_on_hostile_points(rng):
         T = traced(tr)
         gn = GaussNewton(72, k)
         gn.aux = [T(0)] * len(gn.aux)   # a traced list for its int32 array: dT, dt, dV traced
-        for name in ("d", "a", "b", "bl"):  # likewise the sums (viper's ptr32 on a board)
+        # likewise the sums, points, parameters, scales and residuals (viper's ptr32 on a board)
+        for name in ("d", "a", "b", "bl", "u", "p", "pt", "sh", "grown", "r", "rt", "srt", "rhs"):
             setattr(gn, name, [T(0)] * len(getattr(gn, name)))
         gn.ts = T(0)
-        gaussnewton.int = lambda v: v   # viper's cast: the traced int passes
+        normal_sums.int = lambda v: v   # viper's cast: the traced int passes
+        model.int = lambda v: v
         try:
             gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
         finally:
-            del gaussnewton.int
+            del normal_sums.int
+            del model.int
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
 
 

@@ -284,6 +284,6 @@ def test_a_composed_fit_that_fails_keeps_the_base_calibration(rng):
     assert status == optimiser.BASE_KEPT_FAILED and optimiser.usable(status)
     b = pipe.base_fit
     assert b.status == optimiser.OK
-    assert pipe.optimiser.p[:9] == b.p[:9] and pipe.optimiser.p[9:] == [0, 0, 0]
+    assert list(pipe.optimiser.p[:9]) == list(b.p[:9]) and list(pipe.optimiser.p[9:]) == [0, 0, 0]
     assert np.abs(np.array(b.p) / 2.0 ** 24 - truth).max() < 2e-3   # and it is a good one
     assert "base calibration kept" in optimiser.STATUS_NAMES[status]

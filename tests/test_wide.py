@@ -85,3 +85,46 @@ print(" ".join([str(v) for v in out]))
     assert lines[0] == "OK"
     want = [(a * b) >> s for a, b, s in muls] + [(x << s) // d for x, d, s in divs]
     assert [int(v) for v in lines[1].split()] == want
+
+
+def _rows_from_mul_shift(p, ux, uy, uz):
+    # The default fit's residual and Jacobian row as wide.mul_shift composes them (the form
+    # model.residual_jacobian writes out for the boards' viper).
+    ux += p[6]
+    uy += p[7]
+    uz += p[8]
+    ax = mul_shift(p[0], ux, 24)
+    ay = mul_shift(p[3], ux, 24) + mul_shift(p[1], uy, 24)
+    az = mul_shift(p[4], ux, 24) + mul_shift(p[5], uy, 24) + mul_shift(p[2], uz, 24)
+    r = mul_shift(ax, ax, 26) + mul_shift(ay, ay, 26) + mul_shift(az, az, 26) - (1 << 22)
+    ax, ay, az, ux, uy, uz = (v >> 12 for v in (ax, ay, az, ux, uy, uz))
+    k = [v >> 12 for v in p[:6]]
+    return r, [ax * ux, ay * uy, az * uz, ay * ux, az * ux, az * uy,
+               ax * k[0] + ay * k[3] + az * k[4], ay * k[1] + az * k[5], az * k[2]]
+
+
+def test_fit_rows_are_the_mul_shift_products():
+    """model.residual and residual_jacobian (mul_shift written out, for viper) give the integers
+    mul_shift gives, over the fit region and the fit's clamp, its corners included."""
+    import itertools
+
+    from acal import fixed, model
+    rnd = random.Random(5)
+    w = model.FIT_W_MAX
+    kd = (fixed.FIT_K_DIAG_MIN, fixed.FIT_K_DIAG_MAX)
+    ko = (-fixed.FIT_K_OFF_MAX, fixed.FIT_K_OFF_MAX)
+    oo = (-fixed.FIT_O_MAX, fixed.FIT_O_MAX)
+    cases = []
+    for _ in range(3000):
+        p = [rnd.randint(*kd) for _ in range(3)] + [rnd.randint(*ko) for _ in range(3)] + \
+            [rnd.randint(*oo) for _ in range(3)]
+        cases.append((p, [rnd.randint(-w, w) for _ in range(3)]))
+    for p in itertools.product(kd, kd, kd, ko, ko, ko, oo, oo, oo):
+        if rnd.random() < 0.05:
+            for u in itertools.product((-w, w), repeat=3):
+                cases.append((list(p), list(u)))
+    d = [0] * 9
+    for p, u in cases:
+        r, row = _rows_from_mul_shift(p, *u)
+        assert model.residual(p, *u) == r
+        assert model.residual_jacobian(p, *u, d) == r and d == row, (p, u)

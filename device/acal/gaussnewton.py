@@ -26,33 +26,24 @@
 # The objective f is in 2**(2 tau - 44) g^4; objective and objective_start are reported in
 # Q24 g^4 (OBJ_Q), saturated at 2**30 - 1.
 from acal.fixed import N_PARAMS, POINT_TO_PARAM_SHIFT
-from acal.bins import COND, conditions
-from acal import effects
+from acal.bins import COND, conditions, int32s
 from acal import model
 from acal.model import FIT_W_MAX
-from acal.wide import mul_shift
-from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.emit import SIGN_SHIFT
 from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
+from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, TRIAL_MAX,
+                               F_LIMIT, accumulate, accum_points, trial_points, insert_abs,
+                               square, q24, above, rhs_from_limbs)
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
 TRIAL_POINTS = 4
-SORT_POINTS = 8           # points inserted per step() of the sort
+ACCUM_POINTS = 4          # points per step() of the sums, a model without effects
+SORT_POINTS = 24          # points inserted per step() of the sort
 REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)
-QD_BASE = 24
-QD_EFFECT = 16
-R_MAX = 1 << 18           # |r~| <= 2**18
-D_MAX = 1 << 11           # |d~| <= 2**11
-B_MASK = 511
-B_SPLIT = 9               # b in two limbs: sum d~ (r~ >> 9) 2**9 + sum d~ (r~ & 511)
-F_TAU_OFFSET = 7          # f reads r 2**-(tau + 7): |r| 2**-(tau + 7) <= 2**11
-TRIAL_MAX = 1 << 13       # a trial residual past 2**(13 + tau + 7): the trial is worse
-F_LIMIT = 1 << 29
-RHS_HI_MAX = 1 << (28 - 9 - 1)   # the high limb's bound for -b below 2**28
 OBJ_Q = 24
-OBJ_MAX = 0x3FFFFFFF      # 2**30 - 1
 MU_MAX = 1 << 24          # damping lambda = mu 2**-8; mu 0 is plain Gauss-Newton
 CONVERGED_SHIFT = 14      # converged when a step lowers the objective by < 2**-14 of it
 MAX_REFUSED = 6           # refused steps in a row: as far as the integers go
@@ -72,7 +63,7 @@ _REJECT = 5  # the points above the limit dropped
 _DONE = 6
 
 
-class GaussNewton:
+class GaussNewton(PointRows):
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
     model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
     rejection after the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
@@ -92,23 +83,25 @@ class GaussNewton:
         self.reject = reject
         np_ = N_PARAMS + 3 * len(self.kinds)
         self.n_params = np_
-        self.u = [0] * (3 * max_points)
+        self.u = int32s(3 * max_points)  # Q24 g, clamped: int32 (_trial_points reads it)
         self.aux = conditions(max_points)
         self.index = [0] * max_points
         self.keep = [0] * max_points
-        self.r = [0] * max_points       # residuals at p (Q22 g^2)
-        self.rt = [0] * max_points      # residuals at the trial parameters
-        self.srt = [0] * max_points     # |r| being sorted
-        self.p = [0] * np_
-        self.pt = [0] * np_
+        self.r = int32s(max_points)     # residuals at p (Q22 g^2; int32: _insert_abs reads r)
+        self.rt = int32s(max_points)    # residuals at the trial parameters
+        self.srt = int32s(max_points)   # |r| being sorted
+        self.p = int32s(np_)            # int32 arrays: model.residual's typed pointer
+        self.pt = int32s(np_)
         # int32 arrays: _accumulate reads them through typed pointers (acal/emit.py)
         self.d = conditions(np_)
         self.a = conditions(np_ * np_)  # sum d~ d~^T, lower triangle
         self.b = conditions(np_)        # sum d~ r~, high limb (units of 2**B_SPLIT)
         self.bl = conditions(np_)       # ... low limb, in [0, 2**B_SPLIT) between points
-        self.sh = [0] * np_             # column scales s_k
+        self.sh = int32s(np_)           # column scales s_k (int32: scale_row's pointers)
+        self.grown = int32s(np_)        # ... and by how much a point grew them
+        self.state = int32s(1)          # where _accum_points stopped
         self.qd = [QD_BASE if k < N_PARAMS else QD_EFFECT for k in range(np_)]
-        self.rhs = [0] * np_
+        self.rhs = int32s(np_)          # int32: the solver's _rhs_shift reads it
         self.xshift = [0] * np_
         self.step_ = [0] * np_
         self.w = [0, 0, 0]
@@ -237,155 +230,50 @@ class GaussNewton:
             self._reject()
         return self.phase == _DONE
 
-    # -- residuals ----------------------------------------------------------------------------
-    def _res(self, p, i):
-        at = 3 * i
-        if self.kinds:
-            j = COND * i
-            return model.residual_effects(p, self.u, at, self.aux[j], self.aux[j + 1],
-                                          self.kinds, self.w, self.ts, self.aux[j + 2])
-        u = self.u
-        return model.residual(p, u[at], u[at + 1], u[at + 2])
-
-    def point(self, i, w):
-        """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
-        (a list of 3, Q24 g): what acal/changepoint.py reads."""
-        at = 3 * i
-        if self.kinds:
-            r = self._res(self.p, i)
-            for c in range(3):
-                w[c] = self.w[c]
-            return r
-        u = self.u
-        for c in range(3):
-            w[c] = u[at + c]
-        return model.residual(self.p, u[at], u[at + 1], u[at + 2])
-
-    def _row(self, i):
-        # Residual of point i at p, its raw Jacobian row into d.
-        p = self.p
-        d = self.d
-        u = self.u
-        at = 3 * i
-        kinds = self.kinds
-        if not kinds:
-            return model.residual_jacobian(p, u[at], u[at + 1], u[at + 2], d)
-        w = self.w
-        z = self.z
-        q = self.q
-        dT = self.aux[COND * i]
-        dt = self.aux[COND * i + 1]
-        dV = self.aux[COND * i + 2]
-        for c in range(3):
-            w[c] = u[at + c]
-        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts, dV)
-        r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
-        for c in range(3):
-            q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
-        for k in range(len(kinds)):
-            # dr/dtheta = dr/do . dw/dtheta: the correction with the offsets' rows as its
-            # parameters
-            for c in range(3):
-                z[c] = u[at + c]
-            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts, dV)
-            j = N_PARAMS + 3 * k
-            for c in range(3):
-                d[j + c] = z[c] - u[at + c]
-        return r0
-
     def _accum(self):
-        # One point; a composed model's takes two calls: its scaled row, then the sums.
+        # One point; a composed model's takes two calls: its scaled row, then the sums.  A
+        # model without effects: up to ACCUM_POINTS points at once (_accum_points), the first
+        # one that grows a scale by the general path.
         i = self.pos
+        if not self.kinds:
+            end = i + ACCUM_POINTS
+            if end > self.n:
+                end = self.n
+            st = self.state
+            self.f = accum_points(self.p, self.u, self.d, self.r, self.sh, self.a, self.b,
+                                   self.bl, i, end, self.tau, self.f, st)
+            i = st[0]
+            if i < end:
+                self._scaled_row(i)
+                accumulate(self.d, self.a, self.b, self.bl, N_PARAMS, self.rh, self.rl,
+                            SIGN_SHIFT)
+                i += 1
+            self._accumulated(i)
+            return
         if not self.row_ready:
             self._scaled_row(i)
             if self.kinds:
                 self.row_ready = True
                 return
         self.row_ready = False
-        _accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl, SIGN_SHIFT)
-        i += 1
+        accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl, SIGN_SHIFT)
+        self._accumulated(i + 1)
+
+    def _accumulated(self, i):
         self.pos = i
         if i == self.n:
             if self.first:
                 self.f_start = self.f
                 self.tau_start = self.tau + F_TAU_OFFSET
-                self.objective_start = _q24(self.f, self.tau + F_TAU_OFFSET)
+                self.objective_start = q24(self.f, self.tau + F_TAU_OFFSET)
                 self.first = False
             self.phase = _SOLVE
 
-    def _scaled_row(self, i):
-        # Point i's residual into r and f, its row scaled into d (d~), r~ into rh, rl.
-        d = self.d
-        sh = self.sh
-        r0 = self._row(i)
-        self.r[i] = r0
-        # the residual's scale tau: grows (and shifts f and b down) as residuals grow
-        ar = r0 if r0 >= 0 else -r0
-        t = self.tau
-        if (ar >> t) >= R_MAX:
-            g = _scale_for(ar, t, R_MAX)
-            self.tau = g
-            if i:   # the sums so far are zero at a pass's first point
-                self.f >>= 2 * (g - t)
-                self._shift_b(g - t)
-            t = g
-        self.f += _square(r0, t + F_TAU_OFFSET)
-        rs = (r0 + (1 << (t - 1))) >> t if t else r0
-        self.rh = rs >> B_SPLIT
-        self.rl = rs & B_MASK
-        # the columns' scales s_k, likewise
-        for k in range(self.n_params):
-            v = d[k]
-            s = sh[k]
-            av = v if v >= 0 else -v
-            if (av >> s) >= D_MAX:
-                g = _scale_for(av, s, D_MAX)
-                if i:
-                    self._grow(k, g - s)
-                s = g
-                sh[k] = g
-            d[k] = (v + (1 << (s - 1))) >> s if s else v
-
-    def _grow(self, k, g):
-        # Column k's scale grows by g bits: its row and column of A (the diagonal twice) and
-        # its entry of b shift down.
-        a = self.a
-        np_ = self.n_params
-        for j in range(np_):
-            if j < k:
-                a[k * np_ + j] >>= g
-            elif j > k:
-                a[j * np_ + k] >>= g
-        a[k * np_ + k] >>= 2 * g
-        self._shift_limbs(k, g)
-
-    def _shift_b(self, g):
-        for k in range(self.n_params):
-            self._shift_limbs(k, g)
-
-    def _shift_limbs(self, k, g):
-        # b_k = hi 2**9 + lo (lo in [0, 2**9)) -> floor(b_k 2**-g), in limbs again
-        hi = self.b[k]
-        h = hi >> g
-        self.b[k] = h
-        self.bl[k] = (((hi - (h << g)) << B_SPLIT) + self.bl[k]) >> g
-
     def _solve(self):
         np_ = self.n_params
-        b = self.b
-        bl = self.bl
         # -b from its limbs, shifted down by e so that it lies below 2**28
-        e = 0
+        e = rhs_from_limbs(self.b, self.bl, self.rhs, np_, SIGN_SHIFT)
         for k in range(np_):
-            v = b[k] if b[k] >= 0 else -b[k]
-            while (v >> e) >= RHS_HI_MAX:
-                e += 1
-        for k in range(np_):
-            if e <= B_SPLIT:
-                self.rhs[k] = -((b[k] << (B_SPLIT - e)) + (bl[k] >> e))
-            else:
-                h = b[k] >> (e - B_SPLIT)
-                self.rhs[k] = -(h + ((((b[k] - (h << (e - B_SPLIT))) << B_SPLIT) + bl[k]) >> e))
             self.xshift[k] = self.tau + 1 - self.sh[k] + self.qd[k] + e
         if self.solver.begin(self.a, self.rhs, self.step_, np_, self.mu, self.xshift):
             self.phase = _ELIM
@@ -429,15 +317,18 @@ class GaussNewton:
         end = self.pos + TRIAL_POINTS
         if end > self.n:
             end = self.n
-        for i in range(self.pos, end):
-            r = self._res(pt, i)
-            rt[i] = r
-            if ((r if r >= 0 else -r) >> t) >= TRIAL_MAX:
-                self.ft = F_LIMIT
-            else:
-                self.ft += _square(r, t)
-                if self.ft > F_LIMIT:
+        if not self.kinds:
+            self.ft = trial_points(pt, self.u, rt, self.d, self.pos, end, t, self.ft)
+        else:
+            for i in range(self.pos, end):
+                r = self._res(pt, i)
+                rt[i] = r
+                if ((r if r >= 0 else -r) >> t) >= TRIAL_MAX:
                     self.ft = F_LIMIT
+                else:
+                    self.ft += square(r, t)
+                    if self.ft > F_LIMIT:
+                        self.ft = F_LIMIT
         self.pos = end
         if end < self.n:
             return
@@ -470,20 +361,10 @@ class GaussNewton:
 
     def _sort(self):
         # Insertion sort of |r|, SORT_POINTS a slice.
-        srt = self.srt
-        r = self.r
         end = self.pos + SORT_POINTS
         if end > self.n:
             end = self.n
-        for i in range(self.pos, end):
-            v = r[i]
-            if v < 0:
-                v = -v
-            j = i
-            while j > 0 and srt[j - 1] > v:
-                srt[j] = srt[j - 1]
-                j -= 1
-            srt[j] = v
+        insert_abs(self.r, self.srt, self.pos, end, SIGN_SHIFT)
         self.pos = end
         if end == self.n:
             med = self.srt[self.n >> 1]
@@ -532,73 +413,12 @@ class GaussNewton:
         self._restart()
 
     def _finish(self):
-        self.objective = _q24(self.f, self.tau + F_TAU_OFFSET)
+        self.objective = q24(self.f, self.tau + F_TAU_OFFSET)
         p = self.p
-        if _above(self.f, self.tau + F_TAU_OFFSET, self.f_start, self.tau_start) and self.rejected == 0:
+        if above(self.f, self.tau + F_TAU_OFFSET, self.f_start, self.tau_start) and self.rejected == 0:
             self.status = DIVERGED
         elif not model.in_bounds(p) or (self.kinds and not model.effects_within(p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
         else:
             self.status = OK
         self.phase = _DONE
-
-
-@viper
-def _accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
-    # One point's scaled row d~ (row) and residual r~ = rh 2**B_SPLIT + rl into A (sums, the
-    # lower triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
-    # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
-    # (above; tests/test_ranges.py traces them).
-    d = ptr32(row)
-    a = ptr32(sums)
-    b = ptr32(high)
-    bl = ptr32(low)
-    k = 0
-    while k < n:
-        dk = int(d[k]) << w >> w
-        if dk:
-            at = k * n
-            j = 0
-            while j <= k:
-                a[at + j] = (int(a[at + j]) << w >> w) + dk * (int(d[j]) << w >> w)
-                j += 1
-            v = (int(bl[k]) << w >> w) + dk * rl
-            b[k] = (int(b[k]) << w >> w) + dk * rh + (v >> 9)
-            bl[k] = v & 511
-        k += 1
-
-
-def _scale_for(v, s, limit):
-    # The smallest g >= s with v >> g below limit (v >= 0): 4 bits a step, then 1.
-    while (v >> (s + 4)) >= limit:
-        s += 4
-    while (v >> s) >= limit:
-        s += 1
-    return s
-
-
-def _square(r, t):
-    # floor(r**2 4**-t) for |r| < 2**(13 + t), below 2**26, without a long.
-    k = 8 - t
-    if k > 0:
-        r <<= k
-        return mul_shift(r, r, 16)
-    return mul_shift(r, r, 2 * t)
-
-
-def _q24(f, t):
-    # f 2**(2t - 44) g^4 in Q24 g^4, saturated at OBJ_MAX.
-    s = 2 * t - 20
-    if s <= 0:
-        return f >> (-s)
-    if f > (OBJ_MAX >> s):
-        return OBJ_MAX
-    return f << s
-
-
-def _above(f1, t1, f2, t2):
-    # f1 4**t1 > f2 4**t2, exactly, without a long.
-    if t1 >= t2:
-        return f1 > (f2 >> (2 * (t1 - t2)))
-    h = f1 >> (2 * (t2 - t1))
-    return h > f2 or (h == f2 and f1 - (h << (2 * (t2 - t1))) > 0)

@@ -10,9 +10,8 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
-from acal.bins import COND, conditions
+from acal.bins import COND, conditions, int32s
 from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.wide import mul_shift
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 
@@ -97,38 +96,85 @@ def objective(p, u, n):
 #   to 11 bits anyway, gaussnewton.py).
 GN_R_Q = 22
 FIT_W_MAX = APPLY_W_MAX << 10    # 2.048 g in Q24
-_ONE_G2_Q22 = 1 << GN_R_Q
 
 
+_ROW = int32s(9)   # residual()'s scratch row
+
+# residual_jacobian() is the default fit's hot loop, viper on ports with emitters
+# (acal/emit.py): p is an int32 array (the fit's), each wide.mul_shift written out (P below).
+# For a product P(k, u, 24) of a parameter k and a reading u, with h = x >> 15, l = x & 0x7fff:
+#   m = kh ul + kl uh,  c = (kl ul) >> 15,  P = ((kh uh) << 6) + (m >> 9) + (((m & 511) + c) >> 9)
+# and for a square P(a, a, 26):
+#   m = 2 ah al,  c = (al al) >> 15,  P = ((ah ah) << 4) + (m >> 11) + (((m & 2047) + c) >> 11)
+# the same integers as mul_shift (tests/test_wide.py checks them against it), each
+# below 2**30 (tests/test_ranges.py traces them).
 def residual(p, ux, uy, uz):
     """r = |K (u + o)|^2 - 1 g^2 of one point u (Q24 g, |u| <= FIT_W_MAX per axis) in Q22 g^2,
-    every intermediate below 2**30 inside the fit region (fixed.py)."""
-    ux += p[6]
-    uy += p[7]
-    uz += p[8]
-    ax = mul_shift(p[0], ux, 24)
-    ay = mul_shift(p[3], ux, 24) + mul_shift(p[1], uy, 24)
-    az = mul_shift(p[4], ux, 24) + mul_shift(p[5], uy, 24) + mul_shift(p[2], uz, 24)
-    return mul_shift(ax, ax, 26) + mul_shift(ay, ay, 26) + mul_shift(az, az, 26) - _ONE_G2_Q22
+    every intermediate below 2**30 inside the fit region (fixed.py); p: an int32 array.
+    residual_jacobian's, its row into a scratch (one body for both: viper's code sits in RAM)."""
+    return residual_jacobian(p, ux, uy, uz, _ROW)
 
 
-def residual_jacobian(p, ux, uy, uz, d):
+@viper
+def residual_jacobian(params, ux: int, uy: int, uz: int, row) -> int:
     """residual() of one point (Q24 g, effects already removed) and its derivatives with
-    respect to the 9 parameters, halved, into d[0:9] (Q24; analytic: a = K (u + o),
-    r = |a|^2 - 1, d = a da/dp)."""
-    ux += p[6]
-    uy += p[7]
-    uz += p[8]
-    kxx = p[0]
-    kyy = p[1]
-    kzz = p[2]
-    kxy = p[3]
-    kxz = p[4]
-    kyz = p[5]
-    ax = mul_shift(kxx, ux, 24)
-    ay = mul_shift(kxy, ux, 24) + mul_shift(kyy, uy, 24)
-    az = mul_shift(kxz, ux, 24) + mul_shift(kyz, uy, 24) + mul_shift(kzz, uz, 24)
-    r = mul_shift(ax, ax, 26) + mul_shift(ay, ay, 26) + mul_shift(az, az, 26) - _ONE_G2_Q22
+    respect to the 9 parameters, halved, into row[0:9] (an int32 array, Q24; analytic:
+    a = K (u + o), r = |a|^2 - 1, d = a da/dp), a and v truncated to Q12 for the row: each
+    product < 2**28.3 in the fit region, to ~2**-12 of itself."""
+    p = ptr32(params)
+    d = ptr32(row)
+    w = int(SIGN_SHIFT)
+    ux += int(p[6]) << w >> w
+    uy += int(p[7]) << w >> w
+    uz += int(p[8]) << w >> w
+    xh = ux >> 15
+    xl = ux & 0x7FFF
+    yh = uy >> 15
+    yl = uy & 0x7FFF
+    zh = uz >> 15
+    zl = uz & 0x7FFF
+    kxx = int(p[0]) << w >> w
+    kh = kxx >> 15
+    kl = kxx & 0x7FFF
+    m = kh * xl + kl * xh
+    ax = ((kh * xh) << 6) + (m >> 9) + (((m & 511) + ((kl * xl) >> 15)) >> 9)
+    kxy = int(p[3]) << w >> w
+    kh = kxy >> 15
+    kl = kxy & 0x7FFF
+    m = kh * xl + kl * xh
+    ay = ((kh * xh) << 6) + (m >> 9) + (((m & 511) + ((kl * xl) >> 15)) >> 9)
+    kyy = int(p[1]) << w >> w
+    kh = kyy >> 15
+    kl = kyy & 0x7FFF
+    m = kh * yl + kl * yh
+    ay += ((kh * yh) << 6) + (m >> 9) + (((m & 511) + ((kl * yl) >> 15)) >> 9)
+    kxz = int(p[4]) << w >> w
+    kh = kxz >> 15
+    kl = kxz & 0x7FFF
+    m = kh * xl + kl * xh
+    az = ((kh * xh) << 6) + (m >> 9) + (((m & 511) + ((kl * xl) >> 15)) >> 9)
+    kyz = int(p[5]) << w >> w
+    kh = kyz >> 15
+    kl = kyz & 0x7FFF
+    m = kh * yl + kl * yh
+    az += ((kh * yh) << 6) + (m >> 9) + (((m & 511) + ((kl * yl) >> 15)) >> 9)
+    kzz = int(p[2]) << w >> w
+    kh = kzz >> 15
+    kl = kzz & 0x7FFF
+    m = kh * zl + kl * zh
+    az += ((kh * zh) << 6) + (m >> 9) + (((m & 511) + ((kl * zl) >> 15)) >> 9)
+    h = ax >> 15
+    lo = ax & 0x7FFF
+    m = h * lo + lo * h
+    r = ((h * h) << 4) + (m >> 11) + (((m & 2047) + ((lo * lo) >> 15)) >> 11)
+    h = ay >> 15
+    lo = ay & 0x7FFF
+    m = h * lo + lo * h
+    r += ((h * h) << 4) + (m >> 11) + (((m & 2047) + ((lo * lo) >> 15)) >> 11)
+    h = az >> 15
+    lo = az & 0x7FFF
+    m = h * lo + lo * h
+    r += ((h * h) << 4) + (m >> 11) + (((m & 2047) + ((lo * lo) >> 15)) >> 11)
     ax >>= 12
     ay >>= 12
     az >>= 12
@@ -144,7 +190,7 @@ def residual_jacobian(p, ux, uy, uz, d):
     d[6] = ax * (kxx >> 12) + ay * (kxy >> 12) + az * (kxz >> 12)
     d[7] = ay * (kyy >> 12) + az * (kyz >> 12)
     d[8] = az * (kzz >> 12)
-    return r
+    return r - 4194304   # 1 g^2 in Q22 (_ONE_G2_Q22)
 
 
 def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):

@@ -43,10 +43,10 @@ class Solver:
 
     def __init__(self, n_max):
         self.n_max = n_max
-        self.m = conditions(n_max * n_max)   # int32 arrays: _eliminate's typed pointers
+        self.m = conditions(n_max * n_max)   # int32 arrays: _eliminate_rows' typed pointers
         self.c = conditions(n_max)
-        self.y = [0] * n_max
-        self.s = [0] * n_max
+        self.y = conditions(n_max)           # ... and these (_back_substitute, _prepare_rows)
+        self.s = conditions(n_max)
         self.floor = [0] * n_max
         self.xshift = [0] * n_max
         self.n = 0
@@ -79,36 +79,14 @@ class Solver:
         self.n = n
         self.x = x
         self.ok = False
+        if _diagonal_scales(a, s, n, SIGN_SHIFT):
+            return False
         for k in range(n):
-            d = a[k * n + k]
-            if d <= 0:
-                return False
-            # s_k: D_k = d 4**-s_k in [2**(DIAG_BITS-2), 2**DIAG_BITS); s_k < 0 scales up
-            sk = 0
-            while (d >> (2 * sk)) >= (1 << DIAG_BITS):
-                sk += 1
-            if sk == 0:
-                while (d << (-2 * sk)) < (1 << (DIAG_BITS - 2)):
-                    sk -= 1
-            s[k] = sk
             self.xshift[k] = xshift[k] if xshift is not None else 0
         self.inv = div_shift(1 << 8, 256 + mu, 16) if mu else 0   # 2**16 / (1 + lambda)
         self.a = a
         # e: max_k |b_k| 2**-s_k 2**-e in [2**(RHS_BITS-1), 2**RHS_BITS), from bit lengths
-        e = None
-        for k in range(n):
-            v = b[k] if b[k] >= 0 else -b[k]
-            if v:
-                bits = 0
-                while (v >> (bits + 4)):
-                    bits += 4
-                while (v >> bits):
-                    bits += 1
-                ek = bits - s[k] - RHS_BITS
-                if e is None or ek > e:
-                    e = ek
-        if e is None:
-            e = 0
+        e = _rhs_shift(b, s, n, SIGN_SHIFT)
         for k in range(n):
             v = _shift_sat(b[k], -(s[k] + e))
             if mu:
@@ -143,35 +121,31 @@ class Solver:
             elif self.prep < self.n:
                 cost = self._prepare_row()
             else:
-                cost = self._elim_unit()
+                cost = self._elim_unit(budget)
             if cost < 0:
                 return True
             budget -= cost
         return False
 
     def _prepare_row(self):
-        # Row `prep` of the scaled (and damped) copy; its cost.
-        a = self.a
-        m = self.m
-        s = self.s
-        inv = self.inv
-        n = self.n
+        # Rows prep.. of the scaled (and damped) copy, up to STEP_WORK // 2 entries (at least a
+        # row); their cost.
         k = self.prep
-        for j in range(k):
-            v = _shift_sat(a[k * n + j], -(s[k] + s[j]))
-            if inv:
-                v = mul_shift(v, inv, 16)
-            m[k * n + j] = v
-            m[j * n + k] = v
-        dk = _shift_sat(a[k * n + k], -2 * s[k])
-        m[k * n + k] = dk
-        self.floor[k] = dk >> GUARD_SHIFT
-        self.prep = k + 1
-        return k + 1
+        end = k + 1
+        work = k + 1
+        while end < self.n and work + end + 1 <= STEP_WORK // 2:
+            end += 1
+            work += end
+        _prepare_rows(self.a, self.m, self.s, k, end, self.n, self.inv, SIGN_SHIFT)
+        for j in range(k, end):
+            self.floor[j] = self.m[j * self.n + j] >> GUARD_SHIFT
+        self.prep = end
+        return work
 
-    def _elim_unit(self):
-        # Row j below pivot i eliminated (at a new pivot: its guard, c's bound); its cost, or
-        # -1 when the solve has ended (a pivot under its guard).
+    def _elim_unit(self, budget):
+        # Rows j.. below pivot i eliminated, as many as the budget holds (at least one; at a new
+        # pivot: its guard, c's bound first); their cost, or -1 when the solve has ended (a
+        # pivot under its guard).
         m = self.m
         c = self.c
         n = self.n
@@ -192,43 +166,33 @@ class Solver:
                 while -lim >= c[k] or c[k] >= lim:
                     if not self._rescale():
                         return -1
-        mji = m[j * n + i]
-        if mji:
-            if (mji if mji > 0 else -mji) >> 9 >= piv:
-                return -1   # beyond any Schur complement of an SPD system: rounding won
-            mul = div_shift(mji, piv, MUL_Q)
-            _eliminate(m, j * n, i * n, i + 1, n, mul, SIGN_SHIFT)
-            c[j] -= mul_shift(mul, c[i], MUL_Q)
-        if j + 1 >= n:
+        cost = n - i + 4
+        end = j + (budget + cost - 1) // cost
+        if end > n:
+            end = n
+        if _eliminate_rows(m, c, i, j, end, n, SIGN_SHIFT):
+            return -1   # beyond any Schur complement of an SPD system: rounding won
+        if end >= n:
             self.i = i + 1
             self.j = i + 2
         else:
-            self.j = j + 1
-        return n - i + 4
+            self.j = end
+        return cost * (end - j)
 
     def _back_unit(self):
         # y_i = (c_i 2**MUL_Q - sum_k m_ik y_k) / m_ii, in units of 2**-MUL_Q; a sum or a y past
         # its bound rescales c and starts the back substitution again.  Its cost, or -1 when
         # the solve has ended.
-        m = self.m
-        y = self.y
         n = self.n
         i = self.i
-        t = self.c[i]
-        row = i * n
-        for k in range(i + 1, n):
-            t -= mul_shift(m[row + k], y[k], MUL_Q)
-            if t >= _T_MAX or t <= -_T_MAX:
-                return self._back_restart()
-        piv = m[row + i]
-        if (t if t >= 0 else -t) >> _Y_MAX_SHIFT >= piv:
+        if _back_substitute(self.m, self.c, self.y, i, n, SIGN_SHIFT):
             return self._back_restart()
-        y[i] = div_shift(t, piv, MUL_Q)
         if i > 0:
             self.i = i - 1
             return n - i + 4
         # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
         x = self.x
+        y = self.y
         for k in range(n):
             x[k] = _shift_sat(y[k], self.e - MUL_Q - self.s[k] + self.xshift[k])
         self.ok = True
@@ -257,20 +221,163 @@ def _shift_sat(v, s):
 
 
 @viper
-def _eliminate(rows, row: int, pivot: int, k: int, n: int, mul: int, w: int):
-    # rows[row + k:row + n] -= mul_shift(mul, rows[pivot + k:pivot + n], MUL_Q): one row of the
-    # elimination, the solver's hot loop, viper on ports with emitters (acal/emit.py; w:
-    # emit.SIGN_SHIFT).  wide.mul_shift written out for s = MUL_Q = 20 (t = 5), mul's halves
-    # split once: the same integers, each below 2**30 (tests/test_ranges.py traces them).
+def _eliminate_rows(rows, rhs, i: int, j: int, end: int, n: int, w: int) -> int:
+    # Rows j..end-1 of the scaled system (rows, row-major n x n; rhs: c) eliminated below pivot
+    # i: m_jk -= mul m_ik for k > i and c_j -= mul c_i, mul = m_ji / m_ii in Q(MUL_Q)
+    # (div_shift), each product wide.mul_shift(mul, ., MUL_Q) written out (s = 20, t = 5; mul's
+    # halves split once).  1 (nothing more done) at a row whose |m_ji| 2**-9 reaches the pivot,
+    # else 0.  The solver's hot loop, viper on ports with emitters (acal/emit.py; w:
+    # emit.SIGN_SHIFT); the same integers as mul_shift, each below 2**30 (tests/test_ranges.py).
     m = ptr32(rows)
-    ah = mul >> 15
-    al = mul & 0x7FFF
+    c = ptr32(rhs)
+    pivot = i * n
+    piv = int(m[pivot + i]) << w >> w
+    ci = int(c[i]) << w >> w
+    while j < end:
+        row = j * n
+        mji = int(m[row + i]) << w >> w
+        if mji:
+            if ((mji if mji > 0 else 0 - mji) >> 9) >= piv:
+                return 1
+            mul = int(div_shift(mji, piv, 20))
+            ah = mul >> 15
+            al = mul & 0x7FFF
+            k = i + 1
+            while k < n:
+                b = int(m[pivot + k]) << w >> w
+                bh = b >> 15
+                bl = b & 0x7FFF
+                mm = ah * bl + al * bh
+                m[row + k] = (int(m[row + k]) << w >> w) - (((ah * bh) << 10) + (mm >> 5) +
+                                                            (((mm & 31) + ((al * bl) >> 15)) >> 5))
+                k += 1
+            bh = ci >> 15
+            bl = ci & 0x7FFF
+            mm = ah * bl + al * bh
+            c[j] = (int(c[j]) << w >> w) - (((ah * bh) << 10) + (mm >> 5) +
+                                            (((mm & 31) + ((al * bl) >> 15)) >> 5))
+        j += 1
+    return 0
+
+
+@viper
+def _prepare_rows(sums, rows, scales, k: int, end: int, n: int, inv: int, w: int):
+    # Rows k..end-1 of the scaled copy (rows) of the sums' lower triangle: m_kj = m_jk =
+    # a_kj 2**-(s_k + s_j) (floor), saturated at +-2**29 as _shift_sat, then times inv 2**-16
+    # (the damping; wide.mul_shift written out for s = 16, t = 1) when inv; the diagonal
+    # a_kk 4**-s_k.  Viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT); the
+    # shifts lie in [-6, 22] (the scales s_k in [-11, 3]), below a word's width.
+    a = ptr32(sums)
+    m = ptr32(rows)
+    s = ptr32(scales)
+    ih = inv >> 15
+    il = inv & 0x7FFF
+    while k < end:
+        sk = int(s[k]) << w >> w
+        j = 0
+        while j <= k:
+            v = int(a[k * n + j]) << w >> w
+            sh = 0 - (sk + (int(s[j]) << w >> w))
+            if sh <= 0:
+                v = v >> (0 - sh)
+            elif v:
+                if v >= (536870912 >> sh):
+                    v = 536870912
+                elif v <= 0 - (536870912 >> sh):
+                    v = -536870912
+                else:
+                    v = v << sh
+            if j < k:
+                if inv:
+                    vh = v >> 15
+                    vl = v & 0x7FFF
+                    mm = vh * il + vl * ih
+                    v = ((vh * ih) << 14) + (mm >> 1) + (((mm & 1) + ((vl * il) >> 15)) >> 1)
+                m[k * n + j] = v
+                m[j * n + k] = v
+            else:
+                m[k * n + k] = v
+            j += 1
+        k += 1
+
+
+@viper
+def _back_substitute(rows, rhs, sol, i: int, n: int, w: int) -> int:
+    # y_i = floor((c_i 2**MUL_Q - sum_{k>i} m_ik y_k) / m_ii) into sol[i] (wide.mul_shift and
+    # div_shift for MUL_Q = 20: t = 5): 1, y_i untouched, when a partial sum reaches +-_T_MAX
+    # (2**28) or |t| 2**-_Y_MAX_SHIFT (3) reaches the pivot, else 0.  Viper on ports with
+    # emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    m = ptr32(rows)
+    y = ptr32(sol)
+    c = ptr32(rhs)
+    t = int(c[i]) << w >> w
+    row = i * n
+    k = i + 1
     while k < n:
-        b = int(m[pivot + k]) << w >> w
+        a = int(m[row + k]) << w >> w
+        b = int(y[k]) << w >> w
+        ah = a >> 15
+        al = a & 0x7FFF
         bh = b >> 15
         bl = b & 0x7FFF
         mm = ah * bl + al * bh
-        c = (al * bl) >> 15
-        m[row + k] = (int(m[row + k]) << w >> w) - (((ah * bh) << 10) + (mm >> 5) +
-                                                    (((mm & 31) + c) >> 5))
+        t -= ((ah * bh) << 10) + (mm >> 5) + (((mm & 31) + ((al * bl) >> 15)) >> 5)
+        if t >= 268435456 or t <= -268435456:
+            return 1
         k += 1
+    piv = int(m[row + i]) << w >> w
+    if ((t if t >= 0 else 0 - t) >> 3) >= piv:
+        return 1
+    y[i] = int(div_shift(t, piv, 20))
+    return 0
+
+
+@viper
+def _diagonal_scales(sums, scales, n: int, w: int) -> int:
+    # s_k for each unknown: D_k = a_kk 4**-s_k in [2**(DIAG_BITS-2), 2**DIAG_BITS) (22, 24),
+    # s_k < 0 scaling a small one up, into scales; 1 (a diagonal <= 0) or 0.  Viper on ports
+    # with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    a = ptr32(sums)
+    s = ptr32(scales)
+    k = 0
+    while k < n:
+        d = int(a[k * n + k]) << w >> w
+        if d <= 0:
+            return 1
+        sk = 0
+        while (d >> (2 * sk)) >= 16777216:
+            sk += 1
+        if sk == 0:
+            while (d << (0 - 2 * sk)) < 4194304:
+                sk -= 1
+        s[k] = sk
+        k += 1
+    return 0
+
+
+@viper
+def _rhs_shift(rhs, scales, n: int, w: int) -> int:
+    # e: max_k |b_k| 2**-s_k 2**-e in [2**(RHS_BITS-1), 2**RHS_BITS) (RHS_BITS 19), from bit
+    # lengths, never forming a long; 0 when b is 0.  rhs: an int32 array.  Viper on ports with
+    # emitters.
+    b = ptr32(rhs)
+    s = ptr32(scales)
+    e = 0
+    found = 0
+    k = 0
+    while k < n:
+        v = int(b[k]) << w >> w
+        if v < 0:
+            v = 0 - v
+        if v:
+            bits = 0
+            while (v >> (bits + 4)):
+                bits += 4
+            while (v >> bits):
+                bits += 1
+            ek = bits - (int(s[k]) << w >> w) - 19
+            if not found or ek > e:
+                e = ek
+                found = 1
+        k += 1
+    return e

@@ -11,8 +11,8 @@
 #   a b = ah bh 2**30 + (ah bl + al bh) 2**15 + al bl,
 # each product < 2**30 when |a|, |b| < 2**29.
 #
-# mul_shift is viper on ports with emitters (acal/emit.py): a machine-word function of small
-# ints, every intermediate below 2**30 as above (its arguments must be small ints there).
+# mul_shift and div_shift are viper on ports with emitters (acal/emit.py): machine-word functions
+# of small ints, every intermediate below 2**30 as above (their arguments must be small ints there).
 from acal.emit import viper
 
 
@@ -34,10 +34,12 @@ def mul_shift(a: int, b: int, s: int) -> int:
     return ((ah * bh) << (15 - t)) + (m >> t) + (((m & ((1 << t) - 1)) + c) >> t)
 
 
-def div_shift(x, d, s):
+@viper
+def div_shift(x: int, d: int, s: int) -> int:
     """floor(x * 2**s / d), exactly, for 0 < d < 2**26, |x| < 2**29 and s >= 0, when the caller
     knows the result lies below 2**29 in magnitude.  Long division, 4 bits a round: the
-    remainder stays below d, so remainder << 4 stays below 2**30."""
+    remainder stays below d, so remainder << 4 stays below 2**30 (viper on ports with
+    emitters, as mul_shift; its // is the floor division of Python's ints)."""
     q = x // d
     r = x - q * d                     # in [0, d)
     while s >= 4:

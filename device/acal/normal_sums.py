@@ -1,0 +1,380 @@
+# The sums of the default fit's normal equations, point by point (acal/gaussnewton.py: the
+# formats, the scales tau and s_k, and why every value stays below 2**30): each point's scaled
+# Jacobian row and residual accumulated into A and b, the trial objective, the residuals' sort
+# for outlier rejection, and the exact small-int helpers on the scaled objective.  The hot loops
+# are viper on ports with emitters (acal/emit.py: typed pointers into the fit's int32 arrays;
+# w: emit.SIGN_SHIFT), plain Python elsewhere; tests/test_ranges.py traces every value.
+from acal.fixed import N_PARAMS
+from acal.bins import COND
+from acal import effects
+from acal import model
+from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.model import residual_jacobian
+from acal.wide import mul_shift
+
+R_MAX = 1 << 18           # |r~| <= 2**18
+D_MAX = 1 << 11           # |d~| <= 2**11
+B_MASK = 511
+B_SPLIT = 9               # b in two limbs: sum d~ (r~ >> 9) 2**9 + sum d~ (r~ & 511)
+F_TAU_OFFSET = 7          # f reads r 2**-(tau + 7): |r| 2**-(tau + 7) <= 2**11
+TRIAL_MAX = 1 << 13       # a trial residual past 2**(13 + tau + 7): the trial is worse
+F_LIMIT = 1 << 29
+OBJ_MAX = 0x3FFFFFFF      # 2**30 - 1
+RHS_HI_MAX = 1 << (28 - 9 - 1)   # the high limb's bound for -b below 2**28
+QD_BASE = 24
+QD_EFFECT = 16
+
+
+@viper
+def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
+    # One point's scaled row d~ (row) and residual r~ = rh 2**B_SPLIT + rl into A (sums, the
+    # lower triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
+    # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
+    # (above; tests/test_ranges.py traces them).
+    d = ptr32(row)
+    a = ptr32(sums)
+    b = ptr32(high)
+    bl = ptr32(low)
+    k = 0
+    while k < n:
+        dk = int(d[k]) << w >> w
+        if dk:
+            at = k * n
+            j = 0
+            while j <= k:
+                a[at + j] = (int(a[at + j]) << w >> w) + dk * (int(d[j]) << w >> w)
+                j += 1
+            v = (int(bl[k]) << w >> w) + dk * rl
+            b[k] = (int(b[k]) << w >> w) + dk * rh + (v >> 9)
+            bl[k] = v & 511
+        k += 1
+
+
+@viper
+def accum_points(params, points, row, res, scales, sums, high, low, i: int, end: int, tau: int,
+                  f: int, state) -> int:
+    # _scaled_row and accumulate for the points [i, end) of a model without effects, while
+    # neither the residuals' scale tau nor a column's scale has to grow: the point that would
+    # grow one is left to them (state[0]: where this stopped).  Returns f.  The same integers
+    # as those two, written out for viper on ports with emitters (acal/emit.py): R_MAX 2**18,
+    # D_MAX 2**11, F_TAU_OFFSET 7, B_SPLIT 9; square's mul_shift for a square.
+    u = ptr32(points)
+    d = ptr32(row)
+    rr = ptr32(res)
+    sh = ptr32(scales)
+    w = int(SIGN_SHIFT)
+    while i < end:
+        at = 3 * i
+        r0 = int(residual_jacobian(params, int(u[at]) << w >> w, int(u[at + 1]) << w >> w,
+                                   int(u[at + 2]) << w >> w, row))
+        if ((r0 if r0 >= 0 else 0 - r0) >> tau) >= 262144:
+            break
+        k = 0
+        while k < 9:
+            v = int(d[k]) << w >> w
+            if ((v if v >= 0 else 0 - v) >> (int(sh[k]) << w >> w)) >= 2048:
+                break
+            k += 1
+        if k < 9:
+            break
+        rr[i] = r0
+        # f += square(r0, tau + 7): floor(x**2 2**-s) as wide.mul_shift(x, x, s)
+        t = tau + 7
+        x = r0
+        s = 2 * t
+        if t < 8:
+            x = r0 << (8 - t)
+            s = 16
+        h = x >> 15
+        lo = x & 0x7FFF
+        m = h * lo + lo * h
+        c = (lo * lo) >> 15
+        t = s - 15
+        if t >= 15:
+            f += (h * h + (m >> 15) + (((m & 0x7FFF) + c) >> 15)) >> (t - 15)
+        else:
+            f += ((h * h) << (15 - t)) + (m >> t) + (((m & ((1 << t) - 1)) + c) >> t)
+        rs = r0
+        if tau:
+            rs = (r0 + (1 << (tau - 1))) >> tau
+        k = 0
+        while k < 9:
+            s = int(sh[k]) << w >> w
+            if s:
+                d[k] = ((int(d[k]) << w >> w) + (1 << (s - 1))) >> s
+            k += 1
+        accumulate(row, sums, high, low, 9, rs >> 9, rs & 511, w)
+        i += 1
+    st = ptr32(state)
+    st[0] = i
+    return f
+
+
+@viper
+def trial_points(params, points, res, row, i: int, end: int, t: int, ft: int) -> int:
+    # The trial objective of a model without effects over points[i:end] (Q24 g): each residual
+    # into res, ft plus floor(r**2 4**-t) each, saturated at F_LIMIT (2**29) as _trial does it
+    # for a composed model; a residual past 2**(13 + t) (TRIAL_MAX) makes it F_LIMIT.  Viper on
+    # ports with emitters (acal/emit.py): residual_jacobian() is called, its row (free while
+    # a trial runs) into row; square()'s mul_shift.
+    u = ptr32(points)
+    rt = ptr32(res)
+    w = int(SIGN_SHIFT)
+    while i < end:
+        at = 3 * i
+        r = int(residual_jacobian(params, int(u[at]) << w >> w, int(u[at + 1]) << w >> w,
+                                  int(u[at + 2]) << w >> w, row))
+        rt[i] = r
+        if ((r if r >= 0 else 0 - r) >> t) >= 8192:
+            ft = 536870912
+        else:
+            k = 8 - t
+            if k > 0:
+                ft += int(mul_shift(r << k, r << k, 16))
+            else:
+                ft += int(mul_shift(r, r, 2 * t))
+            if ft > 536870912:
+                ft = 536870912
+        i += 1
+    return ft
+
+
+@viper
+def insert_abs(res, ordered, i: int, end: int, w: int):
+    # |res[i:end]| inserted into ordered[0:end], kept ascending (ordered[0:i] already is): the
+    # sort's loop, viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    r = ptr32(res)
+    srt = ptr32(ordered)
+    while i < end:
+        v = int(r[i]) << w >> w
+        if v < 0:
+            v = 0 - v
+        j = i
+        while j > 0 and (int(srt[j - 1]) << w >> w) > v:
+            srt[j] = srt[j - 1]
+            j -= 1
+        srt[j] = v
+        i += 1
+
+
+@viper
+def scale_row(row, scales, grown, n: int, w: int) -> int:
+    # A point's raw row d (row) scaled in place to d~_k = round(d_k 2**-s_k), each scale s_k
+    # (scales) first grown to the smallest that keeps |d~_k| <= D_MAX (2**11) and the growth
+    # written to grown[k]: the number of columns grown.  Viper on ports with emitters (acal/
+    # emit.py; w: emit.SIGN_SHIFT; 2048 is D_MAX); scale_for's steps written out.
+    d = ptr32(row)
+    sh = ptr32(scales)
+    g = ptr32(grown)
+    count = 0
+    k = 0
+    while k < n:
+        v = int(d[k]) << w >> w
+        s = int(sh[k]) << w >> w
+        av = v if v >= 0 else 0 - v
+        g[k] = 0
+        if (av >> s) >= 2048:
+            t = s
+            while (av >> (t + 4)) >= 2048:
+                t += 4
+            while (av >> t) >= 2048:
+                t += 1
+            g[k] = t - s
+            sh[k] = t
+            s = t
+            count += 1
+        if s:
+            d[k] = (v + (1 << (s - 1))) >> s
+        k += 1
+    return count
+
+
+def scale_for(v, s, limit):
+    # The smallest g >= s with v >> g below limit (v >= 0): 4 bits a step, then 1.
+    while (v >> (s + 4)) >= limit:
+        s += 4
+    while (v >> s) >= limit:
+        s += 1
+    return s
+
+
+def square(r, t):
+    # floor(r**2 4**-t) for |r| < 2**(13 + t), below 2**26, without a long.
+    k = 8 - t
+    if k > 0:
+        r <<= k
+        return mul_shift(r, r, 16)
+    return mul_shift(r, r, 2 * t)
+
+
+def q24(f, t):
+    # f 2**(2t - 44) g^4 in Q24 g^4, saturated at OBJ_MAX.
+    s = 2 * t - 20
+    if s <= 0:
+        return f >> (-s)
+    if f > (OBJ_MAX >> s):
+        return OBJ_MAX
+    return f << s
+
+
+def above(f1, t1, f2, t2):
+    # f1 4**t1 > f2 4**t2, exactly, without a long.
+    if t1 >= t2:
+        return f1 > (f2 >> (2 * (t1 - t2)))
+    h = f1 >> (2 * (t2 - t1))
+    return h > f2 or (h == f2 and f1 - (h << (2 * (t2 - t1))) > 0)
+
+
+@viper
+def grow_columns(sums, high, low, grown, n: int, w: int):
+    # Each column k whose scale grew by g = grown[k] bits: its row and column of A (sums, the
+    # lower triangle; the diagonal twice) and its entry of b (high, low limbs) shift down, the
+    # floor of each (shifts of one entry by two columns compose).  Viper on ports with emitters.
+    a = ptr32(sums)
+    b = ptr32(high)
+    bl = ptr32(low)
+    gr = ptr32(grown)
+    k = 0
+    while k < n:
+        g = int(gr[k]) << w >> w
+        if g:
+            j = 0
+            while j < n:
+                if j < k:
+                    a[k * n + j] = (int(a[k * n + j]) << w >> w) >> g
+                elif j > k:
+                    a[j * n + k] = (int(a[j * n + k]) << w >> w) >> g
+                j += 1
+            a[k * n + k] = (int(a[k * n + k]) << w >> w) >> (2 * g)
+            hi = int(b[k]) << w >> w
+            h = hi >> g
+            b[k] = h
+            bl[k] = (((hi - (h << g)) << 9) + (int(bl[k]) << w >> w)) >> g
+        k += 1
+
+
+@viper
+def rhs_from_limbs(high, low, rhs, n: int, w: int) -> int:
+    # -b from its limbs (b_k = high_k 2**B_SPLIT + low_k, B_SPLIT 9) into rhs, shifted down by
+    # the smallest e that keeps every |high_k| 2**-e below RHS_HI_MAX (2**18), so that -b
+    # 2**-e lies below 2**28; returns e.  Viper on ports with emitters.
+    b = ptr32(high)
+    bl = ptr32(low)
+    r = ptr32(rhs)
+    e = 0
+    k = 0
+    while k < n:
+        v = int(b[k]) << w >> w
+        if v < 0:
+            v = 0 - v
+        while (v >> e) >= 262144:
+            e += 1
+        k += 1
+    k = 0
+    while k < n:
+        hi = int(b[k]) << w >> w
+        lo = int(bl[k]) << w >> w
+        if e <= 9:
+            r[k] = 0 - ((hi << (9 - e)) + (lo >> e))
+        else:
+            h = hi >> (e - 9)
+            r[k] = 0 - (h + ((((hi - (h << (e - 9))) << 9) + lo) >> e))
+        k += 1
+    return e
+
+
+class PointRows:
+    """The point-by-point half of acal.gaussnewton.GaussNewton (its base class; the arrays and
+    scales are the fit's, made in its __init__): a point's residual, its raw Jacobian row (a
+    composed model's effects removed first), and the row scaled for the sums, the scales
+    growing (and the sums so far shifted down) as the rows grow."""
+
+    # -- residuals ----------------------------------------------------------------------------
+    def _res(self, p, i):
+        at = 3 * i
+        if self.kinds:
+            j = COND * i
+            return model.residual_effects(p, self.u, at, self.aux[j], self.aux[j + 1],
+                                          self.kinds, self.w, self.ts, self.aux[j + 2])
+        u = self.u
+        return model.residual(p, u[at], u[at + 1], u[at + 2])
+
+    def point(self, i, w):
+        """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
+        (a list of 3, Q24 g): what acal/changepoint.py reads."""
+        at = 3 * i
+        if self.kinds:
+            r = self._res(self.p, i)
+            for c in range(3):
+                w[c] = self.w[c]
+            return r
+        u = self.u
+        for c in range(3):
+            w[c] = u[at + c]
+        return model.residual(self.p, u[at], u[at + 1], u[at + 2])
+
+    def _row(self, i):
+        # Residual of point i at p, its raw Jacobian row into d.
+        p = self.p
+        d = self.d
+        u = self.u
+        at = 3 * i
+        kinds = self.kinds
+        if not kinds:
+            return model.residual_jacobian(p, u[at], u[at + 1], u[at + 2], d)
+        w = self.w
+        z = self.z
+        q = self.q
+        dT = self.aux[COND * i]
+        dt = self.aux[COND * i + 1]
+        dV = self.aux[COND * i + 2]
+        for c in range(3):
+            w[c] = u[at + c]
+        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts, dV)
+        r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
+        for c in range(3):
+            q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
+        for k in range(len(kinds)):
+            # dr/dtheta = dr/do . dw/dtheta: the correction with the offsets' rows as its
+            # parameters
+            for c in range(3):
+                z[c] = u[at + c]
+            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts, dV)
+            j = N_PARAMS + 3 * k
+            for c in range(3):
+                d[j + c] = z[c] - u[at + c]
+        return r0
+
+    def _scaled_row(self, i):
+        # Point i's residual into r and f, its row scaled into d (d~), r~ into rh, rl.
+        d = self.d
+        r0 = self._row(i)
+        self.r[i] = r0
+        # the residual's scale tau: grows (and shifts f and b down) as residuals grow
+        ar = r0 if r0 >= 0 else -r0
+        t = self.tau
+        if (ar >> t) >= R_MAX:
+            g = scale_for(ar, t, R_MAX)
+            self.tau = g
+            if i:   # the sums so far are zero at a pass's first point
+                self.f >>= 2 * (g - t)
+                self._shift_b(g - t)
+            t = g
+        self.f += square(r0, t + F_TAU_OFFSET)
+        rs = (r0 + (1 << (t - 1))) >> t if t else r0
+        self.rh = rs >> B_SPLIT
+        self.rl = rs & B_MASK
+        # the columns' scales s_k, likewise (a column whose scale grows shifts its sums down)
+        if scale_row(d, self.sh, self.grown, self.n_params, SIGN_SHIFT) and i:
+            grow_columns(self.a, self.b, self.bl, self.grown, self.n_params, SIGN_SHIFT)
+
+    def _shift_b(self, g):
+        for k in range(self.n_params):
+            self._shift_limbs(k, g)
+
+    def _shift_limbs(self, k, g):
+        # b_k = hi 2**9 + lo (lo in [0, 2**9)) -> floor(b_k 2**-g), in limbs again
+        hi = self.b[k]
+        h = hi >> g
+        self.b[k] = h
+        self.bl[k] = (((hi - (h << g)) << B_SPLIT) + self.bl[k]) >> g
