@@ -287,16 +287,19 @@ def test_default_fit_stays_small_on_hostile_points(rng):
         gn = GaussNewton(72, k)
         gn.aux = [T(0)] * len(gn.aux)   # a traced list for its int32 array: dT, dt, dV traced
         # likewise the sums, points, parameters, scales and residuals (viper's ptr32 on a board)
-        for name in ("d", "a", "b", "bl", "u", "p", "pt", "sh", "grown", "r", "rt", "srt", "rhs"):
+        for name in ("d", "a", "b", "bl", "u", "p", "pt", "sh", "grown", "r", "rt", "srt", "rhs",
+                     "w", "z", "q"):
             setattr(gn, name, [T(0)] * len(getattr(gn, name)))
         gn.ts = T(0)
         normal_sums.int = lambda v: v   # viper's cast: the traced int passes
         model.int = lambda v: v
+        effects.int = lambda v: v
         try:
             gn.run([T(c) for c in pts], 72, 20, None if a is None else [T(c) for c in a])
         finally:
             del normal_sums.int
             del model.int
+            del effects.int
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
 
 

@@ -38,6 +38,7 @@
 #   gaussnewton.py, parameters below 2**22 - the wide products go through acal/wide.py, whose
 #   floors equal the plain (a * b) >> s.
 from acal.wide import mul_shift
+from acal.emit import SIGN_SHIFT, viper, ptr8, ptr32
 try:
     from micropython import const
 except ImportError:
@@ -294,3 +295,127 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
         sq = dT * dT             # <= 1024; |k| <= 2**11 at 2x the bound: the product < 2**22
         for i in range(3):
             w[i] -= (k[m + i] * sq) >> 6
+
+
+# correct_u's integers for the default fit, viper on ports with emitters (acal/emit.py): the
+# generic kinds' (source, power) as one int each (source << 3 | power), indexed by kind.
+_SHAPE_CODES = bytearray(KIND_MAX + 1)
+for _k in SHAPES:
+    _SHAPE_CODES[_k] = (SHAPES[_k][0] << 3) | SHAPES[_k][1]
+del _k
+
+
+@viper
+def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, dt: int,
+                  ts: int, dV: int, clamp: int):
+    # Remove the effects kind_ids[k-1], ..., kind_ids[k0] (an int32 array of ids: the last
+    # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
+    # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array); after
+    # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
+    # integers of correct_u (tests/test_effects.py checks them against it), each wide.mul_shift
+    # written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9); every value below
+    # 2**30 as correct_u's (tests/test_ranges.py).
+    ids = ptr32(kind_ids)
+    p = ptr32(params)
+    u = ptr32(reading)
+    shapes = ptr8(_SHAPE_CODES)
+    w = int(SIGN_SHIFT)
+    while k > k0:
+        k -= 1
+        kind = int(ids[k]) << w >> w
+        at = j + 3 * (k - k0)
+        code = int(shapes[kind])
+        x = 0
+        if code:
+            source = code >> 3
+            if source == 3:                  # SOURCE_STEP
+                x = 65536 if dt >= ts else 0
+            elif source == 4:                # SOURCE_SUPPLY
+                v = dV
+                if v > 1024:
+                    v = 1024
+                elif v < -1024:
+                    v = -1024
+                x = v << 6
+            else:
+                if source == 1:              # SOURCE_TEMP
+                    v = dT
+                    if v > 32:
+                        v = 32
+                    elif v < -32:
+                        v = -32
+                    base = v << 12
+                else:                        # SOURCE_TIME
+                    v = dt
+                    if v > 16384:
+                        v = 16384
+                    elif v < -16384:
+                        v = -16384
+                    base = v << 3
+                x = base
+                bh = base >> 15
+                bl = base & 0x7FFF
+                n = (code & 7) - 1
+                while n > 0:
+                    ah = x >> 15
+                    al = x & 0x7FFF
+                    m = ah * bl + al * bh
+                    x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                    n -= 1
+        elif kind == 3:                      # DRIFT: (p << 5) dt 2**-16
+            v = dt
+            if v > 262143:
+                v = 262143
+            elif v < -262143:
+                v = -262143
+            x = v
+        elif kind != 4:                      # TEMP_OFFSET, TEMP_SCALE, TEMP_OFFSET2: dT
+            v = dT
+            if v > 32:
+                v = 32
+            elif v < -32:
+                v = -32
+            x = v
+            if kind == 5:                    # TEMP_OFFSET2: dT^2 << 10
+                x = (v * v) << 10
+        bh = x >> 15
+        bl = x & 0x7FFF
+        c = 0
+        while c < 3:
+            a = int(p[at + c]) << w >> w
+            r = int(u[c]) << w >> w
+            if kind == 1:                    # TEMP_OFFSET
+                r -= (a * x) >> 4
+            elif kind == 2:                  # TEMP_SCALE: P24((a dT) >> 4, r)
+                a = (a * x) >> 4
+                ah = a >> 15
+                al = a & 0x7FFF
+                rh = r >> 15
+                rl = r & 0x7FFF
+                m = ah * rl + al * rh
+                r -= ((ah * rh) << 6) + (m >> 9) + (((m & 511) + ((al * rl) >> 15)) >> 9)
+            elif kind == 4:                  # NONLINEAR: r - P24(a, P24(r, r))
+                rh = r >> 15
+                rl = r & 0x7FFF
+                m = rh * rl + rl * rh
+                s = ((rh * rh) << 6) + (m >> 9) + (((m & 511) + ((rl * rl) >> 15)) >> 9)
+                ah = a >> 15
+                al = a & 0x7FFF
+                sh = s >> 15
+                sl = s & 0x7FFF
+                m = ah * sl + al * sh
+                r -= ((ah * sh) << 6) + (m >> 9) + (((m & 511) + ((al * sl) >> 15)) >> 9)
+            else:                            # P16(a', x): DRIFT a' = a << 5, the rest a
+                if kind == 3:
+                    a = a << 5
+                ah = a >> 15
+                al = a & 0x7FFF
+                m = ah * bl + al * bh
+                r -= ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+            if clamp:
+                if r > clamp:
+                    r = clamp
+                elif r < 0 - clamp:
+                    r = 0 - clamp
+            u[c] = r
+            c += 1

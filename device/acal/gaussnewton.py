@@ -38,8 +38,9 @@ from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, TRIAL
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
-TRIAL_POINTS = 4
-ACCUM_POINTS = 4          # points per step() of the sums, a model without effects
+TRIAL_POINTS = 8
+TRIAL_POINTS_COMPOSED = 1   # a composed model's residual costs its effects' removal too
+ACCUM_POINTS = 5          # points per step() of the sums, a model without effects
 SORT_POINTS = 24          # points inserted per step() of the sort
 REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)
@@ -104,9 +105,12 @@ class GaussNewton(PointRows):
         self.rhs = int32s(np_)          # int32: the solver's _rhs_shift reads it
         self.xshift = [0] * np_
         self.step_ = [0] * np_
-        self.w = [0, 0, 0]
-        self.z = [0, 0, 0]
-        self.q = [0, 0, 0]
+        self.w = int32s(3)              # int32: effects.correct_kinds' pointers
+        self.z = int32s(3)
+        self.q = int32s(3)
+        self.kind_ids = int32s(len(self.kinds))
+        for k in range(len(self.kinds)):
+            self.kind_ids[k] = self.kinds[k]
         self.solver = Solver(np_)
         self.status = OK
         self.phase = _DONE
@@ -314,7 +318,7 @@ class GaussNewton(PointRows):
         pt = self.pt
         rt = self.rt
         t = self.tau + F_TAU_OFFSET
-        end = self.pos + TRIAL_POINTS
+        end = self.pos + (TRIAL_POINTS_COMPOSED if self.kinds else TRIAL_POINTS)
         if end > self.n:
             end = self.n
         if not self.kinds:

@@ -291,13 +291,27 @@ class PointRows:
 
     # -- residuals ----------------------------------------------------------------------------
     def _res(self, p, i):
-        at = 3 * i
         if self.kinds:
-            j = COND * i
-            return model.residual_effects(p, self.u, at, self.aux[j], self.aux[j + 1],
-                                          self.kinds, self.w, self.ts, self.aux[j + 2])
+            w = self.w
+            self._removed(p, i)
+            return model.residual(p, w[0], w[1], w[2])
+        at = 3 * i
         u = self.u
         return model.residual(p, u[at], u[at + 1], u[at + 2])
+
+    def _removed(self, p, i):
+        # Point i's reading with the effects at p removed, into w (effects.correct_kinds:
+        # model.remove_effects' integers).
+        w = self.w
+        u = self.u
+        at = 3 * i
+        j = COND * i
+        aux = self.aux
+        w[0] = u[at]
+        w[1] = u[at + 1]
+        w[2] = u[at + 2]
+        effects.correct_kinds(self.kind_ids, 0, len(self.kinds), p, N_PARAMS, w, aux[j],
+                              aux[j + 1], self.ts, aux[j + 2], model.FIT_W_MAX)
 
     def point(self, i, w):
         """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
@@ -322,24 +336,26 @@ class PointRows:
         kinds = self.kinds
         if not kinds:
             return model.residual_jacobian(p, u[at], u[at + 1], u[at + 2], d)
+        self._removed(p, i)
         w = self.w
+        r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
         z = self.z
         q = self.q
-        dT = self.aux[COND * i]
-        dt = self.aux[COND * i + 1]
-        dV = self.aux[COND * i + 2]
-        for c in range(3):
-            w[c] = u[at + c]
-        model.remove_effects(p, kinds, w, 0, dT, dt, self.ts, dV)
-        r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
+        aux = self.aux
+        dT = aux[COND * i]
+        dt = aux[COND * i + 1]
+        dV = aux[COND * i + 2]
+        ts = self.ts
+        ids = self.kind_ids
         for c in range(3):
             q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
         for k in range(len(kinds)):
             # dr/dtheta = dr/do . dw/dtheta: the correction with the offsets' rows as its
             # parameters
-            for c in range(3):
-                z[c] = u[at + c]
-            effects.correct_u(kinds[k], q, 0, z, dT, dt, 0, self.ts, dV)
+            z[0] = u[at]
+            z[1] = u[at + 1]
+            z[2] = u[at + 2]
+            effects.correct_kinds(ids, k, k + 1, q, 0, z, dT, dt, ts, dV, 0)
             j = N_PARAMS + 3 * k
             for c in range(3):
                 d[j + c] = z[c] - u[at + c]

@@ -44,8 +44,10 @@ def isqrt(v):
     return x
 
 
-def point(one):
-    # a random direction of length `one`, with sensor-like errors (+-3 % scale, +-60 mg offset)
+def point(one, temp=20):
+    # a random direction of length `one` read by one sensor: +2, -2, +1 % scale, offsets of
+    # +40, -25, +55 mg, a temperature offset of 0.5, -0.3, 0.4 mg/degC from 20 degC and +-1 mg
+    # of noise (a sensor the composed models fit, not noise they chase out of their bounds)
     while True:
         x = rnd(1000)
         y = rnd(1000)
@@ -54,9 +56,10 @@ def point(one):
         if 10000 < n2 <= 1000000:
             break
     n = isqrt(n2)
-    return ((x * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
-            (y * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000,
-            (z * one // n) * (100 + rnd(3)) // 100 + rnd(60) * one // 1000)
+    dT = temp - 20
+    return ((x * one // n) * 102 // 100 + (40000 + 500 * dT + rnd(1000)) * one // 1000000,
+            (y * one // n) * 98 // 100 + (-25000 - 300 * dT + rnd(1000)) * one // 1000000,
+            (z * one // n) * 101 // 100 + (55000 + 400 * dT + rnd(1000)) * one // 1000000)
 
 
 CHIP = sys.platform == "rp2"
@@ -78,7 +81,7 @@ def case(name, prof, kinds):
         for i in range(4000):
             pipe.temp = 20 + (i % 17)
             pipe.time = i
-            x, y, z = point(65536)
+            x, y, z = point(65536, pipe.temp)
             pipe.offer(x, y, z)
             if pipe.bins.total() >= 9 * pipe.bins.max_count:
                 break
