@@ -57,6 +57,7 @@ for k in range(72):
     a[(k + 1) % 3] = 900 * k - 30000
     a[(k + 2) % 3] = 500 * (k % 7)
     gpts += a
+gpts = array("i", gpts)   # as the pipeline hands them over (the fit's viper loads read an int array)
 gn = GaussNewton(72)
 
 
@@ -158,8 +159,9 @@ from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2
 from acal.effects import TIME_OFFSET2, TEMP_OFFSET4, SUPPLY_OFFSET
 from acal.changepoint import ChangePoint
 
-PTS = %s
-AUX = %s
+from array import array
+PTS = array("i", %s)   # int32 arrays, as the pipeline hands them over
+AUX = array("i", %s)
 fits = [(GaussNewton(18), 18, None), (GaussNewton(72), 72, None),
         (GaussNewton(72, (TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR)), 72, AUX),
         (GaussNewton(72, (TEMP_OFFSET, TEMP_OFFSET2)), 72, AUX),

@@ -25,22 +25,24 @@
 # (J = 2 d~ 2**(s - QD), r = r~ 2**(tau - 22)), solved by acal/solve.py.
 # The objective f is in 2**(2 tau - 44) g^4; objective and objective_start are reported in
 # Q24 g^4 (OBJ_Q), saturated at 2**30 - 1.
-from acal.fixed import N_PARAMS, POINT_TO_PARAM_SHIFT
+from array import array
+
+from acal.fixed import N_PARAMS
 from acal.bins import COND, conditions, int32s
 from acal import model
-from acal.model import FIT_W_MAX
 from acal.emit import SIGN_SHIFT
 from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
-from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, TRIAL_MAX,
-                               F_LIMIT, accumulate, accum_points, trial_points, insert_abs,
-                               square, q24, above, rhs_from_limbs)
+from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, accumulate,
+                               accum_points, trial_points, insert_abs, q24, above, rhs_from_limbs,
+                               load_points, clear_sums)
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
 TRIAL_POINTS = 8
-TRIAL_POINTS_COMPOSED = 1   # a composed model's residual costs its effects' removal too
+TRIAL_POINTS_COMPOSED = 3   # a composed model's residual costs its effects' removal too
 ACCUM_POINTS = 5          # points per step() of the sums, a model without effects
+ACCUM_POINTS_COMPOSED = 1
 SORT_POINTS = 24          # points inserted per step() of the sort
 REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)
@@ -108,7 +110,8 @@ class GaussNewton(PointRows):
         self.w = int32s(3)              # int32: effects.correct_kinds' pointers
         self.z = int32s(3)
         self.q = int32s(3)
-        self.kind_ids = int32s(len(self.kinds))
+        self.nk = len(self.kinds)
+        self.kind_ids = int32s(self.nk)
         for k in range(len(self.kinds)):
             self.kind_ids[k] = self.kinds[k]
         self.solver = Solver(np_)
@@ -134,7 +137,6 @@ class GaussNewton(PointRows):
         self.kept = 0
         self.rh = 0
         self.rl = 0
-        self.row_ready = False
         self.first = True
         self.ts = 0                     # a step's time (as aux's dt), set before begin()
 
@@ -147,7 +149,8 @@ class GaussNewton(PointRows):
         return self.status
 
     def begin(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None, start=None):
-        """Load n points (and for a composed model their dT, dt, dV in aux) and start from p0, or
+        """Load n points (pts, Q16 g; and for a composed model their dT, dt, dV in aux: int32
+        arrays, or lists, copied to one first) and start from p0, or
         from start: its 9 parameters (a base fit's: a composed fit then starts where the base
         model is best, effects at zero), or all of them when it holds as many as this fit."""
         if n > self.max_points:
@@ -161,23 +164,16 @@ class GaussNewton(PointRows):
         self.objective = 0
         self.objective_start = 0
         self.first = True
-        u = self.u
-        lim = FIT_W_MAX >> POINT_TO_PARAM_SHIFT
-        for i in range(3 * n):
-            v = pts[i]
-            if v > lim:
-                v = lim
-            elif v < -lim:
-                v = -lim
-            u[i] = v << POINT_TO_PARAM_SHIFT
+        if type(pts) is list:     # a caller's list (the device hands int32 arrays over)
+            pts = array("i", pts)
+        if type(aux) is list:
+            aux = array("i", aux)
+        load_points(pts, self.u, 3 * n, aux, self.aux, 0 if aux is None else COND * n)
         index = self.index
         keep = self.keep
         for i in range(n):
             index[i] = i
             keep[i] = 1
-        if aux is not None:   # the effects' regressors (and the points' times a step search reads)
-            for i in range(COND * n):
-                self.aux[i] = aux[i]
         model.identity(self.p)
         for i in range(N_PARAMS, self.n_params):
             self.p[i] = 0
@@ -200,21 +196,11 @@ class GaussNewton(PointRows):
         self._accum_start()
 
     def _accum_start(self):
-        np_ = self.n_params
-        a = self.a
-        for k in range(np_):   # the lower triangle, the part the sums use
-            row = k * np_
-            for j in range(k + 1):
-                a[row + j] = 0
-        for i in range(np_):
-            self.b[i] = 0
-            self.bl[i] = 0
-            if self.sh[i]:
-                self.sh[i] -= 1   # the columns' scales start a bit below the last pass's
+        # the sums zeroed, the columns' scales started a bit below the last pass's
+        clear_sums(self.a, self.b, self.bl, self.sh, self.n_params, SIGN_SHIFT)
         self.tau = 0              # the residuals' scale from the smallest
         self.f = 0
         self.pos = 0
-        self.row_ready = False
         self.phase = _ACCUM
 
     def step(self):
@@ -235,33 +221,20 @@ class GaussNewton(PointRows):
         return self.phase == _DONE
 
     def _accum(self):
-        # One point; a composed model's takes two calls: its scaled row, then the sums.  A
-        # model without effects: up to ACCUM_POINTS points at once (_accum_points), the first
-        # one that grows a scale by the general path.
+        # Up to ACCUM_POINTS points (a composed model's: ACCUM_POINTS_COMPOSED) at once
+        # (accum_points), the first one that grows a scale by the general path.
         i = self.pos
-        if not self.kinds:
-            end = i + ACCUM_POINTS
-            if end > self.n:
-                end = self.n
-            st = self.state
-            self.f = accum_points(self.p, self.u, self.d, self.r, self.sh, self.a, self.b,
-                                   self.bl, i, end, self.tau, self.f, st)
-            i = st[0]
-            if i < end:
-                self._scaled_row(i)
-                accumulate(self.d, self.a, self.b, self.bl, N_PARAMS, self.rh, self.rl,
-                            SIGN_SHIFT)
-                i += 1
-            self._accumulated(i)
-            return
-        if not self.row_ready:
+        end = i + (ACCUM_POINTS_COMPOSED if self.kinds else ACCUM_POINTS)
+        if end > self.n:
+            end = self.n
+        self.f = accum_points(self, i, end, self.tau, self.f)
+        i = self.state[0]
+        if i < end:
             self._scaled_row(i)
-            if self.kinds:
-                self.row_ready = True
-                return
-        self.row_ready = False
-        accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl, SIGN_SHIFT)
-        self._accumulated(i + 1)
+            accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl,
+                       SIGN_SHIFT)
+            i += 1
+        self._accumulated(i)
 
     def _accumulated(self, i):
         self.pos = i
@@ -316,23 +289,11 @@ class GaussNewton(PointRows):
 
     def _trial(self):
         pt = self.pt
-        rt = self.rt
         t = self.tau + F_TAU_OFFSET
         end = self.pos + (TRIAL_POINTS_COMPOSED if self.kinds else TRIAL_POINTS)
         if end > self.n:
             end = self.n
-        if not self.kinds:
-            self.ft = trial_points(pt, self.u, rt, self.d, self.pos, end, t, self.ft)
-        else:
-            for i in range(self.pos, end):
-                r = self._res(pt, i)
-                rt[i] = r
-                if ((r if r >= 0 else -r) >> t) >= TRIAL_MAX:
-                    self.ft = F_LIMIT
-                else:
-                    self.ft += square(r, t)
-                    if self.ft > F_LIMIT:
-                        self.ft = F_LIMIT
+        self.ft = trial_points(self, pt, self.pos, end, t, self.ft)
         self.pos = end
         if end < self.n:
             return

@@ -4,12 +4,9 @@
 # for outlier rejection, and the exact small-int helpers on the scaled objective.  The hot loops
 # are viper on ports with emitters (acal/emit.py: typed pointers into the fit's int32 arrays;
 # w: emit.SIGN_SHIFT), plain Python elsewhere; tests/test_ranges.py traces every value.
-from acal.fixed import N_PARAMS
-from acal.bins import COND
-from acal import effects
-from acal import model
 from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.model import residual_jacobian
+from acal.model import FIT_W_MAX, residual_jacobian
+from acal.effects import correct_kinds
 from acal.wide import mul_shift
 
 R_MAX = 1 << 18           # |r~| <= 2**18
@@ -51,31 +48,33 @@ def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
 
 
 @viper
-def accum_points(params, points, row, res, scales, sums, high, low, i: int, end: int, tau: int,
-                  f: int, state) -> int:
-    # _scaled_row and accumulate for the points [i, end) of a model without effects, while
-    # neither the residuals' scale tau nor a column's scale has to grow: the point that would
-    # grow one is left to them (state[0]: where this stopped).  Returns f.  The same integers
-    # as those two, written out for viper on ports with emitters (acal/emit.py): R_MAX 2**18,
-    # D_MAX 2**11, F_TAU_OFFSET 7, B_SPLIT 9; square's mul_shift for a square.
-    u = ptr32(points)
+def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
+    # _scaled_row and accumulate for the points [i, end) of a fit, while neither the
+    # residuals' scale tau nor a column's scale has to grow: the point that would grow one is
+    # left to them (fit.state[0]: where this stopped).  Returns f.  The same integers as those
+    # two, written out for viper on ports with emitters (acal/emit.py): R_MAX 2**18, D_MAX
+    # 2**11, F_TAU_OFFSET 7, B_SPLIT 9; square's mul_shift for a square.
+    row = fit.d
     d = ptr32(row)
-    rr = ptr32(res)
-    sh = ptr32(scales)
+    rr = ptr32(fit.r)
+    sh = ptr32(fit.sh)
+    params = fit.p
+    sums = fit.a
+    high = fit.b
+    low = fit.bl
+    n = int(fit.n_params)
     w = int(SIGN_SHIFT)
     while i < end:
-        at = 3 * i
-        r0 = int(residual_jacobian(params, int(u[at]) << w >> w, int(u[at + 1]) << w >> w,
-                                   int(u[at + 2]) << w >> w, row))
+        r0 = int(raw_row(fit, params, i))
         if ((r0 if r0 >= 0 else 0 - r0) >> tau) >= 262144:
             break
         k = 0
-        while k < 9:
+        while k < n:
             v = int(d[k]) << w >> w
             if ((v if v >= 0 else 0 - v) >> (int(sh[k]) << w >> w)) >= 2048:
                 break
             k += 1
-        if k < 9:
+        if k < n:
             break
         rr[i] = r0
         # f += square(r0, tau + 7): floor(x**2 2**-s) as wide.mul_shift(x, x, s)
@@ -98,32 +97,27 @@ def accum_points(params, points, row, res, scales, sums, high, low, i: int, end:
         if tau:
             rs = (r0 + (1 << (tau - 1))) >> tau
         k = 0
-        while k < 9:
+        while k < n:
             s = int(sh[k]) << w >> w
             if s:
                 d[k] = ((int(d[k]) << w >> w) + (1 << (s - 1))) >> s
             k += 1
-        accumulate(row, sums, high, low, 9, rs >> 9, rs & 511, w)
+        accumulate(row, sums, high, low, n, rs >> 9, rs & 511, w)
         i += 1
-    st = ptr32(state)
+    st = ptr32(fit.state)
     st[0] = i
     return f
 
 
 @viper
-def trial_points(params, points, res, row, i: int, end: int, t: int, ft: int) -> int:
-    # The trial objective of a model without effects over points[i:end] (Q24 g): each residual
-    # into res, ft plus floor(r**2 4**-t) each, saturated at F_LIMIT (2**29) as _trial does it
-    # for a composed model; a residual past 2**(13 + t) (TRIAL_MAX) makes it F_LIMIT.  Viper on
-    # ports with emitters (acal/emit.py): residual_jacobian() is called, its row (free while
-    # a trial runs) into row; square()'s mul_shift.
-    u = ptr32(points)
-    rt = ptr32(res)
-    w = int(SIGN_SHIFT)
+def trial_points(fit, params, i: int, end: int, t: int, ft: int) -> int:
+    # The trial objective over the points [i, end) at params: each residual into fit.rt, ft
+    # plus floor(r**2 4**-t) each, saturated at F_LIMIT (2**29); a residual past 2**(13 + t)
+    # (TRIAL_MAX) makes it F_LIMIT.  Viper on ports with emitters: point_residual() is called;
+    # square()'s mul_shift.
+    rt = ptr32(fit.rt)
     while i < end:
-        at = 3 * i
-        r = int(residual_jacobian(params, int(u[at]) << w >> w, int(u[at + 1]) << w >> w,
-                                  int(u[at + 2]) << w >> w, row))
+        r = int(point_residual(fit, params, i))
         rt[i] = r
         if ((r if r >= 0 else 0 - r) >> t) >= 8192:
             ft = 536870912
@@ -226,6 +220,55 @@ def above(f1, t1, f2, t2):
 
 
 @viper
+def load_points(points, fit_points, n3: int, aux, fit_aux, naux: int):
+    # A fit's points (int32 arrays, Q16 g) clamped to +-FIT_W_MAX and into Q24 (<< 8), and
+    # naux of their conditions copied: GaussNewton.begin's loops, viper on ports with emitters.
+    src = ptr32(points)
+    u = ptr32(fit_points)
+    w = int(SIGN_SHIFT)
+    lim = int(FIT_W_MAX) >> 8
+    i = 0
+    while i < n3:
+        v = int(src[i]) << w >> w
+        if v > lim:
+            v = lim
+        elif v < 0 - lim:
+            v = 0 - lim
+        u[i] = v << 8
+        i += 1
+    if naux:
+        a = ptr32(aux)
+        b = ptr32(fit_aux)
+        i = 0
+        while i < naux:
+            b[i] = a[i]
+            i += 1
+
+
+@viper
+def clear_sums(sums, high, low, scales, n: int, w: int):
+    # A pass's sums zeroed (A's lower triangle, b's limbs) and each column's scale started one
+    # below the last pass's (when above 0): GaussNewton._accum_start's loops, viper on ports
+    # with emitters.
+    a = ptr32(sums)
+    b = ptr32(high)
+    bl = ptr32(low)
+    sh = ptr32(scales)
+    k = 0
+    while k < n:
+        j = 0
+        while j <= k:
+            a[k * n + j] = 0
+            j += 1
+        b[k] = 0
+        bl[k] = 0
+        s = int(sh[k]) << w >> w
+        if s:
+            sh[k] = s - 1
+        k += 1
+
+
+@viper
 def grow_columns(sums, high, low, grown, n: int, w: int):
     # Each column k whose scale grew by g = grown[k] bits: its row and column of A (sums, the
     # lower triangle; the diagonal twice) and its entry of b (high, low limbs) shift down, the
@@ -283,88 +326,99 @@ def rhs_from_limbs(high, low, rhs, n: int, w: int) -> int:
     return e
 
 
+@viper
+def point_residual(fit, params, i: int) -> int:
+    # Point i of a GaussNewton fit: its residual at params (an int32 array; Q22 g^2), a composed
+    # model's effects removed first, into fit.w (effects.correct_kinds: model.remove_effects'
+    # integers, each axis clamped to +-FIT_W_MAX); the Jacobian row, a by-product, into fit.d
+    # (free whenever a residual alone is asked for).  Viper on ports with emitters.
+    u = ptr32(fit.u)
+    w = int(SIGN_SHIFT)
+    at = 3 * i
+    x = int(u[at]) << w >> w
+    y = int(u[at + 1]) << w >> w
+    z = int(u[at + 2]) << w >> w
+    nk = int(fit.nk)
+    if nk:
+        removed = fit.w
+        v = ptr32(removed)
+        aux = ptr32(fit.aux)
+        j = 3 * i                 # COND per point
+        v[0] = x
+        v[1] = y
+        v[2] = z
+        correct_kinds(fit.kind_ids, 0, nk, params, 9, removed, int(aux[j]) << w >> w,
+                      int(aux[j + 1]) << w >> w, int(fit.ts), int(aux[j + 2]) << w >> w,
+                      int(FIT_W_MAX))
+        x = int(v[0]) << w >> w
+        y = int(v[1]) << w >> w
+        z = int(v[2]) << w >> w
+    return int(residual_jacobian(params, x, y, z, fit.d))
+
+
+@viper
+def raw_row(fit, params, i: int) -> int:
+    # Point i's residual at params and its raw Jacobian row into fit.d (the 9 parameters'
+    # from model.residual_jacobian; an effect's: dr/dtheta = dr/do . dw/dtheta, the effect's
+    # correction of the reading with the offsets' rows >> (QD_BASE - QD_EFFECT) = 8 as its
+    # parameters, effects.correct_kinds with no clamp).  Viper on ports with emitters.
+    r0 = int(point_residual(fit, params, i))
+    nk = int(fit.nk)
+    if nk == 0:
+        return r0
+    w = int(SIGN_SHIFT)
+    u = ptr32(fit.u)
+    d = ptr32(fit.d)
+    offs = fit.q
+    q = ptr32(offs)
+    moved = fit.z
+    z = ptr32(moved)
+    aux = ptr32(fit.aux)
+    ids = fit.kind_ids
+    at = 3 * i
+    j = 3 * i
+    dT = int(aux[j]) << w >> w
+    dt = int(aux[j + 1]) << w >> w
+    dV = int(aux[j + 2]) << w >> w
+    ts = int(fit.ts)
+    c = 0
+    while c < 3:
+        q[c] = (int(d[6 + c]) << w >> w) >> 8
+        c += 1
+    k = 0
+    while k < nk:
+        z[0] = u[at]
+        z[1] = u[at + 1]
+        z[2] = u[at + 2]
+        correct_kinds(ids, k, k + 1, offs, 0, moved, dT, dt, ts, dV, 0)
+        c = 0
+        while c < 3:
+            d[9 + 3 * k + c] = (int(z[c]) << w >> w) - (int(u[at + c]) << w >> w)
+            c += 1
+        k += 1
+    return r0
+
+
 class PointRows:
     """The point-by-point half of acal.gaussnewton.GaussNewton (its base class; the arrays and
     scales are the fit's, made in its __init__): a point's residual, its raw Jacobian row (a
     composed model's effects removed first), and the row scaled for the sums, the scales
     growing (and the sums so far shifted down) as the rows grow."""
 
-    # -- residuals ----------------------------------------------------------------------------
-    def _res(self, p, i):
-        if self.kinds:
-            w = self.w
-            self._removed(p, i)
-            return model.residual(p, w[0], w[1], w[2])
-        at = 3 * i
-        u = self.u
-        return model.residual(p, u[at], u[at + 1], u[at + 2])
-
-    def _removed(self, p, i):
-        # Point i's reading with the effects at p removed, into w (effects.correct_kinds:
-        # model.remove_effects' integers).
-        w = self.w
-        u = self.u
-        at = 3 * i
-        j = COND * i
-        aux = self.aux
-        w[0] = u[at]
-        w[1] = u[at + 1]
-        w[2] = u[at + 2]
-        effects.correct_kinds(self.kind_ids, 0, len(self.kinds), p, N_PARAMS, w, aux[j],
-                              aux[j + 1], self.ts, aux[j + 2], model.FIT_W_MAX)
-
     def point(self, i, w):
         """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
         (a list of 3, Q24 g): what acal/changepoint.py reads."""
-        at = 3 * i
-        if self.kinds:
-            r = self._res(self.p, i)
-            for c in range(3):
-                w[c] = self.w[c]
-            return r
-        u = self.u
+        r = point_residual(self, self.p, i)
+        src = self.w if self.kinds else self.u
+        at = 0 if self.kinds else 3 * i
         for c in range(3):
-            w[c] = u[at + c]
-        return model.residual(self.p, u[at], u[at + 1], u[at + 2])
-
-    def _row(self, i):
-        # Residual of point i at p, its raw Jacobian row into d.
-        p = self.p
-        d = self.d
-        u = self.u
-        at = 3 * i
-        kinds = self.kinds
-        if not kinds:
-            return model.residual_jacobian(p, u[at], u[at + 1], u[at + 2], d)
-        self._removed(p, i)
-        w = self.w
-        r0 = model.residual_jacobian(p, w[0], w[1], w[2], d)
-        z = self.z
-        q = self.q
-        aux = self.aux
-        dT = aux[COND * i]
-        dt = aux[COND * i + 1]
-        dV = aux[COND * i + 2]
-        ts = self.ts
-        ids = self.kind_ids
-        for c in range(3):
-            q[c] = d[6 + c] >> (QD_BASE - QD_EFFECT)
-        for k in range(len(kinds)):
-            # dr/dtheta = dr/do . dw/dtheta: the correction with the offsets' rows as its
-            # parameters
-            z[0] = u[at]
-            z[1] = u[at + 1]
-            z[2] = u[at + 2]
-            effects.correct_kinds(ids, k, k + 1, q, 0, z, dT, dt, ts, dV, 0)
-            j = N_PARAMS + 3 * k
-            for c in range(3):
-                d[j + c] = z[c] - u[at + c]
-        return r0
+            w[c] = src[at + c]
+        return r
 
     def _scaled_row(self, i):
         # Point i's residual into r and f, its row scaled into d (d~), r~ into rh, rl.
         d = self.d
-        r0 = self._row(i)
+        r0 = raw_row(self, self.p, i)
         self.r[i] = r0
         # the residual's scale tau: grows (and shifts f and b down) as residuals grow
         ar = r0 if r0 >= 0 else -r0

@@ -22,16 +22,26 @@
 # Schur complements by ~2**4 an update, far below the smallest floor (2**(DIAG_BITS-2-12)).
 from acal.bins import conditions
 from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.wide import mul_shift, div_shift
+from acal.wide import div_shift
 
 DIAG_BITS = 24
 RHS_BITS = 19
 MUL_Q = 20
 GUARD_SHIFT = 12
-STEP_WORK = 48        # products a step() does, about (docs/method-and-formats.md "Sliced fit")
+STEP_WORK = 192        # products a step() does, about (docs/method-and-formats.md "Sliced fit")
 _Y_MAX_SHIFT = 3      # |y| < m_ii 2**3 2**-MUL_Q ... i.e. |y| < 2**(MUL_Q + 3)
 _T_MAX = 1 << 28      # bound of a back-substitution partial sum
 _MAX_RESCALES = 8
+# Solver.state's slots and _run's answers
+_I = 0
+_J = 1
+_E = 2
+_RESCALES = 3
+_BACK = 4
+_STATE = 5
+_MORE = 0
+_SOLVED = 1
+_FAILED = 2
 
 
 class Solver:
@@ -47,14 +57,12 @@ class Solver:
         self.c = conditions(n_max)
         self.y = conditions(n_max)           # ... and these (_back_substitute, _prepare_rows)
         self.s = conditions(n_max)
-        self.floor = [0] * n_max
-        self.xshift = [0] * n_max
+        self.floor = conditions(n_max)
+        self.xshift = conditions(n_max)
+        # the elimination's place, for _run: pivot i, row j, e, rescales done, back
+        # substitution under way (0/1)
+        self.state = conditions(_STATE)
         self.n = 0
-        self.i = 0
-        self.j = 0
-        self.e = 0
-        self.rescales = 0
-        self.back = False
         self.prep = 0
         self.inv = 0
         self.a = None
@@ -87,49 +95,39 @@ class Solver:
         self.a = a
         # e: max_k |b_k| 2**-s_k 2**-e in [2**(RHS_BITS-1), 2**RHS_BITS), from bit lengths
         e = _rhs_shift(b, s, n, SIGN_SHIFT)
-        for k in range(n):
-            v = _shift_sat(b[k], -(s[k] + e))
-            if mu:
-                v = mul_shift(v, self.inv, 16)
-            c[k] = v
-        self.e = e
-        self.i = 0
-        self.j = 1
+        _scale_rhs(b, c, s, n, e, self.inv, 1 if mu else 0, SIGN_SHIFT)
+        st = self.state
+        st[_I] = 0
+        st[_J] = 1
+        st[_E] = e
+        st[_RESCALES] = 0
+        st[_BACK] = 0
         self.prep = 0
-        self.back = False
-        self.rescales = 0
-        return True
-
-    def _rescale(self):
-        # c >> 4 (floor), e + 4: the solution shrinks with it and is scaled back at the end.
-        self.rescales += 1
-        if self.rescales > _MAX_RESCALES:
-            return False
-        c = self.c
-        for k in range(self.n):
-            c[k] >>= 4
-        self.e += 4
         return True
 
     def step(self):
-        """About STEP_WORK products of work: rows prepared, rows eliminated, unknowns
-        back-substituted; True when done (ok says whether x holds the solution)."""
-        budget = STEP_WORK
-        while budget > 0:
-            if self.back:
-                cost = self._back_unit()
-            elif self.prep < self.n:
-                cost = self._prepare_row()
-            else:
-                cost = self._elim_unit(budget)
-            if cost < 0:
-                return True
-            budget -= cost
-        return False
+        """About STEP_WORK products of work: rows prepared (a slice of their own), or rows
+        eliminated and unknowns back-substituted (_run); True when done (ok says whether x
+        holds the solution)."""
+        if self.prep < self.n:
+            self._prepare_row()
+            return False
+        r = _run(self.m, self.c, self.y, self.floor, self.state, self.n, STEP_WORK, SIGN_SHIFT)
+        if r == _MORE:
+            return False
+        if r == _SOLVED:
+            # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
+            x = self.x
+            y = self.y
+            e = self.state[_E] - MUL_Q
+            for k in range(self.n):
+                x[k] = _shift_sat(y[k], e - self.s[k] + self.xshift[k])
+            self.ok = True
+        return True
 
     def _prepare_row(self):
         # Rows prep.. of the scaled (and damped) copy, up to STEP_WORK // 2 entries (at least a
-        # row); their cost.
+        # row).
         k = self.prep
         end = k + 1
         work = k + 1
@@ -140,69 +138,7 @@ class Solver:
         for j in range(k, end):
             self.floor[j] = self.m[j * self.n + j] >> GUARD_SHIFT
         self.prep = end
-        return work
 
-    def _elim_unit(self, budget):
-        # Rows j.. below pivot i eliminated, as many as the budget holds (at least one; at a new
-        # pivot: its guard, c's bound first); their cost, or -1 when the solve has ended (a
-        # pivot under its guard).
-        m = self.m
-        c = self.c
-        n = self.n
-        i = self.i
-        if i >= n - 1:
-            if i == n - 1 and m[i * n + i] <= self.floor[i]:
-                return -1
-            self.back = True
-            self.i = n - 1
-            return 1
-        piv = m[i * n + i]
-        j = self.j
-        if j == i + 1:
-            if piv <= self.floor[i] or piv <= 0:
-                return -1
-            lim = 1 << RHS_BITS
-            for k in range(n):
-                while -lim >= c[k] or c[k] >= lim:
-                    if not self._rescale():
-                        return -1
-        cost = n - i + 4
-        end = j + (budget + cost - 1) // cost
-        if end > n:
-            end = n
-        if _eliminate_rows(m, c, i, j, end, n, SIGN_SHIFT):
-            return -1   # beyond any Schur complement of an SPD system: rounding won
-        if end >= n:
-            self.i = i + 1
-            self.j = i + 2
-        else:
-            self.j = end
-        return cost * (end - j)
-
-    def _back_unit(self):
-        # y_i = (c_i 2**MUL_Q - sum_k m_ik y_k) / m_ii, in units of 2**-MUL_Q; a sum or a y past
-        # its bound rescales c and starts the back substitution again.  Its cost, or -1 when
-        # the solve has ended.
-        n = self.n
-        i = self.i
-        if _back_substitute(self.m, self.c, self.y, i, n, SIGN_SHIFT):
-            return self._back_restart()
-        if i > 0:
-            self.i = i - 1
-            return n - i + 4
-        # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
-        x = self.x
-        y = self.y
-        for k in range(n):
-            x[k] = _shift_sat(y[k], self.e - MUL_Q - self.s[k] + self.xshift[k])
-        self.ok = True
-        return -1
-
-    def _back_restart(self):
-        if not self._rescale():
-            return -1
-        self.i = self.n - 1
-        return self.n
 
 _SAT = 1 << 29
 
@@ -381,3 +317,119 @@ def _rhs_shift(rhs, scales, n: int, w: int) -> int:
                 found = 1
         k += 1
     return e
+
+
+@viper
+def _run(rows, rhs, sol, floors, state, n: int, budget: int, w: int) -> int:
+    # The elimination below each pivot (rows at a time: _eliminate_rows) and the back
+    # substitution (_back_substitute), from where state says, until about `budget` products
+    # are done: _MORE (0), _SOLVED (1: y holds the solution in units of 2**-MUL_Q) or _FAILED
+    # (2: a pivot under its guard, rounding beyond an SPD system, or past _MAX_RESCALES).  At
+    # a new pivot c is brought within +-2**RHS_BITS (19) and a back substitution that overflows
+    # starts again, both by c >> 4 and e + 4 (the solution shrinks with it and is scaled back at
+    # the end).  Viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    m = ptr32(rows)
+    c = ptr32(rhs)
+    fl = ptr32(floors)
+    st = ptr32(state)
+    i = int(st[0])
+    j = int(st[1])
+    e = int(st[2]) << w >> w
+    rescales = int(st[3])
+    back = int(st[4])
+    result = 0
+    while budget > 0:
+        shrink = 0
+        if back == 0:
+            if i >= n - 1:
+                if i == n - 1 and (int(m[i * n + i]) << w >> w) <= (int(fl[i]) << w >> w):
+                    result = 2
+                    break
+                back = 1
+                i = n - 1
+                budget -= 1
+                continue
+            if j == i + 1:
+                piv = int(m[i * n + i]) << w >> w
+                if piv <= (int(fl[i]) << w >> w) or piv <= 0:
+                    result = 2
+                    break
+                k = 0
+                while k < n:
+                    v = int(c[k]) << w >> w
+                    if v <= -524288 or v >= 524288:
+                        shrink = 1
+                        break
+                    k += 1
+            if not shrink:
+                cost = n - i + 4
+                end = j + (budget + cost - 1) // cost
+                if end > n:
+                    end = n
+                if int(_eliminate_rows(rows, rhs, i, j, end, n, w)):
+                    result = 2
+                    break
+                budget -= cost * (end - j)
+                if end >= n:
+                    i += 1
+                    j = i + 1
+                else:
+                    j = end
+        elif int(_back_substitute(rows, rhs, sol, i, n, w)):
+            shrink = 1
+            i = n - 1
+            budget -= n
+        elif i > 0:
+            budget -= n - i + 4
+            i -= 1
+        else:
+            result = 1
+            break
+        if shrink:
+            rescales += 1
+            if rescales > 8:
+                result = 2
+                break
+            k = 0
+            while k < n:
+                c[k] = (int(c[k]) << w >> w) >> 4
+                k += 1
+            e += 4
+    st[0] = i
+    st[1] = j
+    st[2] = e
+    st[3] = rescales
+    st[4] = back
+    return result
+
+
+@viper
+def _scale_rhs(rhs, scaled, scales, n: int, e: int, inv: int, damped: int, w: int):
+    # c_k = b_k 2**-(s_k + e) (floor), saturated at +-2**29 as _shift_sat, then times inv 2**-16
+    # (the damping; wide.mul_shift for s = 16) when damped (mu > 0: inv may floor to 0).  Viper
+    # on ports with emitters.
+    b = ptr32(rhs)
+    c = ptr32(scaled)
+    s = ptr32(scales)
+    ih = inv >> 15
+    il = inv & 0x7FFF
+    k = 0
+    while k < n:
+        v = int(b[k]) << w >> w
+        sh = 0 - ((int(s[k]) << w >> w) + e)
+        if sh <= 0:
+            v = v >> (0 - sh)
+        elif v:
+            if v >= (536870912 >> sh):
+                v = 536870912
+            elif v <= 0 - (536870912 >> sh):
+                v = -536870912
+            else:
+                v = v << sh
+        if damped:
+            vh = v >> 15
+            vl = v & 0x7FFF
+            mm = vh * il + vl * ih
+            v = ((vh * ih) << 14) + (mm >> 1) + (((mm & 1) + ((vl * il) >> 15)) >> 1)
+        c[k] = v
+        k += 1
