@@ -13,13 +13,14 @@ from acal import effects
 from acal.bins import COND, conditions
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.wide import mul_shift
-from acal.objective import objective_limbs, LIMBS
+from acal.objective import objective_limbs, LIMBS, PLAIN
 from array import array
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/objective.py)
 _ARG_LIMIT = 1 << 29
 _F = array("i", [0] * LIMBS)   # objective()'s limbs
+_P = array("i", [0] * N_PARAMS)   # and parameters
 
 
 def identity(p):
@@ -72,11 +73,11 @@ def objective(p, u, n):
     the exact domain (parameters in the fit region, points within +-16 g, acal/objective.py) the
     same integers come from limbs below 2**30 (viper on ports with emitters); otherwise from the
     formula, exact in Python ints of any size."""
-    for i in range(N_PARAMS):   # a viper int argument would wrap a long: those take the formula
+    for i in range(N_PARAMS):   # past an int32, the formula (a long would not fit _P)
         if not -_ARG_LIMIT < p[i] < _ARG_LIMIT:
             return objective_long(p, u, n)
-    if isinstance(u, array) and not objective_limbs(u, n, _F, 0, p[0], p[1], p[2], p[3], p[4],
-                                                    p[5], p[6], p[7], p[8], SIGN_SHIFT):
+        _P[i] = p[i]
+    if isinstance(u, array) and not objective_limbs(u, n, _F, 0, _P, PLAIN, _F, SIGN_SHIFT):
         return from_limbs(_F, 0)
     return objective_long(p, u, n)
 

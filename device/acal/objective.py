@@ -14,19 +14,42 @@
 # worst corner: v = u + o < 2**28.05, the products' middle sums < 2**29.8, |a| < 49.5 g
 # (2**33.7), r < 2**42.4 (its top limb < 2**14.4), r^2's middle limb < 2**29.9 and the sums'
 # top limb < 2**29.7 (tests/test_ranges.py traces them).
+#
+# Two shortcuts give the same integers faster where the values are those of a real sensor:
+# - |a| < 2 g on every axis: a is a small int; its halves of 15 bits (the low one in
+#   [-2**14, 2**14)) give |a|^2 in three sums of three products, and when |a|^2 is within 1/4 g^2
+#   of 1 g^2, r (< 2**28.1) and r^2 / 2**20 follow in a few products.
+# - the gradient's objectives at p + h e_k (h = 2**7 in Q24): with a = floor(S / 2**20) and its
+#   remainder rho = S mod 2**20 kept per point from the objective at p (CACHE per point), S
+#   moves by 2**7 X (X a point's coordinate for a scale or misalignment, a K entry for an
+#   offset), X = X1 2**14 + X0, so a moves by 2 X1 + floor((rho + X0 2**7) / 2**20): a few ops
+#   per changed axis instead of the products.
 from acal.emit import viper, ptr32
 
 LIMBS = 4            # an objective: 4 limbs of 14 bits, the top one signed (< 2**30)
 MAX_POINTS = 128     # the sums' top limb: 128 terms of < 2**22.7
 QUOTIENT_MAX = 134217728   # 2**27: a step this large leaves the fit region (optimiser.py)
+CACHE = 6            # per point: a_x, a_y, a_z (Q28) and their rho, or rho_x = -1: not kept
+PLAIN = -2           # objective_limbs' k: no cache
+BASE = -1            #   the objective at p, the cache filled
 
 
 @viper
-def objective_limbs(u, n: int, out, at: int, kxx: int, kyy: int, kzz: int, kxy: int, kxz: int,
-                    kyz: int, ox: int, oy: int, oz: int, w: int) -> int:
+def objective_limbs(u, n: int, out, at: int, par, k: int, cache, w: int) -> int:
     """The objective of the n points u (Q24 g, flat x y z, an int32 array) at the parameters
-    kxx .. oz (Q24) into out[at:at+LIMBS]; 0, or 1 for parameters and 2 for points outside the
-    domain (out then untouched)."""
+    par (Q24, an int32 array: kxx kyy kzz kxy kxz kyz ox oy oz) into out[at:at+LIMBS]; 0, or 1
+    for parameters and 2 for points outside the domain (out then untouched).  k: PLAIN; BASE
+    (cache, CACHE ints a point, filled); or 0..8: par is p + h e_k, cache the BASE one at p."""
+    q = ptr32(par)
+    kxx = int(q[0]) << w >> w
+    kyy = int(q[1]) << w >> w
+    kzz = int(q[2]) << w >> w
+    kxy = int(q[3]) << w >> w
+    kxz = int(q[4]) << w >> w
+    kyz = int(q[5]) << w >> w
+    ox = int(q[6]) << w >> w
+    oy = int(q[7]) << w >> w
+    oz = int(q[8]) << w >> w
     # the fit region (fixed.FIT_*) widened by H_PARAM = 128
     if kxx < 8388480 or kxx > 33554560 or kyy < 8388480 or kyy > 33554560 or \
             kzz < 8388480 or kzz > 33554560:
@@ -35,10 +58,11 @@ def objective_limbs(u, n: int, out, at: int, kxx: int, kyy: int, kzz: int, kxy: 
             kyz < -8388736 or kyz > 8388736:
         return 1
     if ox < -8388736 or ox > 8388736 or oy < -8388736 or oy > 8388736 or \
-            oz < -8388736 or oz > 8388736 or n < 0 or n > 128:
+            oz < -8388736 or oz > 8388736 or n < 0 or n > 128 or k < -2 or k > 8:
         return 1
     p = ptr32(u)
     o = ptr32(out)
+    cc = ptr32(cache)
     xx1 = kxx >> 14
     xx0 = kxx & 16383
     yy1 = kyy >> 14
@@ -51,6 +75,43 @@ def objective_limbs(u, n: int, out, at: int, kxx: int, kyy: int, kzz: int, kxy: 
     xz0 = kxz & 16383
     yz1 = kyz >> 14
     yz0 = kyz & 16383
+    # the gradient's objective at p + h e_k from the cache: for a K entry, axis c moves by
+    # column j's coordinate (its offset oj); for an offset j, every axis from j down by its
+    # K entry in column j (d1: 2 X1, d0: X0 2**7)
+    c = 0
+    j = 0
+    oj = ox
+    if k == 1 or k == 5:
+        j = 1
+        oj = oy
+    elif k == 2:
+        j = 2
+        oj = oz
+    if k == 1 or k == 3:
+        c = 1
+    elif k == 2 or k == 4 or k == 5:
+        c = 2
+    dx1 = 0
+    dx0 = 0
+    dy1 = 0
+    dy0 = 0
+    dz1 = 0
+    dz0 = 0
+    if k == 6:
+        dx1 = xx1 << 1
+        dx0 = xx0 << 7
+        dy1 = xy1 << 1
+        dy0 = xy0 << 7
+        dz1 = xz1 << 1
+        dz0 = xz0 << 7
+    elif k == 7:
+        dy1 = yy1 << 1
+        dy0 = yy0 << 7
+        dz1 = yz1 << 1
+        dz0 = yz0 << 7
+    elif k == 8:
+        dz1 = zz1 << 1
+        dz0 = zz0 << 7
     s0 = 0
     s1 = 0
     s2 = 0
@@ -58,69 +119,147 @@ def objective_limbs(u, n: int, out, at: int, kxx: int, kyy: int, kzz: int, kxy: 
     i = 0
     end = 3 * n
     while i < end:
-        vx = int(p[i]) << w >> w
-        vy = int(p[i + 1]) << w >> w
-        vz = int(p[i + 2]) << w >> w
-        if vx < -268435456 or vx >= 268435456 or vy < -268435456 or vy >= 268435456 or \
-                vz < -268435456 or vz >= 268435456:
-            return 2
-        vx += ox
-        vy += oy
-        vz += oz
-        x1 = vx >> 14
-        x0 = vx & 16383
-        y1 = vy >> 14
-        y0 = vy & 16383
-        z1 = vz >> 14
-        z0 = vz & 16383
-        # a = floor(S / 2**20) for S = sum k v = h 2**28 + m 2**14 + l:
-        #   floor(S / 2**14) = h 2**14 + m + (l >> 14), then >> 6; a = a2 2**28 + a1 2**14 + a0
-        h = xx1 * x1
-        m = xx1 * x0 + xx0 * x1 + ((xx0 * x0) >> 14)
-        t = ((h & 63) << 8) + (m >> 6)
-        c = (h >> 6) + (t >> 14)
-        ax0 = t & 16383
-        ax1 = c & 16383
-        ax2 = c >> 14
-        h = xy1 * x1 + yy1 * y1
-        m = xy1 * x0 + xy0 * x1 + yy1 * y0 + yy0 * y1 + ((xy0 * x0 + yy0 * y0) >> 14)
-        t = ((h & 63) << 8) + (m >> 6)
-        c = (h >> 6) + (t >> 14)
-        ay0 = t & 16383
-        ay1 = c & 16383
-        ay2 = c >> 14
-        h = xz1 * x1 + yz1 * y1 + zz1 * z1
-        m = xz1 * x0 + xz0 * x1 + yz1 * y0 + yz0 * y1 + zz1 * z0 + zz0 * z1 + \
-            ((xz0 * x0 + yz0 * y0 + zz0 * z0) >> 14)
-        t = ((h & 63) << 8) + (m >> 6)
-        c = (h >> 6) + (t >> 14)
-        az0 = t & 16383
-        az1 = c & 16383
-        az2 = c >> 14
-        # |a|^2 - 2**56 = e0 + 2 e1 2**14 + e2 2**28 + e3 2**42 + e4 2**56
-        e0 = ax0 * ax0 + ay0 * ay0 + az0 * az0
-        e1 = ax1 * ax0 + ay1 * ay0 + az1 * az0
-        e2 = ax1 * ax1 + ay1 * ay1 + az1 * az1 + ((ax2 * ax0 + ay2 * ay0 + az2 * az0) << 1)
-        e3 = (ax2 * ax1 + ay2 * ay1 + az2 * az1) << 1
-        e4 = ax2 * ax2 + ay2 * ay2 + az2 * az2 - 1
-        # floor(/ 2**14), carried into 14-bit limbs, then r = that >> 12 = r2 2**28 + r1 2**14 + r0
-        t = ((e1 & 16383) << 1) + (e0 >> 14)
-        e2 += ((e1 >> 14) << 1) + (t >> 14)
-        e3 += e2 >> 14
-        e4 += e3 >> 14
-        r0 = ((t & 16383) >> 12) + ((e2 & 4095) << 2)
-        r1 = ((e2 & 16383) >> 12) + ((e3 & 4095) << 2)
-        r2 = ((e3 & 16383) >> 12) + (e4 << 2)
-        # r^2 = f0 + f1 2**14 + f2 2**28 + f3 2**42 + f4 2**56; its floor / 2**20 (>> 14, >> 6)
-        f0 = r0 * r0
-        t = ((r1 * r0) << 1) + (f0 >> 14)
-        f2 = r1 * r1 + ((r2 * r0) << 1) + (t >> 14)
-        f3 = ((r2 * r1) << 1) + (f2 >> 14)
-        f4 = r2 * r2 + (f3 >> 14)
-        s0 += ((t & 16383) >> 6) + ((f2 & 63) << 8)
-        s1 += ((f2 & 16383) >> 6) + ((f3 & 63) << 8)
-        s2 += ((f3 & 16383) >> 6) + ((f4 & 63) << 8)
-        s3 += f4 >> 6
+        b = i << 1
+        big = 0
+        if k >= 0 and int(cc[b + 3]) >= 0:
+            ax = int(cc[b]) << w >> w
+            ay = int(cc[b + 1]) << w >> w
+            az = int(cc[b + 2]) << w >> w
+            if k < 6:
+                v = (int(p[i + j]) << w >> w) + oj
+                d = (v >> 14) << 1
+                e = (v & 16383) << 7
+                if c == 0:
+                    ax += d + ((int(cc[b + 3]) + e) >> 20)
+                elif c == 1:
+                    ay += d + ((int(cc[b + 4]) + e) >> 20)
+                else:
+                    az += d + ((int(cc[b + 5]) + e) >> 20)
+            else:
+                if k == 6:
+                    ax += dx1 + ((int(cc[b + 3]) + dx0) >> 20)
+                if k <= 7:
+                    ay += dy1 + ((int(cc[b + 4]) + dy0) >> 20)
+                az += dz1 + ((int(cc[b + 5]) + dz0) >> 20)
+        else:
+            vx = int(p[i]) << w >> w
+            vy = int(p[i + 1]) << w >> w
+            vz = int(p[i + 2]) << w >> w
+            if vx < -268435456 or vx >= 268435456 or vy < -268435456 or vy >= 268435456 or \
+                    vz < -268435456 or vz >= 268435456:
+                return 2
+            vx += ox
+            vy += oy
+            vz += oz
+            x1 = vx >> 14
+            x0 = vx & 16383
+            y1 = vy >> 14
+            y0 = vy & 16383
+            z1 = vz >> 14
+            z0 = vz & 16383
+            # a = floor(S / 2**20) for S = sum k v = h 2**28 + m 2**14 + l:
+            #   floor(S / 2**14) = h 2**14 + m + (l >> 14), then >> 6; a = a2 2**28 + a1 2**14 + a0
+            #   (t its low part), rho = S mod 2**20
+            h = xx1 * x1
+            e = xx0 * x0
+            m = xx1 * x0 + xx0 * x1 + (e >> 14)
+            rx = ((m & 63) << 14) + (e & 16383)
+            t = ((h & 63) << 8) + (m >> 6)
+            cx = (h >> 6) + (t >> 14)
+            ax0 = t & 16383
+            h = xy1 * x1 + yy1 * y1
+            e = xy0 * x0 + yy0 * y0
+            m = xy1 * x0 + xy0 * x1 + yy1 * y0 + yy0 * y1 + (e >> 14)
+            ry = ((m & 63) << 14) + (e & 16383)
+            t = ((h & 63) << 8) + (m >> 6)
+            cy = (h >> 6) + (t >> 14)
+            ay0 = t & 16383
+            h = xz1 * x1 + yz1 * y1 + zz1 * z1
+            e = xz0 * x0 + yz0 * y0 + zz0 * z0
+            m = xz1 * x0 + xz0 * x1 + yz1 * y0 + yz0 * y1 + zz1 * z0 + zz0 * z1 + (e >> 14)
+            rz = ((m & 63) << 14) + (e & 16383)
+            t = ((h & 63) << 8) + (m >> 6)
+            cz = (h >> 6) + (t >> 14)
+            az0 = t & 16383
+            if cx < -32768 or cx >= 32768 or cy < -32768 or cy >= 32768 or \
+                    cz < -32768 or cz >= 32768:
+                big = 1       # some |a| >= 2 g: the limbs
+                ax1 = cx & 16383
+                ax2 = cx >> 14
+                ay1 = cy & 16383
+                ay2 = cy >> 14
+                az1 = cz & 16383
+                az2 = cz >> 14
+                if k == -1:
+                    cc[b + 3] = -1
+            else:
+                ax = (cx << 14) + ax0
+                ay = (cy << 14) + ay0
+                az = (cz << 14) + az0
+                if k == -1:
+                    cc[b] = ax
+                    cc[b + 1] = ay
+                    cc[b + 2] = az
+                    cc[b + 3] = rx
+                    cc[b + 4] = ry
+                    cc[b + 5] = rz
+        if big == 0:
+            # |a| < 2 g (+ a gradient step): halves of 15 bits, the low one in [-2**14, 2**14)
+            x1 = (ax + 16384) >> 15
+            x0 = ax - (x1 << 15)
+            y1 = (ay + 16384) >> 15
+            y0 = ay - (y1 << 15)
+            z1 = (az + 16384) >> 15
+            z0 = az - (z1 << 15)
+            # |a|^2 - 2**56 = (e2 - 2**26) 2**30 + e1 2**16 + e0
+            h = x1 * x1 + y1 * y1 + z1 * z1 - 67108864
+            if h > -16777216 and h < 16777216:
+                e = x1 * x0 + y1 * y0 + z1 * z0
+                m = x0 * x0 + y0 * y0 + z0 * z0
+                r = (h << 4) + ((e + (m >> 16)) >> 10)     # |r| < 2**28.01
+                # r^2 / 2**20 with r = r1 2**15 + r0: r1^2 2**10 + (r1 r0 + r0^2 / 2**16) / 2**4
+                r1 = r >> 15
+                r0 = r & 32767
+                h = r1 * r1
+                t = ((h & 15) << 10) + ((r1 * r0 + ((r0 * r0) >> 16)) >> 4)
+                s0 += t & 16383
+                s1 += (h >> 4) + (t >> 14)
+            else:
+                big = 1
+                ax0 = ax & 16383
+                ax1 = (ax >> 14) & 16383
+                ax2 = ax >> 28
+                ay0 = ay & 16383
+                ay1 = (ay >> 14) & 16383
+                ay2 = ay >> 28
+                az0 = az & 16383
+                az1 = (az >> 14) & 16383
+                az2 = az >> 28
+        if big:
+            # |a|^2 - 2**56 = e0 + 2 e1 2**14 + e2 2**28 + e3 2**42 + e4 2**56
+            e0 = ax0 * ax0 + ay0 * ay0 + az0 * az0
+            e1 = ax1 * ax0 + ay1 * ay0 + az1 * az0
+            e2 = ax1 * ax1 + ay1 * ay1 + az1 * az1 + ((ax2 * ax0 + ay2 * ay0 + az2 * az0) << 1)
+            e3 = (ax2 * ax1 + ay2 * ay1 + az2 * az1) << 1
+            e4 = ax2 * ax2 + ay2 * ay2 + az2 * az2 - 1
+            # floor(/ 2**14) carried into 14-bit limbs, then r = that >> 12 = r2 2**28 + r1 2**14 + r0
+            t = ((e1 & 16383) << 1) + (e0 >> 14)
+            e2 += ((e1 >> 14) << 1) + (t >> 14)
+            e3 += e2 >> 14
+            e4 += e3 >> 14
+            r0 = ((t & 16383) >> 12) + ((e2 & 4095) << 2)
+            r1 = ((e2 & 16383) >> 12) + ((e3 & 4095) << 2)
+            r2 = ((e3 & 16383) >> 12) + (e4 << 2)
+            # r^2 = f0 + f1 2**14 + f2 2**28 + f3 2**42 + f4 2**56; its floor / 2**20 (>> 14, >> 6)
+            f0 = r0 * r0
+            t = ((r1 * r0) << 1) + (f0 >> 14)
+            f2 = r1 * r1 + ((r2 * r0) << 1) + (t >> 14)
+            f3 = ((r2 * r1) << 1) + (f2 >> 14)
+            f4 = r2 * r2 + (f3 >> 14)
+            s0 += ((t & 16383) >> 6) + ((f2 & 63) << 8)
+            s1 += ((f2 & 16383) >> 6) + ((f3 & 63) << 8)
+            s2 += ((f3 & 16383) >> 6) + ((f4 & 63) << 8)
+            s3 += f4 >> 6
         i += 3
     s1 += s0 >> 14
     s2 += s1 >> 14
@@ -133,41 +272,58 @@ def objective_limbs(u, n: int, out, at: int, kxx: int, kyy: int, kzz: int, kxy: 
 
 
 @viper
-def quotient(f, at: int, base: int, m: int, den: int, w: int) -> int:
-    """floor(m (F_at - F_base) / den) for two objectives in limbs (f[at:at+4], f[base:base+4]),
-    0 <= m < 2**10 and 0 < den < 2**15: exact when its magnitude is below QUOTIENT_MAX, else
-    +-QUOTIENT_MAX with its sign."""
+def update(f, base: int, par, alpha, n: int, den: int, w: int) -> int:
+    """The gradient step on the n parameters par (Q24, an int32 array): par[k] -= floor(2
+    alpha[k] (F_k - F) / den) (fixed.UPDATE_MUL = 2), F_k the objective at p + h e_k in f[4k:],
+    F the one at p in f[base:] (limbs), 0 <= alpha < 2**9 and 0 < den < 2**15; exact while a
+    step is below QUOTIENT_MAX in size, else +-QUOTIENT_MAX (a step that large leaves the fit
+    region: the fit has diverged either way, optimiser.py).  Returns 1 when the 9 parameters
+    left the fit region (model.in_fit_region), else 0."""
     a = ptr32(f)
-    d0 = (int(a[at]) << w >> w) - (int(a[base]) << w >> w)
-    d1 = (int(a[at + 1]) << w >> w) - (int(a[base + 1]) << w >> w) + (d0 >> 14)
-    d2 = (int(a[at + 2]) << w >> w) - (int(a[base + 2]) << w >> w) + (d1 >> 14)
-    d3 = (int(a[at + 3]) << w >> w) - (int(a[base + 3]) << w >> w) + (d2 >> 14)
-    if m == 0:
-        return 0
-    # D = q den + r, long division from the top limb (remainders < den, so r 2**14 < 2**29);
-    # then floor(m D / den) = m q + floor(m r / den)
-    q3 = d3 // den
-    r = d3 - q3 * den
-    c = (r << 14) + (d2 & 16383)
-    q2 = c // den
-    r = c - q2 * den
-    c = (r << 14) + (d1 & 16383)
-    q1 = c // den
-    r = c - q1 * den
-    c = (r << 14) + (d0 & 16383)
-    q0 = c // den
-    r = c - q0 * den
-    if q3 == 0 and q2 == 0:
-        q = (q1 << 14) + q0
-    elif q3 == -1 and q2 == 16383:
-        q = ((q1 - 16384) << 14) + q0
-    elif q3 < 0:
-        return -134217728
-    else:
-        return 134217728
-    lim = 134217728 // m
-    if q >= lim:
-        return 134217728
-    if q <= -lim:
-        return -134217728
-    return m * q + (m * r) // den
+    q = ptr32(par)
+    al = ptr32(alpha)
+    k = 0
+    while k < n:
+        at = k << 2
+        d0 = (int(a[at]) << w >> w) - (int(a[base]) << w >> w)
+        d1 = (int(a[at + 1]) << w >> w) - (int(a[base + 1]) << w >> w) + (d0 >> 14)
+        d2 = (int(a[at + 2]) << w >> w) - (int(a[base + 2]) << w >> w) + (d1 >> 14)
+        d3 = (int(a[at + 3]) << w >> w) - (int(a[base + 3]) << w >> w) + (d2 >> 14)
+        m = (int(al[k]) << w >> w) << 1
+        step = 0
+        if m != 0:
+            # D = q den + r, long division from the top limb (remainders < den, so
+            # r 2**14 < 2**29); then floor(m D / den) = m q + floor(m r / den)
+            q3 = d3 // den
+            r = d3 - q3 * den
+            c = (r << 14) + (d2 & 16383)
+            q2 = c // den
+            r = c - q2 * den
+            c = (r << 14) + (d1 & 16383)
+            q1 = c // den
+            r = c - q1 * den
+            c = (r << 14) + (d0 & 16383)
+            q0 = c // den
+            r = c - q0 * den
+            lim = 134217728 // m
+            if q3 == 0 and q2 == 0 and (q1 << 14) + q0 < lim:
+                step = m * ((q1 << 14) + q0) + (m * r) // den
+            elif q3 == -1 and q2 == 16383 and ((q1 - 16384) << 14) + q0 > -lim:
+                step = m * (((q1 - 16384) << 14) + q0) + (m * r) // den
+            elif q3 < 0:
+                step = -134217728
+            else:
+                step = 134217728
+        q[k] = (int(q[k]) << w >> w) - step
+        k += 1
+    # the fit region (fixed.FIT_*)
+    i = 0
+    while i < 9:
+        v = int(q[i]) << w >> w
+        if i < 3:
+            if v < 8388608 or v > 33554432:
+                return 1
+        elif v < -8388608 or v > 8388608:
+            return 1
+        i += 1
+    return 0

@@ -14,11 +14,11 @@
 # port either.
 from array import array
 
-from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, UPDATE_MUL, ALPHA_DEN, ALPHA_SCALE,
+from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal import model
 from acal.emit import SIGN_SHIFT
-from acal.objective import objective_limbs, quotient, LIMBS, MAX_POINTS
+from acal.objective import objective_limbs, update, LIMBS, MAX_POINTS, CACHE, PLAIN, BASE
 
 OK = 0
 DIVERGED = 1        # a parameter left the fit region, or the objective ended above its start
@@ -73,8 +73,12 @@ class Optimiser:
         # one at p0 and the final one
         self.base = LIMBS * self.n_params
         self.f = array("i", [0] * (self.base + 3 * LIMBS))
+        # per point, what the gradient's objectives take from the one at p (acal/objective.py;
+        # a composed model's points move with its parameters: none)
+        self.cache = self.f if self.kinds else array("i", [0] * (CACHE * max_points))
         self.p = [0] * self.n_params
-        self.alpha = [0] * self.n_params
+        self.pa = array("i", [0] * self.n_params)   # p, as the viper functions read it
+        self.alpha = array("i", [0] * self.n_params)
         self.set_rates(alphas[0], alphas[1], alphas[2])
         self.status = OK
         self.iterations = 0
@@ -99,23 +103,22 @@ class Optimiser:
 
     def set_rates(self, alpha_s, alpha_m, alpha_o):
         """Learning rates in tenths (0.3 -> 3), per group: scale, misalignment, offset (and the
-        effects' parameters); each below 51.2 (objective.quotient's domain)."""
+        effects' parameters); each below 51.2 (objective.update's domain)."""
         for a in (alpha_s, alpha_m, alpha_o):
             if not 0 <= a < 512:
                 raise ValueError("a learning rate lies in [0, 51.2)")
         for i in range(self.n_params):
             self.alpha[i] = alpha_s if i < 3 else (alpha_m if i < 6 else alpha_o)
 
-    def _f(self, at):
-        # the objective at p into f[at:at+LIMBS]; non-zero outside the exact domain, which the
-        # fit's parameters (fit region, plus H) and points (load_points) cannot leave
-        p = self.p
-        u = self.u
+    def _f(self, at, k):
+        # the objective at pa into f[at:at+LIMBS] (k: objective_limbs'); non-zero outside the
+        # exact domain, which the fit's parameters (fit region, plus h) and points (load_points)
+        # cannot leave
         if self.kinds:
-            model.points_without_effects(p, u, self.aux, self.n, self.kinds, self.w)
-            u = self.w
-        return objective_limbs(u, self.n, self.f, at, p[0], p[1], p[2], p[3], p[4], p[5], p[6],
-                               p[7], p[8], SIGN_SHIFT)
+            model.points_without_effects(self.p, self.u, self.aux, self.n, self.kinds, self.w)
+            return objective_limbs(self.w, self.n, self.f, at, self.pa, PLAIN, self.cache,
+                                   SIGN_SHIFT)
+        return objective_limbs(self.u, self.n, self.f, at, self.pa, k, self.cache, SIGN_SHIFT)
 
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Fit the model to n points (flat x y z list, Q16 g; for a composed model aux holds
@@ -138,9 +141,12 @@ class Optimiser:
         if not model.load_points(pts, n, self.u):
             self.status = DIVERGED
             return
-        model.identity(self.p)
-        for i in range(N_PARAMS, self.n_params):
-            self.p[i] = 0
+        p = self.p
+        model.identity(p)
+        for i in range(self.n_params):
+            if i >= N_PARAMS:
+                p[i] = 0
+            self.pa[i] = p[i]
         self.n = n
         self.aux = aux
         self.max_iterations = iterations
@@ -148,7 +154,7 @@ class Optimiser:
         f = self.f
         base = self.base
         self.status = OK
-        if self._f(base):
+        if self._f(base, BASE):
             self.status = DIVERGED
             return
         for j in range(LIMBS):
@@ -164,26 +170,27 @@ class Optimiser:
         if self.done:
             return True
         p = self.p
+        pa = self.pa
         i = self.i
         if i < self.n_params:
             p[i] += H_PARAM
-            bad = self._f(LIMBS * i)
+            pa[i] += H_PARAM
+            bad = self._f(LIMBS * i, i)
             p[i] -= H_PARAM
+            pa[i] -= H_PARAM
             self.i = i + 1
             if bad:
                 return self._diverged()
             return False
         # p[k] -= (alpha[k] * UPDATE_MUL * df[k]) // den, df[k] = f(p + h e_k) - f(p)
-        f = self.f
-        alpha = self.alpha
-        den = self.den
-        base = self.base
-        for k in range(self.n_params):
-            p[k] -= quotient(f, LIMBS * k, base, alpha[k] * UPDATE_MUL, den, SIGN_SHIFT)
+        n = self.n_params
+        out = update(self.f, self.base, pa, self.alpha, n, self.den, SIGN_SHIFT)
+        for k in range(n):
+            p[k] = pa[k]
         self.iterations += 1
-        if not model.in_fit_region(p) or (self.kinds and not model.effects_within(p, self.kinds, 4)):
+        if out or (self.kinds and not model.effects_within(p, self.kinds, 4)):
             return self._diverged()
-        if self._f(base):
+        if self._f(self.base, BASE):
             return self._diverged()
         self.i = 0
         if self.iterations >= self.max_iterations:
