@@ -18,7 +18,8 @@ from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal import model
 from acal.emit import SIGN_SHIFT
-from acal.objective import objective_limbs, update, LIMBS, MAX_POINTS, CACHE, PLAIN, BASE
+from acal.objective import (objective_limbs, update, LIMBS, MAX_POINTS, CACHE, PLAIN, BASE,
+                            GRADIENT)
 
 OK = 0
 DIVERGED = 1        # a parameter left the fit region, or the objective ended above its start
@@ -57,7 +58,8 @@ class Optimiser:
     their limbs, a long past 2**30 on a 32-bit port).
 
     Sliced: begin() then step() until it returns True does what run() does, the same integers;
-    a step is one evaluation of the objective (the app runs one between FIFO reads)."""
+    a step is the gradient (nine objectives from one pass over the points; a composed model's:
+    one objective) or the update and one objective (the app runs one between FIFO reads)."""
 
     OBJ_Q = OBJ_Q
 
@@ -89,17 +91,14 @@ class Optimiser:
         self.i = 0
         self.done = True
 
-    @property
-    def objective(self):
-        return model.from_limbs(self.f, self.base + 2 * LIMBS)
-
-    @objective.setter
-    def objective(self, v):
-        model.to_limbs(v, self.f, self.base + 2 * LIMBS)
-
-    @property
-    def objective_start(self):
-        return model.from_limbs(self.f, self.base + LIMBS)
+    def __getattr__(self, name):
+        # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
+        # port, made only when read): a property would slow every attribute store on MicroPython
+        if name == "objective":
+            return model.from_limbs(self.f, self.base + 2 * LIMBS)
+        if name == "objective_start":
+            return model.from_limbs(self.f, self.base + LIMBS)
+        raise AttributeError(name)
 
     def set_rates(self, alpha_s, alpha_m, alpha_o):
         """Learning rates in tenths (0.3 -> 3), per group: scale, misalignment, offset (and the
@@ -110,15 +109,20 @@ class Optimiser:
         for i in range(self.n_params):
             self.alpha[i] = alpha_s if i < 3 else (alpha_m if i < 6 else alpha_o)
 
-    def _f(self, at, k):
-        # the objective at pa into f[at:at+LIMBS] (k: objective_limbs'); non-zero outside the
+    def _f(self, at, mode):
+        # the objective at pa into f[at:at+LIMBS] (objective_limbs' mode); non-zero outside the
         # exact domain, which the fit's parameters (fit region, plus h) and points (load_points)
         # cannot leave
         if self.kinds:
             model.points_without_effects(self.p, self.u, self.aux, self.n, self.kinds, self.w)
             return objective_limbs(self.w, self.n, self.f, at, self.pa, PLAIN, self.cache,
                                    SIGN_SHIFT)
-        return objective_limbs(self.u, self.n, self.f, at, self.pa, k, self.cache, SIGN_SHIFT)
+        return objective_limbs(self.u, self.n, self.f, at, self.pa, mode, self.cache, SIGN_SHIFT)
+
+    def _sync(self):
+        # p from pa (the viper functions' copy)
+        for k in range(self.n_params):
+            self.p[k] = self.pa[k]
 
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Fit the model to n points (flat x y z list, Q16 g; for a composed model aux holds
@@ -165,32 +169,37 @@ class Optimiser:
             self._finish()
 
     def step(self):
-        """One evaluation of the objective: the gradient's next component, or the update and
-        the objective at the new parameters.  True when the fit has ended."""
+        """One slice: the gradient (the nine objectives at p + h e_k, from the one at p, in one
+        call; a composed model's, one objective a slice), or the update and the objective at
+        the new parameters.  True when the fit has ended."""
         if self.done:
             return True
-        p = self.p
-        pa = self.pa
         i = self.i
         if i < self.n_params:
-            p[i] += H_PARAM
-            pa[i] += H_PARAM
-            bad = self._f(LIMBS * i, i)
-            p[i] -= H_PARAM
-            pa[i] -= H_PARAM
-            self.i = i + 1
+            if self.kinds:
+                p = self.p
+                pa = self.pa
+                p[i] += H_PARAM
+                pa[i] += H_PARAM
+                bad = self._f(LIMBS * i, PLAIN)
+                p[i] -= H_PARAM
+                pa[i] -= H_PARAM
+                self.i = i + 1
+            else:
+                bad = objective_limbs(self.u, self.n, self.f, 0, self.pa, GRADIENT, self.cache,
+                                      SIGN_SHIFT)
+                self.i = N_PARAMS
             if bad:
                 return self._diverged()
             return False
         # p[k] -= (alpha[k] * UPDATE_MUL * df[k]) // den, df[k] = f(p + h e_k) - f(p)
-        n = self.n_params
-        out = update(self.f, self.base, pa, self.alpha, n, self.den, SIGN_SHIFT)
-        for k in range(n):
-            p[k] = pa[k]
+        out = update(self.f, self.base, self.pa, self.alpha, self.n_params, self.den, SIGN_SHIFT)
         self.iterations += 1
-        if out or (self.kinds and not model.effects_within(p, self.kinds, 4)):
-            return self._diverged()
-        if self._f(self.base, BASE):
+        if self.kinds:
+            self._sync()
+            if not model.effects_within(self.p, self.kinds, 4):
+                out = 1
+        if out or self._f(self.base, BASE):
             return self._diverged()
         self.i = 0
         if self.iterations >= self.max_iterations:
@@ -198,11 +207,13 @@ class Optimiser:
         return self.done
 
     def _diverged(self):
+        self._sync()
         self.status = DIVERGED
         self.done = True
         return True
 
     def _finish(self):
+        self._sync()
         self.done = True
         f = self.f
         base = self.base
