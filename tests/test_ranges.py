@@ -13,7 +13,8 @@ from acal.model import Calibration
 from acal.optimiser import Optimiser
 from acal import model, rest
 from acal.rest import ALL_AXES, RestDetector
-from accelcal.bridge.ranges import SMALL_INT_LIMIT, Tracer, traced
+from accelcal.bridge.ranges import (SMALL_INT_LIMIT, TracedArray, Tracer, traced,
+                                     traced_optimiser, viper_casts)
 from conftest import effect_orders
 
 # The LIS3DH at +-2 g: 12-bit (1 mg), 10-bit (4 mg) and 8-bit (16 mg) digits, all reaching
@@ -143,27 +144,13 @@ def test_apply_matches_float_model(rng):
 
 # --- the paper profile's objective and gradient step (acal/objective.py): below 2**30 ----------
 
-class _TracedArray(list):
-    """A list standing for an int32 array (viper's ptr32 on a board): what is stored is traced."""
-
-    def __init__(self, T, n):
-        super().__init__(T(0) for _ in range(n))
-        self.T = T
-
-    def __setitem__(self, i, v):
-        super().__setitem__(i, self.T(v))
-
-
 def _traced_kernel(T, p, pts, mode, cache):
     from acal import objective
     from acal.objective import LIMBS
-    out = _TracedArray(T, 9 * LIMBS)
-    objective.int = lambda v: v   # viper's cast: the traced int passes
-    try:
+    out = TracedArray(T, 9 * LIMBS)
+    with viper_casts():   # viper's cast: the traced int passes
         st = objective.objective_limbs([T(v) for v in pts], len(pts) // 3, out, T(0),
                                        [T(v) for v in p], mode, cache, T(0))
-    finally:
-        del objective.int
     assert st == 0
     return out
 
@@ -203,7 +190,7 @@ def test_paper_objective_stays_small_at_the_domain_corners():
                 if worst is None or f > worst[0]:
                     worst = (f, p, pts)
             else:
-                cache = _TracedArray(T, CACHE * len(pts) // 3)
+                cache = TracedArray(T, CACHE * len(pts) // 3)
                 _traced_kernel(T, p, pts, BASE, cache)
                 _traced_kernel(T, p, pts, GRADIENT, cache)
     _, p, pts = worst
@@ -234,21 +221,10 @@ def test_paper_objective_shortcuts_stay_small_at_their_edges(rng):
         if _ % 2:
             p = [F.PARAM_ONE + int(x) for x in rng.integers(-(1 << 22), 1 << 22, 3)] + \
                 [int(x) for x in rng.integers(-(1 << 21), 1 << 21, 6)]
-        cache = _TracedArray(T, CACHE * n)
+        cache = TracedArray(T, CACHE * n)
         _traced_kernel(T, p, pts, BASE, cache)
         _traced_kernel(T, p, pts, GRADIENT, cache)
     assert tr.ops > 100000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
-
-
-def _traced_optimiser(T, n, kinds=()):
-    o = Optimiser(n, kinds=kinds)
-    for name in ("u", "f", "pa", "alpha"):
-        setattr(o, name, _TracedArray(T, len(getattr(o, name))))
-    o.cache = o.f if kinds else _TracedArray(T, len(o.cache))
-    if kinds:
-        o.w = _TracedArray(T, len(o.w))
-    o.set_rates(fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
-    return o
 
 
 @pytest.mark.parametrize("alphas", [(3, 8, 2), (30, 80, 20)])
@@ -257,11 +233,9 @@ def test_paper_optimiser_stays_small(rng, alphas):
     cast passed through): rest means of sensors inside the paper's error ranges, and hostile
     points (+-16 g, the origin, 3 g) with the rates that diverge: no value of the run reaches
     2^30, so it allocates nothing on a 32-bit port (tests/test_heap.py runs it there)."""
-    from acal import objective
     from accelcal import simulate
     from accelcal.fixedpoint import g_to_point
-    objective.int = lambda v: v
-    try:
+    with viper_casts():
         for trial in range(6):
             tr = Tracer()
             T = traced(tr)
@@ -269,12 +243,8 @@ def test_paper_optimiser_stays_small(rng, alphas):
             pts = [int(c) for c in g_to_point(v).ravel()]
             if trial % 3 == 2:
                 pts[:9] = [(1 << 20) - 1, -(1 << 20), 0, 0, 0, 0, 3 << 16, 3 << 16, -(3 << 16)]
-            o = _traced_optimiser(T, 18)
-            o.set_rates(*alphas)
-            o.run([T(c) for c in pts], 18, 50)
+            traced_optimiser(T, 18, alphas).run([T(c) for c in pts], 18, 50)
             assert tr.ops > 10000 and tr.big == 0, (trial, tr.big, np.log2(tr.max_abs))
-    finally:
-        del objective.int
 
 
 # --- the default profile's fit: every intermediate below 2**30 -------------------------------
