@@ -9,7 +9,7 @@ from array import array
 import numpy as np
 import pytest
 
-from acal import fixed as F, model, optimiser
+from acal import fixed as F, model, objective, optimiser
 from acal.objective import (BASE, CACHE, GRADIENT, LIMBS, MAX_POINTS, PLAIN, QUOTIENT_MAX,
                             objective_limbs, update)
 from acal.optimiser import Optimiser
@@ -38,8 +38,8 @@ def limbs(p, u, n, mode=PLAIN, cache=None):
     cache = out if cache is None else cache
     assert objective_limbs(array("i", u), n, out, 0, array("i", p), mode, cache, 0) == 0
     if mode == GRADIENT:
-        return [model.from_limbs(out, LIMBS * j) for j in range(9)]
-    return model.from_limbs(out, 0)
+        return [objective.from_limbs(out, LIMBS * j) for j in range(9)]
+    return objective.from_limbs(out, 0)
 
 
 def region_bounds():
@@ -139,7 +139,7 @@ def test_update_is_the_gradient_step(rng):
         if trial % 3 == 0:
             fs[:9] = [max(0, fs[9] + r.randrange(-(1 << 30), 1 << 30)) for _ in range(9)]
         for k in range(10):
-            model.to_limbs(fs[k], f, LIMBS * k)
+            objective.to_limbs(fs[k], f, LIMBS * k)
         alpha = [r.randrange(512) for _ in range(9)]
         den = r.randrange(1, 1 << 15)
         p = [r.randrange(lo - (1 << 20), hi - H + (1 << 20)) for lo, hi in b]

@@ -11,7 +11,7 @@ import pytest
 from acal import fixed
 from acal.model import Calibration
 from acal.optimiser import Optimiser
-from acal import model, rest
+from acal import model, objective, rest
 from acal.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import (SMALL_INT_LIMIT, TracedArray, Tracer, traced,
                                      traced_optimiser, viper_casts)
@@ -145,7 +145,6 @@ def test_apply_matches_float_model(rng):
 # --- the paper profile's objective and gradient step (acal/objective.py): below 2**30 ----------
 
 def _traced_kernel(T, p, pts, mode, cache):
-    from acal import objective
     from acal.objective import LIMBS
     out = TracedArray(T, 9 * LIMBS)
     with viper_casts():   # viper's cast: the traced int passes
@@ -186,7 +185,7 @@ def test_paper_objective_stays_small_at_the_domain_corners():
     for widen in (True, False):
         for p, pts in _signed_corners(widen):
             if widen:
-                f = model.from_limbs([int(v) for v in _traced_kernel(T, p, pts, PLAIN, [0])], 0)
+                f = objective.from_limbs([int(v) for v in _traced_kernel(T, p, pts, PLAIN, [0])], 0)
                 if worst is None or f > worst[0]:
                     worst = (f, p, pts)
             else:

@@ -13,7 +13,7 @@ from acal import effects
 from acal.bins import COND, conditions
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.wide import mul_shift
-from acal.objective import objective_limbs, LIMBS, PLAIN
+from acal.objective import objective_limbs, from_limbs, LIMBS, PLAIN
 from array import array
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
@@ -80,30 +80,6 @@ def objective(p, u, n):
     if isinstance(u, array) and not objective_limbs(u, n, _F, 0, _P, PLAIN, _F, SIGN_SHIFT):
         return from_limbs(_F, 0)
     return objective_long(p, u, n)
-
-
-def from_limbs(f, at):
-    """The int an objective's limbs f[at:at+LIMBS] hold (acal/objective.py); a long past 2**30 on
-    a 32-bit port."""
-    return (((((f[at + 3] << 14) + f[at + 2]) << 14) + f[at + 1]) << 14) + f[at]
-
-
-def to_limbs(v, f, at):
-    """An objective (an int >= 0, below 2**73) into limbs f[at:at+LIMBS]."""
-    for j in range(LIMBS - 1):
-        f[at + j] = v & 0x3FFF
-        v >>= 14
-    f[at + LIMBS - 1] = v
-
-
-def limbs_above(f, a, b):
-    """True when the objective in limbs at f[a:] is larger than the one at f[b:]."""
-    j = LIMBS - 1
-    while j >= 0:
-        if f[a + j] != f[b + j]:
-            return f[a + j] > f[b + j]
-        j -= 1
-    return False
 
 
 def objective_long(p, u, n):

@@ -323,6 +323,30 @@ def objective_limbs(u, n: int, out, at: int, par, mode: int, cache, w: int) -> i
     return 0
 
 
+def from_limbs(f, at):
+    """The int an objective's limbs f[at:at+LIMBS] hold (acal/objective.py); a long past 2**30 on
+    a 32-bit port."""
+    return (((((f[at + 3] << 14) + f[at + 2]) << 14) + f[at + 1]) << 14) + f[at]
+
+
+def to_limbs(v, f, at):
+    """An objective (an int >= 0, below 2**73) into limbs f[at:at+LIMBS]."""
+    for j in range(LIMBS - 1):
+        f[at + j] = v & 0x3FFF
+        v >>= 14
+    f[at + LIMBS - 1] = v
+
+
+def limbs_above(f, a, b):
+    """True when the objective in limbs at f[a:] is larger than the one at f[b:]."""
+    j = LIMBS - 1
+    while j >= 0:
+        if f[a + j] != f[b + j]:
+            return f[a + j] > f[b + j]
+        j -= 1
+    return False
+
+
 @viper
 def update(f, base: int, par, alpha, n: int, den: int, w: int) -> int:
     """The gradient step on the n parameters par (Q24, an int32 array): par[k] -= floor(2

@@ -18,8 +18,8 @@ from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal import model
 from acal.emit import SIGN_SHIFT
-from acal.objective import (objective_limbs, update, LIMBS, MAX_POINTS, CACHE, PLAIN, BASE,
-                            GRADIENT)
+from acal.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
+                            CACHE, PLAIN, BASE, GRADIENT)
 
 OK = 0
 DIVERGED = 1        # a parameter left the fit region, or the objective ended above its start
@@ -95,9 +95,9 @@ class Optimiser:
         # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
         # port, made only when read): a property would slow every attribute store on MicroPython
         if name == "objective":
-            return model.from_limbs(self.f, self.base + 2 * LIMBS)
+            return from_limbs(self.f, self.base + 2 * LIMBS)
         if name == "objective_start":
-            return model.from_limbs(self.f, self.base + LIMBS)
+            return from_limbs(self.f, self.base + LIMBS)
         raise AttributeError(name)
 
     def set_rates(self, alpha_s, alpha_m, alpha_o):
@@ -219,7 +219,7 @@ class Optimiser:
         base = self.base
         for j in range(LIMBS):
             f[base + 2 * LIMBS + j] = f[base + j]
-        if model.limbs_above(f, base, base + LIMBS):
+        if limbs_above(f, base, base + LIMBS):
             self.status = DIVERGED
         elif not model.in_bounds(self.p) or \
                 (self.kinds and not model.effects_within(self.p, self.kinds, 1)):
