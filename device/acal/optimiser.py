@@ -54,8 +54,8 @@ class Optimiser:
 
     Buffers for up to max_points (<= 128) points are allocated once; `run` allocates nothing.
     After run(): p holds the parameters (Q24), status a code above, iterations the number done,
-    objective the final objective and objective_start the one at p0 (Q40 g^4, summed; read from
-    their limbs, a long past 2**30 on a 32-bit port).
+    objective the final objective and objective_start the one at p0 (Q40 g^4, summed; read-only,
+    from their limbs: a long past 2**30 on a 32-bit port).
 
     Sliced: begin() then step() until it returns True does what run() does, the same integers;
     a step is the gradient (nine objectives from one pass over the points; a composed model's:
