@@ -1,7 +1,8 @@
 """Under the real MicroPython interpreter with the heap locked (any allocation raises), the rest
 detectors of both profiles (the paper's one-axis test; every axis with the noise gauge) take
 10 000 samples and both fits (the paper's gradient descent, the wear profile's Gauss-Newton with
-outlier rejection, 72 points) a full run: they allocate nothing (64-bit port)."""
+outlier rejection, 72 points) a full run: they allocate nothing (64-bit port); and on the 32-bit
+port (ints past 2^30 are longs there) the per-sample paths and both profiles' fits."""
 import numpy as np
 
 from accelcal.bridge import runtime
@@ -267,3 +268,58 @@ def test_a_step_costs_the_board_no_more_memory_than_a_drift(tmp_path):
     drift, step, both, four = map(int, runtime.run_micropython_script(str(f)).split())
     print(drift, step, both, four)
     assert step <= drift + 1024 and both <= four, (drift, step, both, four)
+
+
+PAPER_32 = r"""
+import micropython
+from acal.optimiser import Optimiser
+from acal.effects import TEMP_OFFSET, DRIFT
+
+PTS = %s
+AUX = %s
+fits = [(Optimiser(18), 18, 50, None), (Optimiser(36), 36, 50, None),
+        (Optimiser(18, (30, 80, 20)), 18, 50, None),
+        (Optimiser(36, kinds=(TEMP_OFFSET, DRIFT)), 36, 20, AUX)]
+res = []
+for o, n, m, aux in fits:
+    micropython.heap_lock()
+    try:
+        o.run(PTS, n, m, aux)
+        micropython.heap_unlock()
+        res.append("%%d:%%d:%%d:%%d:%%d" %% (o.status, o.iterations, o.objective_start, o.objective,
+                                         o.p[-1]))
+    except MemoryError:
+        micropython.heap_unlock()
+        res.append("ALLOCATED")
+print(" ".join(res))
+"""
+
+
+def test_paper_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
+    """The paper profile's gradient descent under heap_lock where ints past 2^30 allocate: its
+    objective and update in limbs (acal/objective.py), 18 and 36 points of a sensor inside the
+    paper's error ranges, the rates that diverge, and a composed model (temperature offset and
+    drift) over 36 points with temperatures and times spread: nothing allocated, each run
+    bit-identical to CPython's (objectives read after the lock is off: longs there)."""
+    from acal import effects
+    from acal.optimiser import Optimiser
+    from accelcal import simulate
+    from accelcal.fixedpoint import g_to_point
+    _, v = simulate.paper_scenario(rng, 36, 2e-3)
+    pts = [int(c) for c in g_to_point(v).ravel()]
+    aux = []
+    for i in range(36):
+        aux += [int(rng.integers(-20, 21)), int(rng.integers(-3000, 3001)), 0]
+    f = tmp_path / "paper32.py"
+    f.write_text(PAPER_32 % (pts, aux))
+    out = mp32(str(f)).split()
+    expect = []
+    for o, n, m, a in ((Optimiser(18), 18, 50, None), (Optimiser(36), 36, 50, None),
+                       (Optimiser(18, (30, 80, 20)), 18, 50, None),
+                       (Optimiser(36, kinds=(effects.TEMP_OFFSET, effects.DRIFT)), 36, 20, aux)):
+        o.run(pts, n, m, a)
+        expect.append("%d:%d:%d:%d:%d" % (o.status, o.iterations, o.objective_start, o.objective,
+                                          o.p[-1]))
+    assert out == expect, (out, expect)
+    assert [e.split(":")[0] for e in expect] == ["0", "0", "1", "0"]
+    assert max(int(e.split(":")[2]) for e in expect) >= 1 << 30   # longs on the port, once read

@@ -5,9 +5,12 @@
 # heap-allocated long.  The per-sample path (rest detector, apply) and the default profile's fit
 # (gaussnewton.py, solve.py; its wide products through wide.py) stay inside 2**30 for every
 # in-range input (tests/test_ranges.py proves it at the worst case, tests/test_heap.py under
-# heap_lock on the 32-bit MicroPython).  The paper profile's gradient descent does not: its
-# objective (below) needs ~50-bit products, unboxed on 64-bit ports (< 2**62) and longs on
-# 32-bit boards; docs/method-and-formats.md "Integer ranges" gives the account of what that costs.
+# heap_lock on the 32-bit MicroPython).  So does the paper profile's gradient descent: its
+# objective (below) is defined by ~50-bit products and values to ~2**62, and computed exactly in
+# 14-bit limbs (objective.py) inside a domain it checks - parameters in the fit region (below)
+# widened by H_PARAM, points within +-16 g per axis (|u| < 2**28 in Q24), at most 128 points;
+# outside it model.objective takes the long-int formula and the optimiser refuses the points
+# (docs/method-and-formats.md "Integer ranges").
 try:
     from micropython import const
 except ImportError:  # CPython without Blinka

@@ -12,8 +12,14 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
 from acal import effects
 from acal.bins import COND, conditions, int32s
 from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.objective import objective_limbs, from_limbs, LIMBS, PLAIN
+from array import array
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
+POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/objective.py)
+_ARG_LIMIT = 1 << 29
+_F = array("i", [0] * LIMBS)   # objective()'s limbs
+_P = array("i", [0] * N_PARAMS)   # and parameters
 
 
 def identity(p):
@@ -46,17 +52,38 @@ def in_fit_region(p):
 
 
 def load_points(pts, n, u):
-    """Points (Q16 g, flat x y z list) -> u (Q24 g), the form the objective reads."""
+    """Points (Q16 g, flat x y z list) -> u (Q24 g; an int32 array for the exact objective), the
+    form the objective reads.  False, u partly written, when a point lies past +-16 g (POINT_LIMIT:
+    the exact objective's domain, acal/objective.py; no LIS3DH reading is larger)."""
     for i in range(3 * n):
-        u[i] = pts[i] << POINT_TO_PARAM_SHIFT
+        v = pts[i]
+        if v >= POINT_LIMIT or v < -POINT_LIMIT:
+            return False
+        u[i] = v << POINT_TO_PARAM_SHIFT
+    return True
 
 
 def objective(p, u, n):
     """Sum over the n points of (|a|^2 - 1 g^2)^2, the paper's eq. 12 without the square root.
 
-    u: points in Q24 g (load_points).  Returns Q40 g^4.  Intermediates: products k*u < 2**51,
-    a in Q28, |a|^2 < 2**61 and r**2 < 2**62 for rest means of a sensor inside the paper's
-    error ranges (tests/test_ranges.py); far outside, Python ints stay exact, only larger."""
+    u: points in Q24 g (load_points).  Returns Q40 g^4.  The formula (objective_long) needs ints
+    to ~2**62: products k*u < 2**51, a in Q28, |a|^2 < 2**61 and r**2 < 2**62 for rest means of a
+    sensor inside the paper's error ranges, longs on a 32-bit board.  For u an int32 array inside
+    the exact domain (parameters in the fit region, points within +-16 g, acal/objective.py) the
+    same integers come from limbs below 2**30 (viper on ports with emitters); otherwise from the
+    formula, exact in Python ints of any size."""
+    for i in range(N_PARAMS):   # past an int32, the formula (a long would not fit _P)
+        if not -_ARG_LIMIT < p[i] < _ARG_LIMIT:
+            return objective_long(p, u, n)
+        _P[i] = p[i]
+    if isinstance(u, array) and not objective_limbs(u, n, _F, 0, _P, PLAIN, _F, SIGN_SHIFT):
+        return from_limbs(_F, 0)
+    return objective_long(p, u, n)
+
+
+def objective_long(p, u, n):
+    """objective() by its formula in Python ints (longs past 2**30): the reference the exact
+    limbs reproduce, and the path outside their domain."""
     kxx = p[0]
     kyy = p[1]
     kzz = p[2]
@@ -222,14 +249,21 @@ def residual_effects(p, u, at, dT, dt, kinds, w, ts=0, dV=0):
 def objective_effects(p, u, aux, n, kinds, w, ts=0):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
-    they act in), into w (a list of 3 n ints); the 9-parameter objective then reads w.
-    aux: per point dT (degC), dt (64 s units) and dV (mV), flat (COND per point)."""
+    they act in), into w (3 n ints; an int32 array for the exact objective); the 9-parameter
+    objective then reads w.  aux: per point dT (degC), dt (64 s units) and dV (mV), flat (COND
+    per point)."""
+    points_without_effects(p, u, aux, n, kinds, w, ts)
+    return objective(p, w, n)
+
+
+def points_without_effects(p, u, aux, n, kinds, w, ts=0):
+    """objective_effects' first part: the points u with the effects removed, into w (each
+    coordinate clamped to +-FIT_W_MAX: inside the exact objective's domain)."""
     for i in range(3 * n):
         w[i] = u[i]
     for i in range(n):
         j = COND * i
         remove_effects(p, kinds, w, 3 * i, aux[j], aux[j + 1], ts, aux[j + 2])
-    return objective(p, w, n)
 
 
 def effects_within(p, kinds, factor):

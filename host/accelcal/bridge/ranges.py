@@ -2,9 +2,11 @@
 
 TracedInt behaves as an int; each arithmetic result is again a TracedInt and is checked against
 the small-int limit of 32-bit MicroPython ports (|v| < 2**30).  Used by the tests (worst-case
-ranges of the per-sample path) and the bench (how many optimiser values become longs on a
-32-bit board)."""
+ranges of the device code) and the bench (how many optimiser values would be longs on a 32-bit
+board: none)."""
 from __future__ import annotations
+
+from acal import fixed
 
 SMALL_INT_LIMIT = 1 << 30
 
@@ -49,3 +51,37 @@ def traced(tracer: Tracer):
     TracedInt.__neg__ = lambda self: self._wrap(-int(self))
     TracedInt.__abs__ = lambda self: self._wrap(abs(int(self)))
     return TracedInt
+
+
+class TracedArray(list):
+    """A list standing for an int32 array (viper's ptr32 on a board): what is stored is traced."""
+
+    def __init__(self, T, n):
+        super().__init__(T(0) for _ in range(n))
+        self.T = T
+
+    def __setitem__(self, i, v):
+        super().__setitem__(i, self.T(v))
+
+
+def traced_optimiser(T, n, alphas=None):
+    """The paper profile's Optimiser for n points with its int32 arrays as TracedArrays, so that
+    its viper functions' values are traced too: run it inside `with viper_casts():`."""
+    from acal.optimiser import Optimiser
+    o = Optimiser(n)
+    for name in ("u", "f", "pa", "alpha", "cache"):
+        setattr(o, name, TracedArray(T, len(getattr(o, name))))
+    o.set_rates(*(alphas or (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)))
+    return o
+
+
+class viper_casts:
+    """Viper's int() cast (acal/objective.py) as the identity, so that a traced int passes it."""
+
+    def __enter__(self):
+        from acal import objective
+        objective.int = lambda v: v
+
+    def __exit__(self, *exc):
+        from acal import objective
+        del objective.int

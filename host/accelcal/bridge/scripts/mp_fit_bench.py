@@ -4,10 +4,10 @@
 # For each case: the pipeline's fit from begin_fit() to its end, one fit_step() at a time, RUNS
 # times; prints "name slices worst_us total_us status bytes" (worst: the longest slice, each
 # slice's time the shortest of the runs; total: the shortest run; bytes: heap allocated by the
-# first whole fit, the collector held off: on a 32-bit port every int past 2**30 is one).
+# first whole fit, the collector held off: on a 32-bit port every int past 2**30 would be one;
+# the fits keep every value below it, so 0 there).
 # On the emulated RP2040 (studies/bench_chip.py sends this text): one run, as the emulator is
-# deterministic, and the paper fit's ~9 MB of longs cannot be held on its heap: that fit runs
-# with the collector on and prints bytes -1 (not measured).
+# deterministic.
 import gc
 import sys
 import time
@@ -86,9 +86,7 @@ def case(name, prof, kinds):
             if pipe.bins.total() >= 9 * pipe.bins.max_count:
                 break
         gc.collect()
-        hold = not (CHIP and prof == PAPER)
-        if hold:
-            gc.disable()
+        gc.disable()
         m0 = gc.mem_alloc()
         pipe.begin_fit()
         total = 0
@@ -104,7 +102,7 @@ def case(name, prof, kinds):
             if done:
                 break
         if run == 0:
-            used = gc.mem_alloc() - m0 if hold else -1
+            used = gc.mem_alloc() - m0
         gc.enable()
         status = pipe.optimiser.status
         if run == 0 or total < total_best:
