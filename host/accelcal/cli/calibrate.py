@@ -115,25 +115,11 @@ def _calibrate_batch(args, job) -> int:
 
 
 def cmd_apply(args) -> int:
-    from accelcal.pipeline.apply import apply_file
-    from accelcal.files.params import load_params
-    from accelcal.files.readers import is_recording
-    from accelcal.model.effects import ModelSpec
+    from accelcal.pipeline.apply import apply
     register_effects(args)
-    model, p_int, ref = load_params(args.params, args.device)
-    if not is_recording(args.input):
-        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
-                         "or .cwa/.bin/.gt3x)")
-    check_output(args.output, [args.params, args.input, args.effects], args.force, "-o/--output")
-    n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
-    host_only = ModelSpec.parse(model).host_only
-    if host_only:
-        how = f"applied on the host in float64: the device has no form for {', '.join(host_only)}"
-    else:
-        how = f"the device's apply at +-{rng} g" + (
-            f"; {clipped} samples past that full scale were clipped, as the device's would be: "
-            "--range 4, 8 or 16 keeps them" if clipped else "")
-    print(f"wrote {n} calibrated samples to {args.output} ({how})", file=sys.stderr)
+    out = apply(args.params, args.input, args.output, device=args.device, range_g=args.range,
+                force=args.force, effects=args.effects)
+    print(out.report(), file=sys.stderr)
     return 0
 
 

@@ -16,7 +16,7 @@ import json
 import os
 
 from acal.fixed import PARAM_NAMES
-from accelcal.errors import printable
+from accelcal.errors import InputError, printable
 from accelcal.files.outputs import atomic
 
 SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
@@ -44,6 +44,17 @@ class CalibrationResult(dict):
 
     def to_json(self) -> str:
         return json.dumps(self)
+
+    def save(self, path: str, force: bool = False) -> None:
+        """The parameters file `calibrate --save` writes (for apply, --fallback, a board),
+        never over one of the inputs (force: replace an existing file)."""
+        from accelcal.files.outputs import check_output
+        from accelcal.files.params import save_params
+        if not self.ok:
+            raise InputError(f"{self.get('file', 'this result')}: not calibrated "
+                             f"({self['status']}); nothing to save")
+        check_output(path, [self.get("file")], force, "--save")
+        save_params(path, self)
 
     def report(self, by: str | None = None) -> str:
         """The lines `calibrate` prints: the quality of a recording first, then the outcome."""
@@ -247,3 +258,19 @@ class BoardReport(dict):
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
         return "\n".join(lines)
+
+
+class ApplyResult(dict):
+    """`apply`: the file written (output), samples calibrated, how many were past the device's
+    full scale (clipped, range_g), and the effects applied on the host (host_only)."""
+
+    def report(self) -> str:
+        """The line `apply` says."""
+        if self["host_only"]:
+            how = ("applied on the host in float64: the device has no form for "
+                   + ", ".join(self["host_only"]))
+        else:
+            how = f"the device's apply at +-{self['range_g']} g" + (
+                f"; {self['clipped']} samples past that full scale were clipped, as the device's "
+                "would be: --range 4, 8 or 16 keeps them" if self["clipped"] else "")
+        return f"wrote {self['samples']} calibrated samples to {self['output']} ({how})"
