@@ -265,13 +265,16 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 
 def compare(path: str, *, methods: str | list[str] | None = None, model: str = "base",
             cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
-            runtime_name: str = "cpython", plots: str | None = None,
+            runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
             say=lambda m: None) -> CompareResult:
     """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
     same training points and scored on the same held-out ones; with a composed model two more
     rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
-    curve (Gietzelt figure 3).  say(message): progress."""
+    curve (Gietzelt figure 3).  effects: a file of declared effects (registered).
+    say(message): progress."""
+    from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
+    register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     try:
         spec = ModelSpec.parse(model)
