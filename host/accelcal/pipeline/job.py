@@ -33,6 +33,8 @@ class Job:
         vector under cpython, device under a MicroPython runtime (as the CLI)."""
         if cfg is None:
             cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+        elif settings:
+            raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
         return cls(cfg, method, runtime_name, model,
                    engine or ("vector" if runtime_name == "cpython" else "device"),
                    fallback, points, effects)
