@@ -162,3 +162,31 @@ def test_relative_temperature_uses_the_cooling_test_only(files, tmp_path):
     relative = scan(open_recording(f), 5, 123, 0).masks()
     assert 0 < relative["nonwear"].sum() < absolute["nonwear"].sum()
     assert (relative["nonwear"] & ~absolute["nonwear"]).sum() == 0
+
+
+def test_one_file_and_a_batch_follow_one_rule(files, tmp_path):
+    """calibrate FILE and the same FILE in a batch go through one calibrate_file: the same record
+    (less the batch's timing) for a recording and for points files, --fallback taken by either
+    kind of file that does not calibrate, and a bad file's one-line error the batch's reason."""
+    params = tmp_path / "last_good.json"
+    assert run_cli("calibrate", files / "s3.csv", "--save", params).returncode == 0
+    r = run_cli("simulate", "paper", "--scenarios", 1, "--seed", 5, "-o", tmp_path / "pts.csv")
+    assert r.returncode == 0, r.stderr
+    head, *rows = (tmp_path / "pts.csv").read_text().splitlines(keepends=True)
+    (tmp_path / "few.csv").write_text(head + "".join(rows[:6]))    # bins cannot fill
+    names = [files / "morning.csv", tmp_path / "pts.csv", tmp_path / "few.csv", files / "corrupt.csv"]
+    opts = ["--fallback", params, "--profile", "paper", "--json"]
+    r = run_cli("calibrate", *names, *opts, "--summary", tmp_path / "sum.csv")
+    assert r.returncode == 0, r.stderr
+    batch = [json.loads(x) for x in r.stdout.splitlines()]
+    assert [b["status"] for b in batch] == ["not_enough_data", "calibrated", "not_enough_data",
+                                            "failed"]
+    assert [b["calibration"] for b in batch] == ["fallback", "new", "fallback", "none"]
+    for name, b in zip(names, batch):
+        one = run_cli("calibrate", name, *opts)
+        if b["status"] == "failed":
+            assert one.returncode == 2 and one.stdout == ""
+            assert one.stderr.strip() == f"accelcal: error: {b['reason']}"
+        else:
+            assert one.returncode == 0, one.stderr
+            assert json.loads(one.stdout) == {k: v for k, v in b.items() if k != "seconds"}

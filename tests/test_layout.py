@@ -89,6 +89,48 @@ def test_modules_and_functions_stay_readable():
     assert not long_modules and not long_functions
 
 
+# The orchestration rule (docs/command-line.md "Who does what"): cli/ parses and prints;
+# pipeline/ and board/ return results and never print or exit.  A call that must stay is listed
+# here by module and call, with why (none does: the MicroPython scripts they hold are strings).
+MAY_PRINT: dict[tuple[str, str], str] = {}
+PRINTS_OR_EXITS = {"print", "exit", "quit", "sys.exit", "os._exit", "sys.stdout.write",
+                   "sys.stderr.write"}
+
+
+def test_pipeline_and_board_never_print_or_exit():
+    found = []
+    for sub in ("pipeline", "board"):
+        for p in sorted((HOST / sub).glob("*.py")):
+            for node in ast.walk(ast.parse(p.read_text())):
+                # called or handed on (say=print): either way it writes
+                call = ast.unparse(node) if isinstance(node, (ast.Name, ast.Attribute)) else None
+                if isinstance(node, ast.Raise) and node.exc is not None and \
+                        "SystemExit" in ast.unparse(node.exc):
+                    call = "raise SystemExit"
+                if (call in PRINTS_OR_EXITS or call == "raise SystemExit") and \
+                        (f"{sub}/{p.name}", call) not in MAY_PRINT:
+                    found.append(f"{sub}/{p.name}:{node.lineno} {call}")
+    assert not found
+
+
+def test_the_public_api_imports_lazily():
+    """Every name of accelcal.__all__ imports; `import accelcal` alone loads none of them (nor
+    numpy), so the command starts fast."""
+    import subprocess
+    import sys
+    code = ("import sys, accelcal\n"
+            "heavy = [m for m in ('numpy', 'accelcal.pipeline', 'accelcal.bridge') if m in sys.modules]\n"
+            "print(heavy)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stderr
+    import accelcal
+    assert accelcal.__all__ and len(set(accelcal.__all__)) == len(accelcal.__all__)
+    for name in accelcal.__all__:
+        assert getattr(accelcal, name) is not None, name
+    with pytest.raises(AttributeError):
+        accelcal.not_a_public_name
+
+
 def test_one_version_number():
     import acal
     pkg = json.loads((ROOT / "package.json").read_text())

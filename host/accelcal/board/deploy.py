@@ -116,7 +116,7 @@ def main_py(settings: dict) -> str:
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=print) -> dict:
+           write_main: bool = True, say=lambda m: None) -> dict:
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -161,7 +161,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
             "format": "mpy" if info["ARCH"] else "py", "main_py": write_main}
 
 
-def acquire(port: str, seconds: int, settings: dict, say=print) -> str:
+def acquire(port: str, seconds: int, settings: dict, say=lambda m: None) -> str:
     """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can)."""
     r = Remote(port, timeout=24 * 3600)
     ident = r.identify()
@@ -191,7 +191,7 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
     return out
 
 
-def pull(port: str, outdir: str | Path, say=print, force: bool = False) -> dict:
+def pull(port: str, outdir: str | Path, say=lambda m: None, force: bool = False) -> dict:
     """Copy the logs off the board into outdir and decode them.  The files are copied into a
     temporary folder inside it and renamed into place once all have arrived; then the files of
     an earlier pull (--force) that this one does not hold are removed."""

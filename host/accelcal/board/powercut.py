@@ -16,7 +16,6 @@ appends to the log after what the cut left."""
 from __future__ import annotations
 
 import json
-import sys
 import subprocess
 import tempfile
 from pathlib import Path
@@ -171,30 +170,3 @@ def run_cuts(n_per_workload: int, seed: int = 1, timeout: float = 7200) -> dict:
                 if c["lost"] or c["damaged"] or c["mixed"] or c["failed_boot"]:
                     totals["problems"].append({"workload": workload, "cut_at": rec["cut_at"], **c})
     return totals
-
-
-def main(argv=None) -> int:
-    """python -m accelcal.board.powercut [--cuts N] [--seed S]: the counts, one JSON object."""
-    import argparse
-    from accelcal.errors import InputError, one_line
-    ap = argparse.ArgumentParser(prog="python -m accelcal.board.powercut",
-                                 description="Cut the emulated Pico's power at pseudo-random cycles "
-                                 "while the app appends to its log and while it writes its "
-                                 "calibration store; reboot from the flash and count what was "
-                                 "lost, damaged or mixed (one JSON object).")
-    ap.add_argument("--cuts", type=int, default=100, help="cuts of each workload (default 100)")
-    ap.add_argument("--seed", type=int, default=1, help="where the cuts fall (default 1)")
-    args = ap.parse_args(argv)
-    if args.cuts < 1:
-        ap.error("--cuts: at least 1")
-    try:
-        rp2040.emulator_index()
-    except InputError as e:
-        print(f"powercut: {one_line(e)}", file=sys.stderr)
-        return 2
-    print(json.dumps(run_cuts(args.cuts, args.seed)))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -125,12 +125,13 @@ class VirtualBoard:
                 os.killpg(self.proc.pid, signal.SIGKILL)
 
 
-def serve_main(*, flash_dir: str | None, stimulus: str | None, days: float, rate: int, seed: int,
-               bus_faults: int, heap: str | None, speed: int, link: str | None,
-               port_file: str | None, chip: str = "unix") -> int:
-    """`accelcal board virtual`: make a stimulus if none is given, print the port, relay.
-    chip: unix (the unix port, a folder as its flash) or rp2040 (the emulated Pico, a flash
-    image file)."""
+def start_virtual(*, flash_dir: str | None, stimulus: str | None, days: float, rate: int,
+                  seed: int, bus_faults: int, heap: str | None, speed: int, link: str | None,
+                  port_file: str | None, chip: str = "unix", say=lambda m: None):
+    """`accelcal board virtual` up to serving: the outputs checked, a stimulus simulated if none
+    is given, the board started, its link and port file made.  chip: unix (the unix port, a
+    folder as its flash) or rp2040 (the emulated Pico, a flash image file).  say(message): what
+    it does and the board's log.  Returns (board, flash); serve_until() relays."""
     from accelcal.simulate import wearer
     if chip == "rp2040":
         from accelcal.board import emulated
@@ -152,25 +153,23 @@ def serve_main(*, flash_dir: str | None, stimulus: str | None, days: float, rate
         flash.parent / ((flash.stem if chip == "rp2040" else flash.name) + "-stimulus.bin")
     if not stimulus:
         rec = stim.with_suffix(".csv")
-        print(f"simulating {days:g} day(s) of wrist wear at {rate} Hz (seed {seed}) "
-              f"into {stim}", file=sys.stderr, flush=True)
+        say(f"simulating {days:g} day(s) of wrist wear at {rate} Hz (seed {seed}) into {stim}")
         wearer.simulate_wrist(rec, days, rate, seed, stimulus=stim)
-    say = lambda m: print(f"virtual board: {m}", file=sys.stderr, flush=True)  # noqa: E731
-    board = (emulated.EmulatedBoard(flash, stim, bus_faults, seed, log=say) if chip == "rp2040"
-             else VirtualBoard(flash, stim, bus_faults, heap, speed, log=say))
+    log = lambda m: say(f"virtual board: {m}")  # noqa: E731
+    board = (emulated.EmulatedBoard(flash, stim, bus_faults, seed, log=log) if chip == "rp2040"
+             else VirtualBoard(flash, stim, bus_faults, heap, speed, log=log))
     if link:
         Path(link).symlink_to(board.port)
     if port_file:
         write_text(port_file, board.port + "\n")
-    print(board.port, flush=True)
-    what = "emulated Pico (RP2040, MicroPython firmware)" if chip == "rp2040" else "virtual board"
-    print(f"{what} on {board.port} (flash {flash.resolve()}); try: mpremote connect "
-          f"{board.port} exec \"import sys; print(sys.platform)\"; Ctrl-C stops it",
-          file=sys.stderr, flush=True)
-    stopping = []
-    signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+    return board, flash
+
+
+def serve_until(board, link: str | None, until) -> None:
+    """Relay until until() is true or Ctrl-C; then stop the board and remove the link this run
+    made."""
     try:
-        board.serve(until=lambda: bool(stopping))
+        board.serve(until=until)
     except KeyboardInterrupt:
         pass
     finally:
@@ -178,7 +177,6 @@ def serve_main(*, flash_dir: str | None, stimulus: str | None, days: float, rate
         made = Path(link) if link else None
         if made is not None and made.is_symlink() and os.readlink(made) == board.port:
             made.unlink()   # ours: the symlink this run made, still pointing at its port
-    return 0
 
 
 class Running:

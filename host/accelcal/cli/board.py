@@ -11,10 +11,21 @@ from accelcal.errors import InputError
 
 
 def cmd_board_virtual(args) -> int:
-    from accelcal.board.virtual import serve_main
-    return serve_main(flash_dir=args.flash, stimulus=args.stimulus, days=args.days, rate=args.rate,
-                      seed=args.seed, bus_faults=args.bus_faults, heap=args.heap,
-                      speed=args.speed, link=args.link, port_file=args.port_file, chip=args.chip)
+    import signal
+    from accelcal.board.virtual import serve_until, start_virtual
+    say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    board, flash = start_virtual(flash_dir=args.flash, stimulus=args.stimulus, days=args.days,
+                                 rate=args.rate, seed=args.seed, bus_faults=args.bus_faults,
+                                 heap=args.heap, speed=args.speed, link=args.link,
+                                 port_file=args.port_file, chip=args.chip, say=say)
+    print(board.port, flush=True)
+    what = "emulated Pico (RP2040, MicroPython firmware)" if args.chip == "rp2040" else "virtual board"
+    say(f"{what} on {board.port} (flash {flash.resolve()}); try: mpremote connect "
+        f"{board.port} exec \"import sys; print(sys.platform)\"; Ctrl-C stops it")
+    stopping = []
+    signal.signal(signal.SIGTERM, lambda *a: stopping.append(1))
+    serve_until(board, args.link, lambda: bool(stopping))
+    return 0
 
 
 def _app_settings(args) -> dict:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from accelcal.bridge.runtime import RUNTIMES
@@ -32,50 +33,34 @@ Exit status: one input: 2 when it did not calibrate (reason on stderr and in the
 
 
 def cmd_calibrate(args) -> int:
-    from accelcal.pipeline.calibrate import calibrate_groups
-    from accelcal.model.effects import ModelSpec
+    from accelcal.pipeline.job import Job, calibrate_by, calibrate_file
     register_effects(args)
-    from accelcal.files.table import read_table
-    from accelcal.files.params import save_params
-    try:
-        spec = ModelSpec.parse(args.model)
-    except ValueError as e:
-        raise InputError(str(e)) from None
-    if spec.effects and args.method not in ("device", "lsq"):
-        raise InputError(f"model {spec}: composed models are fitted by --method device (the "
-                         "device's integer optimiser) or lsq (float; --points bins|all)")
     if args.points and args.method == "device":
         raise InputError("--points applies to the float methods (--method lsq, ...); the device "
                          "method fits the points its bins select")
-    engine = args.engine or ("vector" if args.runtime == "cpython" else "device")
     from accelcal.bridge.runtime import check
     check(args.runtime)
-    inputs = args.input
-    reads = [*inputs, args.fallback, args.effects]
+    job = Job.of(cfg=pipeline_config(args, "+" in args.model), model=args.model,
+                 method=args.method, runtime_name=args.runtime, engine=args.engine,
+                 fallback=args.fallback, points=args.points or "bins", effects=args.effects)
+    job.spec()   # bad options are bad input, before any file is read or written
     if args.save:
-        check_output(args.save, reads, args.force, "--save")
-    if len(inputs) > 1 or args.summary or args.jobs > 1 or args.dask:
-        return _calibrate_batch(args, spec, engine)
-    from accelcal.files.readers import is_recording
-    if is_recording(inputs[0]):
-        if args.by:
-            raise InputError(f"{inputs[0]}: --by applies to points files; this is a recording")
-        from accelcal.pipeline.calibrate import calibrate_recording
+        check_output(args.save, [*args.input, args.fallback, args.effects], args.force, "--save")
+    if len(args.input) > 1 or args.summary or args.jobs > 1 or args.dask:
+        return _calibrate_batch(args, job)
+    if args.by:
+        recs = calibrate_by(args.input[0], args.by, job)
+    else:
         bar = progress = None
         if not args.quiet and sys.stderr.isatty():   # tqdm imported only to be shown
             from tqdm import tqdm
             bar = tqdm(unit=" samples", unit_scale=True, file=sys.stderr, desc="reading")
             progress = lambda n: bar.update(n - bar.n)  # noqa: E731
-        recs = [calibrate_recording(inputs[0], pipeline_config(args, bool(spec.effects)), args.method,
-                                    args.runtime, spec, engine, progress=progress,
-                                    fallback=args.fallback, points=args.points or "bins")]
-        if bar is not None:
-            bar.close()
-    else:
-        recs = calibrate_groups(read_table(inputs[0]), args.by, pipeline_config(args, bool(spec.effects)),
-                                args.method, args.runtime, spec, args.points or "bins")
-        if args.fallback:
-            raise InputError("--fallback applies to recordings")
+        try:
+            recs = [calibrate_file(args.input[0], job, progress)]
+        finally:
+            if bar is not None:
+                bar.close()
     failed = [r for r in recs if not r.usable]
     for r in recs:   # a --by column's values come from the file: printable, as every echo
         print(r.to_json() if args.json else "\n".join(map(printable, r.report(args.by).split("\n"))))
@@ -83,30 +68,36 @@ def cmd_calibrate(args) -> int:
         who = f"{args.by} {r[args.by]}: " if args.by else ""
         print(f"accelcal: {one_line(who + str(r['reason']))}", file=sys.stderr)
     if args.save:
+        from accelcal.files.params import save_params
         ok = [r for r in recs if r.ok]
         if ok:
             save_params(args.save, ok[0] if not args.by else {"by": args.by, "devices": ok})
     return 2 if failed else 0
 
 
-def _calibrate_batch(args, spec, engine) -> int:
+def _calibrate_batch(args, job) -> int:
     from accelcal.pipeline import batch
     from accelcal.pipeline.results import save_summary, summary_table
-    from accelcal.files.params import save_params
     if args.by:
         raise InputError("--by applies to one points file, not to a batch")
     summary = args.summary or "accelcal-summary.csv"
     check_output(summary, [*args.input, args.fallback, args.save, args.effects], args.force,
                  "--summary")
-    job = batch.Job(pipeline_config(args, bool(spec.effects)), args.method, args.runtime, str(spec), engine,
-                    args.fallback, args.points or "bins", args.effects)
-    if args.fallback:
-        from accelcal.files.params import load_params
-        load_params(args.fallback)  # a bad fallback is bad input, before any file is read
-    if args.dask:
-        recs = batch.run_dask(args.input, job, args.dask, quiet=args.quiet)
-    else:
-        recs = batch.run_local(args.input, job, args.jobs, quiet=args.quiet)
+    from tqdm import tqdm
+    bar = tqdm(total=len(args.input), unit="file", file=sys.stderr, disable=args.quiet,
+               dynamic_ncols=True,
+               bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} files [{elapsed}<{remaining}]{postfix}")
+
+    def done(rec):
+        bar.set_postfix_str(f"{os.path.basename(rec['file'])}: {rec['status']}", refresh=False)
+        bar.update(1)
+    try:
+        if args.dask:
+            recs = batch.run_dask(args.input, job, args.dask, done)
+        else:
+            recs = batch.run_local(args.input, job, args.jobs, done)
+    finally:
+        bar.close()
     save_summary(summary, recs)
     if args.json:
         for r in recs:
@@ -115,6 +106,7 @@ def _calibrate_batch(args, spec, engine) -> int:
         print(summary_table(recs))
     print(f"summary: {summary}", file=sys.stderr)
     if args.save:
+        from accelcal.files.params import save_params
         ok = [r for r in recs if r.ok]
         if ok:
             save_params(args.save, {"by": "file", "devices": ok})
@@ -123,25 +115,11 @@ def _calibrate_batch(args, spec, engine) -> int:
 
 
 def cmd_apply(args) -> int:
-    from accelcal.pipeline.apply import apply_file
-    from accelcal.files.params import load_params
-    from accelcal.files.readers import is_recording
-    from accelcal.model.effects import ModelSpec
+    from accelcal.pipeline.apply import apply
     register_effects(args)
-    model, p_int, ref = load_params(args.params, args.device)
-    if not is_recording(args.input):
-        raise InputError(f"{args.input}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
-                         "or .cwa/.bin/.gt3x)")
-    check_output(args.output, [args.params, args.input, args.effects], args.force, "-o/--output")
-    n, clipped, rng = apply_file(p_int, model, ref, args.input, args.output, args.range)
-    host_only = ModelSpec.parse(model).host_only
-    if host_only:
-        how = f"applied on the host in float64: the device has no form for {', '.join(host_only)}"
-    else:
-        how = f"the device's apply at +-{rng} g" + (
-            f"; {clipped} samples past that full scale were clipped, as the device's would be: "
-            "--range 4, 8 or 16 keeps them" if clipped else "")
-    print(f"wrote {n} calibrated samples to {args.output} ({how})", file=sys.stderr)
+    out = apply(args.params, args.input, args.output, device=args.device, range_g=args.range,
+                force=args.force, effects=args.effects)
+    print(out.report(), file=sys.stderr)
     return 0
 
 

@@ -3,6 +3,7 @@ a board's calibrations) and `compare` (every method on the same data)."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from accelcal.bridge.runtime import RUNTIMES
@@ -12,11 +13,12 @@ from accelcal.files.readers import RULE
 
 
 def cmd_diagnose(args) -> int:
-    from accelcal.pipeline.diagnose import diagnose_main
+    from accelcal.pipeline.diagnose import diagnose
     register_effects(args)
-    return diagnose_main(path=args.input, model=args.model, history=args.history,
-                         plots=args.plots, report_dir=args.report, force=args.force,
-                         as_json=args.json, effects=args.effects)
+    out = diagnose(args.input, args.model, args.plots, history=args.history, report=args.report,
+                   force=args.force, effects=args.effects)
+    print(out.to_json() if args.json else out.report())
+    return 0
 
 
 def cmd_report(args) -> int:
@@ -31,21 +33,40 @@ def cmd_report(args) -> int:
         check_output(args.html, [*reads, args.plot], args.force, "--html")
     if Path(args.history).is_dir():
         from accelcal.board.report import board_report
-        return board_report(pulled_dir=args.history, html=args.html, force=args.force,
-                            as_json=args.json)
-    from accelcal.pipeline.history import history_report
-    return history_report(history=args.history, plot=args.plot, html=args.html, force=args.force,
-                          as_json=args.json)
+        out = board_report(pulled_dir=args.history, html=args.html, force=args.force)
+    else:
+        from accelcal.pipeline.history import history_report
+        out = history_report(history=args.history, plot=args.plot, html=args.html,
+                             force=args.force)
+    print(out.to_json() if args.json else out.table())
+    if out.get("plot"):
+        say(f"plot: {out['plot']}")
+    if out["report"]:
+        say(f"report: {out['report']}")
+    return 0
 
 
 def cmd_compare(args) -> int:
     from accelcal.bridge.runtime import check
-    from accelcal.pipeline.compare import compare_main
+    from accelcal.pipeline.compare import compare
     register_effects(args)
     check(args.runtime)
-    return compare_main(pipeline_config(args, args.model != "base"), path=args.input,
-                        methods_list=args.methods, train=args.train, runtime_name=args.runtime,
-                        plots=args.plots, as_json=args.json, model=args.model)
+    # progress for a person watching (a terminal); errors stay one line for scripts
+    quiet = args.json or not sys.stderr.isatty()
+    out = compare(args.input, methods=args.methods, model=args.model, train=args.train,
+                  cfg=pipeline_config(args, args.model != "base"), runtime_name=args.runtime,
+                  plots=args.plots, say=(lambda m: None) if quiet else say)
+    if args.json:
+        print(out.to_json())
+    else:
+        print(out.table())
+        if args.plots:
+            print(f"\nplot: {out['plots'][0]}")
+    return 0 if out.any_calibrated else 2
+
+
+def say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
 
 
 def add_parsers(sub) -> None:

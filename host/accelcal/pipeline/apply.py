@@ -13,6 +13,7 @@ from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
 from accelcal.fixedpoint import g_to_sample, sample_to_g
 from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.pipeline.results import ApplyResult
 
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
@@ -114,3 +115,23 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
             writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))
             n += len(ch.t)
     return n, clipped, rng
+
+
+def apply(params: str, path: str, output: str, *, device: str | None = None,
+          range_g: int | None = None, force: bool = False, effects: str | None = None) -> ApplyResult:
+    """`accelcal apply`: the parameters saved at params (calibrate --save; device: which device
+    of a --by file) applied to the recording at path, written to output (never one of the
+    inputs; force: replace it).  effects: a file of declared effects the model uses."""
+    from accelcal.files.outputs import check_output
+    from accelcal.files.params import load_params
+    from accelcal.files.readers import is_recording
+    from accelcal.model.declared import register
+    register(effects)
+    model, p_int, ref = load_params(params, device)
+    if not is_recording(path):
+        raise InputError(f"{path}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
+                         "or .cwa/.bin/.gt3x)")
+    check_output(output, [params, path, effects], force, "-o/--output")
+    n, clipped, rng = apply_file(p_int, model, ref, path, output, range_g)
+    return ApplyResult(output=str(output), model=model, samples=n, clipped=clipped, range_g=rng,
+                       host_only=list(ModelSpec.parse(model).host_only))

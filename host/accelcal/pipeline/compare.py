@@ -17,7 +17,6 @@ are scored on the same held-out points, each at its conditions.
 """
 from __future__ import annotations
 
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -156,9 +155,9 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
     return rows
 
 
-def compare(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
-            runtime_name: str = "cpython", say=lambda m: None,
-            spec=None) -> tuple[CompareResult, Split]:
+def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
+                  runtime_name: str = "cpython", say=lambda m: None,
+                  spec=None) -> tuple[CompareResult, Split]:
     """The comparison (JSON-ready) and the split it was made on."""
     say(f"{path}: rest detection (the device's detector, {cfg.profile} profile)")
     sp = split_points(path, cfg)
@@ -264,21 +263,28 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def compare_main(cfg: runtime.Config, *, path: str, methods_list: str | None,
-                 train: str = "selected", runtime_name: str = "cpython", plots: str | None,
-                 as_json: bool = False, model: str = "base") -> int:
+def compare(path: str, *, methods: str | list[str] | None = None, model: str = "base",
+            cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
+            runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
+            say=lambda m: None) -> CompareResult:
+    """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
+    same training points and scored on the same held-out ones; with a composed model two more
+    rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
+    curve (Gietzelt figure 3).  effects: a file of declared effects (registered).
+    say(message): progress."""
+    from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
-    names = parse_methods(methods_list)
+    register(effects)
+    names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     try:
         spec = ModelSpec.parse(model)
     except ValueError as e:
         raise InputError(str(e)) from None
+    if cfg is None:
+        cfg = runtime.Config.for_profile(profile, bool(spec.effects))
     if plots:
         check_output_dir(plots, [path], "--plots")
-    # progress for a person watching (a terminal); errors stay one line for scripts
-    quiet = as_json or not sys.stderr.isatty()
-    say = (lambda m: None) if quiet else (lambda m: print(m, file=sys.stderr, flush=True))
-    out, sp = compare(path, names, cfg, train, runtime_name, say, spec)
+    out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec)
     if plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, runtime_name)
@@ -287,10 +293,4 @@ def compare_main(cfg: runtime.Config, *, path: str, methods_list: str | None,
                                "(first n in time order)")
         out["training_curve"] = curve
         out["plots"] = [str(png)]
-    if as_json:
-        print(out.to_json())
-    else:
-        print(out.table())
-        if plots:
-            print(f"\nplot: {out['plots'][0]}")
-    return 0 if out.any_calibrated else 2
+    return out

@@ -56,9 +56,37 @@ STEP_PARSIMONY = 1.5
 COMPLETE_WITHIN = 1.25
 
 
-def diagnose(path: str, model: str = "base", plots: str | None = None) -> DiagnoseResult:
+def diagnose(path: str, model: str = "base", plots: str | None = None, *,
+             history: str | None = None, report: str | None = None, force: bool = False,
+             effects: str | None = None) -> DiagnoseResult:
+    """`accelcal diagnose`: the model's held-out error beside the noise floor, where it fails,
+    and the missing effect named (or none).  plots: a folder for its figures; history: a file
+    this step is appended to; report: a folder for report.html (force: replace it); effects: a
+    file of declared effects (registered; never written over).  Every output is checked before
+    the analysis."""
+    from accelcal.model.declared import register
+    register(effects)
+    reads = [path, effects]
+    if history:   # appended to, only if a history: checked here, before the analysis
+        check_output(history, reads, True, "--history")
+        check_history(history)
+    if plots:
+        check_output_dir(plots, reads, "--plots")
+    page = None
+    if report:
+        rdir = check_output_dir(report, reads, "--report")
+        page = check_output(rdir / "report.html", [*reads, history], force, "--report")
     spec, p = prepare(path, model)
-    return diagnose_points(spec, p, path, plots)
+    out = diagnose_points(spec, p, path, plots or report)
+    if history:
+        append_history(history, out.history_step())
+    if page is not None:
+        from accelcal.report import pages
+        pngs = {Path(f).name: Path(f).read_bytes() for f in out["plots"]}
+        steps = read_history(history) if history else None
+        write_text(page, pages.diagnose_page(out, pngs, steps))
+        out["report"] = str(page)
+    return out
 
 
 def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> DiagnoseResult:
@@ -251,32 +279,6 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None
         plt.close(fig)
         out.append(str(f3))
     return out
-
-
-def diagnose_main(*, path: str, model: str, history: str | None, plots: str | None,
-                  report_dir: str | None, force: bool = False, as_json: bool = False,
-                  effects: str | None = None) -> int:
-    reads = [path, effects]
-    if history:   # appended to, only if a history: checked here, before the analysis
-        check_output(history, reads, True, "--history")
-        check_history(history)
-    if plots:
-        check_output_dir(plots, reads, "--plots")
-    page = None
-    if report_dir:
-        rdir = check_output_dir(report_dir, reads, "--report")
-        page = check_output(rdir / "report.html", [*reads, history], force, "--report")
-    out = diagnose(path, model, plots or report_dir)
-    if history:
-        append_history(history, out.history_step())
-    if page is not None:
-        from accelcal.report import pages
-        pngs = {Path(f).name: Path(f).read_bytes() for f in out["plots"]}
-        steps = read_history(history) if history else None
-        write_text(page, pages.diagnose_page(out, pngs, steps))
-        out["report"] = str(page)
-    print(out.to_json() if as_json else out.report())
-    return 0
 
 
 def heldout_error_of(path: str, model: str, theta, ref: dict) -> float:

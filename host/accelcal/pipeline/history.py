@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
-from accelcal.errors import InputError, printable
+from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, save_figure, write_text
+from accelcal.pipeline.results import StepsResult
 
 
 HISTORY_MAX_BYTES = 16 << 20    # a history is one short line per model step
@@ -104,26 +104,16 @@ def read_history(path, what: str = "") -> list[dict]:
     return steps
 
 
-def history_report(*, history: str, plot: str | None, html: str | None, force: bool = False,
-                   as_json: bool = False) -> int:
-    """`accelcal report HISTORY`: each model step with its held-out error, as a table and a plot."""
+def history_report(*, history: str, plot: str | None = None, html: str | None = None,
+                   force: bool = False) -> StepsResult:
+    """`accelcal report HISTORY`: each model step with its held-out error; plot: the steps as
+    a PNG (replaced); html: a page (force: replace it)."""
     if html:
         check_output(html, [history], force, "--html")
     steps = read_history(history)
     if not steps:
         raise InputError(f"{history}: no steps (run diagnose --history {history})")
-    if as_json:
-        print(json.dumps(steps))
-    else:
-        print(f"{'step':<5}{'model':<36}{'held-out mg':>12}{'floor mg':>10}{'change':>9}  named next")
-        prev = None
-        for k, st in enumerate(steps, 1):
-            e = st["heldout_error_mg"]
-            ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
-            model = printable(st["model"])[:200]   # from the file: no terminal escapes
-            print(f"{k:<5}{model:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
-                  f"{printable(st['missing_effect'] or '-')[:100]}")
-            prev = e
+    out = StepsResult(steps=steps, plot=plot, report=html)
     if plot or html:
         import io
 
@@ -133,13 +123,10 @@ def history_report(*, history: str, plot: str | None, html: str | None, force: b
         fig = steps_figure(steps)
         if plot:
             save_figure(fig, plot, dpi=90)
-            print(f"plot: {plot}", file=sys.stderr)
         if html:
             from accelcal.report import pages
             buf = io.BytesIO()
             fig.savefig(buf, format="png", dpi=80)
-            write_text(html, pages.history_page(history, steps,
-                                                           {"steps.png": buf.getvalue()}))
-            print(f"report: {html}", file=sys.stderr)
+            write_text(html, pages.history_page(history, steps, {"steps.png": buf.getvalue()}))
         plt.close(fig)
-    return 0
+    return out

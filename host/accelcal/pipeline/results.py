@@ -12,11 +12,11 @@ A recording's result also carries its quality (hours, gaps, still windows, exclu
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 
 from acal.fixed import PARAM_NAMES
+from accelcal.errors import InputError, printable
 from accelcal.files.outputs import atomic
 
 SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
@@ -44,6 +44,17 @@ class CalibrationResult(dict):
 
     def to_json(self) -> str:
         return json.dumps(self)
+
+    def save(self, path: str, force: bool = False) -> None:
+        """The parameters file `calibrate --save` writes (for apply, --fallback, a board),
+        never over one of the inputs (force: replace an existing file)."""
+        from accelcal.files.outputs import check_output
+        from accelcal.files.params import save_params
+        if not self.ok:
+            raise InputError(f"{self.get('file', 'this result')}: not calibrated "
+                             f"({self['status']}); nothing to save")
+        check_output(path, [self.get("file")], force, "--save")
+        save_params(path, self)
 
     def report(self, by: str | None = None) -> str:
         """The lines `calibrate` prints: the quality of a recording first, then the outcome."""
@@ -106,10 +117,9 @@ def save_summary(path: str, results: list[CalibrationResult]) -> None:
 
 def summary_table(results: list[CalibrationResult]) -> str:
     """A batch as a table a person reads: one line per file, then the count calibrated."""
-    out = io.StringIO()
     name_w = max(12, *(len(os.path.basename(r["file"])) for r in results))
-    print(f"{'file':<{name_w}}  {'status':<15} {'hours':>7} {'still':>6} {'bins':>4} "
-          f"{'before mg':>9} {'after mg':>8}  reason", file=out)
+    lines = [f"{'file':<{name_w}}  {'status':<15} {'hours':>7} {'still':>6} {'bins':>4} "
+             f"{'before mg':>9} {'after mg':>8}  reason"]
     for r in results:
         def num(k, fmt):
             v = r.get(k)
@@ -117,14 +127,14 @@ def summary_table(results: list[CalibrationResult]) -> str:
             return format(v, fmt) if isinstance(v, (int, float)) else "-".rjust(width)
         status = r["status"] + ("*" if r.get("calibration") == "fallback" else "")
         bins = f"{r['bins_filled']}/9" if "bins_filled" in r else "-"
-        print(f"{os.path.basename(r['file']):<{name_w}}  {status:<15} {num('hours', '7.1f')} "
-              f"{num('still_windows', '6d')} {bins:>4} {num('error_before_mg', '9.2f')} "
-              f"{num('error_after_mg', '8.2f')}  {r.get('reason') or ''}", file=out)
+        lines.append(f"{os.path.basename(r['file']):<{name_w}}  {status:<15} {num('hours', '7.1f')} "
+                     f"{num('still_windows', '6d')} {bins:>4} {num('error_before_mg', '9.2f')} "
+                     f"{num('error_after_mg', '8.2f')}  {r.get('reason') or ''}")
     n_ok = sum(r.ok for r in results)
     n_fb = sum(r.get("calibration") == "fallback" for r in results)
-    print(f"{n_ok} of {len(results)} files calibrated"
-          + (f"; {n_fb} use their fallback calibration (*)" if n_fb else ""), file=out, end="")
-    return out.getvalue()
+    lines.append(f"{n_ok} of {len(results)} files calibrated"
+                 + (f"; {n_fb} use their fallback calibration (*)" if n_fb else ""))
+    return "\n".join(lines)
 
 
 class DiagnoseResult(dict):
@@ -207,3 +217,60 @@ class CompareResult(dict):
             else:
                 lines.append(f"{head}{'-':>10}{'-':>11}  FAILED: {r['reason']}")
         return "\n".join(lines)
+
+
+class StepsResult(dict):
+    """`report HISTORY`: the model steps of a diagnose history (steps), and the figure (plot)
+    and page (report) written, if any."""
+
+    def to_json(self) -> str:
+        return json.dumps(self["steps"])
+
+    def table(self) -> str:
+        """The table `report` prints: each step, its held-out error and its change."""
+        lines = [f"{'step':<5}{'model':<36}{'held-out mg':>12}{'floor mg':>10}{'change':>9}  named next"]
+        prev = None
+        for k, st in enumerate(self["steps"], 1):
+            e = st["heldout_error_mg"]
+            ch = "" if prev is None else f"{100 * (e - prev) / prev:+.0f} %"
+            model = printable(st["model"])[:200]   # from the file: no terminal escapes
+            lines.append(f"{k:<5}{model:<36}{e:12.2f}{st['noise_floor_mg']:10.2f}{ch:>9}  "
+                         f"{printable(st['missing_effect'] or '-')[:100]}")
+            prev = e
+        return "\n".join(lines)
+
+
+class BoardReport(dict):
+    """`report PULLED_DIR`: a pulled board's summary (boardlog.summary), the sample rate it
+    logged at (None: no boot record) and the page written (report), if any."""
+
+    def to_json(self) -> str:
+        return json.dumps(self["summary"])
+
+    def table(self) -> str:
+        """The table `report` prints: each calibration the board made."""
+        rate = self["rate_hz"]
+        lines = [f"{'number':>6} {'hours':>7} {'status':<34} {'points':>6}  kxx      kyy      kzz      "
+                 "ox mg   oy mg   oz mg"]
+        for c in self["summary"]["calibrations"]:
+            h = f"{c['index'] / rate / 3600:7.2f}" if rate else "      -"
+            lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
+                         f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
+                         f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
+        return "\n".join(lines)
+
+
+class ApplyResult(dict):
+    """`apply`: the file written (output), samples calibrated, how many were past the device's
+    full scale (clipped, range_g), and the effects applied on the host (host_only)."""
+
+    def report(self) -> str:
+        """The line `apply` says."""
+        if self["host_only"]:
+            how = ("applied on the host in float64: the device has no form for "
+                   + ", ".join(self["host_only"]))
+        else:
+            how = f"the device's apply at +-{self['range_g']} g" + (
+                f"; {self['clipped']} samples past that full scale were clipped, as the device's "
+                "would be: --range 4, 8 or 16 keeps them" if self["clipped"] else "")
+        return f"wrote {self['samples']} calibrated samples to {self['output']} ({how})"

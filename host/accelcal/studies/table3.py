@@ -19,7 +19,7 @@ import numpy as np
 
 from accelcal.bridge import runtime
 from accelcal.simulate import wearer
-from accelcal.pipeline.compare import compare
+from accelcal.pipeline.compare import compare_split
 
 METHODS = ["device", "linauto", "lsq", "de"]
 LABELS = {"device": "Our method (device)", "linauto": "Non-iterative (linauto)",
@@ -42,7 +42,7 @@ def run_table3(devices: int = 10, days: float = 3.0, rate: int = 10, seed: int =
             else:
                 say(f"device {d + 1}/{devices}: simulating {days:g} days at {rate} Hz")
                 wearer.simulate_wrist(path, days, rate, seed + d)
-            out, _ = compare(str(path), METHODS, cfg)
+            out, _ = compare_split(str(path), METHODS, cfg)
             per_device.append(out)
     # The paper's rows average the same recordings, all fitted on the points its bins selected:
     # a recording where the device's bins did not fill (so there is no selection) or any method

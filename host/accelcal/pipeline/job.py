@@ -1,0 +1,109 @@
+"""One path from a file to its calibration record: `calibrate FILE`, every file of a batch and
+`accelcal.calibrate()` all go through calibrate_file(path, job), so they follow one rule (a
+recording or a points file, --fallback for either, the options checked the same way)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from accelcal.bridge import runtime
+from accelcal.errors import InputError
+from accelcal.pipeline.results import CalibrationResult
+
+
+@dataclass
+class Job:
+    """What every file gets: the pipeline settings and the calibrate options (picklable, for
+    the pool and for Dask)."""
+    cfg: runtime.Config
+    method: str = "device"
+    runtime_name: str = "cpython"
+    model: str = "base"
+    engine: str = "vector"
+    fallback: str | None = None
+    points: str = "bins"
+    effects: str | None = None     # a user's effects file, registered in each worker
+
+    @classmethod
+    def of(cls, *, model: str = "base", method: str = "device", profile: str = "wear",
+           runtime_name: str = "cpython", engine: str | None = None, fallback: str | None = None,
+           points: str = "bins", effects: str | None = None, cfg: runtime.Config | None = None,
+           **settings) -> "Job":
+        """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
+        settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
+        vector under cpython, device under a MicroPython runtime (as the CLI)."""
+        if cfg is None:
+            cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+        elif settings:
+            raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+        return cls(cfg, method, runtime_name, model,
+                   engine or ("vector" if runtime_name == "cpython" else "device"),
+                   fallback, points, effects)
+
+    def spec(self):
+        """The job's model, its options checked (bad options are bad input, before any file is
+        read)."""
+        from accelcal.model.declared import register
+        from accelcal.model.effects import ModelSpec
+        register(self.effects)   # a worker process starts with the built-in catalogue
+        try:
+            spec = ModelSpec.parse(self.model)
+        except ValueError as e:
+            raise InputError(str(e)) from None
+        if spec.effects and self.method not in ("device", "lsq"):
+            raise InputError(f"model {spec}: composed models are fitted by --method device (the "
+                             "device's integer optimiser) or lsq (float; --points bins|all)")
+        if self.points != "bins" and self.method == "device":
+            raise InputError("--points applies to the float methods (--method lsq, ...); the "
+                             "device method fits the points its bins select")
+        if self.fallback:
+            from accelcal.files.params import load_params
+            load_params(self.fallback)
+        return spec
+
+
+def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
+    """One file's record, a recording or a points file (one device): status calibrated,
+    not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
+    Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
+    record (pipeline/batch.py).  progress(samples read): a recording's reading."""
+    from accelcal.files.readers import is_recording
+    from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    spec = job.spec()
+    if is_recording(path):
+        return calibrate_recording(path, job.cfg, job.method, job.runtime_name, spec, job.engine,
+                                   progress=progress, fallback=job.fallback, points=job.points)
+    from accelcal.files.table import read_table
+    rec = CalibrationResult(file=path, format="points", **calibrate_groups(
+        read_table(path), None, job.cfg, job.method, job.runtime_name, spec, job.points)[0])
+    rec["calibration"] = "new" if rec.ok else "none"
+    if not rec.ok and job.fallback:
+        import numpy as np
+        use_fallback(rec, job.fallback, np.zeros((0, 3)))
+    return rec
+
+
+def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
+    """A points file calibrated per value of its column `by` (one record per device)."""
+    from accelcal.files.readers import is_recording
+    from accelcal.files.table import read_table
+    from accelcal.pipeline.calibrate import calibrate_groups
+    if job.fallback:
+        raise InputError("--fallback is one device's calibration; --by calibrates each device "
+                         "of the file")
+    spec = job.spec()
+    if is_recording(path):
+        raise InputError(f"{path}: --by applies to points files; this is a recording")
+    return calibrate_groups(read_table(path), by, job.cfg, job.method, job.runtime_name, spec,
+                            job.points)
+
+
+def calibrate(path: str, *, model: str = "base", method: str = "device", profile: str = "wear",
+              runtime: str = "cpython", fallback: str | None = None, points: str = "bins",
+              effects: str | None = None, progress=None, **settings) -> CalibrationResult:
+    """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
+    (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
+    and after (mg) and, for a recording, its quality.  settings: Job.of's (engine, cfg, or
+    runtime.Config fields)."""
+    return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
+                                       runtime_name=runtime, fallback=fallback, points=points,
+                                       effects=effects, **settings), progress)
