@@ -38,7 +38,7 @@ def run(points: list[int] | None = None, whole: bool = True) -> dict:
     also time the fit in one go."""
     pts = fit_points() if points is None else points
     with open(script("cp_bench.py")) as fh:
-        code = fh.read().replace("PTS = None", f"PTS = {pts!r}", 1)
+        code = fh.read().replace("PTS = None", f"PTS = array(\"i\", {pts!r})", 1)
     if not whole:
         code = code.replace("WHOLE = True", "WHOLE = False", 1)
     out = rp2040.run_script(code, fw=rp2040.CIRCUITPYTHON).out
