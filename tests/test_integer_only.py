@@ -67,3 +67,30 @@ def test_mpy_cross_compiles_every_device_module(arch, tmp_path):
             marked += 1
             assert "@micropython.viper" in emitted_source(f.read_text())
     assert marked >= 1
+
+
+def test_sign_extensions_are_the_ones_a_32_bit_build_may_drop():
+    """The builds for 32-bit archs drop every `<< w >> w` (bridge/rp2040.emitted_source): that
+    is the same ints only where w is emit.SIGN_SHIFT (0 on those boards), so each one must sit
+    in a @viper function whose w is that shift (a parameter the callers pass it in, or read)."""
+    from accelcal.bridge.rp2040 import SIGN_EXTENSION, emitted_source
+    found = 0
+    for f in FILES:
+        src = f.read_text()
+        covered = 0
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, ast.FunctionDef):
+                seg = ast.get_source_segment(src, node)
+                n = sum(ln.split("#")[0].count(SIGN_EXTENSION) for ln in seg.splitlines())
+                if not n:
+                    continue
+                assert any(getattr(d, "id", None) == "viper" for d in node.decorator_list), node.name
+                assert "w = int(SIGN_SHIFT)" in seg or any(
+                    a.arg == "w" for a in node.args.args), node.name
+                covered += n
+        in_code = sum(line.split("#")[0].count(SIGN_EXTENSION) for line in src.splitlines())
+        assert covered == in_code, f.name   # none outside a marked function (comments aside)
+        assert SIGN_EXTENSION not in emitted_source(src, "armv6m")
+        assert src.count(SIGN_EXTENSION) == emitted_source(src, "x64").count(SIGN_EXTENSION)
+        found += covered
+    assert found > 100

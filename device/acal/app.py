@@ -14,7 +14,7 @@ from acal import effects, log
 from acal import profile as profiles
 from acal.fixed import N_PARAMS, POINT_ONE_G
 from acal.model import Calibration, in_bounds, effects_within
-from acal.optimiser import usable
+from acal.status import usable
 from acal.pipeline import Pipeline
 
 VERSION = 2  # 2: profiles (BOOT carries the fit)

@@ -31,7 +31,7 @@ from acal.fixed import N_PARAMS
 from acal.bins import COND, conditions, int32s
 from acal import model
 from acal.emit import SIGN_SHIFT
-from acal.optimiser import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
+from acal.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, accumulate,
                                accum_points, trial_points, insert_abs, q24, above, rhs_from_limbs,
@@ -96,10 +96,10 @@ class GaussNewton(PointRows):
         self.p = int32s(np_)            # int32 arrays: model.residual's typed pointer
         self.pt = int32s(np_)
         # int32 arrays: _accumulate reads them through typed pointers (acal/emit.py)
-        self.d = conditions(np_)
-        self.a = conditions(np_ * np_)  # sum d~ d~^T, lower triangle
-        self.b = conditions(np_)        # sum d~ r~, high limb (units of 2**B_SPLIT)
-        self.bl = conditions(np_)       # ... low limb, in [0, 2**B_SPLIT) between points
+        self.d = int32s(np_)
+        self.a = int32s(np_ * np_)  # sum d~ d~^T, lower triangle
+        self.b = int32s(np_)        # sum d~ r~, high limb (units of 2**B_SPLIT)
+        self.bl = int32s(np_)       # ... low limb, in [0, 2**B_SPLIT) between points
         self.sh = int32s(np_)           # column scales s_k (int32: scale_row's pointers)
         self.grown = int32s(np_)        # ... and by how much a point grew them
         self.state = int32s(1)          # where _accum_points stopped

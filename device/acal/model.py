@@ -10,16 +10,15 @@ from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, 
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
 from acal import effects
-from acal.bins import COND, conditions, int32s
+from acal.bins import COND, int32s
 from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.objective import objective_limbs, from_limbs, LIMBS, PLAIN
 from array import array
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/objective.py)
 _ARG_LIMIT = 1 << 29
-_F = array("i", [0] * LIMBS)   # objective()'s limbs
-_P = array("i", [0] * N_PARAMS)   # and parameters
+_P = array("i", [0] * N_PARAMS)   # objective()'s parameters
+_LIMBS = []                       # ... and its limbs, made on first use
 
 
 def identity(p):
@@ -76,8 +75,13 @@ def objective(p, u, n):
         if not -_ARG_LIMIT < p[i] < _ARG_LIMIT:
             return objective_long(p, u, n)
         _P[i] = p[i]
-    if isinstance(u, array) and not objective_limbs(u, n, _F, 0, _P, PLAIN, _F, SIGN_SHIFT):
-        return from_limbs(_F, 0)
+    if isinstance(u, array):
+        from acal import objective as limbs   # the paper profile's, loaded when used
+        if not _LIMBS:
+            _LIMBS.append(array("i", [0] * limbs.LIMBS))
+        f = _LIMBS[0]
+        if not limbs.objective_limbs(u, n, f, 0, _P, limbs.PLAIN, f, SIGN_SHIFT):
+            return limbs.from_limbs(f, 0)
     return objective_long(p, u, n)
 
 
@@ -296,7 +300,7 @@ class Calibration:
             raise ValueError("a composed model applies at +-2 g full scale")
         self.in_max = APPLY_IN_MAX << self.e
         self.n_params = N_PARAMS + 3 * len(self.kinds)
-        self.k = conditions(self.n_params)   # an int32 array: _apply_block's typed pointer
+        self.k = int32s(self.n_params)   # an int32 array: _apply_block's typed pointer
         self.w = [0, 0, 0]
         self.temp = 0
         self.time = 0

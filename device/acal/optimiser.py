@@ -21,26 +21,10 @@ from acal.emit import SIGN_SHIFT
 from acal.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
                             CACHE, PLAIN, BASE, GRADIENT)
 
-OK = 0
-DIVERGED = 1        # a parameter left the fit region, or the objective ended above its start
-#                     (or a point lay past +-16 g, outside the exact objective's domain)
-TOO_FEW = 2         # fewer points than parameters
-OUT_OF_BOUNDS = 3   # converged outside the calibration bounds (fixed.py): not a sensor we trust
-UNDETERMINED = 4    # the points do not pin every parameter (acal/gaussnewton.py)
-# A composed model's fit that failed, or ended worse than the base fit of the same points (by
-# mean squared residual over the points each kept): the base calibration is kept, with the
-# effects at zero (acal/pipeline.py, the wear profile).
-BASE_KEPT_FAILED = 5
-BASE_KEPT_WORSE = 6
-STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
-                "parameters not determined by the points",
-                "composed fit failed: base calibration kept",
-                "composed fit worse than the base fit: base calibration kept")
-
-
-def usable(status):
-    """True when the fit's parameters may be applied (OK, or a base calibration kept)."""
-    return status == OK or status == BASE_KEPT_FAILED or status == BASE_KEPT_WORSE
+# The fits' status codes live in acal/status.py (a wear-profile board does not load this module
+# nor acal/objective.py: their code would sit in its RAM); here for the paper profile's callers.
+from acal.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
+                         BASE_KEPT_FAILED, BASE_KEPT_WORSE, STATUS_NAMES, usable)
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50

@@ -3,8 +3,7 @@
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, N_SUBSETS, SUPPLY_DIFFER, TEMP_DIFFER,
                        TIME_DIFFER, conditions, int32s)
-from acal.optimiser import (Optimiser, DEFAULT_ITERATIONS, COMPOSED_ITERATIONS, OK,
-                            BASE_KEPT_FAILED, BASE_KEPT_WORSE)
+from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
 from acal import gaussnewton
@@ -82,12 +81,15 @@ class Pipeline:
         elif len(base_kinds) < len(self.kinds):
             raise ValueError("a step is found by the wear profile's fit (NEWTON)")
         else:
-            self.optimiser = Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
+            # the paper's gradient descent, imported here: a wear-profile board never loads it
+            # (nor acal/objective.py), whose code would sit in its RAM
+            from acal import optimiser
+            self.optimiser = optimiser.Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
+            if iterations is None:
+                iterations = (optimiser.COMPOSED_ITERATIONS if self.kinds
+                              else optimiser.DEFAULT_ITERATIONS)
         if iterations is None:
-            if fit == NEWTON:
-                iterations = gaussnewton.DEFAULT_ITERATIONS
-            else:
-                iterations = COMPOSED_ITERATIONS if self.kinds else DEFAULT_ITERATIONS
+            iterations = gaussnewton.DEFAULT_ITERATIONS
         self.iterations = iterations
         self.points = int32s(3 * N_SUBSETS * max_count)
         self.aux = conditions(N_SUBSETS * max_count)  # dT, dt, dV per point (composed models)

@@ -20,7 +20,7 @@
 # a combination of the others (multiple correlation above 1 - 2**-GUARD_SHIFT): the data does not
 # determine it, and the solver says so instead of returning a huge step.  Rounding moves the
 # Schur complements by ~2**4 an update, far below the smallest floor (2**(DIAG_BITS-2-12)).
-from acal.bins import conditions
+from acal.bins import int32s
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.wide import div_shift
 
@@ -53,15 +53,15 @@ class Solver:
 
     def __init__(self, n_max):
         self.n_max = n_max
-        self.m = conditions(n_max * n_max)   # int32 arrays: _eliminate_rows' typed pointers
-        self.c = conditions(n_max)
-        self.y = conditions(n_max)           # ... and these (_back_substitute, _prepare_rows)
-        self.s = conditions(n_max)
-        self.floor = conditions(n_max)
-        self.xshift = conditions(n_max)
+        self.m = int32s(n_max * n_max)   # int32 arrays: _eliminate_rows' typed pointers
+        self.c = int32s(n_max)
+        self.y = int32s(n_max)           # ... and these (_back_substitute, _prepare_rows)
+        self.s = int32s(n_max)
+        self.floor = int32s(n_max)
+        self.xshift = int32s(n_max)
         # the elimination's place, for _run: pivot i, row j, e, rescales done, back
         # substitution under way (0/1)
-        self.state = conditions(_STATE)
+        self.state = int32s(_STATE)
         self.n = 0
         self.prep = 0
         self.inv = 0
