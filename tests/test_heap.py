@@ -244,6 +244,7 @@ PIPELINE_MEMORY = r'''
 import gc
 from acal.pipeline import Pipeline
 from acal import profile, effects
+import acal.changepoint   # its code loads with a step's first pipeline: not the pipeline's own
 out = []
 for kinds in ((effects.DRIFT,), (effects.STEP,), (effects.DRIFT, effects.STEP),
               (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)):

@@ -25,7 +25,6 @@
 # are computed from the fit (GaussNewton.point) when the backward pass reaches it.
 #
 # Sliced like the fit: begin() then step() until it returns True, SLICE points a step.
-from acal.fixed import N_PARAMS
 from acal.bins import COND
 
 MIN_SIDE_SHIFT = 3
@@ -231,17 +230,3 @@ def _shift_to(v, bits):
     while (v >> s) >= (1 << bits):
         s += 1
     return s
-
-
-def copy_params(src, src_kinds, dst, dst_kinds):
-    """A fit's parameters (9, then 3 per effect of src_kinds) into a composed model's (dst_kinds):
-    the nine, each effect both hold, and zero for the others (the step the search adds)."""
-    for i in range(N_PARAMS):
-        dst[i] = src[i]
-    for k in range(len(dst_kinds)):
-        j = -1
-        for m in range(len(src_kinds)):
-            if src_kinds[m] == dst_kinds[k]:
-                j = m
-        for c in range(3):
-            dst[N_PARAMS + 3 * k + c] = src[N_PARAMS + 3 * j + c] if j >= 0 else 0

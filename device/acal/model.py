@@ -240,16 +240,6 @@ def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):
         k -= 1
 
 
-def residual_effects(p, u, at, dT, dt, kinds, w, ts=0, dV=0):
-    """residual() of the point u[at:at+3] seen at dT, dt, dV, with a composed model's effects
-    removed first (into w, a list of 3), as objective_effects does it."""
-    w[0] = u[at]
-    w[1] = u[at + 1]
-    w[2] = u[at + 2]
-    remove_effects(p, kinds, w, 0, dT, dt, ts, dV)
-    return residual(p, w[0], w[1], w[2])
-
-
 def objective_effects(p, u, aux, n, kinds, w, ts=0):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order

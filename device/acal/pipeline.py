@@ -10,7 +10,6 @@ from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.profile import GRADIENT, NEWTON
 from acal import effects
-from acal.changepoint import ChangePoint, copy_params
 
 
 class Pipeline:
@@ -77,6 +76,7 @@ class Pipeline:
                 self.base_fit = GaussNewton(N_SUBSETS * max_count, self.base_kinds, True)
                 self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
             if len(base_kinds) < len(self.kinds):
+                from acal.changepoint import ChangePoint   # a step's models only
                 self.search = ChangePoint()
         elif len(base_kinds) < len(self.kinds):
             raise ValueError("a step is found by the wear profile's fit (NEWTON)")
@@ -268,3 +268,17 @@ def _middle(cond, c, n, lowest=False):
         elif v > hi:
             hi = v
     return lo if lowest else (lo + hi) >> 1
+
+
+def copy_params(src, src_kinds, dst, dst_kinds):
+    """A fit's parameters (9, then 3 per effect of src_kinds) into a composed model's (dst_kinds):
+    the nine, each effect both hold, and zero for the others (the step the search adds)."""
+    for i in range(N_PARAMS):
+        dst[i] = src[i]
+    for k in range(len(dst_kinds)):
+        j = -1
+        for m in range(len(src_kinds)):
+            if src_kinds[m] == dst_kinds[k]:
+                j = m
+        for c in range(3):
+            dst[N_PARAMS + 3 * k + c] = src[N_PARAMS + 3 * j + c] if j >= 0 else 0
