@@ -234,6 +234,11 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
         m = {k: v for k, v in m.items() if not k.startswith(("rp2040_fit_", "rp2040_us_per_sample",
                                                               "rp2040_core_share"))}
         m.update(bench_chip.measure_chip(pts))
+        # the board's always-on work per sample: the app after acquisition (rest detection, bins,
+        # its log records) and the apply of a base calibration
+        m["rp2040_emulated_app_and_apply_us_per_sample"] = (
+            m["rp2040_emulated_processor_us_per_sample"]
+            + m["rp2040_emulated_apply_base_us_per_sample"])
         chip = bench_chip.format_chip(m)
     if as_json:
         print(json.dumps(m))
@@ -242,9 +247,15 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
                "per_sample_ratio_wear": "<= 4x", "rp2040_fit_wear_base_worst_slice_ms": "< 5 ms",
                "rp2040_fit_wear_temp_offset_worst_slice_ms": "< 5 ms",
                "rp2040_fit_wear_four_effects_worst_slice_ms": "< 5 ms",
-               "rp2040_emulated_fit_wear_base_worst_slice_ms": "< 5 ms",
-               "rp2040_emulated_fit_wear_temp_offset_worst_slice_ms": "< 5 ms",
-               "rp2040_emulated_fit_wear_four_effects_worst_slice_ms": "< 5 ms",
+               # issue 26's goals on the chip
+               "rp2040_emulated_fit_wear_base_total_ms": "<= 100 ms",
+               "rp2040_emulated_fit_wear_four_effects_total_ms": "<= 500 ms",
+               "rp2040_emulated_fit_wear_base_worst_slice_ms": "<= 2 ms",
+               "rp2040_emulated_fit_wear_temp_offset_worst_slice_ms": "<= 2 ms",
+               "rp2040_emulated_fit_wear_four_effects_worst_slice_ms": "<= 2 ms",
+               "rp2040_emulated_app_and_apply_us_per_sample": "<= 5 us",
+               "rp2040_emulated_import_app_ms": "<= 300 ms",
+               "rp2040_emulated_heap_free_app_largest_bytes": ">= 150 000",
                "rp2040_emulated_optimiser_ms": "paper's C: < 40 ms (Cortex-M3, 80 MHz)",
                "rp2040_emulated_fit_paper_base_total_ms": "<= 100 ms",
                "rp2040_emulated_fit_paper_base_worst_slice_ms": "<= 2 ms",
