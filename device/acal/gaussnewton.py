@@ -40,9 +40,9 @@ from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
 TRIAL_POINTS = 8
-TRIAL_POINTS_COMPOSED = 3   # a composed model's residual costs its effects' removal too
-ACCUM_POINTS = 5          # points per step() of the sums, a model without effects
-ACCUM_POINTS_COMPOSED = 1
+TRIAL_POINTS_COMPOSED = 8   # a composed model's residual costs its effects' removal too
+ACCUM_POINTS = 6          # points per step() of the sums, a model without effects
+ACCUM_POINTS_COMPOSED = 2
 SORT_POINTS = 24          # points inserted per step() of the sort
 REJECT_POINTS = 8        # points sifted per step() of the rejection
 MAX_POINTS = 128          # the sums' bound (above)
@@ -88,8 +88,8 @@ class GaussNewton(PointRows):
         self.n_params = np_
         self.u = int32s(3 * max_points)  # Q24 g, clamped: int32 (_trial_points reads it)
         self.aux = conditions(max_points)
-        self.index = [0] * max_points
-        self.keep = [0] * max_points
+        self.index = int32s(max_points)   # int32: load_points sets them
+        self.keep = int32s(max_points)
         self.r = int32s(max_points)     # residuals at p (Q22 g^2; int32: _insert_abs reads r)
         self.rt = int32s(max_points)    # residuals at the trial parameters
         self.srt = int32s(max_points)   # |r| being sorted
@@ -168,12 +168,8 @@ class GaussNewton(PointRows):
             pts = array("i", pts)
         if type(aux) is list:
             aux = array("i", aux)
-        load_points(pts, self.u, 3 * n, aux, self.aux, 0 if aux is None else COND * n)
-        index = self.index
-        keep = self.keep
-        for i in range(n):
-            index[i] = i
-            keep[i] = 1
+        load_points(pts, self.u, 3 * n, aux, self.aux, 0 if aux is None else COND * n,
+                    self.index, self.keep)
         model.identity(self.p)
         for i in range(N_PARAMS, self.n_params):
             self.p[i] = 0
@@ -222,14 +218,15 @@ class GaussNewton(PointRows):
 
     def _accum(self):
         # Up to ACCUM_POINTS points (a composed model's: ACCUM_POINTS_COMPOSED) at once
-        # (accum_points), the first one that grows a scale by the general path.
-        i = self.pos
-        end = i + (ACCUM_POINTS_COMPOSED if self.kinds else ACCUM_POINTS)
+        # (accum_points); a point that grows a scale by the general path, in a slice of its own
+        # (so that a slice is at most one of the two).
+        start = self.pos
+        end = start + (ACCUM_POINTS_COMPOSED if self.kinds else ACCUM_POINTS)
         if end > self.n:
             end = self.n
-        self.f = accum_points(self, i, end, self.tau, self.f)
+        self.f = accum_points(self, start, end, self.tau, self.f)
         i = self.state[0]
-        if i < end:
+        if i == start:
             self._scaled_row(i)
             accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl,
                        SIGN_SHIFT)

@@ -220,11 +220,19 @@ def above(f1, t1, f2, t2):
 
 
 @viper
-def load_points(points, fit_points, n3: int, aux, fit_aux, naux: int):
-    # A fit's points (int32 arrays, Q16 g) clamped to +-FIT_W_MAX and into Q24 (<< 8), and
-    # naux of their conditions copied: GaussNewton.begin's loops, viper on ports with emitters.
+def load_points(points, fit_points, n3: int, aux, fit_aux, naux: int, order, kept):
+    # A fit's points (int32 arrays, Q16 g) clamped to +-FIT_W_MAX and into Q24 (<< 8), naux of
+    # their conditions copied, each point's index (order) its own and kept (1): GaussNewton.
+    # begin's loops, viper on ports with emitters.
     src = ptr32(points)
     u = ptr32(fit_points)
+    index = ptr32(order)
+    keep = ptr32(kept)
+    i = 0
+    while i < n3 // 3:
+        index[i] = i
+        keep[i] = 1
+        i += 1
     w = int(SIGN_SHIFT)
     lim = int(FIT_W_MAX) >> 8
     i = 0

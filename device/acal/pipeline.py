@@ -157,7 +157,10 @@ class Pipeline:
         aux = self.aux
         n = self.bins.gather(self.points, aux)
         self.n_fit = n
-        self.ref_temp, self.ref_time, self.ref_supply = references(aux, n, self.kinds)
+        # one at a time: a tuple of the three would be the fit's only allocation
+        self.ref_temp = reference(aux, n, self.kinds, 0)
+        self.ref_time = reference(aux, n, self.kinds, 1)
+        self.ref_supply = reference(aux, n, self.kinds, 2)
         for i in range(n):
             aux[COND * i] -= self.ref_temp
             aux[COND * i + 1] -= self.ref_time
@@ -252,8 +255,12 @@ def references(cond, n, kinds):
     temp, time, supply per point, bins.COND): the middle of each range (floor), so that dT, dt
     and dV are centred and the effect terms do not trade with the offsets; for a model with a
     power of time above 1, the earliest time (effects.time_from_first)."""
-    return (_middle(cond, 0, n), _middle(cond, 1, n, effects.time_from_first(kinds)),
-            _middle(cond, 2, n))
+    return reference(cond, n, kinds, 0), reference(cond, n, kinds, 1), reference(cond, n, kinds, 2)
+
+
+def reference(cond, n, kinds, c):
+    """references()' condition c (0 temperature, 1 time, 2 supply)."""
+    return _middle(cond, c, n, c == 1 and effects.time_from_first(kinds))
 
 
 def _middle(cond, c, n, lowest=False):
