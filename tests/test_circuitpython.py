@@ -101,7 +101,14 @@ def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
         assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
 
 
-def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(chip):
+@pytest.fixture(scope="module")
+def cp_bench(chip):
+    """bridge/scripts/cp_bench.py's figures on the chip (the fit timed slice by slice only)."""
+    from accelcal.studies import bench_circuitpython
+    return bench_circuitpython.run(whole=False)
+
+
+def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(cp_bench):
     """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
     (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
     every full scale (readings past it, parameters at the bounds' corner), and the default
@@ -110,7 +117,7 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     Processor of each of the largest models (four effects, a step among them), the heap keeps
     room for the app (its buffers, log and bus: ~10 kB)."""
     from accelcal.studies import bench_circuitpython
-    r = bench_circuitpython.run(whole=False)
+    r = cp_bench
     assert r["bytes_control_list"] > 0
     for k in ("bytes_rest_paper", "bytes_rest_wear", "bytes_apply", "bytes_fit_begin",
               "bytes_fit_worst_slice", "bytes_fit_all_slices"):
@@ -125,6 +132,53 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     largest = [v for k, v in r.items() if k.startswith("free_with_processor_")]
     assert len(largest) == 2 and min(largest) > 40000
     print({k: v for k, v in r.items() if k.startswith("free")})
+
+
+def test_the_bench_puts_circuitpythons_figures_beside_micropythons(cp_bench):
+    """`accelcal bench --runtime rp2040|circuitpython`: cp_bench.py's figures become the chip
+    table's CircuitPython column and its JSON keys: the rest detectors per sample in their rows
+    (no MicroPython figure given here: '-'), the default fit converged with 0 bytes in its worst
+    slice, 0 bytes per sample and fit while the control list's allocation is seen, and the heap
+    with the largest model below the heap after the import."""
+    from accelcal.studies import bench_chip, bench_circuitpython
+    m = bench_circuitpython.cp_figures(cp_bench)
+    cp = bench_chip.CP
+    assert all(k.startswith(cp) for k in m)
+    assert m[cp + "default_fit_status"] == 0 and m[cp + "default_fit_slices"] == cp_bench["fit_wear_slices"]
+    assert m[cp + "default_fit_worst_slice_bytes"] == 0
+    assert m[cp + "bytes_per_sample_and_fit"] == 0 < m[cp + "bytes_control_list"]
+    assert 0 < m[cp + "free_with_processor_largest_bytes"] < m[cp + "free_after_import_app_bytes"]
+    rows = {name: (unix, mp, v) for name, unix, mp, v, _ in bench_chip.rows(m)}
+    assert set(rows) == {"rest detector, paper profile, per sample",
+                         "rest detector, wear profile, per sample"}
+    assert rows["rest detector, paper profile, per sample"][2] * 1000 == cp_bench["rest_paper_ns_per_sample"]
+    assert all(unix is None and mp is None and v > 0 for unix, mp, v in rows.values())
+    table = bench_chip.format_chip(m).splitlines()
+    assert "CircuitPython" in table[2] and "MicroPython" in table[2]
+    line = next(ln for ln in table if ln.startswith("rest detector, wear profile"))
+    assert line.split()[-2:] == [f"{rows['rest detector, wear profile, per sample'][2]:.4g}", "us"]
+    assert next(ln for ln in table if "bytes per sample and fit slice" in ln).split()[6] == "0"
+    assert json.loads(json.dumps(m)) == m   # --json carries them
+
+
+def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsys):
+    """Beside MicroPython's (--runtime rp2040) a missing CircuitPython firmware or mpy-cross is
+    one line and the bench goes on; asked for alone (--runtime circuitpython), exit 2, one line."""
+    import dataclasses
+    from accelcal.studies import bench
+    try:
+        rp2040.check(rp2040.MICROPYTHON)
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    monkeypatch.setattr(rp2040, "CIRCUITPYTHON", dataclasses.replace(FW, compiler="no-mpy-cross"))
+    monkeypatch.setattr(rp2040, "flash_image", lambda fw: None)   # MicroPython's: not the point
+    chips, missing = bench.chip_firmwares("rp2040")
+    assert chips == [rp2040.MICROPYTHON] and "no-mpy-cross is missing" in missing
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("CircuitPython not measured:")
+    code, out, err = run_main(capsys, ["bench", "--runtime", "circuitpython"])
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "no-mpy-cross is missing" in err
 
 
 # What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the

@@ -18,6 +18,7 @@ import numpy as np
 from accelcal import simulate
 from accelcal.bridge import rp2040
 from accelcal.locations import script
+from accelcal.studies import bench_chip
 
 FIT_POINTS = 72
 TRUTH = (1.03, 0.98, 1.01, 0.02, -0.01, 0.015, 0.05, -0.03, 0.04)
@@ -53,19 +54,40 @@ def run(points: list[int] | None = None, whole: bool = True) -> dict:
     return res
 
 
-def measure() -> dict:
-    """The figures `accelcal bench` prints for CircuitPython (keys prefixed circuitpython_)."""
-    r = run()
+# CircuitPython's drive is read-only to code until remounted (a board does it in boot.py): the
+# paths' log appends write a file
+REMOUNT = "import storage\nstorage.remount('/', readonly=False)\n"
+
+
+def cp_figures(r: dict) -> dict:
+    """cp_bench.py's results (run()) as the bench's keys: per-sample rest detectors, free heap,
+    the default fit's status and the bytes allocated per sample and fit slice."""
+    e = bench_chip.CP
     free_models = [v for k, v in r.items() if k.startswith("free_with_processor_")]
-    return {
-        "circuitpython_rest_paper_ns_per_sample": r["rest_paper_ns_per_sample"],
-        "circuitpython_rest_wear_ns_per_sample": r["rest_wear_ns_per_sample"],
-        "circuitpython_fit_wear_worst_slice_ms": r["fit_wear_worst_slice_us"] / 1000.0,
-        "circuitpython_fit_wear_whole_ms": r["fit_wear_whole_ms"],
-        "circuitpython_fit_wear_slices": r["fit_wear_slices"],
-        "circuitpython_import_app_ms": r["import_app_ms"],
-        "circuitpython_free_after_import_app": r["free_after_import_app"],
-        "circuitpython_free_with_largest_model": min(free_models),
-        "circuitpython_bytes_per_sample_and_fit": sum(v for k, v in r.items()
-                                                      if k.startswith("bytes_") and k != "bytes_control_list"),
+    status, iterations, rejected = map(int, r["fit_wear_status"].split())
+    res = {
+        e + "rest_us_per_sample": r["rest_paper_ns_per_sample"] / 1000,
+        e + "rest_wear_us_per_sample": r["rest_wear_ns_per_sample"] / 1000,
+        e + "default_fit_status": status,
+        e + "default_fit_iterations": iterations,
+        e + "default_fit_rejected": rejected,
+        e + "default_fit_slices": r["fit_wear_slices"],
+        e + "default_fit_worst_slice_bytes": r["bytes_fit_worst_slice"],
+        e + "free_after_import_app_bytes": r["free_after_import_app"],
+        e + "free_with_processor_largest_bytes": min(free_models),
+        e + "bytes_per_sample_and_fit": sum(v for k, v in r.items()
+                                            if k.startswith("bytes_") and k != "bytes_control_list"),
+        e + "bytes_control_list": r["bytes_control_list"],
     }
+    if "fit_wear_whole_ms" in r:
+        res[e + "default_fit_whole_ms"] = r["fit_wear_whole_ms"]
+    return res
+
+
+def measure() -> dict:
+    """The figures `accelcal bench` prints for CircuitPython (keys circuitpython_emulated_*):
+    cp_bench.py's, and the MicroPython chip's scripts (mp_paths_bench.py, mp_fit_bench.py) on
+    CircuitPython, so that each path and fit sits beside MicroPython's."""
+    res = cp_figures(run(whole=False))
+    res.update(bench_chip.paths_and_fits(rp2040.CIRCUITPYTHON, bench_chip.CP, REMOUNT))
+    return res
