@@ -108,6 +108,25 @@ def cp_bench(chip):
     return bench_circuitpython.run(whole=False)
 
 
+def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
+    """`accelcal deploy` to the Feather (RUNTIME circuitpython, no ARCH) writes .mpy from
+    CircuitPython's mpy-cross ('C'), the Pico's from MicroPython's ('M'), the virtual board's
+    the sources; every module the board needs, the CircuitPython driver only on the Feather."""
+    from accelcal.board import deploy
+    for board, head in (("feather_rp2040", b"C\x06"), ("pico", b"M\x06"), ("virtual", None)):
+        info = deploy.board_info(board)
+        cp = info["RUNTIME"] == "circuitpython"
+        modules = list(deploy.APP_MODULES) + (list(deploy.CIRCUITPYTHON_ONLY) if cp else [])
+        pkg = tmp_path / board
+        pkg.mkdir()
+        files, what = deploy.package_files(info, modules, pkg)
+        assert [f.stem for f in files] == modules and ("lis3dh_cp" in modules) == cp
+        if head is None:
+            assert what == "sources" and all(f.suffix == ".py" for f in files)
+        else:
+            assert all(f.suffix == ".mpy" and f.read_bytes()[:2] == head for f in files), what
+
+
 def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(cp_bench):
     """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
     (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
