@@ -1,16 +1,20 @@
-"""CircuitPython's figures for `accelcal bench`: bridge/scripts/cp_bench.py on Adafruit
-CircuitPython 10.2.1 for the Feather RP2040, booted on the emulated RP2040 (bridge/rp2040.py), the
+"""CircuitPython's figures for `accelcal bench --runtime rp2040|circuitpython`: Adafruit
+CircuitPython 10.2.1 for the Feather RP2040 booted on the emulated RP2040 (bridge/rp2040.py), the
 package installed as CircuitPython .mpy.  Measured, not estimated: emulated time at 125 MHz (no
-XIP cache misses modelled: a lower bound for a real board).
+XIP cache misses modelled: a lower bound for a real board).  Keys circuitpython_emulated_*, the
+chip table's CircuitPython column (bench_chip.py):
 
-rest_*_ns_per_sample: a rest detector per sample (paper: one axis; wear: every axis with the noise
-gauge), 1000 samples; fit_wear_*: the wear profile's Gauss-Newton fit (72 points with rejection),
-slice by slice as the app runs it (worst slice) and in one go (whole); import_app_ms: `import
-acal.app` from .mpy after a soft reset; free_*: gc.mem_free() after a collection: after the
-import, and with a Processor (the app's pipeline, bins, calibration) of each of the largest models
-(four effects); bytes_*: allocated with the collector off (CircuitPython has no heap_lock), per
-path over the whole stream / fit: 0 where nothing is allocated (bytes_control_list shows the
-counting sees an allocation)."""
+From bridge/scripts/cp_bench.py (run(), cp_figures()): rest_*us_per_sample, a rest detector per
+sample (paper: one axis; wear: every axis with the noise gauge), 1000 samples; default_fit_*, the
+wear profile's Gauss-Newton fit of 72 points with two outliers, slice by slice as the app runs it
+(status, iterations, rejected, slices, bytes in its worst slice); free_after_import_app_bytes and
+free_with_processor_largest_bytes, gc.mem_free() after a collection, after `import acal.app` and
+with a Processor (the app's pipeline, bins, calibration) of the larger of the largest models (four
+effects); bytes_per_sample_and_fit, allocated with the collector off (CircuitPython has no
+heap_lock) over the detectors' stream, the apply at every full scale and the fit: 0 where nothing
+is allocated (bytes_control_list shows the counting sees an allocation).
+From MicroPython's chip scripts run there (mp_paths_bench.py, mp_fit_bench.py: bench_chip.
+paths_and_fits): the same keys as rp2040_emulated_*'s, so each sits beside MicroPython's."""
 from __future__ import annotations
 
 import numpy as np
