@@ -4,11 +4,11 @@
 # For each case: the pipeline's fit from begin_fit() to its end, one fit_step() at a time, RUNS
 # times; prints "name slices worst_us total_us status bytes" (worst: the longest slice, each
 # slice's time the shortest of the runs; total: the shortest run; bytes: heap allocated by the
-# first whole fit (its slices, not the clock's reads), the collector held off: on a 32-bit port
-# every int past 2**30 would be one;
+# first whole fit, the collector held off: on a 32-bit port every int past 2**30 would be one;
 # the fits keep every value below it, so 0 there).
 # On the emulated RP2040 (studies/bench_chip.py sends this text): one run, as the emulator is
-# deterministic.
+# deterministic; under CircuitPython too (studies/bench_circuitpython.py), its slices timed to
+# the millisecond.
 import gc
 import sys
 import time
@@ -21,14 +21,18 @@ from acal.profile import PAPER, WEAR, settings
 try:
     ticks = time.ticks_us
     diff = time.ticks_diff
-except AttributeError:   # CPython; CircuitPython (monotonic_ns: a long per read, not counted)
-    _ns = getattr(time, "perf_counter_ns", None) or time.monotonic_ns
+except AttributeError:
+    try:   # CircuitPython: its ms counter (wraps at 2**29), as the app's clock there: no allocation
+        from supervisor import ticks_ms as ticks   # (monotonic_ns would be counted as a fit's bytes)
 
-    def ticks():
-        return _ns() // 1000
+        def diff(a, b):
+            return ((a - b) & 0x1FFFFFFF) * 1000
+    except ImportError:   # CPython
+        def ticks():
+            return time.perf_counter_ns() // 1000
 
-    def diff(a, b):
-        return a - b
+        def diff(a, b):
+            return a - b
 
 _seed = [4321]
 
@@ -67,7 +71,7 @@ def point(one, temp=20):
 
 CHIP = sys.platform in ("rp2", "RP2040")   # MicroPython's, CircuitPython's
 RUNS = 1 if CHIP else 3
-_best = array("i", [0] * (2000 if CHIP else 8000))   # slices: < 1000 on every case
+_best = array("i", [0] * (2000 if CHIP else 8000))   # slices: < 1000 in every case
 
 
 def case(name, prof, kinds):
@@ -92,17 +96,12 @@ def case(name, prof, kinds):
         gc.disable()
         m0 = gc.mem_alloc()
         pipe.begin_fit()
-        fit_used = gc.mem_alloc() - m0
         total = 0
         slices = 0
         while True:
-            t0 = ticks()   # the clock's reads outside the counted window (CircuitPython's allocate)
-            m0 = gc.mem_alloc()
+            t0 = ticks()
             done = pipe.fit_step()
-            fit_used += gc.mem_alloc() - m0
             dt = diff(ticks(), t0)
-            if gc.mem_free() < 16384:   # CircuitPython's clock reads, piling up with the collector off
-                gc.collect()
             total += dt
             if slices < len(_best) and (run == 0 or dt < _best[slices]):
                 _best[slices] = dt
@@ -110,7 +109,7 @@ def case(name, prof, kinds):
             if done:
                 break
         if run == 0:
-            used = fit_used
+            used = gc.mem_alloc() - m0
         gc.enable()
         status = pipe.optimiser.status
         if run == 0 or total < total_best:
