@@ -152,24 +152,26 @@ def format_chip(m: dict) -> str:
         cp_mp = f"{cp / mp:.2f}x" if mp and cp is not None else "-"
         lines.append(f"{name:<44}{_cell(unix, unit):>12}{cycles:>15}{_cell(mp, unit):>13}{ratio:>7}"
                      f"{_cell(cp, unit):>15}{cp_mp:>7}")
+    def line(label: str, value: str) -> None:
+        lines.append(f"{label:<43} {value}")
+
     for fw, label in ((MP, "MicroPython"), (CP, "CircuitPython")):
         if fw + "heap_total_bytes" in m:
-            lines.append(f"{label + ' heap: total / free before the app / with App(four effects)':<44}"
-                         f"{m[fw + 'heap_total_bytes']:>12,} / {m[fw + 'heap_free_before_app_bytes']:,} / "
-                         f"{m[fw + 'heap_free_app_largest_bytes']:,} bytes")
+            line(f"{label} heap: total / free before the app / with App(four effects)",
+                 f"{m[fw + 'heap_total_bytes']:,} / {m[fw + 'heap_free_before_app_bytes']:,} / "
+                 f"{m[fw + 'heap_free_app_largest_bytes']:,} bytes")
         alloc = [f"{n} {m[fw + f'fit_{n}_bytes']}" for n in FIT_CASES if fw + f"fit_{n}_bytes" in m]
         if alloc:
-            lines.append(f"{'bytes a fit allocates, ' + label:<44}{', '.join(alloc)}")
+            line(f"bytes a fit allocates, {label}", ", ".join(alloc))
     if MP + "rest_heap_locked_ok" in m:
-        lines.append(f"{'rest detectors allocate nothing (heap_lock)':<44}{m[MP + 'rest_heap_locked_ok']}")
+        line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:
-        lines.append(f"{'CircuitPython heap: free after import acal.app / with Processor(four effects)':<44}"
-                     f"{m[CP + 'free_after_import_app_bytes']:>12,} / "
-                     f"{m[CP + 'free_with_processor_largest_bytes']:,} bytes")
-        lines.append(f"{'CircuitPython, default fit (72 points): status / slices':<44}"
-                     f"{m[CP + 'default_fit_status']} / {m[CP + 'default_fit_slices']}")
-        lines.append(f"{'CircuitPython, bytes per sample and fit slice':<44}"
-                     f"{m[CP + 'bytes_per_sample_and_fit']} (gc.disable(), gc.mem_alloc())")
+        line("CircuitPython heap: free after import acal.app / with Processor(four effects)",
+             f"{m[CP + 'free_after_import_app_bytes']:,} / {m[CP + 'free_with_processor_largest_bytes']:,} bytes")
+        line("CircuitPython, default fit (72 points): status / slices",
+             f"{m[CP + 'default_fit_status']} / {m[CP + 'default_fit_slices']}")
+        line("CircuitPython, bytes per sample and fit slice",
+             f"{m[CP + 'bytes_per_sample_and_fit']} (gc.disable(), gc.mem_alloc())")
     if "circuitpython" in m:
-        lines.append(f"CircuitPython: {m['circuitpython']}")
+        line("CircuitPython", m["circuitpython"])
     return "\n".join(lines)
