@@ -98,7 +98,8 @@ def add_parsers(sub) -> None:
                         "slice, import time, free heap) beside the unix port's, with their ratios "
                         "(a few minutes more), and CircuitPython's (Feather RP2040 firmware) beside "
                         "them, or a line saying why not; its fit figures replace the estimates; "
-                        "circuitpython: the chip's figures on CircuitPython only")
+                        "circuitpython: the chip's figures on CircuitPython only (MicroPython's "
+                        "RP2040 figures stay the unix x 70 estimates)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_bench)
 

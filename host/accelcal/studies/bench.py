@@ -250,11 +250,11 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     chip = ""
     if chips:
         from accelcal.studies import bench_chip, bench_circuitpython
-        # the unix × 70 estimates, replaced by what the chip measures (the app's acquisition
-        # by its parts: Processor per sample, apply, log; the I2C reads await the LIS3DH model)
-        m = {k: v for k, v in m.items() if not k.startswith(("rp2040_fit_", "rp2040_us_per_sample",
-                                                              "rp2040_core_share"))}
         if rp2040.MICROPYTHON in chips:
+            # the unix × 70 estimates, replaced by what the chip measures (the app's acquisition
+            # by its parts: Processor per sample, apply, log; the I2C reads await the LIS3DH model)
+            m = {k: v for k, v in m.items() if not k.startswith(("rp2040_fit_", "rp2040_us_per_sample",
+                                                                  "rp2040_core_share"))}
             print("measuring on the emulated RP2040, MicroPython (a few minutes)...", file=sys.stderr)
             m.update(bench_chip.measure_chip(pts))
         else:
