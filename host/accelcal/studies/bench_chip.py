@@ -6,8 +6,11 @@ with time.ticks_us(), which on the chip follows the emulated clock: emulated µs
 125 (125 MHz).  The emulator models no XIP cache misses nor flash erase/program time (the boot
 ROM's flash routines are done by the runner at no cost), so these are lower bounds for a Pico.
 
-Keys (JSON): rp2040_emulated_* in emulated µs or ms; unix_* the unix port's, where bench.py's
-own keys do not already carry it."""
+The paths and fits scripts run on CircuitPython too (bench_circuitpython.py: its clock where
+ticks_us is missing), so the table puts CircuitPython's column beside MicroPython's.
+
+Keys (JSON): rp2040_emulated_* (MicroPython) and circuitpython_emulated_* in emulated µs or ms;
+unix_* the unix port's, where bench.py's own keys do not already carry it."""
 from __future__ import annotations
 
 import tempfile
