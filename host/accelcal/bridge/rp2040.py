@@ -81,7 +81,8 @@ def firmware_files(fw: Firmware) -> tuple[Path, Path]:
     folder = _root() / "firmware" / fw.folder
     uf2 = folder / fw.image
     rom = _root() / "firmware" / "micropython-rp2040" / "bootrom_b1.bin"
-    for f in (uf2, rom):
+    compiler = [folder / fw.compiler] if fw.compiler else []   # its .mpy need it
+    for f in (uf2, rom, *compiler):
         if not f.exists():
             raise InputError(f"{f} is missing: the checkout is incomplete")
     return uf2, rom

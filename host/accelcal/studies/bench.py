@@ -50,6 +50,7 @@ import numpy as np
 from acal.bins import Bins
 from acal.optimiser import Optimiser
 from accelcal.bridge import runtime
+from accelcal.errors import InputError
 from accelcal import simulate
 from accelcal.fixedpoint import g_to_point
 from accelcal.bridge.ranges import Tracer, traced, traced_optimiser, viper_casts
@@ -209,15 +210,36 @@ def _fit_rows(runs, suffix) -> dict:
     return res
 
 
+def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
+    """The firmwares the emulated chip is measured under, their flash images made (a missing
+    emulator is one line before minutes of unix work), and why CircuitPython is not among them
+    beside MicroPython (said in one line; the bench goes on) or None."""
+    from accelcal.bridge import rp2040
+    wanted = {"micropython": (), "rp2040": (rp2040.MICROPYTHON, rp2040.CIRCUITPYTHON),
+              "circuitpython": (rp2040.CIRCUITPYTHON,)}[runtime_name]
+    chips, missing = [], None
+    for fw in wanted:
+        try:
+            rp2040.check(fw)
+            rp2040.flash_image(fw)
+        except InputError as e:
+            if fw is rp2040.MICROPYTHON or runtime_name == "circuitpython":
+                raise
+            missing = f"not measured: {e}"
+            print(f"CircuitPython {missing}", file=sys.stderr)
+            continue
+        chips.append(fw)
+    return chips, missing
+
+
 def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> int:
-    """runtime_name: micropython (the unix port, the 32-bit port, CPython) or rp2040 (those and
-    the emulated RP2040: bench_chip.py; its measured figures replace the unix × 70 estimates of
-    the fits)."""
+    """runtime_name: micropython (the unix port, the 32-bit port, CPython), rp2040 (those and the
+    emulated RP2040 under MicroPython and, where its firmware is here, CircuitPython:
+    bench_chip.py, bench_circuitpython.py; the chip's fit figures replace the unix × 70
+    estimates) or circuitpython (those and CircuitPython's alone)."""
+    from accelcal.bridge import rp2040
     pts = bench_points()
-    if runtime_name == "rp2040":   # a missing emulator is one line before minutes of unix work
-        from accelcal.bridge import rp2040
-        rp2040.check()
-        rp2040.flash_image()
+    chips, cp_missing = chip_firmwares(runtime_name)
     print("measuring (MicroPython unix port and CPython)...", file=sys.stderr)
     m = measure(pts)
     print("timing the fit's slices...", file=sys.stderr)
@@ -226,19 +248,27 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     with tempfile.TemporaryDirectory() as tmp:
         m.update(measure_app(Path(tmp)))
     chip = ""
-    if runtime_name == "rp2040":
-        from accelcal.studies import bench_chip
-        print("measuring on the emulated RP2040 (a few minutes)...", file=sys.stderr)
-        # the unix × 70 estimates, replaced by what the chip measures (the app's acquisition
-        # by its parts: Processor per sample, apply, log; the I2C reads await the LIS3DH model)
-        m = {k: v for k, v in m.items() if not k.startswith(("rp2040_fit_", "rp2040_us_per_sample",
-                                                              "rp2040_core_share"))}
-        m.update(bench_chip.measure_chip(pts))
-        # the board's always-on work per sample: the app after acquisition (rest detection, bins,
-        # its log records) and the apply of a base calibration
-        m["rp2040_emulated_app_and_apply_us_per_sample"] = (
-            m["rp2040_emulated_processor_us_per_sample"]
-            + m["rp2040_emulated_apply_base_us_per_sample"])
+    if chips:
+        from accelcal.studies import bench_chip, bench_circuitpython
+        if rp2040.MICROPYTHON in chips:
+            # the unix × 70 estimates, replaced by what the chip measures (the app's acquisition
+            # by its parts: Processor per sample, apply, log; the I2C reads await the LIS3DH model)
+            m = {k: v for k, v in m.items() if not k.startswith(("rp2040_fit_", "rp2040_us_per_sample",
+                                                                  "rp2040_core_share"))}
+            print("measuring on the emulated RP2040, MicroPython (a few minutes)...", file=sys.stderr)
+            m.update(bench_chip.measure_chip(pts))
+            # the board's always-on work per sample: the app after acquisition (rest detection,
+            # bins, its log records) and the apply of a base calibration
+            m["rp2040_emulated_app_and_apply_us_per_sample"] = (
+                m["rp2040_emulated_processor_us_per_sample"]
+                + m["rp2040_emulated_apply_base_us_per_sample"])
+        else:
+            m.update(bench_chip.unix_figures())
+        if rp2040.CIRCUITPYTHON in chips:
+            print("measuring on the emulated RP2040, CircuitPython (a few minutes)...", file=sys.stderr)
+            m.update(bench_circuitpython.measure())
+        if cp_missing:
+            m["circuitpython"] = cp_missing
         chip = bench_chip.format_chip(m)
     if as_json:
         print(json.dumps(m))

@@ -6,8 +6,11 @@ with time.ticks_us(), which on the chip follows the emulated clock: emulated µs
 125 (125 MHz).  The emulator models no XIP cache misses nor flash erase/program time (the boot
 ROM's flash routines are done by the runner at no cost), so these are lower bounds for a Pico.
 
-Keys (JSON): rp2040_emulated_* in emulated µs or ms; unix_* the unix port's, where bench.py's
-own keys do not already carry it."""
+The paths and fits scripts run on CircuitPython too (bench_circuitpython.py: its clock where
+ticks_us is missing), so the table puts CircuitPython's column beside MicroPython's.
+
+Keys (JSON): rp2040_emulated_* (MicroPython) and circuitpython_emulated_* in emulated µs or ms;
+unix_* the unix port's, where bench.py's own keys do not already carry it."""
 from __future__ import annotations
 
 import tempfile
@@ -24,8 +27,9 @@ def _kv(out: str) -> dict:
     return {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.strip())}
 
 
-def _on_chip(name: str, call: str) -> str:
-    return rp2040.run_script(Path(mp_script(name)).read_text() + "\n" + call + "\n").out
+def _on_chip(name: str, call: str, fw: rp2040.Firmware = rp2040.MICROPYTHON, prefix: str = "") -> str:
+    code = prefix + Path(mp_script(name)).read_text() + "\n" + call + "\n"
+    return rp2040.run_script(code, fw=fw).out
 
 
 def _unix_paths() -> dict:
@@ -42,94 +46,135 @@ def _unix_paths() -> dict:
                                                   device_path=str(pkg.parent)))
 
 
+def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
+    """mp_paths_bench.py and mp_fit_bench.py on the chip running fw, keys prefixed e (prefix:
+    code run first)."""
+    paths = _kv(_on_chip("mp_paths_bench.py", "main('/', 1)", fw, prefix))
+    res = {
+        e + "import_app_ms": paths["import_app_us"] / 1000,
+        e + "apply_base_us_per_sample": paths["apply_base_us_per_1000"] / 1000,
+        e + "apply_largest_us_per_sample": paths["apply_largest_us_per_1000"] / 1000,
+        e + "log_rest_ms_per_record": paths["log_rest_us_per_1000"] / 1e6,
+        e + "processor_us_per_sample": paths["processor_us_per_1000"] / 1000,
+        e + "heap_total_bytes": paths["heap_total"],
+        e + "heap_free_before_app_bytes": paths["heap_free_before_app"],
+        e + "heap_free_app_largest_bytes": paths["heap_free_app_largest"],
+    }
+    for line in _on_chip("mp_fit_bench.py", "", fw, prefix).splitlines():
+        if not line.strip():
+            continue
+        name, slices, worst, total, status, used = line.split()
+        res[e + f"fit_{name}_slices"] = int(slices)
+        res[e + f"fit_{name}_total_ms"] = int(total) / 1000
+        res[e + f"fit_{name}_worst_slice_ms"] = int(worst) / 1000
+        res[e + f"fit_{name}_status"] = int(status)
+        if int(used) >= 0:
+            res[e + f"fit_{name}_bytes"] = int(used)
+    return res
+
+
 def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
     """The chip's figures and the unix port's for those bench.py does not measure."""
     chip = _kv(_on_chip("mp_bench.py", f"main({pts!r}, {n_samples}, 1)"))
-    paths = _kv(_on_chip("mp_paths_bench.py", "main('/', 1)"))
-    unix_paths = _unix_paths()
-    fits = {}
-    for line in _on_chip("mp_fit_bench.py", "").splitlines():
-        if line.strip():
-            name, slices, worst, total, status, used = line.split()
-            fits[name] = (int(slices), int(worst), int(total), int(status), int(used))
+    e = "rp2040_emulated_"
     res = {
-        "rp2040_emulated_optimiser_ms": chip["optimiser_us"] / 1000,
-        "rp2040_emulated_bare_us_per_sample": chip["bare_us"] / n_samples,
-        "rp2040_emulated_rest_us_per_sample": chip["rest_us"] / n_samples,
-        "rp2040_emulated_rest_wear_us_per_sample": chip["rest_wear_us"] / n_samples,
-        "rp2040_emulated_rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"]
-                                                    and chip["rest_wear_heap_locked_ok"]),
-        "rp2040_emulated_import_app_ms": paths["import_app_us"] / 1000,
-        "rp2040_emulated_apply_base_us_per_sample": paths["apply_base_us_per_1000"] / 1000,
-        "rp2040_emulated_apply_largest_us_per_sample": paths["apply_largest_us_per_1000"] / 1000,
-        "rp2040_emulated_log_rest_ms_per_record": paths["log_rest_us_per_1000"] / 1e6,
-        "rp2040_emulated_processor_us_per_sample": paths["processor_us_per_1000"] / 1000,
-        "rp2040_emulated_heap_total_bytes": paths["heap_total"],
-        "rp2040_emulated_heap_free_before_app_bytes": paths["heap_free_before_app"],
-        "rp2040_emulated_heap_free_app_largest_bytes": paths["heap_free_app_largest"],
+        e + "optimiser_ms": chip["optimiser_us"] / 1000,
+        e + "bare_us_per_sample": chip["bare_us"] / n_samples,
+        e + "rest_us_per_sample": chip["rest_us"] / n_samples,
+        e + "rest_wear_us_per_sample": chip["rest_wear_us"] / n_samples,
+        e + "rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"] and chip["rest_wear_heap_locked_ok"]),
+        **paths_and_fits(rp2040.MICROPYTHON, e),
+    }
+    res.update(unix_figures())
+    return res
+
+
+def unix_figures() -> dict:
+    """The unix port's figures for the paths the chip's table shows that bench.py does not measure."""
+    unix_paths = _unix_paths()
+    return {
         "unix_import_app_mpy_ms": unix_paths["import_app_us"] / 1000,
         "unix_apply_base_us_per_sample": unix_paths["apply_base_us_per_1000"] / 1000,
         "unix_apply_largest_us_per_sample": unix_paths["apply_largest_us_per_1000"] / 1000,
         "unix_log_rest_ms_per_record": unix_paths["log_rest_us_per_1000"] / 1e6,
         "unix_processor_us_per_sample": unix_paths["processor_us_per_1000"] / 1000,
     }
-    for name, (slices, worst, total, status, used) in fits.items():
-        res[f"rp2040_emulated_fit_{name}_slices"] = slices
-        res[f"rp2040_emulated_fit_{name}_total_ms"] = total / 1000
-        res[f"rp2040_emulated_fit_{name}_worst_slice_ms"] = worst / 1000
-        res[f"rp2040_emulated_fit_{name}_status"] = status
-        if used >= 0:
-            res[f"rp2040_emulated_fit_{name}_bytes"] = used
-    return res
 
 
-def rows(m: dict) -> list[tuple[str, float | None, float, str]]:
-    """(figure, unix port, RP2040 emulated, unit) for the side-by-side table; times in the unit
-    named, the unix port's None where it has no counterpart."""
-    e = "rp2040_emulated_"
-    out = [
-        ("bare loop, per sample", m["bare_ns_per_sample_micropython"] / 1000,
-         m[e + "bare_us_per_sample"], "us"),
-        ("rest detector, paper profile, per sample", m["rest_ns_per_sample_micropython"] / 1000,
-         m[e + "rest_us_per_sample"], "us"),
-        ("rest detector, wear profile, per sample", m["rest_wear_ns_per_sample_micropython"] / 1000,
-         m[e + "rest_wear_us_per_sample"], "us"),
-        ("apply, base, per sample", m["unix_apply_base_us_per_sample"],
-         m[e + "apply_base_us_per_sample"], "us"),
-        ("apply, four effects, per sample", m["unix_apply_largest_us_per_sample"],
-         m[e + "apply_largest_us_per_sample"], "us"),
-        ("log append (rest record, flushed)", m["unix_log_rest_ms_per_record"],
-         m[e + "log_rest_ms_per_record"], "ms"),
-        ("app after acquisition, per sample", m["unix_processor_us_per_sample"],
-         m[e + "processor_us_per_sample"], "us"),
-        ("paper optimiser N=18 M=50", m["optimiser_ms_micropython"], m[e + "optimiser_ms"], "ms"),
+MP, CP = "rp2040_emulated_", "circuitpython_emulated_"   # the chip's keys under each firmware
+
+
+def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, str]]:
+    """(figure, unix port, MicroPython on the chip, CircuitPython on the chip, unit) for the
+    side-by-side table; times in the unit named, None where a runtime has no figure."""
+    def on(fw: str, key: str) -> float | None:
+        return m.get(fw + key)
+
+    def us(ns: float | None) -> float | None:
+        return None if ns is None else ns / 1000
+
+    paths = [
+        ("bare loop, per sample", us(m.get("bare_ns_per_sample_micropython")), "bare_us_per_sample", "us"),
+        ("rest detector, paper profile, per sample", us(m.get("rest_ns_per_sample_micropython")),
+         "rest_us_per_sample", "us"),
+        ("rest detector, wear profile, per sample", us(m.get("rest_wear_ns_per_sample_micropython")),
+         "rest_wear_us_per_sample", "us"),
+        ("apply, base, per sample", m.get("unix_apply_base_us_per_sample"), "apply_base_us_per_sample", "us"),
+        ("apply, four effects, per sample", m.get("unix_apply_largest_us_per_sample"),
+         "apply_largest_us_per_sample", "us"),
+        ("log append (rest record, flushed)", m.get("unix_log_rest_ms_per_record"),
+         "log_rest_ms_per_record", "ms"),
+        ("app after acquisition, per sample", m.get("unix_processor_us_per_sample"),
+         "processor_us_per_sample", "us"),
+        ("paper optimiser N=18 M=50", m.get("optimiser_ms_micropython"), "optimiser_ms", "ms"),
     ]
     for name in FIT_CASES:
-        if e + f"fit_{name}_total_ms" not in m:
-            continue
-        out.append((f"fit {name}, whole", m.get(f"fit_{name}_total_ms_unix"),
-                    m[e + f"fit_{name}_total_ms"], "ms"))
         worst = m.get(f"fit_{name}_worst_slice_us_unix")
-        out.append((f"fit {name}, worst slice", None if worst is None else worst / 1000,
-                    m[e + f"fit_{name}_worst_slice_ms"], "ms"))
-    out.append(("import acal.app (.mpy)", m["unix_import_app_mpy_ms"], m[e + "import_app_ms"], "ms"))
-    return out
+        paths += [(f"fit {name}, whole", m.get(f"fit_{name}_total_ms_unix"), f"fit_{name}_total_ms", "ms"),
+                  (f"fit {name}, worst slice", None if worst is None else worst / 1000,
+                   f"fit_{name}_worst_slice_ms", "ms")]
+    paths.append(("import acal.app (.mpy)", m.get("unix_import_app_mpy_ms"), "import_app_ms", "ms"))
+    return [(name, unix, on(MP, key), on(CP, key), unit) for name, unix, key, unit in paths
+            if on(MP, key) is not None or on(CP, key) is not None]
+
+
+def _cell(v: float | None, unit: str) -> str:
+    return "-" if v is None else f"{v:.4g} {unit}"
 
 
 def format_chip(m: dict) -> str:
-    e = "rp2040_emulated_"
-    lines = ["", "emulated RP2040 (MicroPython RPI_PICO firmware on rp2040js, 125 MHz; lower bounds: "
-             "no XIP cache misses, no flash erase/program time), beside the unix port, one run:",
-             f"{'figure':<44}{'unix port':>12}{'RP2040 cycles':>15}{'RP2040':>12}{'ratio':>9}"]
-    for name, unix, chip, unit in rows(m):
-        us = chip * (1000 if unit == "ms" else 1)
-        u = f"{unix:.4g} {unit}" if unix is not None else "-"
-        ratio = f"{chip / unix:.0f}x" if unix else "-"
-        lines.append(f"{name:<44}{u:>12}{round(us * rp2040.HZ / 1e6):>15,}{chip:>9.4g} {unit}{ratio:>9}")
-    lines.append(f"{'heap: total / free before the app / free with App(' + 'four effects)':<44}"
-                 f"{m[e + 'heap_total_bytes']:>12,} / {m[e + 'heap_free_before_app_bytes']:,} / "
-                 f"{m[e + 'heap_free_app_largest_bytes']:,} bytes")
-    alloc = [f"{n} {m[e + f'fit_{n}_bytes']}" for n in FIT_CASES if e + f"fit_{n}_bytes" in m]
-    lines.append(f"{'bytes a fit allocates (32-bit firmware)':<44}{', '.join(alloc)}")
-    lines.append(f"{'rest detectors allocate nothing (heap_lock)':<44}{m[e + 'rest_heap_locked_ok']}")
+    """The chip's table: MicroPython's figures (cycles too) and CircuitPython's where measured,
+    beside the unix port's, with their ratios; then heap and allocation."""
+    lines = ["", "emulated RP2040 (125 MHz; lower bounds: no XIP cache misses, no flash erase/program "
+             "time): MicroPython RPI_PICO, CircuitPython Feather RP2040, beside the unix port, one run:",
+             f"{'figure':<44}{'unix port':>12}{'MP cycles':>15}{'MicroPython':>13}{'ratio':>7}"
+             f"{'CircuitPython':>15}{'CP/MP':>7}"]
+    for name, unix, mp, cp, unit in rows(m):
+        cycles = "-" if mp is None else f"{round(mp * (1000 if unit == 'ms' else 1) * rp2040.HZ / 1e6):,}"
+        ratio = f"{mp / unix:.0f}x" if unix and mp is not None else "-"
+        cp_mp = f"{cp / mp:.2f}x" if mp and cp is not None else "-"
+        lines.append(f"{name:<44}{_cell(unix, unit):>12}{cycles:>15}{_cell(mp, unit):>13}{ratio:>7}"
+                     f"{_cell(cp, unit):>15}{cp_mp:>7}")
+    def line(label: str, value: str) -> None:
+        lines.append(f"{label:<43} {value}")
+
+    for fw, label in ((MP, "MicroPython"), (CP, "CircuitPython")):
+        if fw + "heap_total_bytes" in m:
+            line(f"{label} heap: total / free before the app / with App(four effects)",
+                 f"{m[fw + 'heap_total_bytes']:,} / {m[fw + 'heap_free_before_app_bytes']:,} / "
+                 f"{m[fw + 'heap_free_app_largest_bytes']:,} bytes")
+        alloc = [f"{n} {m[fw + f'fit_{n}_bytes']}" for n in FIT_CASES if fw + f"fit_{n}_bytes" in m]
+        if alloc:
+            line(f"bytes a fit allocates, {label}", ", ".join(alloc))
+    if MP + "rest_heap_locked_ok" in m:
+        line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
+    if CP + "bytes_per_sample_and_fit" in m:
+        line("CircuitPython heap: free after import acal.app / with Processor(four effects)",
+             f"{m[CP + 'free_after_import_app_bytes']:,} / {m[CP + 'free_with_processor_largest_bytes']:,} bytes")
+        line("CircuitPython, default fit (72 points): status / slices",
+             f"{m[CP + 'default_fit_status']} / {m[CP + 'default_fit_slices']}")
+        line("CircuitPython, bytes per sample and fit slice",
+             f"{m[CP + 'bytes_per_sample_and_fit']} (gc.disable(), gc.mem_alloc())")
+    if "circuitpython" in m:
+        line("CircuitPython", m["circuitpython"])
     return "\n".join(lines)

@@ -1,16 +1,20 @@
-"""CircuitPython's figures for `accelcal bench`: bridge/scripts/cp_bench.py on Adafruit
-CircuitPython 10.2.1 for the Feather RP2040, booted on the emulated RP2040 (bridge/rp2040.py), the
+"""CircuitPython's figures for `accelcal bench --runtime rp2040|circuitpython`: Adafruit
+CircuitPython 10.2.1 for the Feather RP2040 booted on the emulated RP2040 (bridge/rp2040.py), the
 package installed as CircuitPython .mpy.  Measured, not estimated: emulated time at 125 MHz (no
-XIP cache misses modelled: a lower bound for a real board).
+XIP cache misses modelled: a lower bound for a real board).  Keys circuitpython_emulated_*, the
+chip table's CircuitPython column (bench_chip.py):
 
-rest_*_ns_per_sample: a rest detector per sample (paper: one axis; wear: every axis with the noise
-gauge), 1000 samples; fit_wear_*: the wear profile's Gauss-Newton fit (72 points with rejection),
-slice by slice as the app runs it (worst slice) and in one go (whole); import_app_ms: `import
-acal.app` from .mpy after a soft reset; free_*: gc.mem_free() after a collection: after the
-import, and with a Processor (the app's pipeline, bins, calibration) of each of the largest models
-(four effects); bytes_*: allocated with the collector off (CircuitPython has no heap_lock), per
-path over the whole stream / fit: 0 where nothing is allocated (bytes_control_list shows the
-counting sees an allocation)."""
+From bridge/scripts/cp_bench.py (run(), cp_figures()): rest_*us_per_sample, a rest detector per
+sample (paper: one axis; wear: every axis with the noise gauge), 1000 samples; default_fit_*, the
+wear profile's Gauss-Newton fit of 72 points with two outliers, slice by slice as the app runs it
+(status, iterations, rejected, slices, bytes in its worst slice); free_after_import_app_bytes and
+free_with_processor_largest_bytes, gc.mem_free() after a collection, after `import acal.app` and
+with a Processor (the app's pipeline, bins, calibration) of the larger of the largest models (four
+effects); bytes_per_sample_and_fit, allocated with the collector off (CircuitPython has no
+heap_lock) over the detectors' stream, the apply at every full scale and the fit: 0 where nothing
+is allocated (bytes_control_list shows the counting sees an allocation).
+From MicroPython's chip scripts run there (mp_paths_bench.py, mp_fit_bench.py: bench_chip.
+paths_and_fits): the same keys as rp2040_emulated_*'s, so each sits beside MicroPython's."""
 from __future__ import annotations
 
 import numpy as np
@@ -18,6 +22,7 @@ import numpy as np
 from accelcal import simulate
 from accelcal.bridge import rp2040
 from accelcal.locations import script
+from accelcal.studies import bench_chip
 
 FIT_POINTS = 72
 TRUTH = (1.03, 0.98, 1.01, 0.02, -0.01, 0.015, 0.05, -0.03, 0.04)
@@ -53,19 +58,40 @@ def run(points: list[int] | None = None, whole: bool = True) -> dict:
     return res
 
 
-def measure() -> dict:
-    """The figures `accelcal bench` prints for CircuitPython (keys prefixed circuitpython_)."""
-    r = run()
+# CircuitPython's drive is read-only to code until remounted (a board does it in boot.py): the
+# paths' log appends write a file
+REMOUNT = "import storage\nstorage.remount('/', readonly=False)\n"
+
+
+def cp_figures(r: dict) -> dict:
+    """cp_bench.py's results (run()) as the bench's keys: per-sample rest detectors, free heap,
+    the default fit's status and the bytes allocated per sample and fit slice."""
+    e = bench_chip.CP
     free_models = [v for k, v in r.items() if k.startswith("free_with_processor_")]
-    return {
-        "circuitpython_rest_paper_ns_per_sample": r["rest_paper_ns_per_sample"],
-        "circuitpython_rest_wear_ns_per_sample": r["rest_wear_ns_per_sample"],
-        "circuitpython_fit_wear_worst_slice_ms": r["fit_wear_worst_slice_us"] / 1000.0,
-        "circuitpython_fit_wear_whole_ms": r["fit_wear_whole_ms"],
-        "circuitpython_fit_wear_slices": r["fit_wear_slices"],
-        "circuitpython_import_app_ms": r["import_app_ms"],
-        "circuitpython_free_after_import_app": r["free_after_import_app"],
-        "circuitpython_free_with_largest_model": min(free_models),
-        "circuitpython_bytes_per_sample_and_fit": sum(v for k, v in r.items()
-                                                      if k.startswith("bytes_") and k != "bytes_control_list"),
+    status, iterations, rejected = map(int, r["fit_wear_status"].split())
+    res = {
+        e + "rest_us_per_sample": r["rest_paper_ns_per_sample"] / 1000,
+        e + "rest_wear_us_per_sample": r["rest_wear_ns_per_sample"] / 1000,
+        e + "default_fit_status": status,
+        e + "default_fit_iterations": iterations,
+        e + "default_fit_rejected": rejected,
+        e + "default_fit_slices": r["fit_wear_slices"],
+        e + "default_fit_worst_slice_bytes": r["bytes_fit_worst_slice"],
+        e + "free_after_import_app_bytes": r["free_after_import_app"],
+        e + "free_with_processor_largest_bytes": min(free_models),
+        e + "bytes_per_sample_and_fit": sum(v for k, v in r.items()
+                                            if k.startswith("bytes_") and k != "bytes_control_list"),
+        e + "bytes_control_list": r["bytes_control_list"],
     }
+    if "fit_wear_whole_ms" in r:
+        res[e + "default_fit_whole_ms"] = r["fit_wear_whole_ms"]
+    return res
+
+
+def measure() -> dict:
+    """The figures `accelcal bench` prints for CircuitPython (keys circuitpython_emulated_*):
+    cp_bench.py's, and the MicroPython chip's scripts (mp_paths_bench.py, mp_fit_bench.py) on
+    CircuitPython, so that each path and fit sits beside MicroPython's."""
+    res = cp_figures(run(whole=False))
+    res.update(bench_chip.paths_and_fits(rp2040.CIRCUITPYTHON, bench_chip.CP, REMOUNT))
+    return res
