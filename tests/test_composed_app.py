@@ -126,7 +126,7 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
 
 APPLY_SCRIPT = r'''
 from acal import effects
-from acal.model import Calibration
+from acal.calibration import Calibration
 buf = [rnd(2097) for _ in range(3 * 1000)]
 # the first effects; then a step and two generic offsets (time^4, temperature^4)
 for m, kinds in enumerate(((1, 3, 4), (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4))):

@@ -95,11 +95,11 @@ def test_micropython_gives_the_same_integers(tmp_path, mp):
 
 
 def test_apply_stays_small_in_every_composition_and_order():
-    """The per-sample apply of a composed model (model.Calibration) at the worst case: every
+    """The per-sample apply of a composed model (calibration.Calibration) at the worst case: every
     set of effects in every order (conftest.effect_orders), parameters at the corners of their bounds and of the
     calibration bounds, readings at full scale (+-2.048 g), dT and dt at and past their clamps
     (a drift removed over years, then temp_scale multiplying what is left): below 2**30."""
-    from acal.model import Calibration
+    from acal.calibration import Calibration
     tr = Tracer()
     T = traced(tr)
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g

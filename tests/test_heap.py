@@ -103,7 +103,7 @@ def test_heap_lock_does_detect_allocation(tmp_path):
 
 PER_SAMPLE_32 = STREAM + r'''
 from acal.rest import RestDetector, ALL_AXES, AUTO
-from acal.model import Calibration
+from acal.calibration import Calibration
 
 N = 6000
 buf = stream(N, 900)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from acal import fixed
-from acal.model import Calibration
+from acal.calibration import Calibration
 from acal.optimiser import Optimiser
-from acal import model, objective, rest
+from acal import calibration, model, objective, rest
 from acal.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import (SMALL_INT_LIMIT, TracedArray, Tracer, traced,
                                      traced_optimiser, viper_casts)
@@ -87,14 +87,14 @@ def test_apply_worst_case_at_every_range(range_g):
                     for z in (lo, hi):
                         cal.apply(T(x), T(y), T(z))
                         one = [cal.x, cal.y, cal.z]
-                        # the block form (model._apply_block: viper on the boards, so every
+                        # the block form (calibration._apply_block: viper on the boards, so every
                         # value it makes is traced; int() is viper's cast, passed through)
                         buf = [T(x), T(y), T(z)]
-                        model.int = lambda v: v
+                        calibration.int = lambda v: v
                         try:
                             cal.apply_samples(buf, 0, 1)
                         finally:
-                            del model.int
+                            del calibration.int
                         assert buf == one
         assert tr.ops > 0
         assert tr.max_abs < SMALL_INT_LIMIT, (range_g, p)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from acal.model import Calibration
+from acal.calibration import Calibration
 from acal.rest import RestDetector
 from accelcal.bridge import twin
 from conftest import run_cli

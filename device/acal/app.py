@@ -13,7 +13,8 @@ from array import array
 from acal import effects, log
 from acal import profile as profiles
 from acal.fixed import N_PARAMS, POINT_ONE_G
-from acal.model import Calibration, in_bounds, effects_within
+from acal.calibration import Calibration
+from acal.model import in_bounds, effects_within
 from acal.status import usable
 from acal.pipeline import Pipeline
 

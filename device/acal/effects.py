@@ -23,7 +23,7 @@
 #   that each is of the size of an offset and takes the offsets' learning rate.
 #     c: (c * dT) >> 4;  e: (e * dT^2) >> 6;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;
 #     q: (q * ((u*u) >> 24)) >> 24
-#   Apply (per sample, Q14 g readings, model.Calibration): c, e and d in Q14 (param >> 10), s and q
+#   Apply (per sample, Q14 g readings, calibration.Calibration): c, e and d in Q14 (param >> 10), s and q
 #   in Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days;
 #   both clamped)
 #   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).

@@ -70,7 +70,7 @@ ALPHA_MISALIGN = const(8)
 ALPHA_OFFSET = const(2)
 
 # Calibration bounds.  A result must lie inside them; a calibration inside them keeps the
-# per-sample apply below 2**30 at +-2 g (model.Calibration).  They hold every real LIS3DH
+# per-sample apply below 2**30 at +-2 g (calibration.Calibration).  They hold every real LIS3DH
 # (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
 K_DIAG_MIN = const(12582912)   # 0.75
 K_DIAG_MAX = const(20971520)   # 1.25

@@ -1,7 +1,7 @@
 """The vectorised numpy twin of the device's per-sample stages, for files of weeks at 100 Hz.
 
 Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
-max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.model.Calibration.apply_samples for
+max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.calibration.Calibration.apply_samples for
 the paper's model, on int64 arrays, tied to those modules by bit-exact tests
 (tests/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
 means go to the device's own Pipeline.offer in stream order.

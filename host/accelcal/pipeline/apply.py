@@ -1,5 +1,5 @@
 """`accelcal apply`: saved parameters applied to every sample of a recording with the device's
-per-sample code - its vectorised twin (bridge/twin.py, bit-exact with acal.model.Calibration) -
+per-sample code - its vectorised twin (bridge/twin.py, bit-exact with acal.calibration.Calibration) -
 or, for a model with an effect the device has no form for, the fit's own float correction."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 
 from acal import effects as deff
 from acal import fixed
-from acal.model import Calibration
+from acal.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
@@ -20,7 +20,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                      ref: dict | None = None, source: str = "recording", range_g: int = 2,
                      cols: dict | None = None) -> np.ndarray:
     """Calibrate samples with the vectorised twin of the device's per-sample code
-    (model.Calibration, bit-exact with it: tests/test_vector.py).  A composed
+    (calibration.Calibration, bit-exact with it: tests/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them as int degC and 64 s units from t0.  cols: the recording's further
     columns by name, for a model whose effects follow one (the board's supply_mv for the

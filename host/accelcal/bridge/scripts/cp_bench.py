@@ -16,7 +16,7 @@ _import_ns = time.monotonic_ns() - _t0
 from array import array  # noqa: E402
 from acal.app import Processor  # noqa: E402
 from acal.gaussnewton import GaussNewton  # noqa: E402
-from acal.model import Calibration  # noqa: E402
+from acal.calibration import Calibration  # noqa: E402
 from acal.rest import RestDetector, ALL_AXES, AUTO  # noqa: E402
 
 PTS = None

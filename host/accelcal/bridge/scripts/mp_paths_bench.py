@@ -115,7 +115,7 @@ def main(work, repeat):
     from acal import app
     print("import_app_us", us(t0))
     from acal import effects, log
-    from acal.model import Calibration
+    from acal.calibration import Calibration
     print("apply_base_us_per_1000", apply_us(Calibration(()), N_APPLY, repeat) * 1000 // N_APPLY)
     cal = Calibration(effects.parse_model(LARGEST))
     cal.temp = 5
