@@ -330,8 +330,8 @@ def test_the_sliced_fit_loses_no_sample_at_100_hz(tmp_path, rng, monkeypatch):
             return real_step(self)
         monkeypatch.setattr(pipeline.Pipeline, "fit_step", charged)
         if mode == "one go":
-            from acal import app as dapp
-            monkeypatch.setattr(dapp, "FIT_STEPS_PER_FEED", 1 << 20)
+            from acal import processor
+            monkeypatch.setattr(processor, "FIT_STEPS_PER_FEED", 1 << 20)
         d = tmp_path / mode.replace(" ", "_")
         d.mkdir()
         app = run_app(d, b, rate_hz=rate, fifo=True, recal_seconds=60)

@@ -220,63 +220,6 @@ def above(f1, t1, f2, t2):
 
 
 @viper
-def load_points(points, fit_points, n3: int, aux, fit_aux, naux: int, order, kept):
-    # A fit's points (int32 arrays, Q16 g) clamped to +-FIT_W_MAX and into Q24 (<< 8), naux of
-    # their conditions copied, each point's index (order) its own and kept (1): GaussNewton.
-    # begin's loops, viper on ports with emitters.
-    src = ptr32(points)
-    u = ptr32(fit_points)
-    index = ptr32(order)
-    keep = ptr32(kept)
-    i = 0
-    while i < n3 // 3:
-        index[i] = i
-        keep[i] = 1
-        i += 1
-    w = int(SIGN_SHIFT)
-    lim = int(FIT_W_MAX) >> 8
-    i = 0
-    while i < n3:
-        v = int(src[i]) << w >> w
-        if v > lim:
-            v = lim
-        elif v < 0 - lim:
-            v = 0 - lim
-        u[i] = v << 8
-        i += 1
-    if naux:
-        a = ptr32(aux)
-        b = ptr32(fit_aux)
-        i = 0
-        while i < naux:
-            b[i] = a[i]
-            i += 1
-
-
-@viper
-def clear_sums(sums, high, low, scales, n: int, w: int):
-    # A pass's sums zeroed (A's lower triangle, b's limbs) and each column's scale started one
-    # below the last pass's (when above 0): GaussNewton._accum_start's loops, viper on ports
-    # with emitters.
-    a = ptr32(sums)
-    b = ptr32(high)
-    bl = ptr32(low)
-    sh = ptr32(scales)
-    k = 0
-    while k < n:
-        j = 0
-        while j <= k:
-            a[k * n + j] = 0
-            j += 1
-        b[k] = 0
-        bl[k] = 0
-        s = int(sh[k]) << w >> w
-        if s:
-            sh[k] = s - 1
-        k += 1
-
-
-@viper
 def grow_columns(sums, high, low, grown, n: int, w: int):
     # Each column k whose scale grew by g = grown[k] bits: its row and column of A (sums, the
     # lower triangle; the diagonal twice) and its entry of b (high, low limbs) shift down, the
