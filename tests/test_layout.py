@@ -77,16 +77,20 @@ def test_no_import_circle():
 
 
 def test_modules_and_functions_stay_readable():
+    """Host and device modules alike; a device hot loop marked @viper may be longer than a
+    function should be: on the boards a call is ~10 us, so its steps are written out."""
     long_modules, long_functions = [], []
-    for p in HOST.rglob("*.py"):
+    device = sorted((ROOT / "device").rglob("*.py")) + sorted((ROOT / "boards").glob("*.py"))
+    for p in [*HOST.rglob("*.py"), *device]:
         text = p.read_text()
         if text.count("\n") > MAX_MODULE_LINES:
             long_modules.append(str(p.relative_to(ROOT)))
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
-                    node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                    node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES and \
+                    not any(getattr(d, "id", None) == "viper" for d in node.decorator_list):
                 long_functions.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}")
-    assert not long_modules and not long_functions
+    assert not long_modules and not long_functions, (long_modules, long_functions)
 
 
 # The orchestration rule (docs/command-line.md "Who does what"): cli/ parses and prints;
