@@ -94,3 +94,25 @@ def test_sign_extensions_are_the_ones_a_32_bit_build_may_drop():
         assert src.count(SIGN_EXTENSION) == emitted_source(src, "x64").count(SIGN_EXTENSION)
         found += covered
     assert found > 100
+
+
+def test_circuitpython_builds_drop_only_the_marked_functions_casts():
+    """CircuitPython's .mpy (no emitters) comes from plain_source: the viper casts and sign
+    extensions go, and only inside @viper functions (every other line as written; the line
+    numbers kept, so a traceback points into the one source)."""
+    from accelcal.bridge.rp2040 import plain_source
+    changed = 0
+    for f in FILES:
+        src = f.read_text()
+        out = plain_source(src)
+        ast.parse(out)
+        a, b = src.split("\n"), out.split("\n")
+        assert len(a) == len(b), f.name
+        spans = [(n.lineno, n.end_lineno) for n in ast.walk(ast.parse(src))
+                 if isinstance(n, ast.FunctionDef)
+                 and any(getattr(d, "id", None) == "viper" for d in n.decorator_list)]
+        for i, (x, y) in enumerate(zip(a, b)):
+            if x != y:
+                assert any(s <= i + 1 <= e for s, e in spans), (f.name, i + 1, x)
+                changed += 1
+    assert changed > 100

