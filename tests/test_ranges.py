@@ -10,11 +10,10 @@ import pytest
 
 from acal import fixed
 from acal.calibration import Calibration
-from acal.optimiser import Optimiser
-from acal import calibration, model, objective, rest
+from acal import calibration, objective, rest
 from acal.rest import ALL_AXES, RestDetector
-from accelcal.bridge.ranges import (SMALL_INT_LIMIT, TracedArray, Tracer, traced,
-                                     traced_optimiser, viper_casts)
+from accelcal.bridge.ranges import (SMALL_INT_LIMIT, Int32s, TracedArray, Tracer, traced,
+                                     traced_gauss_newton, traced_optimiser, viper_casts)
 from conftest import effect_orders
 
 # The LIS3DH at +-2 g: 12-bit (1 mg), 10-bit (4 mg) and 8-bit (16 mg) digits, all reaching
@@ -357,15 +356,10 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
     assert refused > 0   # the guard does refuse the worst-conditioned
 
 
-class _Int32s(list):
-    """A list of traced ints standing in for an int32 array (not a plain list)."""
-
-
 def test_default_fit_stays_small_on_hostile_points(rng):
     """The whole default fit, traced: 72 points with outliers at the clamp, points past it,
     a composed model of all four effects with dT and dt past their clamps."""
-    from acal import effects, gaussnewton, normal_sums
-    from acal.gaussnewton import GaussNewton
+    from acal import effects
     from accelcal import simulate
     d = rng.normal(size=(72, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
@@ -379,27 +373,9 @@ def test_default_fit_stays_small_on_hostile_points(rng):
     for k, a in (((), None), (specific, aux), (generic, aux)):
         tr = Tracer()
         T = traced(tr)
-        gn = GaussNewton(72, k)
-        gn.aux = [T(0)] * len(gn.aux)   # a traced list for its int32 array: dT, dt, dV traced
-        # likewise the sums, points, parameters, scales and residuals (viper's ptr32 on a board)
-        for name in ("d", "a", "b", "bl", "u", "p", "pt", "sh", "grown", "r", "rt", "srt", "rhs",
-                     "w", "z", "q"):
-            setattr(gn, name, [T(0)] * len(getattr(gn, name)))
-        gn.ts = T(0)
-        normal_sums.int = lambda v: v   # viper's cast: the traced int passes
-        gaussnewton.int = lambda v: v
-        model.int = lambda v: v
-        effects.int = lambda v: v
-        try:
-            # handed over as the int32 arrays the device passes (GaussNewton.begin copies a
-            # plain list into one, which would drop the tracing)
-            gn.run(_Int32s(T(c) for c in pts), 72, 20,
-                   None if a is None else _Int32s(T(c) for c in a))
-        finally:
-            del normal_sums.int
-            del gaussnewton.int
-            del model.int
-            del effects.int
+        gn = traced_gauss_newton(T, 72, k)   # its int32 arrays as traced lists
+        with viper_casts():
+            gn.run(Int32s(T(c) for c in pts), 72, 20, None if a is None else Int32s(T(c) for c in a))
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
 
 

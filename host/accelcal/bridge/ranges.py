@@ -75,13 +75,42 @@ def traced_optimiser(T, n, alphas=None):
     return o
 
 
+# the device modules whose viper functions cast with int() (acal/emit.py)
+VIPER_MODULES = ("objective", "normal_sums", "gaussnewton", "model", "effects", "solve",
+                 "calibration")
+
+
 class viper_casts:
-    """Viper's int() cast (acal/objective.py) as the identity, so that a traced int passes it."""
+    """Viper's int() cast as the identity in the device's viper modules, so that a traced int
+    passes it."""
 
     def __enter__(self):
-        from acal import objective
-        objective.int = lambda v: v
+        import importlib
+        for m in VIPER_MODULES:
+            importlib.import_module("acal." + m).int = lambda v: v
 
     def __exit__(self, *exc):
-        from acal import objective
-        del objective.int
+        import importlib
+        for m in VIPER_MODULES:
+            del importlib.import_module("acal." + m).int
+
+
+class Int32s(list):
+    """A list of traced ints handed over where the device passes an int32 array (the fits copy
+    a plain list into an array, which would drop the tracing)."""
+
+
+# GaussNewton's int32 arrays (viper's ptr32 on a board), all traced by traced_gauss_newton
+GAUSS_NEWTON_ARRAYS = ("aux", "d", "a", "b", "bl", "u", "p", "pt", "sh", "grown", "r", "rt", "srt",
+                       "rhs", "w", "z", "q")
+
+
+def traced_gauss_newton(T, n, kinds=()):
+    """The default profile's GaussNewton for n points with its int32 arrays as traced lists:
+    run it inside `with viper_casts():` on Int32s of traced points (and conditions)."""
+    from acal.gaussnewton import GaussNewton
+    gn = GaussNewton(n, kinds)
+    for name in GAUSS_NEWTON_ARRAYS:
+        setattr(gn, name, [T(0)] * len(getattr(gn, name)))
+    gn.ts = T(0)
+    return gn

@@ -53,7 +53,7 @@ from accelcal.bridge import runtime
 from accelcal.errors import InputError
 from accelcal import simulate
 from accelcal.fixedpoint import g_to_point
-from accelcal.bridge.ranges import Tracer, traced, traced_optimiser, viper_casts
+from accelcal.bridge.ranges import Int32s, Tracer, traced, traced_gauss_newton, traced_optimiser, viper_casts
 from accelcal.locations import CHIP_DIR, script as mp_script
 
 BENCH_SAMPLES = 10000
@@ -85,12 +85,12 @@ def measure(pts: list[int]) -> dict:
     T = traced(tr)
     with viper_casts():
         traced_optimiser(T, 18).run([T(v) for v in pts], 18, 50)
-    from acal.gaussnewton import GaussNewton
     rng = np.random.default_rng(11)
     _, v72 = simulate.paper_scenario(rng, 72, 1e-3)
     gtr = Tracer()
     G = traced(gtr)
-    GaussNewton(72).run([G(int(x)) for x in g_to_point(v72).ravel()], 72)
+    with viper_casts():
+        traced_gauss_newton(G, 72).run(Int32s(G(int(x)) for x in g_to_point(v72).ravel()), 72)
     return {
         "optimiser_ms_micropython": mp["optimiser_us"] / 1000.0,
         "optimiser_ms_cpython": cp_s * 1000.0,
