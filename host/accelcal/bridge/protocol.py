@@ -10,13 +10,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from acal import bins as dbins
-from acal import effects as deff
 from acal import fixed, optimiser, rest
 from acal import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
 from accelcal.errors import InputError
 from accelcal.model.effects import SUPPLY_COLUMN
-from accelcal.fixedpoint import g_to_point, g_to_sample
+from accelcal.fixedpoint import device_conditions, g_to_point, g_to_sample
 
 BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
 
@@ -125,20 +124,6 @@ class Group:
         if self.cond is not None:
             return self.cond
         return device_conditions(self.temp, self.t, self.t_first, n, self.cols.get(SUPPLY_COLUMN))
-
-
-def device_conditions(temp, t, t0: float, n: int, supply=None) -> np.ndarray:
-    """(n, 3) ints: temperature (degC, rounded), time (64 s units from t0) and the board's supply
-    (mV, rounded: a recording's SUPPLY_COLUMN), as the device reads them; zeros where a column
-    is missing."""
-    out = np.zeros((n, 3), dtype=np.int64)
-    if temp is not None:
-        out[:, 0] = np.rint(temp)
-    if t is not None:
-        out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
-    if supply is not None:
-        out[:, 2] = np.rint(supply)
-    return out
 
 
 def condition_changes(cond: np.ndarray) -> np.ndarray:

@@ -35,7 +35,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import effects as deff
 from acal.fixed import PARAM_NAMES
-from accelcal.fixedpoint import params_to_float, params_to_int
+from accelcal.fixedpoint import hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
 AXES = "xyz"
@@ -339,7 +339,7 @@ class ModelSpec:
         effect without its column or with a column that does not vary.  The thresholds are the
         device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
         need_temp = dbins.TEMP_DIFFER
-        need_h = dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600
+        need_h = hours(dbins.TIME_DIFFER)
         cols = cols or {}
         for n in self.effects:
             e = CATALOGUE[n]

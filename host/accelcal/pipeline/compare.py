@@ -109,7 +109,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
     """The composed model's rows: the device pipeline on the training points (in stream order,
     with their conditions) and lsq on every training point, scored on the held-out points."""
     from dataclasses import replace
-    from accelcal.pipeline.calibrate import result_record
+    from accelcal.pipeline.calibrate import Fit
     from accelcal.pipeline.composed_lsq import fit_with_reference, refs
     rows = []
     for name in ("device", "lsq"):
@@ -125,7 +125,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
                                   cols=sp.train.cols)
                 c = replace(cfg, kinds=spec.kinds)
                 r = runtime.run([g], c, runtime_name)[0]
-                rec = result_record({}, g, r, c, spec, "device")
+                rec = Fit(g, r, c, spec, "device").record({})
                 if rec.get("status") != "calibrated":
                     raise methods.FitError(rec.get("reason") or rec.get("status", "failed"))
                 theta, ref = spec.from_int(list(rec["params_int"].values())), rec["reference"]
