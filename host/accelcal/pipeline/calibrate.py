@@ -29,7 +29,7 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
     t = table.columns.get("t")
     cols = {k: v for k, v in table.columns.items() if k not in ("x", "y", "z", "t", "temp", by)}
     if not by:
-        return [runtime.Group("points", points=table.xyz, temp=temp, t=t, cols=cols)]
+        return [runtime.PointsGroup("points", points=table.xyz, temp=temp, t=t, cols=cols)]
     if by in table.text_columns:
         keys = table.text_columns[by]
     elif by in table.columns:
@@ -41,9 +41,10 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
         if not k or any(c.isspace() for c in k):
             raise InputError(f"{table.path}: {by} value {k!r} must be non-empty without spaces")
         sel = keys == k
-        groups.append(runtime.Group(k, points=table.xyz[sel], temp=None if temp is None else temp[sel],
-                                    t=None if t is None else t[sel],
-                                    cols={c: v[sel] for c, v in cols.items()}))
+        groups.append(runtime.PointsGroup(k, points=table.xyz[sel],
+                                          temp=None if temp is None else temp[sel],
+                                          t=None if t is None else t[sel],
+                                          cols={c: v[sel] for c, v in cols.items()}))
     return groups
 
 
@@ -163,7 +164,7 @@ class Fit:
                 return self._float_record(rec, rest, r.rest_conditions, self.rest_columns())
         why = fill_reason(r, cfg)
         if why:
-            n_samples = len(g.samples) if g.samples is not None else g.n_samples
+            n_samples = g.n_samples
             what = (f"{n_samples} samples gave {len(rest)} rest segments"
                     if n_samples is not None else f"{len(g)} points")
             rec.update(status="not_enough_data", reason=f"{why}; {what}")
@@ -312,14 +313,14 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     if engine == "vector":
         cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()),
                                          cols.get(SUPPLY_COLUMN))
-        g = runtime.Group("recording", points_q16=sc.segments.mean[kept],
-                          temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
-                          n_samples=sc.n_samples, cols=cols)
+        g = runtime.RestMeans("recording", points_q16=sc.segments.mean[kept],
+                              temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
+                              n_samples=sc.n_samples, cols=cols)
     else:
         t, q, temp_s = whole
-        g = runtime.Group("recording", samples=q / fixed.SAMPLE_ONE_G,
-                          gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s, t=t,
-                          unworn=sc.excluded_runs(kept))
+        g = runtime.SamplesGroup("recording", samples=q / fixed.SAMPLE_ONE_G,
+                                 gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s,
+                                 t=t, unworn=sc.excluded_runs(kept))
     r = runtime.run([g], cfg, runtime_name)[0]
     if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
         r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level

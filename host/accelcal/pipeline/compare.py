@@ -82,7 +82,7 @@ def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"
     """The device's bins and optimiser on points in stream order: (params or None, selected
     points, reason or None)."""
     from accelcal.pipeline.calibrate import fill_reason
-    r = runtime.run([runtime.Group("train", points=v)], cfg, runtime_name)[0]
+    r = runtime.run([runtime.PointsGroup("train", points=v)], cfg, runtime_name)[0]
     sel = r.fit_points_g
     why = fill_reason(r, cfg)
     if why:
@@ -121,8 +121,8 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
             if name == "device":
                 if spec.host_only:
                     raise methods.FitError(f"{', '.join(spec.host_only)} has no device form")
-                g = runtime.Group("train", points=sp.train.v, temp=sp.train.temp, t=sp.train.t,
-                                  cols=sp.train.cols)
+                g = runtime.PointsGroup("train", points=sp.train.v, temp=sp.train.temp,
+                                        t=sp.train.t, cols=sp.train.cols)
                 c = replace(cfg, kinds=spec.kinds)
                 r = runtime.run([g], c, runtime_name)[0]
                 rec = Fit(g, r, c, spec, "device").record({})
