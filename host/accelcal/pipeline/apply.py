@@ -12,7 +12,7 @@ from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
 from accelcal.fixedpoint import g_to_sample, sample_to_g
-from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
 
 
@@ -42,7 +42,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     q = g_to_sample(xyz_g)
     if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
         return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+    if temp is None and any(e.needs == "temp" for e in spec.parts):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
     follows_supply = SUPPLY_COLUMN in spec.columns
     if follows_supply and SUPPLY_COLUMN not in (cols or {}):
@@ -64,7 +64,7 @@ def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: st
                    cols: dict | None = None) -> np.ndarray:
     """A model with an effect the device does not have, applied in float64 (the fit's own
     correction, spec.correct) to the samples as read."""
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
+    if temp is None and any(e.needs == "temp" for e in spec.parts):
         raise InputError(f"model {spec} needs a temperature column; {source} has none")
     cols = cols or {}
     for c in spec.columns:

@@ -13,7 +13,7 @@ from acal import fixed, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
 from accelcal.fixedpoint import Conditions, hours, params_to_float, params_to_int, physical
@@ -67,15 +67,15 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
     decided on the device), or None."""
     if r.ready:
         return None
-    for n in spec.effects:
-        need = CATALOGUE[n].needs
+    for e in spec.parts:
+        n, need = e.name, e.needs
         if need == "temp" and r.temp_span < dbins.TEMP_DIFFER:
             return (f"{n}: the held points span {r.temp_span} degC of temperature, the fit needs "
                     f">= {dbins.TEMP_DIFFER}")
         if need == "t" and r.time_span < dbins.TIME_DIFFER:
             return (f"{n}: the held points span {hours(r.time_span):.1f} h, the fit needs "
                     f">= {hours(dbins.TIME_DIFFER):g} h")
-        if CATALOGUE[n].kind == deff.SUPPLY_OFFSET and r.supply_span < dbins.SUPPLY_DIFFER:
+        if e.kind == deff.SUPPLY_OFFSET and r.supply_span < dbins.SUPPLY_DIFFER:
             return (f"{n}: the held points span {r.supply_span} mV of {SUPPLY_COLUMN}, the fit "
                     f"needs >= {dbins.SUPPLY_DIFFER}")
     return "the bins are not ready"

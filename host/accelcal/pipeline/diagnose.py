@@ -182,8 +182,8 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
     """The model with one more effect (the last of cspec), fitted on the training blocks and
     scored on the held-out ones: its error, how much lower than err (that of the model without
     it, fitted as theta), in how many blocks."""
-    name = cspec.effects[-1]
-    e = CATALOGUE[name]
+    e = cspec.parts[-1]
+    name = e.name
     try:
         ModelSpec.parse(str(cspec))   # one step per model
         check_model(cspec, p)
@@ -269,7 +269,7 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None
     plt.close(fig)
     out = [str(f1), str(f2)]
     if spec.effects and train is not None:
-        before = ModelSpec(spec.effects[:-1])
+        before = ModelSpec(spec.parts[:-1])
         th0 = fit(before, train, ref)
         a0, r0 = residuals(before, th0, test, ref)
         fig = figures.before_after_figure(test, a0, r0 * 1e3, a, r * 1e3, floor, str(before),
