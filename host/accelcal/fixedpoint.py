@@ -4,10 +4,11 @@ device/acal/fixed.py: samples Q10 g (SAMPLE_ONE_G), rest points Q16 g (POINT_ONE
 units, both ways in one place."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, make_dataclass
 
 import numpy as np
 
+from acal import bins as dbins
 from acal import effects as deff
 from acal import fixed
 
@@ -39,36 +40,81 @@ def params_to_int(p: np.ndarray) -> list[int]:
     return [int(v) for v in np.rint(np.asarray(p, dtype=np.float64) * fixed.PARAM_ONE)]
 
 
-def device_conditions(temp, t, t0: float, n: int, supply=None) -> np.ndarray:
-    """(n, 3) ints: temperature (degC, rounded), time (64 s units from t0) and the board's supply
-    (mV, rounded: a recording's SUPPLY_COLUMN), as the device reads them; zeros where a column
-    is missing."""
-    out = np.zeros((n, 3), dtype=np.int64)
-    if temp is not None:
-        out[:, 0] = np.rint(temp)
-    if t is not None:
-        out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
-    if supply is not None:
-        out[:, 2] = np.rint(supply)
+@dataclass(frozen=True)
+class Quantity:
+    """One quantity the board reads with each point, a device condition (acal.bins.COND, in
+    QUANTITIES' order).  The device holds it as round(x) or, for a `step` quantity, floor((x -
+    origin) / step) with the group's first time as origin; its name is the device's (ref_NAME,
+    NAME_span, the bins' NAME_differ); `column` is the recording column it is read from, `ref`
+    the key a fitted model stores its reference under (None: the column's, column_ref())."""
+    name: str
+    column: str
+    differ: int          # the bins' least spread of it for an effect that follows it
+    ref: str | None
+    show: tuple          # a span, and the least spread, as a reason states them
+    step: int = 1
+    # a board column's: the device kind of an offset linear in it (acal.effects) and the
+    # range its regressor is normalised by (Q24 per that many units)
+    kind: int | None = None
+    per: int = 1
+
+
+QUANTITIES = (
+    Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{} degC of temperature", "{}")),
+    Quantity("time", "t", dbins.TIME_DIFFER, "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
+    # the board's supply in mV (acal.effects.SUPPLY_OFFSET): a recording column the board reads
+    Quantity("supply", "supply_mv", dbins.SUPPLY_DIFFER, None, ("{} mV of supply_mv", "{}"),
+             kind=deff.SUPPLY_OFFSET, per=deff.SUPPLY_MAX),
+)
+# the ones read from a recording's further columns (not t and temp, which every file may have)
+COLUMN_QUANTITIES = tuple(q for q in QUANTITIES if q.ref is None)
+Conditions = make_dataclass("Conditions", [q.name for q in QUANTITIES], frozen=True)
+Conditions.__doc__ = """The device's conditions in physical units (QUANTITIES: degC, s, mV),
+float64 arrays (0-d for one point's)."""
+
+
+def board_columns(cols: dict) -> dict:
+    """The recording columns (by name) the board also reads, by their quantity's name."""
+    return {q.name: cols[q.column] for q in COLUMN_QUANTITIES if q.column in cols}
+
+
+def device_conditions(temp, t, t0: float, n: int, **columns) -> np.ndarray:
+    """(n, COND) ints as the device reads them (QUANTITIES): temperature (degC, rounded), time
+    (64 s units from t0) and the board's columns by quantity name (board_columns: the supply,
+    mV rounded); zeros where one is missing."""
+    given = {"temp": temp, "time": t, **columns}
+    out = np.zeros((n, len(QUANTITIES)), dtype=np.int64)
+    for i, q in enumerate(QUANTITIES):
+        x = given.get(q.name)
+        if x is None:
+            continue
+        out[:, i] = np.floor((np.asarray(x) - t0) / q.step) if q.step != 1 else np.rint(x)
     return out
 
 
-@dataclass(frozen=True)
-class Conditions:
-    """The device's conditions in physical units: temperature (degC), time (s) and the board's
-    supply (mV), float64 arrays (0-d for one point's)."""
-    temp: np.ndarray
-    t: np.ndarray
-    supply: np.ndarray
-
-
-def physical(cond, t0: float) -> Conditions:
-    """The device's integer conditions (..., 3: degC, 64 s units from t0, mV) in physical units,
-    to the device's resolution (device_conditions' inverse)."""
+def physical(cond, t0: float):
+    """The device's integer conditions (..., COND) in physical units, to the device's resolution
+    (device_conditions' inverse): Conditions."""
     c = np.asarray(cond, dtype=np.float64)
-    return Conditions(c[..., 0], t0 + c[..., 1] * float(deff.DT_UNIT_S), c[..., 2])
+    return Conditions(**{q.name: t0 + c[..., i] * float(q.step) if q.step != 1 else c[..., i]
+                         for i, q in enumerate(QUANTITIES)})
+
+
+def span_reason(q: Quantity, span: int) -> str | None:
+    """Why a span of q the device's bins hold is too small for an effect that follows it, or
+    None."""
+    if span >= q.differ:
+        return None
+    show = hours if q.step != 1 else (lambda v: v)
+    return (f"the held points span {q.show[0].format(show(span))}, the fit needs >= "
+            f"{q.show[1].format(show(q.differ))}")
+
+
+def seconds(time_units: int) -> int:
+    """A span of the device's time (64 s units) in seconds."""
+    return time_units * deff.DT_UNIT_S
 
 
 def hours(time_units: int) -> float:
     """A span of the device's time (64 s units) in hours."""
-    return time_units * deff.DT_UNIT_S / 3600
+    return seconds(time_units) / 3600

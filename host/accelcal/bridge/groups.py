@@ -15,15 +15,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from accelcal.fixedpoint import device_conditions, g_to_point, g_to_sample
-from accelcal.model.effects import SUPPLY_COLUMN
+from accelcal.fixedpoint import board_columns, device_conditions, g_to_point, g_to_sample
 
 
 @dataclass
 class Group:
     """What every mode has: a name, per point (or sample) temperature and time, further columns
-    (host-only column effects are fitted on them; the board's supply, supply_mv, is also handed
-    to the device as each point's third condition)."""
+    (host-only column effects are fitted on them; those the board reads, fixedpoint.QUANTITIES,
+    are also handed to the device as conditions)."""
     name: str
     temp: np.ndarray | None = None
     t: np.ndarray | None = None
@@ -41,7 +40,7 @@ class Group:
         return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
 
     def conditions(self, n: int) -> np.ndarray:
-        return device_conditions(self.temp, self.t, self.t_first, n, self.cols.get(SUPPLY_COLUMN))
+        return device_conditions(self.temp, self.t, self.t_first, n, **board_columns(self.cols))
 
 
 @dataclass

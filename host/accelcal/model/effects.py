@@ -35,7 +35,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import effects as deff
 from acal.fixed import PARAM_NAMES
-from accelcal.fixedpoint import hours, params_to_float, params_to_int
+from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
 AXES = "xyz"
@@ -45,7 +45,8 @@ AXES = "xyz"
 # (acal.effects.SUPPLY_OFFSET, its third condition).
 COLUMN_NAME = re.compile(r"[a-z][a-z0-9_]{0,23}")
 RESERVED = ("t", "x", "y", "z", "temp", "device")
-SUPPLY_COLUMN = "supply_mv"
+SUPPLY_COLUMN = "supply_mv"   # the board's supply (fixedpoint.QUANTITIES)
+_QUANTITY_OF = {q.column: q for q in QUANTITIES}
 SIM_BATTERY_V = 3.9     # the simulator's battery (simulate/wearer.py) is referred to this
 
 
@@ -117,9 +118,9 @@ class Effect:
     def kind(self) -> int | None:
         """The device's id for the effect's shape, None for an effect fitted and applied on the
         host only."""
-        if self.needs == "col":   # the board reads its supply, no other column
-            return deff.SUPPLY_OFFSET if (self.column, self.power, self.form) == \
-                (SUPPLY_COLUMN, 1, "offset") else None
+        if self.needs == "col":   # an offset linear in a column the board reads
+            q = self.quantity
+            return q.kind if q and (self.power, self.form) == (1, "offset") else None
         return device_kind(self.needs, self.power, self.form, self.change_point)
 
     @property
@@ -128,8 +129,8 @@ class Effect:
         16 degC (temp_offset2: per 64 degC^2), time per 2048 units of 64 s (drift) or, for the
         generic powers, per 2**13 units; the board's supply per SUPPLY_MAX mV; a step, the
         reading and other columns per 1."""
-        if self.kind == deff.SUPPLY_OFFSET:
-            return float(deff.SUPPLY_MAX) * (1 << 24)
+        if self.needs == "col" and self.kind is not None:
+            return float(self.quantity.per) * (1 << 24)
         if self.needs == "temp":
             per = {1: 16.0, 2: 64.0}.get(self.power, 16.0 ** self.power)
         elif self.needs == "t" and not self.change_point:
@@ -138,6 +139,12 @@ class Effect:
         else:
             per = 1.0
         return per * (1 << 24)
+
+    @property
+    def quantity(self) -> Quantity | None:
+        """The quantity the board reads that the effect follows (fixedpoint.QUANTITIES: the
+        device's bins require its spread), None for the reading itself or another column."""
+        return _QUANTITY_OF.get({"temp": "temp", "t": "t", "col": self.column}.get(self.needs))
 
     def to_int(self, theta) -> list[int]:
         return [int(round(v * self.int_scale)) for v in theta]

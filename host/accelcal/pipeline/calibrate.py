@@ -13,10 +13,11 @@ from acal import fixed, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
-from accelcal.fixedpoint import Conditions, hours, params_to_float, params_to_int, physical
+from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
+                                 params_to_float, params_to_int, physical, seconds, span_reason)
 from accelcal.files.params import params_record
 from accelcal.pipeline.results import CalibrationResult
 
@@ -68,16 +69,10 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
     if r.ready:
         return None
     for e in spec.parts:
-        n, need = e.name, e.needs
-        if need == "temp" and r.temp_span < dbins.TEMP_DIFFER:
-            return (f"{n}: the held points span {r.temp_span} degC of temperature, the fit needs "
-                    f">= {dbins.TEMP_DIFFER}")
-        if need == "t" and r.time_span < dbins.TIME_DIFFER:
-            return (f"{n}: the held points span {hours(r.time_span):.1f} h, the fit needs "
-                    f">= {hours(dbins.TIME_DIFFER):g} h")
-        if e.kind == deff.SUPPLY_OFFSET and r.supply_span < dbins.SUPPLY_DIFFER:
-            return (f"{n}: the held points span {r.supply_span} mV of {SUPPLY_COLUMN}, the fit "
-                    f"needs >= {dbins.SUPPLY_DIFFER}")
+        q = e.quantity
+        why = q and span_reason(q, getattr(r, f"{q.name}_span"))
+        if why:
+            return f"{e.name}: {why}"
     return "the bins are not ready"
 
 
@@ -197,7 +192,7 @@ class Fit:
         group's points, which are its rest points (a points file, or a recording's segments as
         the twin found them), each offered once, in order."""
         spec, g = self.spec, self.group
-        out = {SUPPLY_COLUMN: self.rest.supply} if SUPPLY_COLUMN in spec.columns else {}
+        out = self._board_columns(self.rest)
         if all(c in out for c in spec.columns):
             return out
         if len(self.result.rest_int) != len(g):
@@ -215,8 +210,7 @@ class Fit:
         ok = (mag > 0.5) & (mag < 1.5)
         v, seen = v[ok], physical(cond[ok], self.group.t_first)
         cols = {c: x[ok] for c, x in (cols or {}).items()}
-        if SUPPLY_COLUMN in spec.columns:   # the board's supply, as the device saw it
-            cols[SUPPLY_COLUMN] = seen.supply
+        cols.update(self._board_columns(seen))   # the board's supply, as the device saw it
         rec["points"] = int(len(v))
         rec["iterations"] = None
         ref = None
@@ -227,7 +221,7 @@ class Fit:
                 from accelcal.pipeline.restpoints import RestPoints
                 from accelcal.pipeline.composed_lsq import fit_with_reference, refs
                 methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
-                pts = RestPoints(v, seen.t, seen.temp, np.zeros(len(v)), "points", cols)
+                pts = RestPoints(v, seen.time, seen.temp, np.zeros(len(v)), "points", cols)
                 if spec.host_only:   # the host's references, as diagnose takes them
                     ref = refs(pts, spec)
                 else:   # the device's references (acal.pipeline.references)
@@ -246,10 +240,14 @@ class Fit:
         """The device's integer references (degC, 64 s units, mV) as a model's reference: T0, t0
         and, for an effect of the board's supply, its column's."""
         at = physical(device_ref, self.group.t_first)
-        ref = {"T0": float(at.temp), "t0": float(at.t)}
-        if SUPPLY_COLUMN in self.spec.columns:
-            ref[column_ref(SUPPLY_COLUMN)] = float(at.supply)
+        ref = {q.ref: float(getattr(at, q.name)) for q in QUANTITIES if q.ref}
+        ref.update({column_ref(c): float(x) for c, x in self._board_columns(at).items()})
         return ref
+
+    def _board_columns(self, seen: Conditions) -> dict:
+        """The columns the model follows that the board reads itself, as the device saw them."""
+        return {q.column: getattr(seen, q.name) for q in COLUMN_QUANTITIES
+                if q.column in self.spec.columns}
 
     def _params_record(self, rec, p_int, ref=None):
         """rec with the parameters (decoded and Q24) and the error after; ref: a composed
@@ -257,9 +255,9 @@ class Fit:
         spec, r = self.spec, self.result
         if spec.effects:
             if ref is None:   # the device fit's references, and a step's time it found
-                ref = self._reference((r.ref_temp, r.ref_time, r.ref_supply))
+                ref = self._reference([getattr(r, f"ref_{q.name}") for q in QUANTITIES])
                 if spec.change_point:
-                    ref["ts"] = float(physical((0, r.step_time, 0), ref["t0"]).t)
+                    ref["ts"] = ref["t0"] + seconds(r.step_time)
             rec.update(model=str(spec), method=self.method,
                        scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
                              "g, 1/degC, g/day, 1/g",
@@ -278,7 +276,7 @@ class Fit:
         rest = self.result.rest_g
         if not self.spec.effects:
             return methods.calibration_error_mg(params_to_float(p_int), rest)
-        a = self.spec.correct(self.spec.from_int(p_int), rest, self.rest.temp, self.rest.t, ref,
+        a = self.spec.correct(self.spec.from_int(p_int), rest, self.rest.temp, self.rest.time, ref,
                               self.rest_columns())
         return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
@@ -312,7 +310,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
         raise InputError(str(e)) from None
     if engine == "vector":
         cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()),
-                                         cols.get(SUPPLY_COLUMN))
+                                         **board_columns(cols))
         g = runtime.RestMeans("recording", points_q16=sc.segments.mean[kept],
                               temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
                               n_samples=sc.n_samples, cols=cols)
