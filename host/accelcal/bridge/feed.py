@@ -126,14 +126,15 @@ def _no_replacement(b, q, subsets, slots, near, n_near) -> np.ndarray:
 
 
 def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> None:
-    """Offer the rest means q (n, 3) Q16 ints, each seen at cond (n, 3) ints (temperature, time,
-    supply; None: the conditions are not sent, as protocol_items does for the base model), to
+    """Offer the rest means q (n, 3) Q16 ints, each seen at cond (n, COND) ints (QUANTITIES;
+    None: the conditions are not sent, as protocol_items does for the base model), to
     runner's pipeline: the records and the bins as `runner.point` one at a time leaves them."""
     pipe = runner.pipe
     b = pipe.bins
     rest = collector.results[-1].rest_int
-    seen = np.zeros((len(q), 3), np.int64) if cond is None else cond
+    seen = np.zeros((len(q), len(QUANTITIES)), np.int64) if cond is None else cond
     last = None
+    now = _conditions_now(pipe)
     a = 0
     while a < len(q):
         block = q[a:a + BLOCK]
@@ -145,15 +146,21 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
             a += 1
             if conds is not None and conds[i] != last:
                 last = conds[i]
-                runner.conditions(last[0], last[1], last[2])
+                runner.conditions(*last)
+                now = _conditions_now(pipe)
             if skip[i]:     # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1
-                rest.append((x, y, z, -1, pipe.temp, pipe.time, pipe.supply))
+                rest.append((x, y, z, -1) + now)
                 continue
             runner.point(x, y, z)
             if b.kept + b.replaced != changes:
                 break       # the bins changed: judge the rest again
+
+
+def _conditions_now(pipe) -> tuple:
+    # the pipeline's current conditions, as its rest records carry them
+    return tuple(getattr(pipe, q.name) for q in QUANTITIES)
 
 
 def _as_offered(b: dbins.Bins, cond: np.ndarray) -> np.ndarray:

@@ -65,7 +65,7 @@ class PointsGroup(Group):
         last = None
         for (x, y, z), c in zip(q.tolist(), self.conditions(len(q)).tolist()):
             if composed and c != last:
-                yield "conditions", (c[0], c[1], c[2])
+                yield "conditions", tuple(c)
                 last = c
             yield "point", (x, y, z)
 
@@ -137,7 +137,7 @@ class SamplesGroup(Group):
                 state = bool(worn[a])
                 yield "worn", (state,)
             if composed:
-                yield "conditions", (int(cond[a, 0]), int(cond[a, 1]), int(cond[a, 2]))
+                yield "conditions", tuple(int(x) for x in cond[a])
             for s in range(a, b, batch):
                 chunk = q[s:min(b, s + batch)]
                 yield "samples", (chunk.ravel().tolist(), len(chunk))
