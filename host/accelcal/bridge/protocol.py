@@ -121,9 +121,10 @@ class DeviceResult:
 
     @property
     def rest_conditions(self) -> np.ndarray:
-        """(N, 3) ints: each rest mean's temperature (degC), time (64 s units) and the board's
-        supply (mV)."""
-        return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
+        """(N, COND) ints: each rest mean's conditions (fixedpoint.QUANTITIES: temperature degC,
+        time in 64 s units, the board's supply mV)."""
+        return np.array([r[4:4 + dbins.COND] for r in self.rest_int],
+                        dtype=np.int64).reshape(-1, dbins.COND)
 
 
 def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH, bulk: bool = False):
@@ -169,9 +170,9 @@ class Collector:
             return
         cur = self.results[-1]
         if tag == "R":
-            cur.rest_int.append(tuple(v[:7]))
+            cur.rest_int.append(tuple(v[:4 + dbins.COND]))
         elif tag == "S":
-            cur.selected_int.append(tuple(v[:6]))
+            cur.selected_int.append(tuple(v[:3 + dbins.COND]))
         elif tag == "Z":
             cur.ref_temp, cur.ref_time, cur.step_time, cur.ref_supply = v[0], v[1], v[2], v[3]
         elif tag == "Y":

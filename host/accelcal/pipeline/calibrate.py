@@ -172,10 +172,10 @@ class Fit:
             rec["points"] = int(sum(r.kept))
             rec["outliers"] = len(r.kept) - rec["points"]
         if self.method != "device":
-            sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 6)
+            sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 3 + dbins.COND)
             if r.kept is not None:
                 sel = sel[np.asarray(r.kept, bool)]
-            return self._float_record(rec, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:6])
+            return self._float_record(rec, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:])
         if not optimiser.usable(r.status):
             rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
                        "iterations; no parameters returned")
