@@ -313,8 +313,8 @@ class ModelSpec:
         """One of the model's effects by name."""
         return next(e for e in self.parts if e.name == name)
 
-    def with_effect(self, name: str) -> "ModelSpec":
-        return ModelSpec(self.parts + (name,))
+    def with_effect(self, effect: "str | Effect") -> "ModelSpec":
+        return ModelSpec(self.parts + (effect,))
 
     @property
     def param_names(self) -> list[str]:
