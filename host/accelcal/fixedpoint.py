@@ -1,10 +1,15 @@
 """Floats in g <-> the device's fixed-point integers.  The formats are defined once, in
 device/acal/fixed.py: samples Q10 g (SAMPLE_ONE_G), rest points Q16 g (POINT_ONE_G), parameters Q24
-(PARAM_ONE)."""
+(PARAM_ONE).  And the device's conditions (acal.bins.COND: degC, 64 s units, mV) <-> physical
+units, both ways in one place."""
 from __future__ import annotations
+
+from dataclasses import dataclass, make_dataclass
 
 import numpy as np
 
+from acal import bins as dbins
+from acal import effects as deff
 from acal import fixed
 
 
@@ -33,3 +38,83 @@ def params_to_float(p_int) -> np.ndarray:
 
 def params_to_int(p: np.ndarray) -> list[int]:
     return [int(v) for v in np.rint(np.asarray(p, dtype=np.float64) * fixed.PARAM_ONE)]
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One quantity the board reads with each point, a device condition (acal.bins.COND, in
+    QUANTITIES' order).  The device holds it as round(x) or, for a `step` quantity, floor((x -
+    origin) / step) with the group's first time as origin; its name is the device's (ref_NAME,
+    NAME_span, the bins' NAME_differ); `column` is the recording column it is read from, `ref`
+    the key a fitted model stores its reference under (None: the column's, column_ref())."""
+    name: str
+    column: str
+    differ: int          # the bins' least spread of it for an effect that follows it
+    ref: str | None
+    show: tuple          # a span, and the least spread, as a reason states them
+    step: int = 1
+    # a board column's: the device kind of an offset linear in it (acal.effects) and the
+    # range its regressor is normalised by (Q24 per that many units)
+    kind: int | None = None
+    per: int = 1
+
+
+QUANTITIES = (
+    Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{} degC of temperature", "{}")),
+    Quantity("time", "t", dbins.TIME_DIFFER, "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
+    # the board's supply in mV (acal.effects.SUPPLY_OFFSET): a recording column the board reads
+    Quantity("supply", "supply_mv", dbins.SUPPLY_DIFFER, None, ("{} mV of supply_mv", "{}"),
+             kind=deff.SUPPLY_OFFSET, per=deff.SUPPLY_MAX),
+)
+# the ones read from a recording's further columns (not t and temp, which every file may have)
+COLUMN_QUANTITIES = tuple(q for q in QUANTITIES if q.ref is None)
+Conditions = make_dataclass("Conditions", [q.name for q in QUANTITIES], frozen=True)
+Conditions.__doc__ = """The device's conditions in physical units (QUANTITIES: degC, s, mV),
+float64 arrays (0-d for one point's)."""
+
+
+def board_columns(cols: dict) -> dict:
+    """The recording columns (by name) the board also reads, by their quantity's name."""
+    return {q.name: cols[q.column] for q in COLUMN_QUANTITIES if q.column in cols}
+
+
+def device_conditions(temp, t, t0: float, n: int, **columns) -> np.ndarray:
+    """(n, COND) ints as the device reads them (QUANTITIES): temperature (degC, rounded), time
+    (64 s units from t0) and the board's columns by quantity name (board_columns: the supply,
+    mV rounded); zeros where one is missing."""
+    given = {"temp": temp, "time": t, **columns}
+    out = np.zeros((n, len(QUANTITIES)), dtype=np.int64)
+    for i, q in enumerate(QUANTITIES):
+        x = given.get(q.name)
+        if x is None:
+            continue
+        out[:, i] = np.floor((np.asarray(x) - t0) / q.step) if q.step != 1 else np.rint(x)
+    return out
+
+
+def physical(cond, t0: float):
+    """The device's integer conditions (..., COND) in physical units, to the device's resolution
+    (device_conditions' inverse): Conditions."""
+    c = np.asarray(cond, dtype=np.float64)
+    return Conditions(**{q.name: t0 + c[..., i] * float(q.step) if q.step != 1 else c[..., i]
+                         for i, q in enumerate(QUANTITIES)})
+
+
+def span_reason(q: Quantity, span: int) -> str | None:
+    """Why a span of q the device's bins hold is too small for an effect that follows it, or
+    None."""
+    if span >= q.differ:
+        return None
+    show = hours if q.step != 1 else (lambda v: v)
+    return (f"the held points span {q.show[0].format(show(span))}, the fit needs >= "
+            f"{q.show[1].format(show(q.differ))}")
+
+
+def seconds(time_units: int) -> int:
+    """A span of the device's time (64 s units) in seconds."""
+    return time_units * deff.DT_UNIT_S
+
+
+def hours(time_units: int) -> float:
+    """A span of the device's time (64 s units) in hours."""
+    return seconds(time_units) / 3600

@@ -17,6 +17,7 @@ from acal import fixed, log, optimiser
 from acal.app import Processor
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular, note_input
+from accelcal.fixedpoint import seconds
 
 LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FILE_MAX_BYTES = 1 << 30    # a pulled file is read whole: the largest capture deploy allows
@@ -258,7 +259,7 @@ def summary(dirpath: str | Path) -> dict:
                     when, value = "ref_supply_mv", e["ref_time"]
                 else:
                     when = "step_time_s" if e["effect"] == deff.STEP else "ref_time_s"
-                    value = e["ref_time"] * deff.DT_UNIT_S
+                    value = seconds(e["ref_time"])
                 c.setdefault("effects", {})[eff.name] = {
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
                     "ref_temp": e["ref_temp"], when: value}

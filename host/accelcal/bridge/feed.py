@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from acal import bins as dbins
+from accelcal.fixedpoint import QUANTITIES
 
 BLOCK = 256     # points judged against one snapshot of the bins
 
@@ -63,6 +64,11 @@ def _held(b: dbins.Bins):
     return slots, xyz, cond
 
 
+def _differs(b: dbins.Bins) -> list[int]:
+    # the bins' least differences of each condition (0: not tracked), in QUANTITIES' order
+    return [getattr(b, f"{q.name}_differ") for q in QUANTITIES]
+
+
 def refused(b: dbins.Bins, q: np.ndarray, cond: np.ndarray) -> np.ndarray:
     """True for each point (n, 3) Q16 g, seen at cond (n, 3) ints, that `b.offer` refuses with
     the bins as they are now (module doc)."""
@@ -72,7 +78,7 @@ def refused(b: dbins.Bins, q: np.ndarray, cond: np.ndarray) -> np.ndarray:
     near = np.ones((len(q), len(slots)), bool)
     for c in range(3):
         near &= np.abs(q[:, c, None] - hx[None, :, c]) < b.differ
-    for c, differ in enumerate((b.temp_differ, b.time_differ, b.supply_differ)):
+    for c, differ in enumerate(_differs(b)):
         if differ:
             near &= np.abs(cond[:, c, None] - hc[None, :, c]) < differ
     n_near = near.sum(axis=1)
@@ -81,7 +87,7 @@ def refused(b: dbins.Bins, q: np.ndarray, cond: np.ndarray) -> np.ndarray:
     room = np.zeros(len(q), bool)
     for s in subsets:
         room |= (s >= 0) & (counts[np.maximum(s, 0)] < m)
-    tracked = b.temp_differ or b.time_differ or b.supply_differ
+    tracked = any(_differs(b))
     if b.policy == dbins.FIRST:
         closed = ~room
     elif tracked:
@@ -120,14 +126,15 @@ def _no_replacement(b, q, subsets, slots, near, n_near) -> np.ndarray:
 
 
 def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> None:
-    """Offer the rest means q (n, 3) Q16 ints, each seen at cond (n, 3) ints (temperature, time,
-    supply; None: the conditions are not sent, as protocol_items does for the base model), to
+    """Offer the rest means q (n, 3) Q16 ints, each seen at cond (n, COND) ints (QUANTITIES;
+    None: the conditions are not sent, as protocol_items does for the base model), to
     runner's pipeline: the records and the bins as `runner.point` one at a time leaves them."""
     pipe = runner.pipe
     b = pipe.bins
     rest = collector.results[-1].rest_int
-    seen = np.zeros((len(q), 3), np.int64) if cond is None else cond
+    seen = np.zeros((len(q), len(QUANTITIES)), np.int64) if cond is None else cond
     last = None
+    now = _conditions_now(pipe)
     a = 0
     while a < len(q):
         block = q[a:a + BLOCK]
@@ -139,21 +146,27 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
             a += 1
             if conds is not None and conds[i] != last:
                 last = conds[i]
-                runner.conditions(last[0], last[1], last[2])
+                runner.conditions(*last)
+                now = _conditions_now(pipe)
             if skip[i]:     # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1
-                rest.append((x, y, z, -1, pipe.temp, pipe.time, pipe.supply))
+                rest.append((x, y, z, -1) + now)
                 continue
             runner.point(x, y, z)
             if b.kept + b.replaced != changes:
                 break       # the bins changed: judge the rest again
 
 
+def _conditions_now(pipe) -> tuple:
+    # the pipeline's current conditions, as its rest records carry them
+    return tuple(getattr(pipe, q.name) for q in QUANTITIES)
+
+
 def _as_offered(b: dbins.Bins, cond: np.ndarray) -> np.ndarray:
     # offer zeroes the conditions it does not track
     out = cond.copy()
-    for c, differ in enumerate((b.temp_differ, b.time_differ, b.supply_differ)):
+    for c, differ in enumerate(_differs(b)):
         if not differ:
             out[:, c] = 0
     return out

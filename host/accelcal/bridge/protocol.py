@@ -10,13 +10,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from acal import bins as dbins
-from acal import effects as deff
 from acal import fixed, optimiser, rest
 from acal import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
 from accelcal.errors import InputError
-from accelcal.model.effects import SUPPLY_COLUMN
-from accelcal.fixedpoint import g_to_point, g_to_sample
+# the groups and the conditions' conversion, re-exported: what the protocol carries
+from accelcal.bridge.groups import (Group, PointsGroup, RestMeans, SamplesGroup,  # noqa: F401
+                                    condition_changes)
+from accelcal.fixedpoint import device_conditions  # noqa: F401
 
 BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
 
@@ -77,76 +78,6 @@ class Config:
 
 
 @dataclass
-class Group:
-    """One device's data: rest points (N x 3, g) or samples (N x 3, g) with gaps (indices
-    where a new contiguous run starts); for a composed model each point or sample's temperature
-    (degC) and time (s) - the device sees them as ints: degC rounded, 64 s units since the
-    group's first time."""
-    name: str
-    points: np.ndarray | None = None       # g; or, as found by the twin, points_q16
-    samples: np.ndarray | None = None
-    gaps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    temp: np.ndarray | None = None
-    t: np.ndarray | None = None
-    # Rest means found on the host (accelcal.bridge.twin) stand for a recording: each point's device
-    # conditions as the closing sample of its segment had them, the recording's first time,
-    # and how many samples there were.
-    cond: np.ndarray | None = None
-    t_origin: float | None = None
-    n_samples: int | None = None
-    # Sample runs [start, stop) where rest segments closing are not offered to the bins
-    # (the host's non-wear and quality checks, accelcal.pipeline.scan): the pipeline's worn = False.
-    unworn: np.ndarray | None = None
-    # Rest means as the twin found them (Q16 g ints): handed to the bins as they are, never
-    # through floats.
-    points_q16: np.ndarray | None = None
-    # Further recording columns by name, one value per point (battery voltage, ...): host-only
-    # column effects are fitted on them (model/declared.py); the board's supply (supply_mv) is
-    # also handed to the device, as each point's third condition (conditions()).
-    cols: dict = field(default_factory=dict)
-
-    def point_ints(self) -> np.ndarray:
-        """The rest points as the device's bins take them, Q16 g ints."""
-        return self.points_q16 if self.points_q16 is not None else g_to_point(self.points)
-
-    def __len__(self) -> int:
-        """Points (or samples) in the group."""
-        if self.points_q16 is not None:
-            return len(self.points_q16)
-        return len(self.points) if self.points is not None else len(self.samples)
-
-    @property
-    def t_first(self) -> float:
-        if self.t_origin is not None:
-            return self.t_origin
-        return float(self.t[0]) if self.t is not None and len(self.t) else 0.0
-
-    def conditions(self, n: int) -> np.ndarray:
-        if self.cond is not None:
-            return self.cond
-        return device_conditions(self.temp, self.t, self.t_first, n, self.cols.get(SUPPLY_COLUMN))
-
-
-def device_conditions(temp, t, t0: float, n: int, supply=None) -> np.ndarray:
-    """(n, 3) ints: temperature (degC, rounded), time (64 s units from t0) and the board's supply
-    (mV, rounded: a recording's SUPPLY_COLUMN), as the device reads them; zeros where a column
-    is missing."""
-    out = np.zeros((n, 3), dtype=np.int64)
-    if temp is not None:
-        out[:, 0] = np.rint(temp)
-    if t is not None:
-        out[:, 1] = np.floor((np.asarray(t) - t0) / deff.DT_UNIT_S)
-    if supply is not None:
-        out[:, 2] = np.rint(supply)
-    return out
-
-
-def condition_changes(cond: np.ndarray) -> np.ndarray:
-    """Indices where a sample's conditions differ from the previous sample's."""
-    return np.flatnonzero(np.any(np.diff(cond, axis=0) != 0, axis=1)) + 1
-
-
-@dataclass
 class DeviceResult:
     name: str
     status: int = -1
@@ -190,9 +121,10 @@ class DeviceResult:
 
     @property
     def rest_conditions(self) -> np.ndarray:
-        """(N, 3) ints: each rest mean's temperature (degC), time (64 s units) and the board's
-        supply (mV)."""
-        return np.array([r[4:7] for r in self.rest_int], dtype=np.int64).reshape(-1, 3)
+        """(N, COND) ints: each rest mean's conditions (fixedpoint.QUANTITIES: temperature degC,
+        time in 64 s units, the board's supply mV)."""
+        return np.array([r[4:4 + dbins.COND] for r in self.rest_int],
+                        dtype=np.int64).reshape(-1, dbins.COND)
 
 
 def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH, bulk: bool = False):
@@ -204,45 +136,7 @@ def protocol_items(groups: list[Group], cfg: Config, batch: int = BATCH, bulk: b
     composed = bool(cfg.kinds) or cfg.conditions
     for g in groups:
         yield "group", (g.name,)
-        if g.points is not None or g.points_q16 is not None:
-            q = g.point_ints()
-            if bulk:
-                yield "points", (np.asarray(q, np.int64),
-                                 np.asarray(g.conditions(len(q)), np.int64) if composed else None)
-            else:
-                last = None
-                for (x, y, z), c in zip(q.tolist(), g.conditions(len(q)).tolist()):
-                    if composed and c != last:
-                        yield "conditions", (c[0], c[1], c[2])
-                        last = c
-                    yield "point", (x, y, z)
-        if g.samples is not None:
-            q = g_to_sample(g.samples)
-            n = len(q)
-            gaps = {int(i) for i in g.gaps if 0 < i < n}
-            cuts = set(gaps)
-            worn = np.ones(n + 1, bool)
-            if g.unworn is not None and len(g.unworn):
-                for a, b in g.unworn.tolist():
-                    worn[a:b] = False
-                cuts.update((np.flatnonzero(np.diff(worn[:n])) + 1).tolist())
-                cuts.discard(0)
-            state = True
-            if composed:  # a new run wherever the conditions change, led by its conditions
-                cond = g.conditions(n)
-                cuts.update(condition_changes(cond).tolist())
-            bounds = [0, *sorted(cuts), n]
-            for a, b in zip(bounds[:-1], bounds[1:]):
-                if a in gaps:
-                    yield "gap", ()
-                if bool(worn[a]) != state:
-                    state = bool(worn[a])
-                    yield "worn", (state,)
-                if composed:
-                    yield "conditions", (int(cond[a, 0]), int(cond[a, 1]), int(cond[a, 2]))
-                for s in range(a, b, batch):
-                    chunk = q[s:min(b, s + batch)]
-                    yield "samples", (chunk.ravel().tolist(), len(chunk))
+        yield from g.calls(composed, batch, bulk)
         yield "end", ()
 
 
@@ -276,9 +170,9 @@ class Collector:
             return
         cur = self.results[-1]
         if tag == "R":
-            cur.rest_int.append(tuple(v[:7]))
+            cur.rest_int.append(tuple(v[:4 + dbins.COND]))
         elif tag == "S":
-            cur.selected_int.append(tuple(v[:6]))
+            cur.selected_int.append(tuple(v[:3 + dbins.COND]))
         elif tag == "Z":
             cur.ref_temp, cur.ref_time, cur.step_time, cur.ref_supply = v[0], v[1], v[2], v[3]
         elif tag == "Y":

@@ -13,7 +13,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, condition_changes,
+from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, PointsGroup,
+                                      RestMeans, SamplesGroup, condition_changes,
                                       device_conditions, parse, protocol_items, protocol_lines)
 from accelcal.bridge import rp2040
 from accelcal.bridge.feed import offer_points
@@ -21,8 +22,9 @@ from accelcal.bridge.scripts import mp_runner
 from accelcal.errors import InputError, InterpreterFailed
 from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
 
-__all__ = ["Config", "DeviceResult", "Group", "RUNTIMES", "condition_changes", "device_conditions",
-           "parse", "protocol_lines", "run"]
+__all__ = ["Config", "DeviceResult", "Group", "PointsGroup", "RUNTIMES", "RestMeans",
+           "SamplesGroup", "condition_changes", "device_conditions", "parse", "protocol_lines",
+           "run"]
 
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")

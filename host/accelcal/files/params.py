@@ -11,7 +11,7 @@ from acal import model as dmodel
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular, write_text
 from accelcal.fixedpoint import params_to_float
-from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
+from accelcal.model.effects import ModelSpec, column_ref
 
 
 PARAMS_MAX_BYTES = 16 << 20   # a calibrate --by file of thousands of devices is ~ 2 MB
@@ -45,8 +45,7 @@ def _effects_within(spec: ModelSpec, p_int) -> bool:
     if not spec.host_only:
         kinds = spec.kinds
         return not kinds or dmodel.effects_within(p_int, kinds, 1)
-    for k, name in enumerate(spec.effects):
-        e = CATALOGUE[name]
+    for k, e in enumerate(spec.parts):
         b = e.to_int([e.bound])[0]
         if any(abs(v) > b for v in p_int[9 + 3 * k: 12 + 3 * k]):
             return False

@@ -35,7 +35,7 @@ import numpy as np
 from acal import bins as dbins
 from acal import effects as deff
 from acal.fixed import PARAM_NAMES
-from accelcal.fixedpoint import params_to_float, params_to_int
+from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
 AXES = "xyz"
@@ -45,7 +45,8 @@ AXES = "xyz"
 # (acal.effects.SUPPLY_OFFSET, its third condition).
 COLUMN_NAME = re.compile(r"[a-z][a-z0-9_]{0,23}")
 RESERVED = ("t", "x", "y", "z", "temp", "device")
-SUPPLY_COLUMN = "supply_mv"
+SUPPLY_COLUMN = "supply_mv"   # the board's supply (fixedpoint.QUANTITIES)
+_QUANTITY_OF = {q.column: q for q in QUANTITIES}
 SIM_BATTERY_V = 3.9     # the simulator's battery (simulate/wearer.py) is referred to this
 
 
@@ -117,9 +118,9 @@ class Effect:
     def kind(self) -> int | None:
         """The device's id for the effect's shape, None for an effect fitted and applied on the
         host only."""
-        if self.needs == "col":   # the board reads its supply, no other column
-            return deff.SUPPLY_OFFSET if (self.column, self.power, self.form) == \
-                (SUPPLY_COLUMN, 1, "offset") else None
+        if self.needs == "col":   # an offset linear in a column the board reads
+            q = self.quantity
+            return q.kind if q and (self.power, self.form) == (1, "offset") else None
         return device_kind(self.needs, self.power, self.form, self.change_point)
 
     @property
@@ -128,8 +129,8 @@ class Effect:
         16 degC (temp_offset2: per 64 degC^2), time per 2048 units of 64 s (drift) or, for the
         generic powers, per 2**13 units; the board's supply per SUPPLY_MAX mV; a step, the
         reading and other columns per 1."""
-        if self.kind == deff.SUPPLY_OFFSET:
-            return float(deff.SUPPLY_MAX) * (1 << 24)
+        if self.needs == "col" and self.kind is not None:
+            return float(self.quantity.per) * (1 << 24)
         if self.needs == "temp":
             per = {1: 16.0, 2: 64.0}.get(self.power, 16.0 ** self.power)
         elif self.needs == "t" and not self.change_point:
@@ -138,6 +139,12 @@ class Effect:
         else:
             per = 1.0
         return per * (1 << 24)
+
+    @property
+    def quantity(self) -> Quantity | None:
+        """The quantity the board reads that the effect follows (fixedpoint.QUANTITIES: the
+        device's bins require its spread), None for the reading itself or another column."""
+        return _QUANTITY_OF.get({"temp": "temp", "t": "t", "col": self.column}.get(self.needs))
 
     def to_int(self, theta) -> list[int]:
         return [int(round(v * self.int_scale)) for v in theta]
@@ -252,42 +259,71 @@ def device_effects() -> list[str]:
     return [n for n, e in CATALOGUE.items() if e.kind is not None]
 
 
-@dataclass
+def _known(name: str, catalogue: dict, where: str = "") -> Effect:
+    if name not in catalogue:
+        raise ValueError(f"unknown effect {name!r}{where}: known effects are "
+                         f"{', '.join(catalogue)} (one you declared? pass its --effects FILE)")
+    return catalogue[name]
+
+
 class ModelSpec:
-    """'base' or 'base+NAME+NAME...'."""
-    effects: tuple[str, ...]
+    """'base' or 'base+NAME+NAME...': the paper's model and its effects, held as the Effect
+    objects themselves.  Names are resolved once, when the spec is made, in a catalogue
+    (CATALOGUE: the built-in effects and those register() declared in this process): a spec
+    keeps meaning what it meant when it was made, whatever is declared later."""
+
+    def __init__(self, effects=(), catalogue: dict | None = None):
+        cat = CATALOGUE if catalogue is None else catalogue
+        self.parts: tuple[Effect, ...] = tuple(e if isinstance(e, Effect) else _known(e, cat)
+                                               for e in effects)
 
     @staticmethod
-    def parse(spec: str) -> "ModelSpec":
+    def parse(spec: str, catalogue: dict | None = None) -> "ModelSpec":
+        cat = CATALOGUE if catalogue is None else catalogue
         parts = [p.strip() for p in spec.split("+")]
         if not parts or parts[0] != "base":
             raise ValueError(f"model spec {spec!r} must start with 'base' (e.g. base+temp_offset)")
         names = parts[1:]
         for n in names:
-            if n not in CATALOGUE:
-                raise ValueError(f"unknown effect {n!r} in model spec {spec!r}: known effects are "
-                                 f"{', '.join(CATALOGUE)} (one you declared? pass its "
-                                 "--effects FILE)")
+            _known(n, cat, f" in model spec {spec!r}")
         if len(set(names)) != len(names):
             raise ValueError(f"model spec {spec!r} names an effect twice")
-        if sum(CATALOGUE[n].change_point for n in names) > 1:
+        if sum(cat[n].change_point for n in names) > 1:
             raise ValueError(f"model spec {spec!r} has two steps; a model holds one")
-        return ModelSpec(tuple(names))
+        return ModelSpec(names, cat)
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """The effects' names, in order."""
+        return tuple(e.name for e in self.parts)
 
     def __str__(self):
         return "+".join(("base",) + self.effects)
 
-    def with_effect(self, name: str) -> "ModelSpec":
-        return ModelSpec(self.effects + (name,))
+    def __repr__(self):
+        return f"ModelSpec({self.effects!r})"
+
+    def __eq__(self, other):
+        return isinstance(other, ModelSpec) and self.parts == other.parts
+
+    def __hash__(self):
+        return hash(self.parts)
+
+    def effect(self, name: str) -> Effect:
+        """One of the model's effects by name."""
+        return next(e for e in self.parts if e.name == name)
+
+    def with_effect(self, effect: "str | Effect") -> "ModelSpec":
+        return ModelSpec(self.parts + (effect,))
 
     @property
     def param_names(self) -> list[str]:
-        return list(PARAM_NAMES) + [p for n in self.effects for p in CATALOGUE[n].param_names]
+        return list(PARAM_NAMES) + [p for e in self.parts for p in e.param_names]
 
     @property
     def host_only(self) -> tuple[str, ...]:
         """The effects with no device form: fitted (lsq) and applied on the host."""
-        return tuple(n for n in self.effects if CATALOGUE[n].kind is None)
+        return tuple(e.name for e in self.parts if e.kind is None)
 
     @property
     def kinds(self) -> tuple[int, ...]:
@@ -297,7 +333,7 @@ class ModelSpec:
             raise ValueError(f"model {self}: {', '.join(self.host_only)} has no device form yet; "
                              "it is fitted and applied on the host (calibrate --method lsq "
                              "--points all)")
-        return tuple(CATALOGUE[n].kind for n in self.effects)
+        return tuple(e.kind for e in self.parts)
 
     @property
     def device_model(self) -> str:
@@ -308,29 +344,28 @@ class ModelSpec:
     @property
     def columns(self) -> tuple[str, ...]:
         """The recording columns the model's effects follow (battery_v, ...), in order."""
-        return tuple(dict.fromkeys(CATALOGUE[n].column for n in self.effects
-                                   if CATALOGUE[n].needs == "col"))
+        return tuple(dict.fromkeys(e.column for e in self.parts if e.needs == "col"))
 
     @property
     def change_point(self) -> str | None:
         """The effect whose time (ts) the fit finds, if any (one per model)."""
-        return next((n for n in self.effects if CATALOGUE[n].change_point), None)
+        return next((e.name for e in self.parts if e.change_point), None)
 
     def without(self, name: str) -> "ModelSpec":
-        return ModelSpec(tuple(n for n in self.effects if n != name))
+        return ModelSpec(tuple(e for e in self.parts if e.name != name))
 
     def to_int(self, theta) -> list[int]:
         """Float parameters (9 + 3 per effect) -> the device's Q24 integers."""
         out = params_to_int(theta[:9])
-        for k, n in enumerate(self.effects):
-            out += CATALOGUE[n].to_int(theta[9 + 3 * k: 12 + 3 * k])
+        for k, e in enumerate(self.parts):
+            out += e.to_int(theta[9 + 3 * k: 12 + 3 * k])
         return out
 
     def from_int(self, p_int) -> np.ndarray:
         """The device's integers -> float parameters (g, 1/degC, g/day, 1/g)."""
         parts = [params_to_float(p_int[:9])]
-        for k, n in enumerate(self.effects):
-            parts.append(CATALOGUE[n].from_int(p_int[9 + 3 * k: 12 + 3 * k]))
+        for k, e in enumerate(self.parts):
+            parts.append(e.from_int(p_int[9 + 3 * k: 12 + 3 * k]))
         return np.concatenate(parts)
 
     def check_data(self, temp, t, source: str, cols=None) -> None:
@@ -339,10 +374,10 @@ class ModelSpec:
         effect without its column or with a column that does not vary.  The thresholds are the
         device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
         need_temp = dbins.TEMP_DIFFER
-        need_h = dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600
+        need_h = hours(dbins.TIME_DIFFER)
         cols = cols or {}
-        for n in self.effects:
-            e = CATALOGUE[n]
+        for e in self.parts:
+            n = e.name
             if e.needs == "col":
                 if e.column not in cols:
                     have = ", ".join(cols) or "none"
@@ -369,9 +404,8 @@ class ModelSpec:
         """Corrected acceleration for measurements v with parameters theta (9 + 3 per effect);
         cols: the recording columns column effects follow, by name."""
         w = v
-        for k in reversed(range(len(self.effects))):  # undo in the reverse order of measure
-            w = CATALOGUE[self.effects[k]].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref,
-                                                   cols)
+        for k in reversed(range(len(self.parts))):  # undo in the reverse order of measure
+            w = self.parts[k].correct(w, theta[9 + 3 * k: 12 + 3 * k], temp, t, ref, cols)
         return base_correct(theta[:9], w)
 
 

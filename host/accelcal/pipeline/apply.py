@@ -11,8 +11,8 @@ from acal.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
-from accelcal.fixedpoint import g_to_sample, sample_to_g
-from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample, sample_to_g
+from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
 
 
@@ -42,13 +42,11 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     q = g_to_sample(xyz_g)
     if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
         return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
-        raise InputError(f"model {spec} needs a temperature column; {source} has none")
-    follows_supply = SUPPLY_COLUMN in spec.columns
-    if follows_supply and SUPPLY_COLUMN not in (cols or {}):
-        raise InputError(f"model {spec} follows a column {SUPPLY_COLUMN!r}; {source} has none")
+    board = [c for c in spec.columns if c in {q.column for q in COLUMN_QUANTITIES}]
+    _check_inputs(spec, temp, board, cols, source)
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q),
-                                     cols[SUPPLY_COLUMN] if follows_supply else None)
+                                     **board_columns({c: cols[c] for c in board}))
+    follows_supply = SUPPLY_COLUMN in board
     # the board's supply from its reference (mV), as the device's supply - ref_supply
     dV = cond[:, 2] - int(round(ref[column_ref(SUPPLY_COLUMN)])) if follows_supply else None
     step_time = 0
@@ -60,16 +58,21 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                                          step_time=step_time, dV=dV))
 
 
+def _check_inputs(spec: ModelSpec, temp, columns, cols: dict | None, source: str) -> None:
+    """InputError for a model's input the file lacks: temperature, or one of columns."""
+    if temp is None and any(e.needs == "temp" for e in spec.parts):
+        raise InputError(f"model {spec} needs a temperature column; {source} has none")
+    for c in columns:
+        if c not in (cols or {}):
+            raise InputError(f"model {spec} follows a column {c!r}; {source} has none")
+
+
 def _apply_on_host(spec: ModelSpec, p_int, xyz_g, temp, t, ref: dict, source: str,
                    cols: dict | None = None) -> np.ndarray:
     """A model with an effect the device does not have, applied in float64 (the fit's own
     correction, spec.correct) to the samples as read."""
-    if temp is None and any(CATALOGUE[e].needs == "temp" for e in spec.effects):
-        raise InputError(f"model {spec} needs a temperature column; {source} has none")
     cols = cols or {}
-    for c in spec.columns:
-        if c not in cols:
-            raise InputError(f"model {spec} follows a column {c!r}; {source} has none")
+    _check_inputs(spec, temp, spec.columns, cols, source)
     temp = np.zeros(len(xyz_g)) if temp is None else np.asarray(temp, dtype=np.float64)
     return spec.correct(spec.from_int(p_int), np.asarray(xyz_g, dtype=np.float64), temp,
                         np.asarray(t, dtype=np.float64), ref, cols)

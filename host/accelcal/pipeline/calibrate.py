@@ -2,7 +2,8 @@
 fitted on the very points the device's bins selected (`apply`: pipeline/apply.py)."""
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -12,10 +13,11 @@ from acal import fixed, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import CATALOGUE, SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
-from accelcal.fixedpoint import params_to_float, params_to_int
+from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
+                                 params_to_float, params_to_int, physical, seconds, span_reason)
 from accelcal.files.params import params_record
 from accelcal.pipeline.results import CalibrationResult
 
@@ -28,7 +30,7 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
     t = table.columns.get("t")
     cols = {k: v for k, v in table.columns.items() if k not in ("x", "y", "z", "t", "temp", by)}
     if not by:
-        return [runtime.Group("points", points=table.xyz, temp=temp, t=t, cols=cols)]
+        return [runtime.PointsGroup("points", points=table.xyz, temp=temp, t=t, cols=cols)]
     if by in table.text_columns:
         keys = table.text_columns[by]
     elif by in table.columns:
@@ -40,9 +42,10 @@ def groups_from_table(table: Table, by: str | None) -> list[runtime.Group]:
         if not k or any(c.isspace() for c in k):
             raise InputError(f"{table.path}: {by} value {k!r} must be non-empty without spaces")
         sel = keys == k
-        groups.append(runtime.Group(k, points=table.xyz[sel], temp=None if temp is None else temp[sel],
-                                    t=None if t is None else t[sel],
-                                    cols={c: v[sel] for c, v in cols.items()}))
+        groups.append(runtime.PointsGroup(k, points=table.xyz[sel],
+                                          temp=None if temp is None else temp[sel],
+                                          t=None if t is None else t[sel],
+                                          cols={c: v[sel] for c, v in cols.items()}))
     return groups
 
 
@@ -65,26 +68,20 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
     decided on the device), or None."""
     if r.ready:
         return None
-    for n in spec.effects:
-        need = CATALOGUE[n].needs
-        if need == "temp" and r.temp_span < dbins.TEMP_DIFFER:
-            return (f"{n}: the held points span {r.temp_span} degC of temperature, the fit needs "
-                    f">= {dbins.TEMP_DIFFER}")
-        if need == "t" and r.time_span < dbins.TIME_DIFFER:
-            return (f"{n}: the held points span {r.time_span * deff.DT_UNIT_S / 3600:.1f} h, the fit needs "
-                    f">= {dbins.TIME_DIFFER * deff.DT_UNIT_S / 3600:g} h")
-        if CATALOGUE[n].kind == deff.SUPPLY_OFFSET and r.supply_span < dbins.SUPPLY_DIFFER:
-            return (f"{n}: the held points span {r.supply_span} mV of {SUPPLY_COLUMN}, the fit "
-                    f"needs >= {dbins.SUPPLY_DIFFER}")
+    for e in spec.parts:
+        q = e.quantity
+        why = q and span_reason(q, getattr(r, f"{q.name}_span"))
+        if why:
+            return f"{e.name}: {why}"
     return "the bins are not ready"
 
 
 def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: str,
                      runtime_name: str, spec: ModelSpec | None = None,
                      points: str = "bins") -> list[CalibrationResult]:
-    """A points file: one record per group (result_record: status and a one-line reason).
+    """A points file: one record per group (Fit.record: status and a one-line reason).
     spec: a composed model (fitted by the device method or lsq); None is the paper's.
-    points: what a float method is fitted on (result_record)."""
+    points: what a float method is fitted on (Fit)."""
     spec, cfg = _device_spec(spec, method, cfg, points)
     groups = groups_from_table(table, by)
     for g in groups:
@@ -99,7 +96,7 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
         rec = CalibrationResult(model=str(spec), method=method, runtime=runtime_name)
         if by:
             rec[by] = g.name
-        out.append(result_record(rec, g, r, cfg, spec, method, points))
+        out.append(Fit(g, r, cfg, spec, method, points).record(rec))
     return out
 
 
@@ -122,153 +119,166 @@ def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config,
     return spec, replace(cfg, kinds=spec.kinds)
 
 
-def result_record(rec: dict, g: runtime.Group, r: runtime.DeviceResult, cfg: runtime.Config,
-                  spec: ModelSpec, method: str, points: str = "bins") -> dict:
-    """Fill rec with one group's outcome: status calibrated, not_enough_data (bins not filled,
-    or a composed model's spread not reached) or failed (the fit), with a one-line reason.
-    A float method is fitted on points "bins" (the points the device's bins selected and its
-    fit kept) or "all" (every usable rest point: |v| within 0.5-1.5 g, the bins' own gate;
-    the bins' readiness does not matter then)."""
-    rest = r.rest_g
-    rec["profile"] = cfg.profile
-    rec["rest_points"] = int(len(rest))
-    if r.threshold is not None:
-        rec["rest_threshold_g"] = r.threshold / fixed.SAMPLE_ONE_G
-        rec["noise_level_g"] = r.noise_level / fixed.SAMPLE_ONE_G
-    rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
-    rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
-    rec["points"] = len(r.selected_int)
-    # no rest points: no figure (null in JSON, never NaN)
-    rec["error_before_mg"] = methods.calibration_error_mg(None, rest) if len(rest) else None
-    if method != "device":
-        rec["points_from"] = points
-        if points == "all":
-            return _float_fit_record(rec, g, r, spec, method, rest, r.rest_conditions,
-                                     _rest_columns(spec, g, r))
-    why = fill_reason(r, cfg)
-    if why:
-        n_samples = len(g.samples) if g.samples is not None else g.n_samples
-        what = (f"{n_samples} samples gave {len(rest)} rest segments"
-                if n_samples is not None else f"{len(g)} points")
-        rec.update(status="not_enough_data", reason=f"{why}; {what}")
-        return rec
-    why = spread_report(spec, r)
-    if why:
-        rec.update(status="not_enough_data", reason=f"bins filled but {why}")
-        return rec
-    if r.kept is not None:
-        rec["points"] = int(sum(r.kept))
-        rec["outliers"] = len(r.kept) - rec["points"]
-    if method == "device":
+@dataclass
+class Fit:
+    """One group's fit: the data the device was handed (group), what it returned (result), the
+    settings it ran with, the model and the method fitted (a float method on points "bins", the
+    points the device's bins selected and its fit kept, or "all", every usable rest point: |v|
+    within 0.5-1.5 g, the bins' own gate; the bins' readiness does not matter then)."""
+    group: runtime.Group
+    result: runtime.DeviceResult
+    cfg: runtime.Config
+    spec: ModelSpec
+    method: str
+    points: str = "bins"
+
+    @cached_property
+    def rest(self) -> Conditions:
+        """The rest points' conditions as the device saw them, in physical units."""
+        return physical(self.result.rest_conditions, self.group.t_first)
+
+    def record(self, rec: dict) -> dict:
+        """Fill rec with the group's outcome: status calibrated, not_enough_data (bins not
+        filled, or a composed model's spread not reached) or failed (the fit), with a one-line
+        reason."""
+        g, r, cfg = self.group, self.result, self.cfg
+        rest = r.rest_g
+        rec["profile"] = cfg.profile
+        rec["rest_points"] = int(len(rest))
+        if r.threshold is not None:
+            rec["rest_threshold_g"] = r.threshold / fixed.SAMPLE_ONE_G
+            rec["noise_level_g"] = r.noise_level / fixed.SAMPLE_ONE_G
+        rec["bins"] = dict(zip(dbins.SUBSET_NAMES, r.counts))
+        rec["bins_filled"] = int(sum(c >= cfg.min_count for c in r.counts))
+        rec["points"] = len(r.selected_int)
+        # no rest points: no figure (null in JSON, never NaN)
+        rec["error_before_mg"] = methods.calibration_error_mg(None, rest) if len(rest) else None
+        if self.method != "device":
+            rec["points_from"] = self.points
+            if self.points == "all":
+                return self._float_record(rec, rest, r.rest_conditions, self.rest_columns())
+        why = fill_reason(r, cfg)
+        if why:
+            n_samples = g.n_samples
+            what = (f"{n_samples} samples gave {len(rest)} rest segments"
+                    if n_samples is not None else f"{len(g)} points")
+            rec.update(status="not_enough_data", reason=f"{why}; {what}")
+            return rec
+        why = spread_report(self.spec, r)
+        if why:
+            rec.update(status="not_enough_data", reason=f"bins filled but {why}")
+            return rec
+        if r.kept is not None:
+            rec["points"] = int(sum(r.kept))
+            rec["outliers"] = len(r.kept) - rec["points"]
+        if self.method != "device":
+            sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 3 + dbins.COND)
+            if r.kept is not None:
+                sel = sel[np.asarray(r.kept, bool)]
+            return self._float_record(rec, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:])
         if not optimiser.usable(r.status):
             rec.update(status="failed", reason=f"device fit {r.status_name} after {r.iterations} "
                        "iterations; no parameters returned")
             return rec
-        p_int = r.params_int
         if r.status != optimiser.OK:  # a composed fit refused, the base fit kept
             rec["note"] = r.status_name
         rec["iterations"] = r.iterations
         rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
-    else:
-        sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 6)
-        if r.kept is not None:
-            sel = sel[np.asarray(r.kept, bool)]
-        return _float_fit_record(rec, g, r, spec, method, sel[:, :3] / fixed.POINT_ONE_G, sel[:, 3:6])
-    return _params_record(rec, g, r, spec, method, p_int)
+        return self._params_record(rec, r.params_int)
 
+    def rest_columns(self) -> dict:
+        """The recording columns the model's effects follow, one value per rest point the device
+        reported: the board's supply as the device saw it (its third condition), others from the
+        group's points, which are its rest points (a points file, or a recording's segments as
+        the twin found them), each offered once, in order."""
+        spec, g = self.spec, self.group
+        out = self._board_columns(self.rest)
+        if all(c in out for c in spec.columns):
+            return out
+        if len(self.result.rest_int) != len(g):
+            raise InputError(f"model {spec}: its column effects need the rest points as the host "
+                             "found them (engine vector)")
+        return {c: out[c] if c in out else np.asarray(g.cols[c], dtype=np.float64)
+                for c in spec.columns}
 
-def _rest_columns(spec: ModelSpec, g: runtime.Group, r: runtime.DeviceResult) -> dict:
-    """The recording columns spec's effects follow, one value per rest point the device
-    reported: the board's supply as the device saw it (its third condition), others from the
-    group's points, which are its rest points (a points file, or a recording's segments as the
-    twin found them), each offered once, in order."""
-    out = {SUPPLY_COLUMN: r.rest_conditions[:, 2].astype(np.float64)} \
-        if SUPPLY_COLUMN in spec.columns else {}
-    if all(c in out for c in spec.columns):
-        return out
-    if len(r.rest_int) != len(g):
-        raise InputError(f"model {spec}: its column effects need the rest points as the host "
-                         "found them (engine vector)")
-    return {c: out[c] if c in out else np.asarray(g.cols[c], dtype=np.float64)
-            for c in spec.columns}
+    def _float_record(self, rec, v, cond, cols=None):
+        """A float method fitted on points v seen at cond (the device's conditions) with further
+        columns cols (by name, per point): the paper's model by any method, a composed one by
+        lsq (diagnose.fit) with the device's references."""
+        spec = self.spec
+        mag = np.linalg.norm(v, axis=1)
+        ok = (mag > 0.5) & (mag < 1.5)
+        v, seen = v[ok], physical(cond[ok], self.group.t_first)
+        cols = {c: x[ok] for c, x in (cols or {}).items()}
+        cols.update(self._board_columns(seen))   # the board's supply, as the device saw it
+        rec["points"] = int(len(v))
+        rec["iterations"] = None
+        ref = None
+        try:
+            if not spec.effects:
+                p_int = params_to_int(methods.METHODS[self.method](v))
+            else:
+                from accelcal.pipeline.restpoints import RestPoints
+                from accelcal.pipeline.composed_lsq import fit_with_reference, refs
+                methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
+                pts = RestPoints(v, seen.time, seen.temp, np.zeros(len(v)), "points", cols)
+                if spec.host_only:   # the host's references, as diagnose takes them
+                    ref = refs(pts, spec)
+                else:   # the device's references (acal.pipeline.references)
+                    from acal.pipeline import references
+                    c = cond[ok]
+                    ref = self._reference(references([int(x) for x in c.ravel()], len(c),
+                                                     spec.kinds))
+                theta, ref = fit_with_reference(spec, pts, ref)
+                p_int = spec.to_int(theta)
+        except methods.FitError as e:
+            rec.update(status="failed", reason=str(e))
+            return rec
+        return self._params_record(rec, p_int, ref)
 
+    def _reference(self, device_ref) -> dict:
+        """The device's integer references (degC, 64 s units, mV) as a model's reference: T0, t0
+        and, for an effect of the board's supply, its column's."""
+        at = physical(device_ref, self.group.t_first)
+        ref = {q.ref: float(getattr(at, q.name)) for q in QUANTITIES if q.ref}
+        ref.update({column_ref(c): float(x) for c, x in self._board_columns(at).items()})
+        return ref
 
-def _float_fit_record(rec, g, r, spec, method, v, cond, cols=None):
-    """A float method fitted on points v (g) seen at cond (int degC, 64 s units, mV) with
-    further columns cols (by name, per point): the paper's model by any method, a composed one
-    by lsq (diagnose.fit) with the device's references."""
-    mag = np.linalg.norm(v, axis=1)
-    ok = (mag > 0.5) & (mag < 1.5)
-    v, cond = v[ok], cond[ok]
-    cols = {c: x[ok] for c, x in (cols or {}).items()}
-    if SUPPLY_COLUMN in spec.columns:   # the board's supply, as the device saw it
-        cols[SUPPLY_COLUMN] = cond[:, 2].astype(np.float64)
-    rec["points"] = int(len(v))
-    rec["iterations"] = None
-    ref = None
-    try:
-        if not spec.effects:
-            p_int = params_to_int(methods.METHODS[method](v))
+    def _board_columns(self, seen: Conditions) -> dict:
+        """The columns the model follows that the board reads itself, as the device saw them."""
+        return {q.column: getattr(seen, q.name) for q in COLUMN_QUANTITIES
+                if q.column in self.spec.columns}
+
+    def _params_record(self, rec, p_int, ref=None):
+        """rec with the parameters (decoded and Q24) and the error after; ref: a composed
+        model's references (None: the device fit's)."""
+        spec, r = self.spec, self.result
+        if spec.effects:
+            if ref is None:   # the device fit's references, and a step's time it found
+                ref = self._reference([getattr(r, f"ref_{q.name}") for q in QUANTITIES])
+                if spec.change_point:
+                    ref["ts"] = ref["t0"] + seconds(r.step_time)
+            rec.update(model=str(spec), method=self.method,
+                       scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                             "g, 1/degC, g/day, 1/g",
+                       params_int=dict(zip(spec.param_names, map(int, p_int))),
+                       params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())),
+                       reference=ref)
         else:
-            from accelcal.pipeline.restpoints import RestPoints
-            from accelcal.pipeline.composed_lsq import fit_with_reference, refs
-            methods.check_points(v, 9 + 3 * len(spec.effects), "lsq")
-            pts = RestPoints(v, g.t_first + cond[:, 1] * float(deff.DT_UNIT_S),
-                             cond[:, 0].astype(float), np.zeros(len(v)), "points", cols)
-            if spec.host_only:   # the host's references, as diagnose takes them
-                ref = refs(pts, spec)
-            else:   # the device's references (acal.pipeline.references)
-                from acal.pipeline import references
-                ref = _device_reference(spec, g, *references([int(c) for c in cond.ravel()],
-                                                             len(cond), spec.kinds))
-            theta, ref = fit_with_reference(spec, pts, ref)
-            p_int = spec.to_int(theta)
-    except methods.FitError as e:
-        rec.update(status="failed", reason=str(e))
+            rec.update(params_record(p_int, "base", self.method))
+        rec["status"] = "calibrated"
+        rec["error_after_mg"] = self.error_after_mg(p_int, rec.get("reference"))
         return rec
-    return _params_record(rec, g, r, spec, method, p_int, ref)
 
-
-def _device_reference(spec, g, ref_temp, ref_time, ref_supply) -> dict:
-    """The device's integer references (degC, 64 s units from the group's first time, mV) as a
-    model's reference: T0, t0 and, for an effect of the board's supply, its column's."""
-    ref = {"T0": float(ref_temp), "t0": g.t_first + ref_time * float(deff.DT_UNIT_S)}
-    if SUPPLY_COLUMN in spec.columns:
-        ref[column_ref(SUPPLY_COLUMN)] = float(ref_supply)
-    return ref
-
-
-def _params_record(rec, g, r, spec, method, p_int, ref=None):
-    """rec with the parameters (decoded and Q24) and the error after; ref: a composed model's
-    references (None: the device fit's)."""
-    if spec.effects:
-        if ref is None:   # the device fit's references, and a step's time it found
-            ref = _device_reference(spec, g, r.ref_temp, r.ref_time, r.ref_supply)
-            if spec.change_point:
-                ref["ts"] = ref["t0"] + r.step_time * deff.DT_UNIT_S
-        rec.update(model=str(spec), method=method,
-                   scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
-                         "g, 1/degC, g/day, 1/g",
-                   params_int=dict(zip(spec.param_names, map(int, p_int))),
-                   params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())), reference=ref)
-    else:
-        rec.update(params_record(p_int, "base", method))
-    rec["status"] = "calibrated"
-    rec["error_after_mg"] = error_after_mg(spec, p_int, rec.get("reference"), g, r)
-    return rec
-
-
-def error_after_mg(spec: ModelSpec, p_int, ref: dict | None, g: runtime.Group,
-                   r: runtime.DeviceResult) -> float:
-    """The calibration error (mean | |a| - 1 g |, mg) of parameters over the group's rest
-    points, composed models at each point's conditions as the device saw them."""
-    rest = r.rest_g
-    if not spec.effects:
-        return methods.calibration_error_mg(params_to_float(p_int), rest)
-    cond = r.rest_conditions  # int degC, 64 s units, mV
-    a = spec.correct(spec.from_int(p_int), rest, cond[:, 0].astype(float),
-                     g.t_first + cond[:, 1] * float(deff.DT_UNIT_S), ref, _rest_columns(spec, g, r))
-    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+    def error_after_mg(self, p_int, ref: dict | None) -> float:
+        """The calibration error (mean | |a| - 1 g |, mg) of parameters over the group's rest
+        points, composed models at each point's conditions as the device saw them."""
+        rest = self.result.rest_g
+        if not self.spec.effects:
+            return methods.calibration_error_mg(params_to_float(p_int), rest)
+        a = self.spec.correct(self.spec.from_int(p_int), rest, self.rest.temp, self.rest.time, ref,
+                              self.rest_columns())
+        return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
 def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,
@@ -300,15 +310,15 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
         raise InputError(str(e)) from None
     if engine == "vector":
         cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()),
-                                         cols.get(SUPPLY_COLUMN))
-        g = runtime.Group("recording", points_q16=sc.segments.mean[kept],
-                          temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
-                          n_samples=sc.n_samples, cols=cols)
+                                         **board_columns(cols))
+        g = runtime.RestMeans("recording", points_q16=sc.segments.mean[kept],
+                              temp=temp, t=sc.seg_t[kept], cond=cond, t_origin=sc.t_first,
+                              n_samples=sc.n_samples, cols=cols)
     else:
         t, q, temp_s = whole
-        g = runtime.Group("recording", samples=q / fixed.SAMPLE_ONE_G,
-                          gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s, t=t,
-                          unworn=sc.excluded_runs(kept))
+        g = runtime.SamplesGroup("recording", samples=q / fixed.SAMPLE_ONE_G,
+                                 gaps=np.asarray(sc.gap_starts, dtype=np.int64), temp=temp_s,
+                                 t=t, unworn=sc.excluded_runs(kept))
     r = runtime.run([g], cfg, runtime_name)[0]
     if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
         r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level
@@ -317,7 +327,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec.update(quality(sc, m))
     if rec_in.warnings:
         rec["reader_warnings"] = rec_in.warnings
-    rec = result_record(rec, g, r, cfg, spec, method, points)
+    rec = Fit(g, r, cfg, spec, method, points).record(rec)
     rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
     if rec["status"] != "calibrated" and fallback:
         use_fallback(rec, fallback, r.rest_g)

@@ -82,7 +82,7 @@ def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"
     """The device's bins and optimiser on points in stream order: (params or None, selected
     points, reason or None)."""
     from accelcal.pipeline.calibrate import fill_reason
-    r = runtime.run([runtime.Group("train", points=v)], cfg, runtime_name)[0]
+    r = runtime.run([runtime.PointsGroup("train", points=v)], cfg, runtime_name)[0]
     sel = r.fit_points_g
     why = fill_reason(r, cfg)
     if why:
@@ -109,7 +109,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
     """The composed model's rows: the device pipeline on the training points (in stream order,
     with their conditions) and lsq on every training point, scored on the held-out points."""
     from dataclasses import replace
-    from accelcal.pipeline.calibrate import result_record
+    from accelcal.pipeline.calibrate import Fit
     from accelcal.pipeline.composed_lsq import fit_with_reference, refs
     rows = []
     for name in ("device", "lsq"):
@@ -121,11 +121,11 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
             if name == "device":
                 if spec.host_only:
                     raise methods.FitError(f"{', '.join(spec.host_only)} has no device form")
-                g = runtime.Group("train", points=sp.train.v, temp=sp.train.temp, t=sp.train.t,
-                                  cols=sp.train.cols)
+                g = runtime.PointsGroup("train", points=sp.train.v, temp=sp.train.temp,
+                                        t=sp.train.t, cols=sp.train.cols)
                 c = replace(cfg, kinds=spec.kinds)
                 r = runtime.run([g], c, runtime_name)[0]
-                rec = result_record({}, g, r, c, spec, "device")
+                rec = Fit(g, r, c, spec, "device").record({})
                 if rec.get("status") != "calibrated":
                     raise methods.FitError(rec.get("reason") or rec.get("status", "failed"))
                 theta, ref = spec.from_int(list(rec["params_int"].values())), rec["reference"]

@@ -8,7 +8,7 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.methods import calibration_error_mg
-from accelcal.model.effects import CATALOGUE, ModelSpec, column_ref
+from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.pipeline.results import CalibrationResult
 from accelcal.pipeline.restpoints import RestPoints, check_coverage, rest_points, usable
 
@@ -52,8 +52,8 @@ def fit(spec: ModelSpec, p: RestPoints, ref: dict, start: np.ndarray | None = No
     x0 = np.r_[1, 1, 1, 0, 0, 0, 0, 0, 0, np.zeros(3 * n_eff)]
     lo = np.r_[[0.5] * 3, [-0.5] * 3, [-0.5] * 3]
     hi = np.r_[[2.0] * 3, [0.5] * 3, [0.5] * 3]
-    for name in spec.effects:
-        b = CATALOGUE[name].bound
+    for e in spec.parts:
+        b = e.bound
         lo, hi = np.r_[lo, [-b] * 3], np.r_[hi, [b] * 3]
     if start is not None:
         x0[:len(start)] = start

@@ -103,13 +103,14 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     regs = regressors(spec, theta, test, ref)
     where = where_it_fails(regs, r)
     # a column effect is a candidate where the file has its column (not listed elsewhere)
-    cands = [candidate(spec.with_effect(name), p, train, test, test_block, ref, r, err, theta)
-             for name, e in CATALOGUE.items() if name not in spec.effects and e.candidate
-             and (e.needs != "col" or e.column in p.cols)]
+    pool = {n: e for n, e in CATALOGUE.items() if n not in spec.effects and e.candidate
+            and (e.needs != "col" or e.column in p.cols)}
+    cands = [candidate(spec.with_effect(e), p, train, test, test_block, ref, r, err, theta)
+             for e in pool.values()]
     testable = [c for c in cands if c["heldout_error_mg"] is not None]
     best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
-    plain = [c for c in testable if not CATALOGUE[c["effect"]].change_point]
-    if best and CATALOGUE[best["effect"]].change_point and plain:
+    plain = [c for c in testable if not pool[c["effect"]].change_point]
+    if best and pool[best["effect"]].change_point and plain:
         alt = min(plain, key=lambda c: c["heldout_error_mg"])
         if alt["heldout_error_mg"] <= STEP_PARSIMONY * best["heldout_error_mg"]:
             best = alt
@@ -119,11 +120,11 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         named = best["effect"]
     if named:
         host = " --method lsq --points all (it runs on the host only)" \
-            if CATALOGUE[named].kind is None else ""
+            if pool[named].kind is None else ""
         weak = "" if best["evidence"] == "clear" else (
             " Weak evidence: so few blocks better is a count chance alone gives too often; "
             "confirm it on a longer recording.")
-        explanation = (f"{named}: {CATALOGUE[named].explain(sensor_of(path))} Fitted here: "
+        explanation = (f"{named}: {pool[named].explain(sensor_of(path))} Fitted here: "
                        + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
                        + f" {best['param_unit']}. Adding it lowers the held-out error "
                        f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
@@ -182,8 +183,8 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
     """The model with one more effect (the last of cspec), fitted on the training blocks and
     scored on the held-out ones: its error, how much lower than err (that of the model without
     it, fitted as theta), in how many blocks."""
-    name = cspec.effects[-1]
-    e = CATALOGUE[name]
+    e = cspec.parts[-1]
+    name = e.name
     try:
         ModelSpec.parse(str(cspec))   # one step per model
         check_model(cspec, p)
@@ -269,7 +270,7 @@ def make_plots(d: Path, spec, theta, test, ref, r, cands, err, floor, train=None
     plt.close(fig)
     out = [str(f1), str(f2)]
     if spec.effects and train is not None:
-        before = ModelSpec(spec.effects[:-1])
+        before = ModelSpec(spec.parts[:-1])
         th0 = fit(before, train, ref)
         a0, r0 = residuals(before, th0, test, ref)
         fig = figures.before_after_figure(test, a0, r0 * 1e3, a, r * 1e3, floor, str(before),

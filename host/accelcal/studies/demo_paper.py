@@ -27,7 +27,7 @@ def main() -> int:
         truths.append(p)
         train.append(v[:300])
         test.append(v[300:])
-    groups = [runtime.Group(f"dev{i:02d}", points=v) for i, v in enumerate(train)]
+    groups = [runtime.PointsGroup(f"dev{i:02d}", points=v) for i, v in enumerate(train)]
     cfg = runtime.Config()
     print(f"accelcal demo: {DEVICES} simulated sensors (Farago 2024 eqs. 17-20, {NOISE_MG:g} mg noise)")
     t0 = time.perf_counter()

@@ -52,7 +52,7 @@ def run_table2(scenarios=500, noise_mg=1, seed=2024, candidates=300, policy="cen
     for s in range(scenarios):
         p, v = simulate.paper_scenario(rng, candidates, noise_mg * 1e-3, dist)
         truths.append(p)
-        groups.append(runtime.Group(f"s{s:04d}", points=v))
+        groups.append(runtime.PointsGroup(f"s{s:04d}", points=v))
     cfg = runtime.Config.for_profile(profile, policy=policy)
     results = []
     step = 50
