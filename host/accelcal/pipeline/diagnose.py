@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from acal import discovery
+
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
 from accelcal.files.recordings import sensor_of
@@ -38,8 +40,9 @@ from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
 
-MIN_IMPROVEMENT_PCT = 10.0
-MIN_BLOCK_SHARE = 0.7
+# the acceptance rule, shared with the board's own discovery (acal/discovery.py)
+MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
+MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
 # A share of few blocks is weak evidence: 3 of 3 blocks better happens one time in eight by
 # chance alone.  A named effect whose blocks would pass a one-sided sign test at this level only
 # with more of them is named as weak evidence, to be confirmed on a longer recording.
@@ -48,7 +51,7 @@ WEAK_P = 0.05
 # blocks sit between training ones: a step can pass for a drift or a temperature pattern there.
 # So a change-point effect is preferred only when it beats the best effect without one by this
 # factor in held-out error.
-STEP_PARSIMONY = 1.5
+STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
 
 
 # held-out error / wrist floor up to which a model with no lead is called complete (the floor's
@@ -112,11 +115,11 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     plain = [c for c in testable if not pool[c["effect"]].change_point]
     if best and pool[best["effect"]].change_point and plain:
         alt = min(plain, key=lambda c: c["heldout_error_mg"])
-        if alt["heldout_error_mg"] <= STEP_PARSIMONY * best["heldout_error_mg"]:
+        if discovery.plain_preferred(best["heldout_error_mg"], alt["heldout_error_mg"]):
             best = alt
     named = None
-    if best and best["improvement_pct"] >= MIN_IMPROVEMENT_PCT and \
-            best["blocks_improved_pct"] >= 100 * MIN_BLOCK_SHARE:
+    if best and discovery.names(err, best["heldout_error_mg"], best["blocks_improved"],
+                                best["blocks"]):
         named = best["effect"]
     if named:
         host = " --method lsq --points all (it runs on the host only)" \
@@ -202,7 +205,7 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
            "blocks": len(blocks),
            # judged where the share would name it: few blocks are weak evidence (block_evidence)
            "evidence": block_evidence(better, len(blocks))
-           if better >= MIN_BLOCK_SHARE * len(blocks) else None,
+           if discovery.share_holds(better, len(blocks)) else None,
            "params": dict(zip(e.param_names, (th[-3:] * e.scale).round(4).tolist())),
            "param_unit": e.report_unit}
     if "ts" in cref and "ts" not in ref:

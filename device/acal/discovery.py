@@ -1,0 +1,40 @@
+# Model discovery's acceptance rule, in integers: the one definition by which the host's
+# `diagnose` names a missing effect and the board's own discovery (issue 29) will adopt one.
+# A candidate effect, fitted on the training blocks, is named when it lowers the held-out error
+# by at least MIN_IMPROVEMENT_PCT and does so in at least MIN_BLOCK_SHARE_PCT of the held-out
+# blocks (an effect is systematic: a fit that only chases noise improves some blocks and
+# worsens others).  A change-point effect (a step) has a free split, so it is preferred to the
+# best effect without one only when that one's held-out error is over STEP_PARSIMONY_TENTHS / 10
+# times the step's.  The errors may be any numbers of one unit (mg on the host, the board's
+# integers there); the comparisons are products, no division.
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
+
+MIN_IMPROVEMENT_PCT = const(10)
+MIN_BLOCK_SHARE_PCT = const(70)
+STEP_PARSIMONY_TENTHS = const(15)
+
+
+def share_holds(better, blocks):
+    """True when `better` of `blocks` held-out blocks is at least MIN_BLOCK_SHARE_PCT."""
+    return 100 * better >= MIN_BLOCK_SHARE_PCT * blocks
+
+
+def improves(before, after):
+    """True when the held-out error falls from `before` by at least MIN_IMPROVEMENT_PCT."""
+    return 100 * (before - after) >= MIN_IMPROVEMENT_PCT * before
+
+
+def names(before, after, better, blocks):
+    """The rule: a candidate whose held-out error is `after` (the model without it: `before`),
+    better in `better` of `blocks` held-out blocks, is named."""
+    return improves(before, after) and share_holds(better, blocks)
+
+
+def plain_preferred(step_error, plain_error):
+    """True when the best effect without a change point (held-out error plain_error) is
+    preferred to the best step (step_error): it comes within the step's parsimony factor."""
+    return 10 * plain_error <= STEP_PARSIMONY_TENTHS * step_error
