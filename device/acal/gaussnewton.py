@@ -34,8 +34,8 @@ from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.model import FIT_W_MAX
 from acal.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
-from acal.normal_sums import (PointRows, QD_BASE, QD_EFFECT, F_TAU_OFFSET, accumulate,
-                               accum_points, trial_points, insert_abs, q24, above, rhs_from_limbs)
+from acal.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
+                               insert_abs, q24, above, rhs_from_limbs, point_residual)
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
@@ -66,7 +66,7 @@ _REJECT = 5  # the points above the limit dropped
 _DONE = 6
 
 
-class GaussNewton(PointRows):
+class GaussNewton:
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
     model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
     rejection after the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
@@ -102,7 +102,7 @@ class GaussNewton(PointRows):
         self.bl = int32s(np_)       # ... low limb, in [0, 2**B_SPLIT) between points
         self.sh = int32s(np_)           # column scales s_k (int32: scale_row's pointers)
         self.grown = int32s(np_)        # ... and by how much a point grew them
-        self.state = int32s(1)          # where _accum_points stopped
+        self.state = int32s(2)          # where accum_points stopped, and tau
         self.qd = [QD_BASE if k < N_PARAMS else QD_EFFECT for k in range(np_)]
         self.rhs = int32s(np_)          # int32: the solver's _rhs_shift reads it
         self.xshift = [0] * np_
@@ -135,8 +135,6 @@ class GaussNewton(PointRows):
         self.refused = 0
         self.limit = 0
         self.kept = 0
-        self.rh = 0
-        self.rl = 0
         self.first = True
         self.ts = 0                     # a step's time (as aux's dt), set before begin()
 
@@ -217,21 +215,24 @@ class GaussNewton(PointRows):
         return self.phase == _DONE
 
     def _accum(self):
-        # Up to ACCUM_POINTS points (a composed model's: ACCUM_POINTS_COMPOSED) at once
-        # (accum_points); a point that grows a scale by the general path, in a slice of its own
-        # (so that a slice is at most one of the two).
-        start = self.pos
-        end = start + (ACCUM_POINTS_COMPOSED if self.kinds else ACCUM_POINTS)
+        # Up to ACCUM_POINTS points (a composed model's: ACCUM_POINTS_COMPOSED) at once; a point
+        # that grows a scale in a slice of its own (accum_points).
+        end = self.pos + (ACCUM_POINTS_COMPOSED if self.kinds else ACCUM_POINTS)
         if end > self.n:
             end = self.n
-        self.f = accum_points(self, start, end, self.tau, self.f)
-        i = self.state[0]
-        if i == start:
-            self._scaled_row(i)
-            accumulate(self.d, self.a, self.b, self.bl, self.n_params, self.rh, self.rl,
-                       SIGN_SHIFT)
-            i += 1
-        self._accumulated(i)
+        self.f = accum_points(self, self.pos, end, self.tau, self.f)
+        self.tau = self.state[1]
+        self._accumulated(self.state[0])
+
+    def point(self, i, w):
+        """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
+        (a list of 3, Q24 g): what acal/changepoint.py reads."""
+        r = point_residual(self, self.p, i)
+        src = self.w if self.kinds else self.u
+        at = 0 if self.kinds else 3 * i
+        for c in range(3):
+            w[c] = src[at + c]
+        return r
 
     def _accumulated(self, i):
         self.pos = i

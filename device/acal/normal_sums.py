@@ -49,35 +49,57 @@ def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
 
 @viper
 def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
-    # _scaled_row and accumulate for the points [i, end) of a fit, while neither the
-    # residuals' scale tau nor a column's scale has to grow: the point that would grow one is
-    # left to them (fit.state[0]: where this stopped).  Returns f.  The same integers as those
-    # two, written out for viper on ports with emitters (acal/emit.py): R_MAX 2**18, D_MAX
-    # 2**11, F_TAU_OFFSET 7, B_SPLIT 9; square's mul_shift for a square.
+    # Points [i, end) of a fit into its sums: each point's residual into r and f, its row scaled
+    # into d~ and r~ = rh 2**B_SPLIT + rl, then accumulate().  The residuals' scale tau and the
+    # columns' scales s_k grow as the points need (the sums so far shifted down with them, but at
+    # a pass's first point, where they are zero); a point that grows one takes a slice of its
+    # own: it is done first in a call, or left for the next (fit.state: where this stopped, and
+    # tau).  Returns f.  Viper on ports with emitters (acal/emit.py): R_MAX 2**18, D_MAX 2**11,
+    # F_TAU_OFFSET 7, B_SPLIT 9; wide.mul_shift(x, x, s) of the square written out.
     row = fit.d
     d = ptr32(row)
     rr = ptr32(fit.r)
-    sh = ptr32(fit.sh)
+    scales = fit.sh
+    sh = ptr32(scales)
     params = fit.p
     sums = fit.a
     high = fit.b
     low = fit.bl
+    b = ptr32(high)
+    bl = ptr32(low)
     n = int(fit.n_params)
     w = int(SIGN_SHIFT)
+    start = i
     while i < end:
         r0 = int(raw_row(fit, params, i))
-        if ((r0 if r0 >= 0 else 0 - r0) >> tau) >= 262144:
-            break
+        ar = r0 if r0 >= 0 else 0 - r0
+        grows = (ar >> tau) >= 262144
         k = 0
-        while k < n:
+        while k < n and not grows:
             v = int(d[k]) << w >> w
-            if ((v if v >= 0 else 0 - v) >> (int(sh[k]) << w >> w)) >= 2048:
-                break
+            grows = ((v if v >= 0 else 0 - v) >> (int(sh[k]) << w >> w)) >= 2048
             k += 1
-        if k < n:
-            break
+        if grows and i > start:
+            break             # the next slice's first point
         rr[i] = r0
-        # f += square(r0, tau + 7): floor(x**2 2**-s) as wide.mul_shift(x, x, s)
+        if (ar >> tau) >= 262144:
+            # tau grows: the smallest that holds r~, 4 bits a step, then 1; f and b shift down
+            g = tau
+            while (ar >> (g + 4)) >= 262144:
+                g += 4
+            while (ar >> g) >= 262144:
+                g += 1
+            if i:
+                f >>= 2 * (g - tau)
+                k = 0
+                while k < n:
+                    hi = int(b[k]) << w >> w
+                    h = hi >> (g - tau)
+                    b[k] = h
+                    bl[k] = (((hi - (h << (g - tau))) << 9) + (int(bl[k]) << w >> w)) >> (g - tau)
+                    k += 1
+            tau = g
+        # f += floor(r0**2 4**-(tau + 7)) (below 2**26) as wide.mul_shift(x, x, s)
         t = tau + 7
         x = r0
         s = 2 * t
@@ -96,16 +118,23 @@ def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
         rs = r0
         if tau:
             rs = (r0 + (1 << (tau - 1))) >> tau
-        k = 0
-        while k < n:
-            s = int(sh[k]) << w >> w
-            if s:
-                d[k] = ((int(d[k]) << w >> w) + (1 << (s - 1))) >> s
-            k += 1
+        if grows:             # the columns' scales grow as they must (their sums shift down)
+            if int(scale_row(row, scales, fit.grown, n, w)) and i:
+                grow_columns(sums, high, low, fit.grown, n, w)
+        else:
+            k = 0
+            while k < n:
+                s = int(sh[k]) << w >> w
+                if s:
+                    d[k] = ((int(d[k]) << w >> w) + (1 << (s - 1))) >> s
+                k += 1
         accumulate(row, sums, high, low, n, rs >> 9, rs & 511, w)
         i += 1
+        if grows:
+            break
     st = ptr32(fit.state)
     st[0] = i
+    st[1] = tau
     return f
 
 
@@ -114,7 +143,7 @@ def trial_points(fit, params, i: int, end: int, t: int, ft: int) -> int:
     # The trial objective over the points [i, end) at params: each residual into fit.rt, ft
     # plus floor(r**2 4**-t) each, saturated at F_LIMIT (2**29); a residual past 2**(13 + t)
     # (TRIAL_MAX) makes it F_LIMIT.  Viper on ports with emitters: point_residual() is called;
-    # square()'s mul_shift.
+    # floor(r**2 4**-t) by wide.mul_shift.
     rt = ptr32(fit.rt)
     while i < end:
         r = int(point_residual(fit, params, i))
@@ -156,7 +185,7 @@ def scale_row(row, scales, grown, n: int, w: int) -> int:
     # A point's raw row d (row) scaled in place to d~_k = round(d_k 2**-s_k), each scale s_k
     # (scales) first grown to the smallest that keeps |d~_k| <= D_MAX (2**11) and the growth
     # written to grown[k]: the number of columns grown.  Viper on ports with emitters (acal/
-    # emit.py; w: emit.SIGN_SHIFT; 2048 is D_MAX); scale_for's steps written out.
+    # emit.py; w: emit.SIGN_SHIFT; 2048 is D_MAX); the smallest scale, 4 bits a step, then 1.
     d = ptr32(row)
     sh = ptr32(scales)
     g = ptr32(grown)
@@ -181,24 +210,6 @@ def scale_row(row, scales, grown, n: int, w: int) -> int:
             d[k] = (v + (1 << (s - 1))) >> s
         k += 1
     return count
-
-
-def scale_for(v, s, limit):
-    # The smallest g >= s with v >> g below limit (v >= 0): 4 bits a step, then 1.
-    while (v >> (s + 4)) >= limit:
-        s += 4
-    while (v >> s) >= limit:
-        s += 1
-    return s
-
-
-def square(r, t):
-    # floor(r**2 4**-t) for |r| < 2**(13 + t), below 2**26, without a long.
-    k = 8 - t
-    if k > 0:
-        r <<= k
-        return mul_shift(r, r, 16)
-    return mul_shift(r, r, 2 * t)
 
 
 def q24(f, t):
@@ -348,54 +359,3 @@ def raw_row(fit, params, i: int) -> int:
             c += 1
         k += 1
     return r0
-
-
-class PointRows:
-    """The point-by-point half of acal.gaussnewton.GaussNewton (its base class; the arrays and
-    scales are the fit's, made in its __init__): a point's residual, its raw Jacobian row (a
-    composed model's effects removed first), and the row scaled for the sums, the scales
-    growing (and the sums so far shifted down) as the rows grow."""
-
-    def point(self, i, w):
-        """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
-        (a list of 3, Q24 g): what acal/changepoint.py reads."""
-        r = point_residual(self, self.p, i)
-        src = self.w if self.kinds else self.u
-        at = 0 if self.kinds else 3 * i
-        for c in range(3):
-            w[c] = src[at + c]
-        return r
-
-    def _scaled_row(self, i):
-        # Point i's residual into r and f, its row scaled into d (d~), r~ into rh, rl.
-        d = self.d
-        r0 = raw_row(self, self.p, i)
-        self.r[i] = r0
-        # the residual's scale tau: grows (and shifts f and b down) as residuals grow
-        ar = r0 if r0 >= 0 else -r0
-        t = self.tau
-        if (ar >> t) >= R_MAX:
-            g = scale_for(ar, t, R_MAX)
-            self.tau = g
-            if i:   # the sums so far are zero at a pass's first point
-                self.f >>= 2 * (g - t)
-                self._shift_b(g - t)
-            t = g
-        self.f += square(r0, t + F_TAU_OFFSET)
-        rs = (r0 + (1 << (t - 1))) >> t if t else r0
-        self.rh = rs >> B_SPLIT
-        self.rl = rs & B_MASK
-        # the columns' scales s_k, likewise (a column whose scale grows shifts its sums down)
-        if scale_row(d, self.sh, self.grown, self.n_params, SIGN_SHIFT) and i:
-            grow_columns(self.a, self.b, self.bl, self.grown, self.n_params, SIGN_SHIFT)
-
-    def _shift_b(self, g):
-        for k in range(self.n_params):
-            self._shift_limbs(k, g)
-
-    def _shift_limbs(self, k, g):
-        # b_k = hi 2**9 + lo (lo in [0, 2**9)) -> floor(b_k 2**-g), in limbs again
-        hi = self.b[k]
-        h = hi >> g
-        self.b[k] = h
-        self.bl[k] = (((hi - (h << g)) << B_SPLIT) + self.bl[k]) >> g
