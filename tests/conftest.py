@@ -6,6 +6,11 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# tests/ mirrors the package in folders without __init__.py; a few modules share helpers by
+# importing each other by name (import test_app), so every folder is importable from any other.
+for _folder in sorted(Path(__file__).parent.iterdir()):
+    if _folder.is_dir() and _folder.name not in ("data", "__pycache__"):
+        sys.path.insert(0, str(_folder))
 
 
 @pytest.fixture

@@ -154,7 +154,7 @@ def anchor(heading: str) -> str:
 def sources() -> list[Path]:
     return [*(ROOT / "device").rglob("*.py"), *(ROOT / "host").rglob("*.py"),
             *(ROOT / "host").rglob("*.mjs"), *(ROOT / "boards").glob("*.py"),
-            *(ROOT / "tests").glob("*.py"), ROOT / "Makefile", ROOT / "README.md",
+            *(ROOT / "tests").rglob("*.py"), ROOT / "Makefile", ROOT / "README.md",
             *(ROOT / "docs").glob("*.md")]
 
 
@@ -199,3 +199,20 @@ def test_the_readme_is_a_map(path):
                         ("methods", "model", "files", "bridge", "report", "simulate", "pipeline",
                          "board", "studies", "cli"))):
         assert f"`{folder_name}" in text, f"the layout table leaves out {folder_name}"
+
+
+def test_tests_mirror_the_package():
+    """tests/ has a folder per part of the house (device/ or a host folder), each test module in the
+    folder of what it proves, and every tests/ path the docs and the code cite exists."""
+    folders = {p.name for p in (ROOT / "tests").iterdir() if p.is_dir()} - {"data", "__pycache__"}
+    assert folders <= {"device"} | {f for layer in LAYERS for f in layer}, folders
+    names = [p.name for p in (ROOT / "tests").rglob("test_*.py")]
+    assert len(names) == len(set(names)), "two test modules share a name (conftest puts every folder on sys.path)"
+    cited = re.compile(r"tests/[\w/]+\.py")
+    missing = {f"{src.relative_to(ROOT)}: {m}" for src in sources() for m in cited.findall(src.read_text())
+               if not (ROOT / m).exists()}
+    assert not missing, sorted(missing)
+    table = (ROOT / "docs" / "tests.md").read_text()
+    unlisted = [str(p.relative_to(ROOT)) for p in (ROOT / "tests").rglob("test_*.py")
+                if f"| `{p.relative_to(ROOT)}` |" not in table]
+    assert not unlisted, f"docs/tests.md's table lacks {unlisted}"

@@ -172,7 +172,7 @@ def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w
     # model without effects: the per-sample hot loop, viper on ports with emitters (acal/emit.py;
     # w: emit.SIGN_SHIFT).  The same integers as apply(): readings clamped to +-m, u in Q14
     # (<< s), products of Q14 parameters rounded down by o bits; every value below 2**30 at
-    # every full scale (tests/test_ranges.py traces them).
+    # every full scale (tests/device/test_ranges.py traces them).
     src = ptr32(source)
     dst = ptr32(dest)
     k = ptr32(coef)

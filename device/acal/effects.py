@@ -26,7 +26,7 @@
 #   Apply (per sample, Q14 g readings, calibration.Calibration): c, e and d in Q14 (param >> 10), s and q
 #   in Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days;
 #   both clamped)
-#   and inside BOUNDS every product stays below 2**30 (tests/test_effects.py runs the worst case).
+#   and inside BOUNDS every product stays below 2**30 (tests/device/test_effects.py runs the worst case).
 #   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (x <= 2**20 for
 #   (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
 #   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
@@ -312,9 +312,9 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
     # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
     # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array); after
     # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
-    # integers of correct_u (tests/test_effects.py checks them against it), each wide.mul_shift
+    # integers of correct_u (tests/device/test_effects.py checks them against it), each wide.mul_shift
     # written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9); every value below
-    # 2**30 as correct_u's (tests/test_ranges.py).
+    # 2**30 as correct_u's (tests/device/test_ranges.py).
     ids = ptr32(kind_ids)
     p = ptr32(params)
     u = ptr32(reading)

@@ -7,7 +7,7 @@
 # `@micropython.viper`, which MicroPython's compiler recognises by name; inside a viper function
 # ptr32(...) is then its typed pointer, the name this module defines is not called.
 # Viper ints are machine words that wrap at 32 bits: every value in a marked function is proven
-# below 2**30 by tests/test_ranges.py.
+# below 2**30 by tests/device/test_ranges.py.
 
 import sys
 

@@ -4,7 +4,7 @@
 # Small ints: 32-bit MicroPython ports keep |int| < 2**30 unboxed; past that an int is a
 # heap-allocated long.  The per-sample path (rest detector, apply) and the default profile's fit
 # (gaussnewton.py, solve.py; its wide products through wide.py) stay inside 2**30 for every
-# in-range input (tests/test_ranges.py proves it at the worst case, tests/test_heap.py under
+# in-range input (tests/device/test_ranges.py proves it at the worst case, tests/device/test_heap.py under
 # heap_lock on the 32-bit MicroPython).  So does the paper profile's gradient descent: its
 # objective (below) is defined by ~50-bit products and values to ~2**62, and computed exactly in
 # 14-bit limbs (objective.py) inside a domain it checks - parameters in the fit region (below)
@@ -88,7 +88,7 @@ FIT_O_MAX = const(8388608)       # 0.5 g
 #   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 18 (Q10 g).
 # At +-2.048 g (the LIS3DH's 12-bit +-2 g range) and inside the parameter bounds:
 # |u| <= (2.048 + 0.25) * 2**14 = 37650 and |k14| row sum <= (1.25 + 2 * 0.125) * 2**14 = 24576,
-# so every product and sum is <= 9.3e8 < 2**30 (tests/test_ranges.py runs the worst case).
+# so every product and sum is <= 9.3e8 < 2**30 (tests/device/test_ranges.py runs the worst case).
 APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
 APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
@@ -98,7 +98,7 @@ APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
 # K and o in Q(14 - e), u = (x << (4 - e)) + o, a = sum(k u) >> (18 - 2 e), the reading first
 # clamped to the range's full scale, +-(APPLY_IN_MAX << e) in Q10.  Then |u| <=
 # (2.048 + 0.25 / 2**e) 2**14 <= 37650 and |k| row sums <= 1.5 * 2**(14 - e) <= 24576 again, at
-# every range (tests/test_ranges.py; on the 32-bit MicroPython under heap_lock, test_heap.py).
+# every range (tests/device/test_ranges.py; on the 32-bit MicroPython under heap_lock, test_heap.py).
 APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
 # A composed model first removes its effects (acal/effects.py) from the reading in Q14; the
 # result is clamped to the range a reading can have, +-2.048 g, so the bound above still holds

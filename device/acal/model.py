@@ -136,8 +136,8 @@ _ROW = int32s(9)   # residual()'s scratch row
 #   m = kh ul + kl uh,  c = (kl ul) >> 15,  P = ((kh uh) << 6) + (m >> 9) + (((m & 511) + c) >> 9)
 # and for a square P(a, a, 26):
 #   m = 2 ah al,  c = (al al) >> 15,  P = ((ah ah) << 4) + (m >> 11) + (((m & 2047) + c) >> 11)
-# the same integers as mul_shift (tests/test_wide.py checks them against it), each
-# below 2**30 (tests/test_ranges.py traces them).
+# the same integers as mul_shift (tests/device/test_wide.py checks them against it), each
+# below 2**30 (tests/device/test_ranges.py traces them).
 def residual(p, ux, uy, uz):
     """r = |K (u + o)|^2 - 1 g^2 of one point u (Q24 g, |u| <= FIT_W_MAX per axis) in Q22 g^2,
     every intermediate below 2**30 inside the fit region (fixed.py); p: an int32 array.

@@ -3,7 +3,7 @@
 # Jacobian row and residual accumulated into A and b, the trial objective, the residuals' sort
 # for outlier rejection, and the exact small-int helpers on the scaled objective.  The hot loops
 # are viper on ports with emitters (acal/emit.py: typed pointers into the fit's int32 arrays;
-# w: emit.SIGN_SHIFT), plain Python elsewhere; tests/test_ranges.py traces every value.
+# w: emit.SIGN_SHIFT), plain Python elsewhere; tests/device/test_ranges.py traces every value.
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.model import FIT_W_MAX, residual_jacobian
 from acal.effects import correct_kinds
@@ -27,7 +27,7 @@ def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
     # One point's scaled row d~ (row) and residual r~ = rh 2**B_SPLIT + rl into A (sums, the
     # lower triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
     # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
-    # (above; tests/test_ranges.py traces them).
+    # (above; tests/device/test_ranges.py traces them).
     d = ptr32(row)
     a = ptr32(sums)
     b = ptr32(high)

@@ -13,7 +13,7 @@
 # give at any full scale, |sample| <= SAMPLE_MAX), at most MAX_POINTS points.  Inside it, at the
 # worst corner: v = u + o < 2**28.05, the products' middle sums < 2**29.8, |a| < 49.5 g
 # (2**33.7), r < 2**42.4 (its top limb < 2**14.4), r^2's middle limb < 2**29.9 and the sums'
-# top limb < 2**29.7 (tests/test_ranges.py traces them).
+# top limb < 2**29.7 (tests/device/test_ranges.py traces them).
 #
 # Two shortcuts give the same integers faster where the values are those of a real sensor:
 # - |a| < 2 g on every axis: a is a small int; its halves of 15 bits (the low one in

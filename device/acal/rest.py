@@ -195,7 +195,7 @@ def mean_q16(total, n):
 # in LO_X, HI_X), the three sums, the samples so far.  The scans below are the hot loop
 # (acal/emit.py: viper on ports with emitters; the literal indices are these, a viper function
 # reads no module constant).  Every value is a sample (|v| <= SAMPLE_MAX), a sum of at most
-# SEGMENT_MAX_SAMPLES of them (< 2**30) or an index below 3 * 65535 (tests/test_ranges.py).
+# SEGMENT_MAX_SAMPLES of them (< 2**30) or an index below 3 * 65535 (tests/device/test_ranges.py).
 LO_X = 0
 HI_X = 1
 LO_Y = 2

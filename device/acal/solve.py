@@ -163,7 +163,7 @@ def _eliminate_rows(rows, rhs, i: int, j: int, end: int, n: int, w: int) -> int:
     # (div_shift), each product wide.mul_shift(mul, ., MUL_Q) written out (s = 20, t = 5; mul's
     # halves split once).  1 (nothing more done) at a row whose |m_ji| 2**-9 reaches the pivot,
     # else 0.  The solver's hot loop, viper on ports with emitters (acal/emit.py; w:
-    # emit.SIGN_SHIFT); the same integers as mul_shift, each below 2**30 (tests/test_ranges.py).
+    # emit.SIGN_SHIFT); the same integers as mul_shift, each below 2**30 (tests/device/test_ranges.py).
     m = ptr32(rows)
     c = ptr32(rhs)
     pivot = i * n

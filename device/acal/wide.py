@@ -3,8 +3,8 @@
 # A 32-bit MicroPython port (RP2040, ESP32) keeps |int| < 2**30 unboxed; a larger intermediate is
 # a heap-allocated long.  The default profile's fit (gaussnewton.py, solve.py) needs 50-bit
 # products; these helpers give the exact floor of them with every intermediate below 2**30, so
-# the fit allocates nothing (tests/test_wide.py checks them against CPython's exact ints at the
-# edges of their domains; tests/test_heap.py runs the fit under heap_lock on the 32-bit port).
+# the fit allocates nothing (tests/device/test_wide.py checks them against CPython's exact ints at the
+# edges of their domains; tests/device/test_heap.py runs the fit under heap_lock on the 32-bit port).
 #
 # Split: a = ah 2**15 + al with ah = a >> 15 and al = a & 0x7fff in [0, 2**15) (floor semantics
 # for negative a, as in CPython and MicroPython), so that

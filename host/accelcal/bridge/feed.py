@@ -3,7 +3,7 @@ fewer calls.  A points group's rest means go to `Bins.offer` one at a time on a 
 numpy judge first finds every point that `offer` is certain to refuse, given what the bins hold,
 and only the others are offered.  A refusal changes nothing but the `offered` count, so the
 judgement stays true until a point is kept; then the rest of the block is judged again.  The
-bins end holding the same points in the same slots, bit for bit (tests/test_feed.py compares
+bins end holding the same points in the same slots, bit for bit (tests/bridge/test_feed.py compares
 both feeds on recordings).
 
 `offer` refuses a point (docs/method-and-formats.md "Point selection"):

@@ -3,7 +3,7 @@
 Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
 max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.calibration.Calibration.apply_samples for
 the paper's model, on int64 arrays, tied to those modules by bit-exact tests
-(tests/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
+(tests/bridge/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
 means go to the device's own Pipeline.offer in stream order.
 
 Integer formats as the device's (device/acal/fixed.py): samples Q10 g, sums < 2^30 (segments of
@@ -64,7 +64,7 @@ class Segments:
 
 class NoiseGaugeTwin:
     """The twin of acal.rest.NoiseGauge over arrays of spreads: the threshold each segment is
-    judged by, the gauge's state carried from call to call (bit-exact: tests/test_vector.py)."""
+    judged by, the gauge's state carried from call to call (bit-exact: tests/bridge/test_vector.py)."""
 
     def __init__(self):
         self.hist = np.zeros(drest.NOISE_BINS, np.int64)

@@ -299,7 +299,7 @@ class CwaRecording(Recording):
     """Axivity .cwa, streamed: the file is a header packet ('MD', its length in bytes 2-3) and
     512-byte data blocks, each with its own timestamp, temperature and samples.  actfast reads a
     piece made of the header and a run of blocks to exactly what it reads for those blocks in
-    the whole file (tests/test_formats.py), so pieces of BLOCKS blocks go through a scratch file
+    the whole file (tests/files/test_formats.py), so pieces of BLOCKS blocks go through a scratch file
     one at a time: constant memory for any length (a 14-day 100 Hz file is ~1 M blocks)."""
 
     BLOCKS = 8192      # 4 MB of file, ~1 M samples of an AX3 (120 per packed block)

@@ -55,7 +55,7 @@ class Effect:
     """One physical effect: per axis, a parameter theta times a regressor x, entering the reading
     as an offset (v + theta x) or a gain (v (1 + theta x)).  Its float maths (measure, correct),
     its device integers (kind, int_scale: Q24 per normalised regressor, device/acal/effects.py)
-    and its bound live here; tests/test_effects.py holds the bound equal to the device's."""
+    and its bound live here; tests/device/test_effects.py holds the bound equal to the device's."""
     name: str
     symbol: str             # parameter prefix: c -> cx cy cz
     unit: str               # of the parameters

@@ -20,7 +20,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                      ref: dict | None = None, source: str = "recording", range_g: int = 2,
                      cols: dict | None = None) -> np.ndarray:
     """Calibrate samples with the vectorised twin of the device's per-sample code
-    (calibration.Calibration, bit-exact with it: tests/test_vector.py).  A composed
+    (calibration.Calibration, bit-exact with it: tests/bridge/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them as int degC and 64 s units from t0.  cols: the recording's further
     columns by name, for a model whose effects follow one (the board's supply_mv for the
@@ -40,7 +40,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                          "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
                          "bounds)") from None
     q = g_to_sample(xyz_g)
-    if not spec.effects:  # the twin of cal.apply_samples (tests/test_vector.py: bit-exact)
+    if not spec.effects:  # the twin of cal.apply_samples (tests/bridge/test_vector.py: bit-exact)
         return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
     board = [c for c in spec.columns if c in {q.column for q in COLUMN_QUANTITIES}]
     _check_inputs(spec, temp, board, cols, source)

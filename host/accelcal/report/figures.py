@@ -4,7 +4,7 @@ markers at the edge and counted, the binned mean with its 95 % interval over the
 the noise floor as a band.  Every axis states its unit; every figure says what its lines mean.
 
 The numbers behind a figure come from two small functions, robust_limits and binned_means,
-tested against independent computations (tests/test_figures.py).
+tested against independent computations (tests/report/test_figures.py).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 // The ST LIS3DH on the emulated RP2040's I2C0: the register model of the virtual board's
 // simulate/chip/vlis3dh.py, written again for Node (the emulator calls it on every bus event) and
-// held to it by tests/test_pico_lis3dh.py, which drives both with the same register operations at
+// held to it by tests/bridge/test_pico_lis3dh.py, which drives both with the same register operations at
 // the same times and compares every byte read.  What the Python model does, this one does:
 // WHO_AM_I; CTRL_REG1 ODR/LPen; CTRL_REG4 FS/HR/BDU; CTRL_REG5 FIFO_EN and BOOT; TEMP_CFG_REG and
 // OUT_ADC3 (relative temperature, 1 digit/degC); outputs left-justified at 12/10/8 bits; STATUS_REG

@@ -102,7 +102,7 @@ def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     """The wear profile's pipeline on the shock recording: the change-point search on the held
     points puts ts after the last held point before the true shock, and the integer fit's error
     on every rest point is within 1.1x of the float fit of all of them.  (The search and the
-    step's fit run bit-identical and heap-locked on the 32-bit port: tests/test_heap.py.)"""
+    step's fit run bit-identical and heap-locked on the 32-bit port: tests/device/test_heap.py.)"""
     path = recordings["step"]
     truth = json.loads(path.with_suffix(".truth.json").read_text())["effects"][0]
     code, text, err = run_main(capsys, ["calibrate", str(path), "--model", "base+step", "--json"])

@@ -231,7 +231,7 @@ def test_composed_points_identical_under_micropython(rng, mp):
 
 @pytest.mark.parametrize("name", ["temp_offset", "temp_scale", "drift", "nonlinear"])
 def test_composed_gauss_newton_reaches_the_float_optimum(name):
-    # The points of tests/test_composed_fit.py (72 of them): the fit's objective within 1.02x of
+    # The points of tests/device/test_composed_fit.py (72 of them): the fit's objective within 1.02x of
     # the float minimiser of the same square-root-free objective, the effect found.
     from accelcal.model.effects import ModelSpec
     from test_composed_fit import points, T0

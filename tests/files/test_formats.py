@@ -10,9 +10,9 @@ import pytest
 
 from accelcal.errors import InputError
 from accelcal.files.recordings import is_recording, open_recording, read_whole
-from conftest import run_cli
+from conftest import ROOT, run_cli
 
-REAL = Path(__file__).parent / "data" / "real"
+REAL = ROOT / "tests" / "data" / "real"
 FILES = {"ax3_sample.cwa": ("ax3_data.npz", 200, 8.0), "ax6_sample.cwa": ("ax6_data.npz", 100, 16.0),
          "gnactv_sample.bin": ("gnactv_data.npz", 50, 8.0)}
 

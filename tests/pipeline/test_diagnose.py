@@ -10,7 +10,7 @@ import pytest
 
 from accelcal.pipeline.diagnose import heldout_error_of
 from acal.fixed import PARAM_NAMES
-from conftest import run_cli, simulate_wrists
+from conftest import ROOT, run_cli, simulate_wrists
 
 DAYS, RATE = 3, 10
 EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear")
@@ -197,7 +197,7 @@ def test_few_blocks_are_weak_evidence_and_explanations_fit_the_device():
     from accelcal.pipeline.diagnose import block_evidence
     assert [block_evidence(*c) for c in ((3, 3), (4, 5), (6, 6), (12, 14))] == \
         ["weak", "weak", "clear", "clear"]
-    real = Path(__file__).parent / "data" / "real"
+    real = ROOT / "tests" / "data" / "real"
     gt3x = sensor_of(real / "ggir" / "actigraph_testfile.gt3x")
     assert gt3x == "ActiGraph GT3X" and sensor_of(real / "ax3_sample.cwa") == "Axivity CWA"
     for name in ("nonlinear", "temp_offset", "temp_scale"):

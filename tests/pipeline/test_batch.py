@@ -11,9 +11,9 @@ import pytest
 
 from accelcal.files.recordings import open_recording
 from accelcal.pipeline.scan import scan
-from conftest import run_cli
+from conftest import ROOT, run_cli
 
-REAL = Path(__file__).parent / "data" / "real"
+REAL = ROOT / "tests" / "data" / "real"
 
 
 @pytest.fixture(scope="module")

@@ -80,7 +80,7 @@ def test_too_few_points_fail_some_rows_while_the_others_complete(tmp_path, rng):
 
 
 def test_one_hemisphere_is_refused_before_any_method(tmp_path, rng):
-    # as calibrate and diagnose refuse it (tests/test_degenerate.py): one line, exit 2
+    # as calibrate and diagnose refuse it (tests/pipeline/test_degenerate.py): one line, exit 2
     a = rng.normal(size=(60, 3))
     a[:, 2] = np.abs(a[:, 2]) + 0.3
     path = _points_file(tmp_path / "hemi.csv", a / np.linalg.norm(a, axis=1, keepdims=True))
@@ -114,7 +114,7 @@ def test_paper_gietzelt_command(tmp_path):
 
 
 def test_paper_farago_table3_command(tmp_path):
-    """One short recording (the ten-recording target is tests/test_slow_table3.py)."""
+    """One short recording (the ten-recording target is tests/studies/test_slow_table3.py)."""
     r = run_cli("paper", "farago-table3", "--devices", 1, "--days", 1.5, "--seed", 301,
                 "--keep", tmp_path)
     assert r.returncode == 0, r.stderr

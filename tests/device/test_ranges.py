@@ -202,7 +202,7 @@ def test_paper_objective_shortcuts_stay_small_at_their_edges(rng):
     """Points of every size up to 2.3 g about parameters across the fit region: the shortcuts'
     checks (|a| < 2 g, |a|^2 within 1/4 g^2 of 1) are met and missed by little; traced, from
     the cache too, no intermediate reaches 2^30 (and the values are the formula's:
-    tests/test_objective.py)."""
+    tests/device/test_objective.py)."""
     from acal.objective import BASE, CACHE, GRADIENT
     tr = Tracer()
     T = traced(tr)
@@ -230,7 +230,7 @@ def test_paper_optimiser_stays_small(rng, alphas):
     """The paper's whole gradient descent, traced (its int32 arrays as traced lists, viper's
     cast passed through): rest means of sensors inside the paper's error ranges, and hostile
     points (+-16 g, the origin, 3 g) with the rates that diverge: no value of the run reaches
-    2^30, so it allocates nothing on a 32-bit port (tests/test_heap.py runs it there)."""
+    2^30, so it allocates nothing on a 32-bit port (tests/device/test_heap.py runs it there)."""
     from accelcal import simulate
     from accelcal.fixedpoint import g_to_point
     with viper_casts():

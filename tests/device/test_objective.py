@@ -2,7 +2,7 @@
 formula it replaces (kept here as the reference, in CPython's exact ints): the same integers on
 random and worst-case inputs across the fit region and the points' domain (+-16 g), the formula
 outside it; the optimiser run on them the same run as the one on the formula.  Their ranges:
-tests/test_ranges.py; on the 32-bit port under heap_lock: tests/test_heap.py."""
+tests/device/test_ranges.py; on the 32-bit port under heap_lock: tests/device/test_heap.py."""
 import itertools
 from array import array
 

@@ -74,7 +74,7 @@ def test_paper_profile_on_the_chip_equals_cpython(paper_points, chip, capsys):
 
 def test_composed_model_on_the_chip_equals_cpython(tmp_path, chip, capsys):
     """base+temp_offset on every 32nd rest point of a simulated wrist day with a temperature
-    offset (tests/test_diagnose.py takes every 8th for the unix port; the fits, not the points,
+    offset (tests/pipeline/test_diagnose.py takes every 8th for the unix port; the fits, not the points,
     cost the chip's time): bins spread in temperature and time, the base fit, then the composed
     Gauss-Newton fit, all on the chip."""
     from accelcal import cli

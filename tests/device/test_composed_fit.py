@@ -15,7 +15,7 @@ from acal.optimiser import OK, Optimiser
 
 # The paper profile's gradient fit runs the catalogue's candidates; the device's generic offsets
 # (shapes for declared effects) and the step are fitted by the wear profile's Gauss-Newton
-# (below, and tests/test_more_effects.py for the step's search).
+# (below, and tests/pipeline/test_more_effects.py for the step's search).
 GRADIENT_EFFECTS = [n for n in device_effects() if CATALOGUE[n].kind not in deff.SHAPES]
 GENERIC_EFFECTS = [n for n in device_effects() if CATALOGUE[n].kind in deff.SHAPES
                    and not CATALOGUE[n].change_point]

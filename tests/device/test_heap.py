@@ -263,7 +263,7 @@ def test_a_step_costs_the_board_no_more_memory_than_a_drift(tmp_path):
     a drift (the change-point search keeps nothing per point of its own, acal/changepoint.py;
     its first form kept 4 kB of copies, and base+step did not start on the virtual board's
     160 kB heap), and drift + step no more than the four first effects together.  (base+step
-    on that heap for two simulated days: tests/test_board_step.py, make bench.)"""
+    on that heap for two simulated days: tests/device/test_board_step.py, make bench.)"""
     f = tmp_path / "mem.py"
     f.write_text(PIPELINE_MEMORY)
     drift, step, both, four = map(int, runtime.run_micropython_script(str(f)).split())
