@@ -121,19 +121,37 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     if best and discovery.names(err, best["heldout_error_mg"], best["blocks_improved"],
                                 best["blocks"]):
         named = best["effect"]
+    parts = {c["effect"]: [pool[c["effect"]]] for c in cands}
+    for line, curve in curves(pool):   # a curve's two parts, tried together
+        c = candidate(spec.with_effect(line).with_effect(curve), p, train, test, test_block, ref,
+                      r, err, theta, added=2)
+        cands.append(c)
+        parts[c["effect"]] = [line, curve]
+        single = best["heldout_error_mg"] if best else None
+        if single and c["heldout_error_mg"]:
+            c["single_ratio"] = single / c["heldout_error_mg"]
+        if c["heldout_error_mg"] is not None and discovery.names(
+                err, c["heldout_error_mg"], c["blocks_improved"], c["blocks"]) and (
+                named is None or not discovery.plain_preferred(c["heldout_error_mg"],
+                                                               best["heldout_error_mg"])):
+            named, best = c["effect"], c
     if named:
         host = " --method lsq --points all (it runs on the host only)" \
-            if pool[named].kind is None else ""
+            if any(e.kind is None for e in parts[named]) else ""
         weak = "" if best["evidence"] == "clear" else (
             " Weak evidence: so few blocks better is a count chance alone gives too often; "
             "confirm it on a longer recording.")
-        explanation = (f"{named}: {pool[named].explain(sensor_of(path))} Fitted here: "
+        both = "" if len(parts[named]) == 1 or "single_ratio" not in best else (
+            f" Both parts at once: with its straight part the curve leaves "
+            f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
+            f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
+        explanation = (f"{named}: {parts[named][-1].explain(sensor_of(path))}{both} Fitted here: "
                        + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
                        + f" {best['param_unit']}. Adding it lowers the held-out error "
                        f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
                        f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
                        f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
-                       f"{spec.with_effect(named)}{host}")
+                       f"{spec}+{named}{host}")
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
@@ -181,19 +199,32 @@ def complete_text(err: float, noise: float, wrist: float | None) -> str:
             "what rest on a wrist allows here.")
 
 
+def curves(pool: dict) -> list[tuple]:
+    """(straight, curve) pairs of the pool: an effect in a power of a regressor (temp_offset2)
+    with its first power (temp_offset).  Alone, the curve hides behind its straight part, whose
+    held-out gain is spread over every block while the curve's lies where the regressor is far
+    from its reference; together they are named in one step when the curve is clear (docs/model-discovery.md
+    "Curves")."""
+    return [(a, b) for b in pool.values() for a in pool.values()
+            if b.power == 2 and a.power == 1 and a.needs == b.needs == "temp"
+            and a.form == b.form and not a.change_point and not b.change_point]
+
+
 def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: float,
-              theta) -> dict:
-    """The model with one more effect (the last of cspec), fitted on the training blocks and
-    scored on the held-out ones: its error, how much lower than err (that of the model without
-    it, fitted as theta), in how many blocks."""
-    e = cspec.parts[-1]
-    name = e.name
+              theta, added: int = 1) -> dict:
+    """The model with `added` more effects (the last of cspec), fitted on the training blocks
+    and scored on the held-out ones: its error, how much lower than err (that of the model
+    without them, fitted as theta), in how many blocks."""
+    new = cspec.parts[-added:]
+    name = "+".join(e.name for e in new)
     try:
         ModelSpec.parse(str(cspec))   # one step per model
         check_model(cspec, p)
     except (InputError, ValueError) as why:
         return {"effect": name, "heldout_error_mg": None, "improvement_pct": None,
                 "blocks_improved_pct": None, "untestable": str(why)}
+    if added > 1:    # the straight part first: the curve starts from its fit
+        theta, ref = fit_with_reference(ModelSpec(cspec.parts[:-1]), train, ref, rest_theta=theta)
     th, cref = fit_with_reference(cspec, train, ref, rest_theta=theta)
     _, rc = residuals(cspec, th, test, cref)
     ec = float(np.mean(np.abs(rc)) * 1e3)
@@ -206,8 +237,10 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
            # judged where the share would name it: few blocks are weak evidence (block_evidence)
            "evidence": block_evidence(better, len(blocks))
            if discovery.share_holds(better, len(blocks)) else None,
-           "params": dict(zip(e.param_names, (th[-3:] * e.scale).round(4).tolist())),
-           "param_unit": e.report_unit}
+           "params": {k: v for i, e in enumerate(new) for k, v in zip(
+               e.param_names, (th[len(th) - 3 * (added - i):][:3] * e.scale).round(4).tolist())},
+           "param_unit": new[0].report_unit if added == 1 else ", ".join(
+               f"{e.report_unit} ({e.param_names[0][0]})" for e in new)}
     if "ts" in cref and "ts" not in ref:
         out["step_time_s"] = cref["ts"]
     return out

@@ -33,7 +33,8 @@ from accelcal.model.effects import CATALOGUE, ModelSpec
 
 FIT_DAYS, TEST_DAYS, RATE = 3, 2, 10
 STRICT_G = 0.02
-CASES = ("clean", "temp_offset", "temp_scale", "drift", "nonlinear")
+CASES = ("clean", "temp_offset", "temp_scale", "drift", "nonlinear", "temp_offset2", "step",
+         "supply_offset")   # every catalogue effect diagnose tries
 
 
 def split(path: Path, fit: Path, test: Path, fit_days: float = FIT_DAYS) -> None:
@@ -47,7 +48,8 @@ def split(path: Path, fit: Path, test: Path, fit_days: float = FIT_DAYS) -> None
 
 
 def strict_windows(path: Path):
-    """(v g, t s, temp degC or None) of the strictly still 5 s windows of a recording."""
+    """(v g, t s, temp degC or None, {column: values}) of the strictly still 5 s windows of a
+    recording (its further columns, e.g. supply_mv, for the effects that follow them)."""
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline.scan import scan
     rec = open_recording(str(path))
@@ -58,17 +60,18 @@ def strict_windows(path: Path):
     mag = np.linalg.norm(v, axis=1)
     ok = (mag > 0.5) & (mag < 1.5)
     m = sc.seg_means[s][ok]
-    return v[ok], m[:, 0], (m[:, 1] if rec.has_temp else None)
+    cols = {c: sc.seg_column(c)[s][ok] for c in sc.columns}
+    return v[ok], m[:, 0], (m[:, 1] if rec.has_temp else None), cols
 
 
 def score_mg(model: str, theta, ref: dict | None, win) -> float:
-    v, t, temp = win
+    v, t, temp, cols = win
     spec = ModelSpec.parse(model)
     if theta is None:
         a = v
     else:
         a = spec.correct(np.asarray(theta, float), v, temp if temp is not None else np.zeros(len(t)),
-                         t, ref or {"T0": 0.0, "t0": 0.0})
+                         t, ref or {"T0": 0.0, "t0": 0.0}, cols)
     return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1.0)) * 1e3)
 
 
@@ -88,7 +91,7 @@ def others(python: str, fit: Path, win, workdir: Path) -> dict:
     """scikit-digital-health and actipy, each fitted on the fit part by its own function in
     its own environment (accelcal.studies.bench_others heldout), scored on the same windows."""
     wpath = workdir / f"{fit.stem}.windows.npz"
-    v, _, temp = win
+    v, _, temp, _ = win
     np.savez(wpath, v=v, temp=temp if temp is not None else np.zeros(len(v)))
     out = {}
     for tool in ("skdh", "actipy"):
