@@ -202,3 +202,19 @@ def test_apply_at_the_full_scale_and_says_what_it_clipped(tmp_path):
     assert r.returncode == 0 and "clipped" not in r.stderr
     a = np.loadtxt(out, delimiter=",", skiprows=1)
     assert a[1, 1] == pytest.approx(3.0, abs=2e-3) and a[2, 2] == pytest.approx(-2.5, abs=2e-3)
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["calibrate", "--help"], ["apply", "--help"],
+                                  ["diagnose", "--help"], ["bench", "--help"]])
+def test_help_loads_no_heavy_library(argv):
+    """Issue 30 part 4: the parser imports no method. What --help loaded is read from
+    sys.modules in a fresh interpreter (not timed), so it holds however loaded the machine is."""
+    import subprocess
+    import sys
+    code = ("import sys\nfrom accelcal.cli import main\n"
+            f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass\n"
+            "heavy = ('scipy', 'matplotlib', 'pandas', 'dask', 'pyarrow', 'sklearn')\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & set(heavy)), file=sys.stderr)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines()[-1] == "[]", out.stderr
