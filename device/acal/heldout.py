@@ -1,0 +1,84 @@
+# The held-out rest points of the board's own model discovery (issue 29; docs/model-discovery.md
+# "Held-out points on the board").  As `diagnose` holds out alternate 2-hour blocks, the board keeps
+# the rest means that fall in odd blocks (host/accelcal/pipeline/restpoints.py: 2-hour blocks from
+# the start, even train, odd held out) apart from the fit's points,
+# so a candidate effect fitted on the fit points is scored on points it never saw.
+# Formats (fixed.py): points Q16 g; conditions as bins.py: temperature degC, time in 64 s units,
+# supply mV.  Storage is preallocated (CAPACITY points, int32 slots), nothing is allocated per
+# point: when full, the oldest point is replaced (a ring), so the set follows the wear.
+# Byte budget: CAPACITY x (3 point + COND condition + 1 block) int32 slots = 72 x 7 x 4 = 2016
+# bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks it).
+from acal.bins import COND, int32s
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
+
+CAPACITY = const(72)        # as many as the wear fit's points (profile.WEAR_MAX_COUNT x 9)
+# 2 hours is 112.5 units of 64 s: block = time * 64 // 7200 = 2 * time // 225, exact.
+BLOCK_HALF_UNITS = const(225)
+SLOT_BYTES = const(4)
+BUDGET_BYTES = const(2016)  # CAPACITY * (3 + COND + 1) * SLOT_BYTES
+
+
+def block_of(time):
+    """The 2-hour block (int) of a time in 64 s units."""
+    return 2 * time // BLOCK_HALF_UNITS
+
+
+def held_out(time):
+    """True when a point taken at `time` (64 s units) belongs to the held-out set (odd block)."""
+    return block_of(time) & 1 == 1
+
+
+class HeldOut:
+    """The held-out rest points: xyz (Q16 g, flat), cond (COND per point, flat), block (int)."""
+
+    def __init__(self, capacity=CAPACITY):
+        self.capacity = capacity
+        self.xyz = int32s(3 * capacity)
+        self.cond = int32s(COND * capacity)
+        self.block = int32s(capacity)
+        self.count = 0
+        self.next = 0      # the slot the next point goes to (the oldest once full)
+
+    def nbytes(self):
+        """The bytes of the preallocated arrays."""
+        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block))
+
+    def clear(self):
+        self.count = 0
+        self.next = 0
+
+    def offer(self, x, y, z, temp=0, time=0, supply=0):
+        """Keep a rest mean when its time falls in a held-out block; True when kept."""
+        if not held_out(time):
+            return False
+        s = self.next
+        self.xyz[3 * s] = x
+        self.xyz[3 * s + 1] = y
+        self.xyz[3 * s + 2] = z
+        self.cond[COND * s] = temp
+        self.cond[COND * s + 1] = time
+        self.cond[COND * s + 2] = supply
+        self.block[s] = block_of(time)
+        self.next = s + 1 if s + 1 < self.capacity else 0
+        if self.count < self.capacity:
+            self.count += 1
+        return True
+
+    def blocks(self):
+        """How many distinct held-out blocks the kept points span (no allocation: points of one
+        block are counted at the first slot holding that block)."""
+        n = 0
+        for i in range(self.count):
+            b = self.block[i]
+            first = True
+            for j in range(i):
+                if self.block[j] == b:
+                    first = False
+                    break
+            if first:
+                n += 1
+        return n

@@ -1,0 +1,89 @@
+"""The board's held-out set (device/acal/heldout.py, issue 29): it keeps exactly the rest points
+the host's diagnose holds out (odd 2-hour blocks from the start), with their conditions; its
+preallocated storage is the written byte budget; once full it follows the wear (oldest replaced);
+and keeping a point allocates nothing under the real MicroPython, 64- and 32-bit ports."""
+from acal import heldout
+from acal.bins import COND
+
+from accelcal.bridge import runtime
+
+
+def test_held_out_blocks_are_the_hosts_odd_two_hour_blocks():
+    for t64 in range(0, 2000, 7):
+        seconds = 64 * t64                   # the board's time unit is 64 s
+        assert heldout.held_out(t64) == ((seconds // 7200) % 2 == 1), t64
+
+
+def test_byte_budget_is_the_preallocated_storage():
+    h = heldout.HeldOut()
+    arrays = (h.xyz, h.cond, h.block)
+    stored = sum(a.itemsize * len(a) for a in arrays)
+    assert stored == heldout.BUDGET_BYTES == 2016      # the figure docs/model-discovery.md states
+    assert stored == heldout.CAPACITY * (3 + COND + 1) * 4
+    assert h.nbytes() == stored
+
+
+def test_offer_keeps_odd_block_points_with_their_conditions():
+    h = heldout.HeldOut(capacity=4)
+    even, odd = 10, 120                       # 640 s (block 0), 7680 s (block 1)
+    assert not h.offer(1, 2, 3, temp=20, time=even, supply=3300)
+    assert h.count == 0
+    assert h.offer(65536, -5, 7, temp=31, time=odd, supply=3100)
+    assert h.count == 1
+    assert list(h.xyz[0:3]) == [65536, -5, 7]
+    assert list(h.cond[0:COND]) == [31, odd, 3100]
+    assert h.block[0] == 1
+
+
+def test_a_full_set_replaces_its_oldest_point_and_counts_blocks():
+    h = heldout.HeldOut(capacity=3)
+    times = [120, 130, 400, 620]              # blocks 1, 1, 3, 5 (all odd)
+    for i, t in enumerate(times):
+        assert h.offer(i, 0, 0, time=t)
+    assert h.count == 3
+    assert sorted(h.xyz[3 * s] for s in range(3)) == [1, 2, 3]   # point 0 was the oldest
+    assert h.blocks() == 3                    # blocks 1, 3, 5 remain
+
+
+SCRIPT = r'''
+import micropython
+from acal.heldout import HeldOut
+h = HeldOut()
+kept = 0   # a new module global made under the lock would itself allocate
+
+
+def work(h):
+    kept = 0
+    for i in range(300):
+        if h.offer(65536 - i, i, -i, 25 + (i & 7), 3 * i, 3300 - i):
+            kept += 1
+    return kept
+
+
+micropython.heap_lock()
+try:
+    kept = work(h)
+    micropython.heap_unlock()
+    print("OK", kept, h.count, h.blocks())
+except MemoryError:
+    micropython.heap_unlock()
+    print("ALLOCATED")
+'''
+
+
+def _expected():
+    h = heldout.HeldOut()
+    kept = sum(h.offer(65536 - i, i, -i, 25 + (i & 7), 3 * i, 3300 - i) for i in range(300))
+    return ["OK", str(kept), str(h.count), str(h.blocks())]
+
+
+def test_keeping_points_allocates_nothing_on_micropython(tmp_path):
+    f = tmp_path / "heldout_heap.py"
+    f.write_text(SCRIPT)
+    assert runtime.run_micropython_script(str(f)).split() == _expected()
+
+
+def test_keeping_points_allocates_nothing_on_the_32_bit_port(tmp_path, mp32):
+    f = tmp_path / "heldout_heap32.py"
+    f.write_text(SCRIPT)
+    assert mp32(str(f)).split() == _expected()
