@@ -227,7 +227,8 @@ def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
             if fw is rp2040.MICROPYTHON or runtime_name == "circuitpython":
                 raise
             missing = f"not measured: {e}"
-            print(f"{fw.name} {missing}", file=sys.stderr)
+            label = "CircuitPython" if fw is rp2040.CIRCUITPYTHON else "MicroPython ROMFS build"
+            print(f"{label} {missing}", file=sys.stderr)
             continue
         chips.append(fw)
     return chips, missing
