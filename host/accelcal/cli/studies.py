@@ -90,7 +90,8 @@ def add_parsers(sub) -> None:
                                    "runtimes, rest-detector cost per sample as a ratio to a bare "
                                    "loop, bytes allocated per sample and per optimiser run, "
                                    "the fits' slices, the app on the simulated LIS3DH.")
-    p.add_argument("--runtime", choices=["micropython", "rp2040", "circuitpython"], default="micropython",
+    p.add_argument("--runtime", choices=["micropython", "rp2040", "rp2040-romfs", "circuitpython"],
+                   default="micropython",
                    help="micropython (default): the unix port, the 32-bit port and CPython, with "
                         "RP2040 figures estimated as unix x 70; rp2040: also every device figure "
                         "on the emulated RP2040 (MicroPython's Pico firmware on rp2040js: cycles "
@@ -98,6 +99,10 @@ def add_parsers(sub) -> None:
                         "slice, import time, free heap) beside the unix port's, with their ratios "
                         "(a few minutes more), and CircuitPython's (Feather RP2040 firmware) beside "
                         "them, or a line saying why not; its fit figures replace the estimates; "
+                        "rp2040-romfs: rp2040's MicroPython figures and beside them the same "
+                        "firmware built with a ROMFS partition, the package run in place from "
+                        "/rom (firmware/micropython-rp2040-romfs; a line saying why not where it "
+                        "is missing); "
                         "circuitpython: the chip's figures on CircuitPython only (MicroPython's "
                         "RP2040 figures stay the unix x 70 estimates)")
     p.add_argument("--json", action="store_true")

@@ -216,6 +216,7 @@ def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
     beside MicroPython (said in one line; the bench goes on) or None."""
     from accelcal.bridge import rp2040
     wanted = {"micropython": (), "rp2040": (rp2040.MICROPYTHON, rp2040.CIRCUITPYTHON),
+              "rp2040-romfs": (rp2040.MICROPYTHON, rp2040.MICROPYTHON_ROMFS),
               "circuitpython": (rp2040.CIRCUITPYTHON,)}[runtime_name]
     chips, missing = [], None
     for fw in wanted:
@@ -226,7 +227,8 @@ def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
             if fw is rp2040.MICROPYTHON or runtime_name == "circuitpython":
                 raise
             missing = f"not measured: {e}"
-            print(f"CircuitPython {missing}", file=sys.stderr)
+            label = "CircuitPython" if fw is rp2040.CIRCUITPYTHON else "MicroPython ROMFS build"
+            print(f"{label} {missing}", file=sys.stderr)
             continue
         chips.append(fw)
     return chips, missing
@@ -264,11 +266,15 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
                 + m["rp2040_emulated_apply_base_us_per_sample"])
         else:
             m.update(bench_chip.unix_figures())
+        if rp2040.MICROPYTHON_ROMFS in chips:
+            print("measuring on the emulated RP2040, MicroPython with the package in ROMFS...",
+                  file=sys.stderr)
+            m.update(bench_chip.paths_and_fits(rp2040.MICROPYTHON_ROMFS, bench_chip.ROMFS))
         if rp2040.CIRCUITPYTHON in chips:
             print("measuring on the emulated RP2040, CircuitPython (a few minutes)...", file=sys.stderr)
             m.update(bench_circuitpython.measure())
         if cp_missing:
-            m["circuitpython"] = cp_missing
+            m["circuitpython" if runtime_name == "rp2040" else "romfs"] = cp_missing
         chip = bench_chip.format_chip(m)
     if as_json:
         print(json.dumps(m))

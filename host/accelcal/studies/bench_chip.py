@@ -102,6 +102,7 @@ def unix_figures() -> dict:
 
 
 MP, CP = "rp2040_emulated_", "circuitpython_emulated_"   # the chip's keys under each firmware
+ROMFS = "rp2040_romfs_emulated_"   # MicroPython with the package in ROMFS (--runtime rp2040-romfs)
 
 
 def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, str]]:
@@ -138,6 +139,14 @@ def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, s
             if on(MP, key) is not None or on(CP, key) is not None]
 
 
+# The figures the ROMFS build is shown for beside the littlefs one: (label, key, unit)
+ROMFS_ROWS = (("import acal.app (.mpy)", "import_app_ms", "ms"),
+              ("apply, base, per sample", "apply_base_us_per_sample", "us"),
+              ("apply, four effects, per sample", "apply_largest_us_per_sample", "us"),
+              ("app after acquisition, per sample", "processor_us_per_sample", "us"),
+              *((f"fit {n}, whole", f"fit_{n}_total_ms", "ms") for n in FIT_CASES))
+
+
 def _cell(v: float | None, unit: str) -> str:
     return "-" if v is None else f"{v:.4g} {unit}"
 
@@ -166,6 +175,16 @@ def format_chip(m: dict) -> str:
         alloc = [f"{n} {m[fw + f'fit_{n}_bytes']}" for n in FIT_CASES if fw + f"fit_{n}_bytes" in m]
         if alloc:
             line(f"bytes a fit allocates, {label}", ", ".join(alloc))
+    if ROMFS + "import_app_ms" in m:
+        lines.append("MicroPython, package on littlefs (copied to RAM) / in ROMFS (run in place from /rom):")
+        for name, key, unit in ROMFS_ROWS:
+            line(f"  {name}", f"{_cell(m.get(MP + key), unit)} / {_cell(m.get(ROMFS + key), unit)}")
+        line("  heap free before the app / with App(four effects)",
+             f"{m[MP + 'heap_free_before_app_bytes']:,} / {m[MP + 'heap_free_app_largest_bytes']:,} "
+             f"-> {m[ROMFS + 'heap_free_before_app_bytes']:,} / "
+             f"{m[ROMFS + 'heap_free_app_largest_bytes']:,} bytes")
+    if "romfs" in m:
+        line("MicroPython ROMFS", m["romfs"])
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:
