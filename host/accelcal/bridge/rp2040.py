@@ -93,7 +93,10 @@ def firmware_files(fw: Firmware) -> tuple[Path, Path]:
     compiler = [folder / fw.compiler] if fw.compiler else []   # its .mpy need it
     for f in (uf2, rom, *compiler):
         if not f.exists():
-            raise InputError(f"{f} is missing: the checkout is incomplete")
+            # a ROMFS build is not kept here: docs/boards-and-logs.md "The package in ROMFS"
+            why = "the repository does not hold this build; see the docs' \"The package in ROMFS\"" \
+                if fw.romfs and f == uf2 else "the checkout is incomplete"
+            raise InputError(f"{f} is missing: {why}")
     return uf2, rom
 
 
