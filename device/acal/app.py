@@ -213,7 +213,13 @@ class App:
     def _step_fifo(self):
         s = self.sensor
         buf = self.buf
-        self.clock.sleep_us(self.period_us * 25)  # 25 of the FIFO's 32 levels
+        # 25 of the FIFO's 32 levels after the last drain's clock reading, not after this
+        # drain's work: the fit's slices (up to ~100 ms a block on CircuitPython) would
+        # otherwise push the next read past the 32 the FIFO holds
+        c = self.clock
+        wait = self.period_us * 25 - c.ticks_diff(c.ticks_us(), self.t_last)
+        if wait > 0:
+            c.sleep_us(wait)
         n = 0
         over = False
         for attempt in range(RETRIES):

@@ -206,14 +206,19 @@ def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsy
 # computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
 BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
 
-FEATHER_APP = """import board, time, adafruit_lis3dh
+# The paper's profile with 1 s rest segments (a setting the app takes): the dance's 2 s poses
+# fill the nine subsets twice in ~70 emulated s (the wear profile judges no segment still before
+# 80 s of quiet ones).  The app is started as main() starts it, with the rest window given.
+FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh
 lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
 time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
-import acal.app
-app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=200000,
-                    profile=0)
-print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+import acal.app, acal_board
+ms = supervisor.ticks_ms()
+app = acal.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
+app.run({seconds})
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors, app.proc.calibrations,
+      ms, supervisor.ticks_ms())
 """
 
 
@@ -224,18 +229,23 @@ def site_package(name):
     return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
 
 
-def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, chip):
+def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
     the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
     (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
-    for 10 emulated seconds at 100 Hz, logs to the drive (writable to it after a power-up with
-    boot.py, nothing remounted from the REPL), and its capture replays on the host into the
-    board's very log."""
+    for 74 emulated seconds at 100 Hz while the board is turned through a calibration dance
+    (three rounds of six faces and six edges, 2 s still each), logs to the drive (writable to it
+    after a power-up with boot.py, nothing remounted from the REPL), calibrates near the
+    sensor's truth, and its capture replays on the host into the board's very log, the CAL
+    record too.  Nothing is lost: every sample is the chip's next conversion.  The run crosses
+    the wrap of supervisor.ticks_ms() (2^29 ms, which CircuitPython starts 65 s before it)."""
     from accelcal.board import emulated
     from accelcal.bridge import boardlog
     from accelcal.simulate.stimulus import calibration_dance
-    from test_pico_lis3dh import RATE, TRUTH
-    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    from acal import fixed, log
+    from test_pico_lis3dh import RATE, TRUTH, fifo_q10
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=3, rest_s=2,
+                            move_s=0.5)
     puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
             "boot.py": BOOT_PY}
     for f in site_package("adafruit_lis3dh"):
@@ -244,16 +254,30 @@ def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, 
         puts[f"/lib/adafruit_bus_device/{f.name}"] = f.read_bytes()
     image = tmp_path / "feather.bin"   # installed, then powered up again: boot.py remounts
     emulated.run(["print(1)"], puts=puts, flash_out=image, fw=FW)
-    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin",
+    r = emulated.run([FEATHER_APP.format(seconds=74)], stimulus=tmp_path / "stim.bin",
                      gets=["log.bin", "capture.bin"], flash_in=image, fw=FW, i2c="1,2,3")
     rng_code, norm = map(int, r.out.split("ADAFRUIT")[1].split()[:2])
     assert rng_code == 0 and 5 <= norm <= 15, r.out   # RANGE_2_G; |a| of gravity's order, m/s^2
-    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    done = r.out.split("ACAL_DONE")[1].split()
+    samples, lost, overruns, bus_errors, calibrations, ms0, ms1 = map(int, done[:7])
     chip_truth = r.report["lis3dh"]
-    assert samples >= 9 * 100 and overruns == 0 and bus_errors == chip_truth["faults"] == 0
-    assert samples + lost <= chip_truth["converted"]
+    assert lost == overruns == chip_truth["dropped"] == 0
+    assert bus_errors == chip_truth["faults"] == 0 and calibrations == 1
+    assert ms1 < ms0   # supervisor.ticks_ms() wrapped during the run
     for f in ("log.bin", "capture.bin"):
         (tmp_path / f).write_bytes(r.files[f])
+    # the samples, in the order the FIFO gave them, are the chip's conversions 1, 2, ... of the
+    # last ODR start, each reading the stimulus at its time
+    got = np.concatenate([b[3] for b in boardlog.read_capture(tmp_path).blocks if b[0] == "samples"])
+    s, us = chip_truth["starts"][-1]
+    k = (s * 1_000_000 + us + np.arange(1, samples + 1) * 10_000) * RATE // 1_000_000
+    assert len(got) == samples >= 74 * RATE and np.array_equal(got, fifo_q10(xyz[k]))
+    cal = boardlog.decode(tmp_path / "log.bin").dicts(log.CAL)
+    assert len(cal) == 1 and cal[0]["status"] == 0 and cal[0]["points"] == 18
+    p = np.array([cal[0][n] for n in fixed.PARAM_NAMES]) / 2 ** 24
+    print(f"\nFeather, CircuitPython: {samples} samples, calibrated at sample {cal[0]['index']}, "
+          f"largest parameter error {np.abs(p - TRUTH).max():.4f}; {r.report['scripts'][0]}")
+    assert np.abs(p - TRUTH).max() < 0.01
     rep = boardlog.replay(tmp_path)
-    assert rep["identical"] and rep["samples_replayed"] == samples + lost
-    assert rep["rest"]["board"] >= 1, rep
+    assert rep["identical"] and rep["samples_replayed"] == samples
+    assert rep["cal"]["board"] == 1 and rep["rest"]["board"] >= 18, rep
