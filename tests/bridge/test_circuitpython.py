@@ -127,6 +127,38 @@ def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
             assert all(f.suffix == ".mpy" and f.read_bytes()[:2] == head for f in files), what
 
 
+def test_deploy_writes_boot_py_to_a_circuitpython_board_only(tmp_path):
+    """Beside the package `deploy` copies the board file and main.py (unless --no-main), and to
+    a CircuitPython board a boot.py remounting its drive writable to code (the app logs there;
+    the Feather end to end above runs with this very file) unless the board holds a boot.py of
+    its own, which stays; one deploy wrote is written again."""
+    from accelcal.board import deploy
+    settings = {"fifo": True, "profile": 0}
+
+    def files(board, write_main=True, head=None):
+        dest = tmp_path / f"{board}-{write_main}-{head}"
+        dest.mkdir()
+        out = deploy.board_files(deploy.board_info(board), settings, write_main, dest, head)
+        return {remote: Path(local).read_text() for local, remote in out}
+
+    feather = files("feather_rp2040")
+    assert sorted(feather) == ["acal_board.py", "boot.py", "main.py"]
+    assert feather["acal_board.py"] == (ROOT / "boards" / "feather_rp2040.py").read_text()
+    assert feather["main.py"] == deploy.main_py(settings)
+    assert "acal.app.main(fifo=True, profile=0)" in feather["main.py"]
+    boot = feather["boot.py"]
+    compile(boot, "boot.py", "exec")
+    assert boot.splitlines()[0] == deploy.BOOT_PY_HEAD
+    assert [ln for ln in boot.splitlines() if not ln.startswith("#")] == \
+        ["import storage", 'storage.remount("/", readonly=False)']
+    assert sorted(files("feather_rp2040", head=deploy.BOOT_PY_HEAD)) == sorted(feather)
+    assert sorted(files("feather_rp2040", head="import storage  # mine")) == ["acal_board.py", "main.py"]
+    assert sorted(files("feather_rp2040", write_main=False)) == ["acal_board.py", "boot.py"]
+    for board in ("pico", "virtual"):
+        assert sorted(files(board)) == ["acal_board.py", "main.py"]
+        assert sorted(files(board, write_main=False)) == ["acal_board.py"]
+
+
 def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(cp_bench):
     """CircuitPython has no heap_lock: with the collector off, gc.mem_alloc() before and after
     (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
@@ -202,9 +234,6 @@ def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsy
     assert "no-mpy-cross is missing" in err
 
 
-# What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the
-# computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
-BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
 
 # The paper's profile with 1 s rest segments (a setting the app takes): the dance's 2 s poses
 # fill the nine subsets twice in ~70 emulated s (the wear profile judges no segment still before
@@ -239,7 +268,7 @@ def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     sensor's truth, and its capture replays on the host into the board's very log, the CAL
     record too.  Nothing is lost: every sample is the chip's next conversion.  The run crosses
     the wrap of supervisor.ticks_ms() (2^29 ms, which CircuitPython starts 65 s before it)."""
-    from accelcal.board import emulated
+    from accelcal.board import deploy, emulated
     from accelcal.bridge import boardlog
     from accelcal.simulate.stimulus import calibration_dance
     from acal import fixed, log
@@ -247,7 +276,7 @@ def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=3, rest_s=2,
                             move_s=0.5)
     puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
-            "boot.py": BOOT_PY}
+            "boot.py": deploy.boot_py().encode()}   # what deploy writes
     for f in site_package("adafruit_lis3dh"):
         puts[f"/lib/{f.name}"] = f.read_bytes()
     for f in site_package("adafruit_bus_device"):
@@ -281,3 +310,21 @@ def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     rep = boardlog.replay(tmp_path)
     assert rep["identical"] and rep["samples_replayed"] == samples
     assert rep["cal"]["board"] == 1 and rep["rest"]["board"] >= 18, rep
+    # deploy's look at the drive, run on this board (its boot.py found) and on one without a
+    # boot.py (read-only to code: deploy stops in one line)
+    assert deploy.circuitpython_drive(ChipRemote(image), True) == deploy.BOOT_PY_HEAD
+    with pytest.raises(InputError, match="read-only to code") as e:
+        deploy.circuitpython_drive(ChipRemote(rp2040.flash_image(FW)), False)
+    assert len(str(e.value).splitlines()) == 1
+
+
+class ChipRemote:
+    """deploy.Remote's exec on the emulated Feather booted from a flash image."""
+    port = "the emulated Feather"
+
+    def __init__(self, image):
+        self.image = image
+
+    def exec(self, code, **_):
+        from accelcal.board import emulated
+        return emulated.run([code], flash_in=self.image, fw=FW).out
