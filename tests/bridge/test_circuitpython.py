@@ -80,6 +80,31 @@ def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
     assert want[-1].status == 0 and want[-1].params_int[9] != 0               # the effect fitted
 
 
+def test_both_profiles_bit_identical_small(rng, chip):
+    """The default suite's cut of the above, in one boot (~25 s wall here): one device's points
+    with outliers and one recording with gaps and clipping, each under both profiles (the wear
+    profile's noise gauge, rest detector, bins and Gauss-Newton with rejection; the paper's rest
+    detector, bins and gradient descent): every record as CPython's."""
+    n = 48
+    _, v = simulate.paper_scenario(rng, n, 1e-3)
+    v[rng.integers(0, n, n // 10)] *= rng.uniform(1.02, 1.1)  # outliers
+    pts = [runtime.Group("d", points=v)]
+    xyz, gaps = random_recording(rng, 6, 25)
+    recs = [runtime.Group("r", samples=xyz, gaps=gaps)]
+    jobs = [(pts, runtime.Config.for_profile("wear")), (pts, runtime.Config()),
+            (recs, runtime.Config.for_profile("wear", rate_hz=25, seconds=2)),
+            (recs, runtime.Config(rate_hz=25, seconds=2))]
+    want, lines = [], []
+    for groups, cfg in jobs:
+        want += runtime.run(groups, cfg, "cpython")
+        lines += protocol.protocol_lines(groups, cfg)
+    got = protocol.parse(chip.run_protocol(lines, FW).out.splitlines())
+    assert got == want
+    assert want[0].status == want[1].status == 0 and want[0].params_int != want[1].params_int
+    assert 0 in want[0].kept                                  # the wear fit rejected outliers
+    assert len(want[3].rest_int) >= 2                         # the paper's detector found rests
+
+
 def test_missing_emulator_is_one_line(monkeypatch, tmp_path):
     monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
     with pytest.raises(InputError, match="rp2040js is not installed"):
