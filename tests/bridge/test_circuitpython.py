@@ -81,7 +81,7 @@ def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
 
 
 def test_both_profiles_bit_identical_small(rng, chip):
-    """The default suite's cut of the above, in one boot (~25 s wall here): one device's points
+    """The default suite's cut of the above, in one boot (~25 s of CPU): one device's points
     with outliers and one recording with gaps and clipping, each under both profiles (the wear
     profile's noise gauge, rest detector, bins and Gauss-Newton with rejection; the paper's rest
     detector, bins and gradient descent): every record as CPython's."""
