@@ -173,9 +173,9 @@ class App:
             self.fill = 0
 
     def _account(self, got):
-        # got samples were just read; anything the chip produced before them and we never saw
-        # is lost, and lies before them in the stream.
-        self._elapsed()
+        # got samples were just read; anything the chip produced before them (by the clock
+        # read just before, _elapsed) and we never saw is lost, and lies before them in the
+        # stream.
         missing = self.expected - (self.samples + self.lost + got)
         if missing > 0:
             self._flush()
@@ -204,6 +204,7 @@ class App:
                 if attempt + 1 == RETRIES:
                     return 0  # lost; _account finds it on the next read
                 self.bus_retries += 1
+        self._elapsed()
         self._account(1)
         self._push(s.x, s.y, s.z)
         self.samples += 1
@@ -212,11 +213,22 @@ class App:
     def _step_fifo(self):
         s = self.sensor
         buf = self.buf
-        self.clock.sleep_us(self.period_us * 25)  # 25 of the FIFO's 32 levels
+        # 25 of the FIFO's 32 levels after the last drain's clock reading, not after this
+        # drain's work: the fit's slices (up to ~100 ms a block on CircuitPython) would
+        # otherwise push the next read past the 32 the FIFO holds
+        c = self.clock
+        wait = self.period_us * 25 - c.ticks_diff(c.ticks_us(), self.t_last)
+        if wait > 0:
+            c.sleep_us(wait)
         n = 0
         over = False
         for attempt in range(RETRIES):
             try:
+                # The clock before the level: every sample it says is due is then in the FIFO
+                # or overwritten.  Read after, it would count as lost the samples converted
+                # during the FIFO read (3.4 ms at 400 kHz, 18 ms on CircuitPython's 100 kHz),
+                # though they wait in the FIFO (docs/boards-and-logs.md "Lost samples").
+                self._elapsed()
                 n = s.fifo_level()
                 over = s.overrun  # counted once, however many retries
                 if n:

@@ -80,6 +80,31 @@ def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
     assert want[-1].status == 0 and want[-1].params_int[9] != 0               # the effect fitted
 
 
+def test_both_profiles_bit_identical_small(rng, chip):
+    """The default suite's cut of the above, in one boot (~25 s of CPU): one device's points
+    with outliers and one recording with gaps and clipping, each under both profiles (the wear
+    profile's noise gauge, rest detector, bins and Gauss-Newton with rejection; the paper's rest
+    detector, bins and gradient descent): every record as CPython's."""
+    n = 48
+    _, v = simulate.paper_scenario(rng, n, 1e-3)
+    v[rng.integers(0, n, n // 10)] *= rng.uniform(1.02, 1.1)  # outliers
+    pts = [runtime.Group("d", points=v)]
+    xyz, gaps = random_recording(rng, 6, 25)
+    recs = [runtime.Group("r", samples=xyz, gaps=gaps)]
+    jobs = [(pts, runtime.Config.for_profile("wear")), (pts, runtime.Config()),
+            (recs, runtime.Config.for_profile("wear", rate_hz=25, seconds=2)),
+            (recs, runtime.Config(rate_hz=25, seconds=2))]
+    want, lines = [], []
+    for groups, cfg in jobs:
+        want += runtime.run(groups, cfg, "cpython")
+        lines += protocol.protocol_lines(groups, cfg)
+    got = protocol.parse(chip.run_protocol(lines, FW).out.splitlines())
+    assert got == want
+    assert want[0].status == want[1].status == 0 and want[0].params_int != want[1].params_int
+    assert 0 in want[0].kept                                  # the wear fit rejected outliers
+    assert len(want[3].rest_int) >= 2                         # the paper's detector found rests
+
+
 def test_missing_emulator_is_one_line(monkeypatch, tmp_path):
     monkeypatch.setenv("ACCELCAL_RP2040JS", str(tmp_path / "nowhere.js"))
     with pytest.raises(InputError, match="rp2040js is not installed"):
@@ -125,6 +150,38 @@ def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
             assert what == "sources" and all(f.suffix == ".py" for f in files)
         else:
             assert all(f.suffix == ".mpy" and f.read_bytes()[:2] == head for f in files), what
+
+
+def test_deploy_writes_boot_py_to_a_circuitpython_board_only(tmp_path):
+    """Beside the package `deploy` copies the board file and main.py (unless --no-main), and to
+    a CircuitPython board a boot.py remounting its drive writable to code (the app logs there;
+    the Feather end to end above runs with this very file) unless the board holds a boot.py of
+    its own, which stays; one deploy wrote is written again."""
+    from accelcal.board import deploy
+    settings = {"fifo": True, "profile": 0}
+
+    def files(board, write_main=True, head=None):
+        dest = tmp_path / f"{board}-{write_main}-{head}"
+        dest.mkdir()
+        out = deploy.board_files(deploy.board_info(board), settings, write_main, dest, head)
+        return {remote: Path(local).read_text() for local, remote in out}
+
+    feather = files("feather_rp2040")
+    assert sorted(feather) == ["acal_board.py", "boot.py", "main.py"]
+    assert feather["acal_board.py"] == (ROOT / "boards" / "feather_rp2040.py").read_text()
+    assert feather["main.py"] == deploy.main_py(settings)
+    assert "acal.app.main(fifo=True, profile=0)" in feather["main.py"]
+    boot = feather["boot.py"]
+    compile(boot, "boot.py", "exec")
+    assert boot.splitlines()[0] == deploy.BOOT_PY_HEAD
+    assert [ln for ln in boot.splitlines() if not ln.startswith("#")] == \
+        ["import storage", 'storage.remount("/", readonly=False)']
+    assert sorted(files("feather_rp2040", head=deploy.BOOT_PY_HEAD)) == sorted(feather)
+    assert sorted(files("feather_rp2040", head="import storage  # mine")) == ["acal_board.py", "main.py"]
+    assert sorted(files("feather_rp2040", write_main=False)) == ["acal_board.py", "boot.py"]
+    for board in ("pico", "virtual"):
+        assert sorted(files(board)) == ["acal_board.py", "main.py"]
+        assert sorted(files(board, write_main=False)) == ["acal_board.py"]
 
 
 def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fits(cp_bench):
@@ -202,18 +259,20 @@ def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsy
     assert "no-mpy-cross is missing" in err
 
 
-# What a Feather that logs keeps in boot.py: CIRCUITPY writable to code (and read-only to the
-# computer: docs/boards-and-logs.md, "CircuitPython on the Feather RP2040")
-BOOT_PY = b'import storage\nstorage.remount("/", readonly=False)\n'
 
-FEATHER_APP = """import board, time, adafruit_lis3dh
+# The paper's profile with 1 s rest segments (a setting the app takes): the dance's 2 s poses
+# fill the nine subsets twice in ~70 emulated s (the wear profile judges no segment still before
+# 80 s of quiet ones).  The app is started as main() starts it, with the rest window given.
+FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh
 lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
 time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
-import acal.app
-app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=200000,
-                    profile=0)
-print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+import acal.app, acal_board
+ms = supervisor.ticks_ms()
+app = acal.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
+app.run({seconds})
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors, app.proc.calibrations,
+      ms, supervisor.ticks_ms())
 """
 
 
@@ -224,36 +283,73 @@ def site_package(name):
     return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
 
 
-def test_the_app_on_the_feather_reads_the_emulated_lis3dh_and_replays(tmp_path, chip):
+def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
     the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
     (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
-    for 10 emulated seconds at 100 Hz, logs to the drive (writable to it after a power-up with
-    boot.py, nothing remounted from the REPL), and its capture replays on the host into the
-    board's very log."""
-    from accelcal.board import emulated
+    for 74 emulated seconds at 100 Hz while the board is turned through a calibration dance
+    (three rounds of six faces and six edges, 2 s still each), logs to the drive (writable to it
+    after a power-up with boot.py, nothing remounted from the REPL), calibrates near the
+    sensor's truth, and its capture replays on the host into the board's very log, the CAL
+    record too.  Nothing is lost: every sample is the chip's next conversion.  The run crosses
+    the wrap of supervisor.ticks_ms() (2^29 ms, which CircuitPython starts 65 s before it)."""
+    from accelcal.board import deploy, emulated
     from accelcal.bridge import boardlog
     from accelcal.simulate.stimulus import calibration_dance
-    from test_pico_lis3dh import RATE, TRUTH
-    calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    from acal import fixed, log
+    from test_pico_lis3dh import RATE, TRUTH, fifo_q10
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=3, rest_s=2,
+                            move_s=0.5)
     puts = {"acal_board.py": (ROOT / "boards" / "feather_rp2040.py").read_bytes(),
-            "boot.py": BOOT_PY}
+            "boot.py": deploy.boot_py().encode()}   # what deploy writes
     for f in site_package("adafruit_lis3dh"):
         puts[f"/lib/{f.name}"] = f.read_bytes()
     for f in site_package("adafruit_bus_device"):
         puts[f"/lib/adafruit_bus_device/{f.name}"] = f.read_bytes()
     image = tmp_path / "feather.bin"   # installed, then powered up again: boot.py remounts
     emulated.run(["print(1)"], puts=puts, flash_out=image, fw=FW)
-    r = emulated.run([FEATHER_APP.format(seconds=10)], stimulus=tmp_path / "stim.bin",
+    r = emulated.run([FEATHER_APP.format(seconds=74)], stimulus=tmp_path / "stim.bin",
                      gets=["log.bin", "capture.bin"], flash_in=image, fw=FW, i2c="1,2,3")
     rng_code, norm = map(int, r.out.split("ADAFRUIT")[1].split()[:2])
     assert rng_code == 0 and 5 <= norm <= 15, r.out   # RANGE_2_G; |a| of gravity's order, m/s^2
-    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    done = r.out.split("ACAL_DONE")[1].split()
+    samples, lost, overruns, bus_errors, calibrations, ms0, ms1 = map(int, done[:7])
     chip_truth = r.report["lis3dh"]
-    assert samples >= 9 * 100 and overruns == 0 and bus_errors == chip_truth["faults"] == 0
-    assert samples + lost <= chip_truth["converted"]
+    assert lost == overruns == chip_truth["dropped"] == 0
+    assert bus_errors == chip_truth["faults"] == 0 and calibrations == 1
+    assert ms1 < ms0   # supervisor.ticks_ms() wrapped during the run
     for f in ("log.bin", "capture.bin"):
         (tmp_path / f).write_bytes(r.files[f])
+    # the samples, in the order the FIFO gave them, are the chip's conversions 1, 2, ... of the
+    # last ODR start, each reading the stimulus at its time
+    got = np.concatenate([b[3] for b in boardlog.read_capture(tmp_path).blocks if b[0] == "samples"])
+    s, us = chip_truth["starts"][-1]
+    k = (s * 1_000_000 + us + np.arange(1, samples + 1) * 10_000) * RATE // 1_000_000
+    assert len(got) == samples >= 74 * RATE and np.array_equal(got, fifo_q10(xyz[k]))
+    cal = boardlog.decode(tmp_path / "log.bin").dicts(log.CAL)
+    assert len(cal) == 1 and cal[0]["status"] == 0 and cal[0]["points"] == 18
+    p = np.array([cal[0][n] for n in fixed.PARAM_NAMES]) / 2 ** 24
+    print(f"\nFeather, CircuitPython: {samples} samples, calibrated at sample {cal[0]['index']}, "
+          f"largest parameter error {np.abs(p - TRUTH).max():.4f}; {r.report['scripts'][0]}")
+    assert np.abs(p - TRUTH).max() < 0.01
     rep = boardlog.replay(tmp_path)
-    assert rep["identical"] and rep["samples_replayed"] == samples + lost
-    assert rep["rest"]["board"] >= 1, rep
+    assert rep["identical"] and rep["samples_replayed"] == samples
+    assert rep["cal"]["board"] == 1 and rep["rest"]["board"] >= 18, rep
+    # deploy's look at the drive, run on this board (its boot.py found) and on one without a
+    # boot.py (read-only to code: deploy stops in one line)
+    assert deploy.circuitpython_drive(ChipRemote(image), True) == deploy.BOOT_PY_HEAD
+    with pytest.raises(InputError, match="read-only to code") as e:
+        deploy.circuitpython_drive(ChipRemote(rp2040.flash_image(FW)), False)
+    assert len(str(e.value).splitlines()) == 1
+
+
+class ChipRemote:
+    """deploy.Remote's exec on the emulated Feather booted from a flash image."""
+    port = "the emulated Feather"
+
+    def __init__(self, image):
+        self.image = image
+
+    def exec(self, code, **_):
+        from accelcal.board import emulated
+        return emulated.run([code], flash_in=self.image, fw=FW).out

@@ -108,6 +108,20 @@ class Remote:
         return info
 
 
+# A CircuitPython board's drive is read-only to code unless boot.py remounts it at power-up, and
+# then read-only to the computer (docs/boards-and-logs.md "CircuitPython on the Feather RP2040").
+BOOT_PY_HEAD = "# Written by `accelcal deploy`: the app logs to this drive."
+
+
+def boot_py() -> str:
+    return (BOOT_PY_HEAD + "\n"
+            "# From power-up the drive is writable to code and read-only to the computer (two\n"
+            "# writers would corrupt it). To edit it from the computer again: os.remove('boot.py')\n"
+            "# at the REPL, then reset.\n"
+            "import storage\n"
+            "storage.remount(\"/\", readonly=False)\n")
+
+
 def main_py(settings: dict) -> str:
     args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
     return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
@@ -129,26 +143,70 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
     modules = list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+    head = None
+    if circuitpython:
+        head = circuitpython_drive(r, "boot.py" in ident["files"])
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "acal"
         pkg.mkdir()
         files, what = package_files(info, modules, pkg)
-        (Path(tmp) / "main.py").write_text(main_py(settings or {}))
+        others = board_files(info, settings or {}, write_main, Path(tmp), head)
         say(f"deploying acal ({len(files)} modules, {what}) and board {board} to {port}")
+        if circuitpython and "boot.py" not in [remote for _, remote in others]:
+            say("boot.py: the board's own kept; the app needs it to remount the drive writable "
+                "(storage.remount(\"/\", readonly=False))")
         # Stale modules of the other kind (.py beside .mpy) would shadow or confuse: remove both.
         names = " ".join(repr(f"lib/acal/{m}.{ext}") for m in modules for ext in ("py", "mpy"))
         r.exec("import os\nfor d in ('lib', 'lib/acal'):\n    try:\n        os.mkdir(d)\n"
                "    except OSError:\n        pass\n"
                f"for f in ({names},):\n    try:\n        os.remove(f)\n    except OSError:\n        pass\n")
-        cmd = ["fs", "cp", *map(str, files), ":lib/acal/", "+", "fs", "cp", str(info["path"]), ":acal_board.py"]
-        if write_main:
-            cmd += ["+", "fs", "cp", str(Path(tmp) / "main.py"), ":main.py"]
+        cmd = ["fs", "cp", *map(str, files), ":lib/acal/"]
+        for local, remote in others:
+            cmd += ["+", "fs", "cp", str(local), f":{remote}"]
         r.run(*cmd)
     check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION)")
     if "ACAL_OK" not in check:
         raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
-            "format": files[0].suffix[1:], "main_py": write_main}
+            "format": files[0].suffix[1:], "main_py": write_main,
+            "boot_py": "boot.py" in [remote for _, remote in others]}
+
+
+def circuitpython_drive(r: Remote, has_boot_py: bool) -> str | None:
+    """The first line of the board's boot.py (None without one), once its drive is known to be
+    writable to code: read-only (no boot.py remounted it yet), nothing can be copied over the
+    REPL and deploy stops in one line saying how the first boot.py gets there."""
+    out = r.exec("import storage\nprint('ACAL_RO', storage.getmount('/').readonly)\n"
+                 + ("f = open('boot.py')\nprint('ACAL_BOOT', f.readline().rstrip())\nf.close()\n"
+                    if has_boot_py else ""))
+    if "ACAL_RO False" not in out:
+        raise InputError(f"{r.port}: its CIRCUITPY drive is read-only to code, so mpremote cannot "
+                         "copy files there: put a boot.py holding `import storage; "
+                         "storage.remount(\"/\", readonly=False)` on the drive from the computer, "
+                         "reset the board and deploy again (docs/boards-and-logs.md)")
+    for line in out.splitlines():
+        if line.startswith("ACAL_BOOT"):
+            return line[len("ACAL_BOOT "):].rstrip()
+    return None
+
+
+def board_files(info: dict, settings: dict, write_main: bool, dest: Path,
+                boot_py_head: str | None = None) -> list[tuple[Path, str]]:
+    """What deploy copies beside the package, written into dest: [(local file, remote name)].
+    The board file as acal_board.py; main.py starting the app with settings (unless not
+    write_main); for a CircuitPython board boot.py, which makes its drive writable to the app,
+    unless the board holds a boot.py deploy did not write (boot_py_head: the first line of the
+    board's boot.py, None without one), which is the user's and kept."""
+    out = [(Path(info["path"]), "acal_board.py")]
+    texts = {}
+    if write_main:
+        texts["main.py"] = main_py(settings)
+    if info["RUNTIME"] == "circuitpython" and boot_py_head in (None, BOOT_PY_HEAD):
+        texts["boot.py"] = boot_py()
+    for remote, text in texts.items():
+        (dest / remote).write_text(text)
+        out.append((dest / remote, remote))
+    return out
 
 
 def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path], str]:

@@ -58,7 +58,9 @@ def cmd_deploy(args) -> int:
                           say=lambda m: print(m, file=sys.stderr))
     print(json.dumps(r) if args.json else
           f"deployed to {r['port']}: board {r['board']} ({r['platform']}), {r['modules']} modules as "
-          f".{r['format']}" + (", main.py starts logging at power-up" if r["main_py"] else ""))
+          f".{r['format']}" + (", main.py starts logging at power-up" if r["main_py"] else "")
+          + ("; boot.py makes the drive writable to the app and read-only to the computer from "
+             "the next power-up" if r["boot_py"] else ""))
     return 0
 
 
@@ -183,7 +185,9 @@ def add_parsers(sub) -> None:
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "
                                    "mpy-cross where the board's architecture is known), the board file "
                                    "as :acal_board.py, and a main.py that starts the app at power-up "
-                                   "with the app settings given here.")
+                                   "with the app settings given here; on a CircuitPython board also "
+                                   "a boot.py that makes its drive writable to the app (and read-only "
+                                   "to the computer) from the next power-up, unless it has its own.")
     p.add_argument("--port", required=True, help="serial port (or the virtual board's pty)")
     p.add_argument("--board", help="board file name (default: from the board's sys.platform)")
     p.add_argument("--no-main", action="store_true", help="do not write main.py")
