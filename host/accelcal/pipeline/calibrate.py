@@ -63,6 +63,10 @@ def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
     if min(r.counts) >= cfg.min_count or (newton and r.covered):
         return f"the {len(r.selected_int)} held points {methods.ONE_HEMISPHERE}" \
             if one_sided else None
+    rest = r.rest_g
+    if len(rest) >= 9 and methods.one_side_margin(rest) > 1e-9:   # the reason a user can act on
+        return (f"the {len(rest)} rest points {methods.ONE_HEMISPHERE} (bins: "
+                f"{fill_report(r, cfg.min_count)})")
     cover = (f" and the held points do not cover every axis (>= {dbins.COVER_SIDE} beyond "
              f"+-0.3 g on each side, >= {dbins.COVER_POINTS} points)"
              + (" or lie on one side of a plane through 0 g" if one_sided and
