@@ -35,6 +35,7 @@
 # supply_differ, the spread counts its range per its threshold, ready() needs the span.
 from array import array
 
+from acal import hemisphere
 from acal.fixed import POINT_ONE_G
 try:
     from micropython import const
@@ -168,7 +169,8 @@ class Bins:
 
     def ready(self):
         """True when every subset holds at least min_count points, or with `coverage` when the
-        held points cover every axis (covered()); and, for a composed model, when the held
+        held points cover every axis (covered()), and with `coverage` never on points all on
+        one side of a plane through 0 g (hemisphere.py); and, for a composed model, when the held
         points span temp_differ, time_differ and supply_differ.  The answer is kept until the
         held points change (the app asks once a block: 222 us of bytecode on an RP2040)."""
         if self.ready_at != self.changes:
@@ -181,14 +183,23 @@ class Bins:
         for s in range(N_SUBSETS):
             if self.counts[s] < self.min_count:
                 full = False
-        if not full and not (self.coverage and self.covered()):
+        if self.coverage:   # the wear profile: never on one hemisphere's points
+            if not (full or self._axes_covered()) or hemisphere.held(self.xyz, self.counts,
+                                                                     self.max_count):
+                return False
+        elif not full:
             return False
         return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ \
             and self.supply_span() >= self.supply_differ
 
     def covered(self):
-        """True when at least COVER_POINTS points are held and, on every axis, at least
-        COVER_SIDE of them lie beyond +COVER_LEVEL and COVER_SIDE beyond -COVER_LEVEL."""
+        """True when at least COVER_POINTS points are held, on every axis at least COVER_SIDE
+        of them lie beyond +COVER_LEVEL and COVER_SIDE beyond -COVER_LEVEL, and they are not
+        all on one side of a plane through 0 g (hemisphere.py: the float methods' rule)."""
+        return self._axes_covered() and not hemisphere.held(self.xyz, self.counts,
+                                                             self.max_count)
+
+    def _axes_covered(self):
         if self.total() < COVER_POINTS:
             return False
         m = self.max_count

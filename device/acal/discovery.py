@@ -7,6 +7,10 @@
 # best effect without one only when that one's held-out error is over STEP_PARSIMONY_TENTHS / 10
 # times the step's.  The errors may be any numbers of one unit (mg on the host, the board's
 # integers there); the comparisons are products, no division.
+# A share of few blocks is weak evidence: 3 of 3 blocks better happens one time in eight by
+# chance alone.  A named effect is clear evidence when a one-sided sign test (each block better
+# or worse as a fair coin toss) sees that many blocks better at most one time in CHANCE_ONE_IN;
+# otherwise it is named as weak evidence, to be confirmed on a longer recording.
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -16,6 +20,11 @@ except ImportError:  # CPython
 MIN_IMPROVEMENT_PCT = const(10)
 MIN_BLOCK_SHARE_PCT = const(70)
 STEP_PARSIMONY_TENTHS = const(15)
+CHANCE_ONE_IN = const(20)
+# The sign test is exact in integers up to SIGN_BLOCKS blocks (CHANCE_ONE_IN * 2**25 < 2**30);
+# above it, every share that share_holds passes the test (each count to 10 000 checked in
+# tests/device/test_discovery.py), so the share decides alone.
+SIGN_BLOCKS = const(25)
 
 
 def share_holds(better, blocks):
@@ -38,3 +47,22 @@ def plain_preferred(step_error, plain_error):
     """True when the best effect without a change point (held-out error plain_error) is
     preferred to the best step (step_error): it comes within the step's parsimony factor."""
     return 10 * plain_error <= STEP_PARSIMONY_TENTHS * step_error
+
+
+def clear(better, blocks):
+    """True when `better` of `blocks` held-out blocks is a share the rule names (share_holds)
+    and more than chance: the one-sided sign test's tail, sum over k >= better of
+    C(blocks, k), is at most 2**blocks / CHANCE_ONE_IN.  Otherwise a named effect is weak
+    evidence."""
+    if not share_holds(better, blocks):
+        return False
+    if blocks > SIGN_BLOCKS:
+        return True
+    tail = 0
+    term = 1    # C(blocks, k), from k = blocks down: C(n, k - 1) = C(n, k) k / (n - k + 1)
+    k = blocks
+    while k >= better:
+        tail += term
+        term = term * k // (blocks - k + 1)
+        k -= 1
+    return CHANCE_ONE_IN * tail <= 1 << blocks

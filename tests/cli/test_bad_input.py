@@ -750,3 +750,22 @@ def test_the_second_round_as_real_processes(good, tmp_path):
                            capture_output=True, text=True, timeout=300)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (argv, r.stderr)
         assert "Traceback" not in r.stderr
+
+
+def test_real_files_too_short_or_one_sided_are_one_line_by_one_rule(capsys):
+    """Real device files that cannot calibrate (tests/data/real): the 3.6-hour CentrePoint
+    Insight Watch file lies on one hemisphere (2 h of it off the wrist), and calibrate (the
+    device's bins), compare and diagnose (the float methods' check) refuse it in the same words;
+    the short NHANES-format GT3X+ file has no split whose halves both cover the sphere, and says
+    why.  Each is exit 2 and one line."""
+    from conftest import ROOT
+    real = ROOT / "tests" / "data" / "real" / "pygt3x"
+    pytest.importorskip("pygt3x")
+    for command in ("calibrate", "compare", "diagnose"):
+        code, _, err = run_main(capsys, [command, real / "CPW1C48210013_baseline.agdc"])
+        assert code == 2 and len(err.strip().splitlines()) == 1, (command, err)
+        assert "cover one hemisphere only" in err, (command, err)
+    for command in ("compare", "diagnose"):
+        code, _, err = run_main(capsys, [command, real / "neo.gt3x"])
+        assert code == 2 and len(err.strip().splitlines()) == 1, (command, err)
+        assert "no split into alternate time blocks" in err and "turns over" in err, err

@@ -12,7 +12,8 @@ one in device/acal, run through accelcal.bridge.runtime.
 | merayo    | mgncalibration.py     | Merayo 2000, MgnCalibration: full ellipsoid, Cholesky factor |
 | minvol    | minvolellipsoid.py    | Bonnet 2009, minimum-volume enclosing ellipsoid (Khachiyan) |
 """
-from accelcal.methods.base import (P0, REGISTRY, FitError, Method, calibration_error_mg,  # noqa: F401
+from accelcal.methods.base import (ONE_HEMISPHERE, P0, REGISTRY, FitError, Method,  # noqa: F401
+                                   calibration_error_mg,
                                    check_points, correct, coverage_reason, fisher_bound, k_matrix,
                                    one_side_margin,
                                    upper_factor)

@@ -85,6 +85,12 @@ def check_points(v, need: int, name: str) -> np.ndarray:
     return v
 
 
+# what the coverage rule says of one-sided points, here and for the device's bins (whose test is
+# acal/hemisphere.py, the same rule in integers)
+ONE_HEMISPHERE = ("cover one hemisphere only (all lie on one side of a plane through 0 g: one "
+                  "orientation, or a device that never turned over); the other side is needed")
+
+
 def coverage_reason(v: np.ndarray, need: int = 9, name: str = "a calibration") -> str | None:
     """Why points (N, 3) g cannot pin `need` parameters, or None: too few, not finite, collinear,
     coplanar, or all on one side of a plane through 0 g (one hemisphere: the centre is then an
@@ -101,9 +107,7 @@ def coverage_reason(v: np.ndarray, need: int = 9, name: str = "a calibration") -
     if sv[2] <= 1e-9 * sv[0]:
         return f"{name}: the {len(v)} points lie in one plane; an ellipsoid needs points off it"
     if one_side_margin(v) > 1e-9:
-        return (f"{name}: the {len(v)} points cover one hemisphere only (all lie on one side of a "
-                "plane through 0 g: one orientation, or a device that never turned over); the "
-                "other side is needed")
+        return f"{name}: the {len(v)} points {ONE_HEMISPHERE}"
     return None
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from acal import bins as dbins
 from acal import effects as deff
-from acal import fixed, optimiser
+from acal import fixed, hemisphere, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
@@ -54,12 +54,23 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
 
 
 def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
-    """Why the bins are not ready by their counts (the wear profile: nor by coverage), or None."""
-    if min(r.counts) >= cfg.min_count or (cfg.fit == dprofile.NEWTON and r.covered):
-        return None
+    """Why the bins are not ready by their counts (the wear profile: nor by coverage, and never
+    on one hemisphere's points: the coverage rule every fit shares), or None."""
+    newton = cfg.fit == dprofile.NEWTON
+    held = [c for p in r.selected_int for c in p[:3]]
+    one_sided = newton and hemisphere.one_sided(held, [len(r.selected_int)],
+                                                len(r.selected_int), len(r.selected_int))
+    if min(r.counts) >= cfg.min_count or (newton and r.covered):
+        return f"the {len(r.selected_int)} held points {methods.ONE_HEMISPHERE}" \
+            if one_sided else None
+    rest = r.rest_g
+    if len(rest) >= 9 and methods.one_side_margin(rest) > 1e-9:   # the reason a user can act on
+        return (f"the {len(rest)} rest points {methods.ONE_HEMISPHERE} (bins: "
+                f"{fill_report(r, cfg.min_count)})")
     cover = (f" and the held points do not cover every axis (>= {dbins.COVER_SIDE} beyond "
              f"+-0.3 g on each side, >= {dbins.COVER_POINTS} points)"
-             if cfg.fit == dprofile.NEWTON else "")
+             + (" or lie on one side of a plane through 0 g" if one_sided and
+                len(r.selected_int) >= dbins.COVER_POINTS else "") if newton else "")
     return f"bins did not fill: {fill_report(r, cfg.min_count)}{cover}"
 
 

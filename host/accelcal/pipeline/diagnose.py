@@ -43,10 +43,8 @@ from accelcal.pipeline.results import DiagnoseResult
 # the acceptance rule, shared with the board's own discovery (acal/discovery.py)
 MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
 MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
-# A share of few blocks is weak evidence: 3 of 3 blocks better happens one time in eight by
-# chance alone.  A named effect whose blocks would pass a one-sided sign test at this level only
-# with more of them is named as weak evidence, to be confirmed on a longer recording.
-WEAK_P = 0.05
+# A share of few blocks is weak evidence (3 of 3 better: one time in eight by chance alone):
+# discovery.clear, the sign test in integers, shared with the board.
 # A step's time is searched over every split of the training points, and the 2-hour held-out
 # blocks sit between training ones: a step can pass for a drift or a temperature pattern there.
 # So a change-point effect is preferred only when it beats the best effect without one by this
@@ -236,7 +234,7 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
            "blocks": len(blocks),
            # judged where the share would name it: few blocks are weak evidence (block_evidence)
            "evidence": block_evidence(better, len(blocks))
-           if discovery.share_holds(better, len(blocks)) else None,
+           if discovery.share_holds(int(better), len(blocks)) else None,
            "params": {k: v for i, e in enumerate(new) for k, v in zip(
                e.param_names, (th[len(th) - 3 * (added - i):][:3] * e.scale).round(4).tolist())},
            "param_unit": new[0].report_unit if added == 1 else ", ".join(
@@ -247,11 +245,10 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
 
 
 def block_evidence(better: int, blocks: int) -> str:
-    """"clear" when `better` of `blocks` held-out blocks improving would happen by chance (each
-    block a coin toss) at most WEAK_P of the time (one-sided sign test), else "weak"."""
-    from math import comb
-    p = sum(comb(blocks, k) for k in range(better, blocks + 1)) / 2 ** blocks
-    return "clear" if p <= WEAK_P else "weak"
+    """"clear" when `better` of `blocks` held-out blocks improving is a share the rule names and
+    more than chance (discovery.clear: a one-sided sign test, each block a coin toss, at one
+    time in discovery.CHANCE_ONE_IN), else "weak"."""
+    return "clear" if discovery.clear(int(better), int(blocks)) else "weak"
 
 
 def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:

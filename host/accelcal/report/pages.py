@@ -99,13 +99,15 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
         if params:
             ptxt += f" ({_e(c.get('param_unit', ''))})"
         share = _num(c["blocks_improved_pct"], ".0f")
-        if c["blocks_improved_pct"] is not None and blocks:
-            share += f" of {blocks}"
+        if c["blocks_improved_pct"] is not None and c.get("blocks"):   # the count beside the share
+            share = f"{c['blocks_improved']} of {c['blocks']} ({share} %)"
+        if c.get("evidence") == "weak":   # few blocks (acal/discovery.py clear)
+            share += ", weak evidence"
         rows.append([_e("+" + c["effect"]), _num(c["heldout_error_mg"]),
                      _num(c["improvement_pct"], ".1f"), share,
                      _e(ptxt if params else c.get("untestable", ""))])
     body.append("<h2>Candidates</h2>" + _table(
-        ["effect added", "held-out error (mg)", "improvement (%)", "held-out blocks improved (%)",
+        ["effect added", "held-out error (mg)", "improvement (%)", "held-out blocks improved",
          "fitted parameters"], rows))
     wf = out.get("where_it_fails", {})
     if wf:
