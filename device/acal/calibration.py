@@ -97,15 +97,17 @@ class Calibration:
             _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e,
                          APPLY_OUT_SHIFT, SIGN_SHIFT)
         else:
+            # the readings after their effects, Q(14 - e) g, into buf; then the block applied
+            # there in place (shift 0; already clamped): one viper call a block, not a sample
             w = self.w
-            while i < end:
-                self._remove_effects(src[i], src[i + 1], src[i + 2])
-                # the reading after its effects is in Q(14 - e) already: shift 0, clamped again
-                _apply_block(w, w, 0, 3, self.k, APPLY_W_MAX, 0, APPLY_OUT_SHIFT, SIGN_SHIFT)
-                buf[i] = w[0]
-                buf[i + 1] = w[1]
-                buf[i + 2] = w[2]
-                i += 3
+            j = i
+            while j < end:
+                self._remove_effects(src[j], src[j + 1], src[j + 2])
+                buf[j] = w[0]
+                buf[j + 1] = w[1]
+                buf[j + 2] = w[2]
+                j += 3
+            _apply_block(buf, buf, i, end, self.k, APPLY_W_MAX, 0, APPLY_OUT_SHIFT, SIGN_SHIFT)
         self.x = buf[end - 3]
         self.y = buf[end - 2]
         self.z = buf[end - 1]
@@ -119,13 +121,22 @@ class Calibration:
         w = self.w
         e = self.e
         s = APPLY_FROM_SAMPLE_SHIFT - e
+        m = self.in_max   # the reading to the full scale first: the effects read it (q v^2)
+        if x > m:
+            x = m
+        elif x < -m:
+            x = -m
+        if y > m:
+            y = m
+        elif y < -m:
+            y = -m
+        if z > m:
+            z = m
+        elif z < -m:
+            z = -m
         w[0] = x << s
         w[1] = y << s
         w[2] = z << s
-        _clamp(w)
-        x = w[0] >> s     # exact: the clamp is a multiple of 2**s (APPLY_IN_MAX << 4)
-        y = w[1] >> s
-        z = w[2] >> s
         dT = self.temp - self.ref_temp
         dt = self.time - self.ref_time
         kinds = self.kinds
@@ -147,17 +158,12 @@ class Calibration:
             else:
                 effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt,
                                        0, 0, e)
-            _clamp(w)
+            for i in range(3):   # inline: a call per effect costs the chip ~12 us
+                if w[i] > APPLY_W_MAX:
+                    w[i] = APPLY_W_MAX
+                elif w[i] < -APPLY_W_MAX:
+                    w[i] = -APPLY_W_MAX
             j -= 1
-
-
-def _clamp(w):
-    # a reading in Q(14 - e) to the range a reading can have, +-2.048 * 2**e g
-    for i in range(3):
-        if w[i] > APPLY_W_MAX:
-            w[i] = APPLY_W_MAX
-        elif w[i] < -APPLY_W_MAX:
-            w[i] = -APPLY_W_MAX
 
 
 @viper
