@@ -130,6 +130,28 @@ def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
     assert (twin.apply_params(p, q, range_g=range_g) == np.array(buf).reshape(-1, 3)).all()
 
 
+@pytest.mark.parametrize("range_g", [2, 8])
+def test_the_apps_calibrated_blocks_are_the_twins(rng, range_g, tmp_path):
+    """What the app hands on_samples (Processor.feed: the block copied and applied in one pass)
+    is the twin's output at the board's full scale, in Q(13 - e) g."""
+    from array import array
+    from acal import fixed, log
+    from acal.processor import Processor
+    p = [int(v) for v in rng.integers(15 << 20, 17 << 20, 3)] + \
+        [int(v) for v in rng.integers(-(1 << 20), 1 << 20, 6)]
+    proc = Processor(log.Log(str(tmp_path / "log.bin")), 100, range_g=range_g)
+    proc.calibration.set(p)
+    proc.calibrations = 1
+    got = []
+    proc.on_samples = lambda buf, n: got.extend(buf[:3 * n])
+    n = log.SAMPLES_PER_RECORD
+    q = rng.integers(-1100 * range_g, 1100 * range_g, (4 * n, 3))
+    for b in range(4):
+        proc.feed(array("i", q[b * n:(b + 1) * n].ravel().tolist()), n)
+    assert proc.calibration.out_q == fixed.apply_out_q(range_g)
+    assert (np.array(got).reshape(-1, 3) == twin.apply_params(p, q, range_g=range_g)).all()
+
+
 @st.composite
 def composed_cases(draw):
     """A composed model of any of the device's effects inside the calibration bounds at any full
