@@ -131,7 +131,10 @@ def test_apply_stays_small_in_every_composition_and_order():
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
     calibration.int = lambda v: v   # viper's cast in _apply_block: the traced ints pass
     try:
-        for order, range_g, sign in itertools.product(effect_orders(), (2, 4, 8, 16), (-1, 1)):
+        # +-2 and +-16 g: the readings' bound is one at every range, and of the products that
+        # change with it only q v^2's grows, largest at 16 g (test_apply_path_stays_small_at_the_
+        # worst_case runs every range, effect by effect)
+        for order, range_g, sign in itertools.product(effect_orders(), (2, 16), (-1, 1)):
             cal = Calibration(order, range_g)
             p = [sign * v if i >= 3 else v for i, v in enumerate(base)]
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
@@ -141,7 +144,7 @@ def test_apply_stays_small_in_every_composition_and_order():
             for temp, time, supply in ((-100, -(10 ** 7), -(10 ** 6)), (100, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
                 cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
-                for x in (-2097 << cal.e, 2097 << cal.e, 16383):
+                for x in (-2097 << cal.e, 16383):   # at and past the full scale (clamped)
                     cal.apply(T(x), T(-x), T(x))
                     assert max(abs(cal.x), abs(cal.y), abs(cal.z)) <= 28236   # an int16
     finally:
