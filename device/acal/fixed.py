@@ -70,8 +70,8 @@ ALPHA_MISALIGN = const(8)
 ALPHA_OFFSET = const(2)
 
 # Calibration bounds.  A result must lie inside them; a calibration inside them keeps the
-# per-sample apply below 2**30 at every full scale (calibration.Calibration).  They hold every real LIS3DH
-# (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
+# per-sample apply below 2**30 at every full scale (calibration.Calibration).  They hold every
+# real LIS3DH (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
 K_DIAG_MIN = const(12582912)   # 0.75
 K_DIAG_MAX = const(20971520)   # 1.25
 K_OFF_MAX = const(2097152)     # |misalignment| <= 0.125
@@ -91,7 +91,7 @@ FIT_O_MAX = const(8388608)       # 0.5 g
 # so every product and sum is <= 9.3e8 < 2**30 (tests/device/test_ranges.py runs the worst case).
 # The output keeps the sub-LSB resolution a still sensor's mean has (its noise is below one Q10
 # step, so a Q10 output's rounding would not average out): |a| <= 9.3e8 >> 15 = 28 236, an int16
-# word as the log's samples are.
+# word, as the log's samples are.
 APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
 APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
