@@ -1,8 +1,10 @@
 # The calibration applied to raw samples on the board, per sample and without allocating: the
 # model of acal/model.py (a = K (v + o), a composed model's effects removed first: acal/effects.py)
-# in the apply's formats (fixed.py "apply"), every product below 2**30 at every full scale.
+# in the apply's formats (fixed.py "apply"), every product below 2**30 at every full scale.  One
+# implementation of the clamp and the products, _apply_block: a single sample and a composed
+# model's readings (after their effects) go through it too.
 from acal.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
-                        APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
+                        APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
 from acal import effects
 from acal.bins import int32s
 from acal.emit import SIGN_SHIFT, viper, ptr32
@@ -12,8 +14,11 @@ from acal.model import identity, in_bounds, effects_within
 class Calibration:
     """A calibration applied to raw samples, per sample and without allocating.
 
-    set(p) takes Q24 parameters and keeps them in Q14 (APPLY_Q): the products of the per-sample
-    path then stay below 2**30 at +-2 g.  Samples in and out are Q10 g.
+    range_g: the sensor's full scale (2, 4, 8 or 16 g), shift e (fixed.apply_range_shift).
+    set(p) takes Q24 parameters and keeps them in the apply's formats (fixed.py: K in Q14, the
+    offsets in Q(14 - e) g), so the products stay below 2**30 at every full scale.  Samples in
+    are Q10 g; calibrated samples out are Q(13 - e) g (self.out_q, fixed.APPLY_OUT_Q - e: a
+    still sensor's sub-mg mean kept, and an int16 at every full scale).
 
     kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
     p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC),
@@ -24,12 +29,11 @@ class Calibration:
     def __init__(self, kinds=(), range_g=2):
         self.kinds = tuple(kinds)
         self.e = apply_range_shift(range_g)  # fixed.py: the format by full scale
-        if self.kinds and self.e:
-            raise ValueError("a composed model applies at +-2 g full scale")
+        self.out_q = APPLY_OUT_Q - self.e
         self.in_max = APPLY_IN_MAX << self.e
         self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.k = int32s(self.n_params)   # an int32 array: _apply_block's typed pointer
-        self.w = [0, 0, 0]
+        self.w = int32s(3)   # one sample (apply()), or a reading after its effects, Q(14 - e)
         self.temp = 0
         self.time = 0
         self.supply = 0
@@ -57,10 +61,9 @@ class Calibration:
         reference, mV); ValueError outside the bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
-        shift = APPLY_PARAM_SHIFT + self.e
-        half = 1 << (shift - 1)
         for i in range(N_PARAMS):
-            self.k[i] = (p[i] + half) >> shift
+            shift = APPLY_PARAM_SHIFT if i < 6 else APPLY_PARAM_SHIFT + self.e
+            self.k[i] = (p[i] + (1 << (shift - 1))) >> shift
         for j in range(len(self.kinds)):
             effects.apply_params(self.kinds[j], p, N_PARAMS + 3 * j, self.k, N_PARAMS + 3 * j)
         self.ref_temp = ref_temp
@@ -70,11 +73,55 @@ class Calibration:
         self.r_valid = False
 
     def apply(self, x, y, z):
-        """Correct one sample; the result is in self.x, self.y, self.z (Q10 g).  A reading past
-        the full scale is clamped to it first (the chip cannot read more; the range bound
-        holds for any input)."""
-        k = self.k
-        m = self.in_max
+        """Correct one sample (Q10 g); the result is in self.x, self.y, self.z (Q(13 - e) g).
+        A reading past the full scale is clamped to it first (the chip cannot read more; the
+        range bound holds for any input).  apply_samples on a one-sample buffer."""
+        w = self.w
+        w[0] = x
+        w[1] = y
+        w[2] = z
+        self.apply_samples(w, 0, 1)
+
+    def apply_samples(self, buf, start, n, src=None):
+        """Correct n interleaved samples x y z ... (Q10 g in, Q(13 - e) g out) of an int array
+        in place, from sample `start` (given src, an int array: read from src at the same
+        indices, the copy and the apply in one pass).  The last sample's result is also in
+        self.x, self.y, self.z."""
+        if n <= 0:
+            return
+        if src is None:
+            src = buf
+        i = 3 * start
+        end = 3 * (start + n)
+        if not self.kinds:
+            _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e,
+                         APPLY_OUT_SHIFT, SIGN_SHIFT)
+        else:
+            # the readings after their effects, Q(14 - e) g, into buf; then the block applied
+            # there in place (shift 0; already clamped): one viper call a block, not a sample
+            w = self.w
+            j = i
+            while j < end:
+                self._remove_effects(src[j], src[j + 1], src[j + 2])
+                buf[j] = w[0]
+                buf[j + 1] = w[1]
+                buf[j + 2] = w[2]
+                j += 3
+            _apply_block(buf, buf, i, end, self.k, APPLY_W_MAX, 0, APPLY_OUT_SHIFT, SIGN_SHIFT)
+        self.x = buf[end - 3]
+        self.y = buf[end - 2]
+        self.z = buf[end - 1]
+
+    def _remove_effects(self, x, y, z):
+        # The effects, last first (the reverse of the order they act in), in Q(14 - e), into
+        # self.w; the reading first clamped to the full scale, and after each effect to
+        # +-2.048 * 2**e g (fixed.APPLY_W_MAX): the next effect's products and the 9-parameter
+        # apply then stay below 2**30 in every order (a drift removed over months can move a
+        # reading by several g, and temp_scale multiplies what it leaves).
+        w = self.w
+        e = self.e
+        s = APPLY_FROM_SAMPLE_SHIFT - e
+        m = self.in_max   # the reading to the full scale first: the effects read it (q v^2)
         if x > m:
             x = m
         elif x < -m:
@@ -87,33 +134,9 @@ class Calibration:
             z = m
         elif z < -m:
             z = -m
-        e = self.e
-        if self.kinds:
-            w = self.w
-            self._remove_effects(x, y, z)
-            ux = w[0] + k[6]
-            uy = w[1] + k[7]
-            uz = w[2] + k[8]
-        else:
-            s = APPLY_FROM_SAMPLE_SHIFT - e
-            ux = (x << s) + k[6]
-            uy = (y << s) + k[7]
-            uz = (z << s) + k[8]
-        s = APPLY_OUT_SHIFT - 2 * e
-        half = 1 << (s - 1)
-        self.x = (k[0] * ux + half) >> s
-        self.y = (k[3] * ux + k[1] * uy + half) >> s
-        self.z = (k[4] * ux + k[5] * uy + k[2] * uz + half) >> s
-
-    def _remove_effects(self, x, y, z):
-        # The effects, last first (the reverse of the order they act in), in Q14, into self.w;
-        # after each one clamped to +-2.048 g (fixed.APPLY_W_MAX): the next effect's products
-        # and the 9-parameter apply then stay below 2**30 in every order (a drift removed over
-        # months can move a reading by several g, and temp_scale multiplies what it leaves).
-        w = self.w
-        w[0] = x << APPLY_FROM_SAMPLE_SHIFT
-        w[1] = y << APPLY_FROM_SAMPLE_SHIFT
-        w[2] = z << APPLY_FROM_SAMPLE_SHIFT
+        w[0] = x << s
+        w[1] = y << s
+        w[2] = z << s
         dT = self.temp - self.ref_temp
         dt = self.time - self.ref_time
         kinds = self.kinds
@@ -131,48 +154,25 @@ class Calibration:
         j = len(kinds) - 1
         while j >= 0:
             if self.generic[j]:   # correct_sample's form, with the regressor kept
-                effects.offset_sample(self.k, N_PARAMS + 3 * j, w, r[j])
+                effects.offset_sample(self.k, N_PARAMS + 3 * j, w, r[j], e)
             else:
-                effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt)
-            for i in range(3):
+                effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt,
+                                       0, 0, e)
+            for i in range(3):   # inline: a call per effect costs the chip ~12 us
                 if w[i] > APPLY_W_MAX:
                     w[i] = APPLY_W_MAX
                 elif w[i] < -APPLY_W_MAX:
                     w[i] = -APPLY_W_MAX
             j -= 1
 
-    def apply_samples(self, buf, start, n, src=None):
-        """Correct n interleaved samples x y z ... of an int array in place, from sample `start`
-        (given src, an int array: read from src at the same indices, the copy and the apply in
-        one pass).  The last sample's result is also in self.x, self.y, self.z."""
-        if src is None:
-            src = buf
-        i = 3 * start
-        end = 3 * (start + n)
-        if not self.kinds:
-            if n > 0:
-                e = self.e
-                _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - e,
-                             APPLY_OUT_SHIFT - 2 * e, SIGN_SHIFT)
-                self.x = buf[end - 3]
-                self.y = buf[end - 2]
-                self.z = buf[end - 1]
-            return
-        while i < end:
-            self.apply(src[i], src[i + 1], src[i + 2])
-            buf[i] = self.x
-            buf[i + 1] = self.y
-            buf[i + 2] = self.z
-            i += 3
-
 
 @viper
 def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w: int):
-    # Calibration.apply over the samples source[i:end] (flat x y z, Q10 g) into dest, for a
-    # model without effects: the per-sample hot loop, viper on ports with emitters (acal/emit.py;
-    # w: emit.SIGN_SHIFT).  The same integers as apply(): readings clamped to +-m, u in Q14
-    # (<< s), products of Q14 parameters rounded down by o bits; every value below 2**30 at
-    # every full scale (tests/device/test_ranges.py traces them).
+    # The apply's one implementation (Calibration.apply_samples): the samples source[i:end]
+    # (flat x y z) into dest, viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # Readings clamped to +-m, u = (x << s) + o in Q(14 - e) g, the Q14 products rounded by o
+    # bits to Q(13 - e) g (fixed.py "apply"); every value below 2**30 at every full scale
+    # (tests/device/test_ranges.py traces them).
     src = ptr32(source)
     dst = ptr32(dest)
     k = ptr32(coef)

@@ -23,15 +23,16 @@
 #   that each is of the size of an offset and takes the offsets' learning rate.
 #     c: (c * dT) >> 4;  e: (e * dT^2) >> 6;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;
 #     q: (q * ((u*u) >> 24)) >> 24
-#   Apply (per sample, Q14 g readings, calibration.Calibration): c, e and d in Q14 (param >> 10), s and q
-#   in Q18 (param >> 6), so that at +-2.048 g, |dT| <= 32 degC and |dt| < 2**20 units (776 days;
-#   both clamped)
-#   and inside BOUNDS every product stays below 2**30 (tests/device/test_effects.py runs the worst case).
+#   Apply (per sample, Q(14 - e) g readings at range shift e, fixed.py "apply",
+#   calibration.Calibration): c, e and d in Q14 (param >> 10), s and q in Q18 (param >> 6), each
+#   product shifted e bits further (q's v^2 e bits before it), so that at +-2.048 * 2**e g, |dT| <= 32
+#   degC and |dt| < 2**20 units (776 days; both clamped) and inside BOUNDS every product stays
+#   below 2**30 at every full scale (tests/device/test_effects.py runs the worst case).
 #   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (x <= 2**20 for
 #   (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
 #   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
 #   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
-#   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> 14, k x < 2**28 at the bound.
+#   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> (14 + e), k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
 #   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
 #   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region) - or, for the Jacobian rows of
@@ -251,19 +252,21 @@ def apply_params(kind, p, j, k, m):
         k[m + i] = (p[j + i] + half) >> shift
 
 
-def offset_sample(k, m, w, r):
+def offset_sample(k, m, w, r, e=0):
     """A generic offset's per-sample form: w -= k r, r its regressor >> 4 (Q12, <= 2**16), k in
-    Q16 (apply_params), w in Q14."""
+    Q16 (apply_params), w in Q(14 - e) g (e: the full scale's shift, fixed.py)."""
+    s = 14 + e
     for i in range(3):
-        w[i] -= (k[m + i] * r) >> 14
+        w[i] -= (k[m + i] * r) >> s
 
 
-def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
-    """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g),
-    accumulating into w (list of 3, Q14 g, holding x y z << 4 or an earlier effect's result);
-    ts: a step's time (as dt); dV: the board's integer (mV from its reference)."""
+def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
+    """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
+    within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
+    shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result); ts: a step's
+    time (as dt); dV: the board's integer (mV from its reference)."""
     if kind in SHAPES:   # is_generic(), inline: per point / per sample
-        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4)
+        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4, e)
         return
     if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
         if dT > APPLY_DT_MAX:
@@ -272,8 +275,8 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
             dT = -APPLY_DT_MAX
     if kind == TEMP_OFFSET:
         for i in range(3):
-            w[i] -= (k[m + i] * dT) >> 4
-    elif kind == TEMP_SCALE:
+            w[i] -= (k[m + i] * dT) >> (4 + e)
+    elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
         for i in range(3):
             w[i] -= (((k[m + i] * dT) >> 4) * w[i]) >> 18
     elif kind == DRIFT:
@@ -282,19 +285,19 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0):
         elif dt < -APPLY_TIME_MAX:
             dt = -APPLY_TIME_MAX
         for i in range(3):
-            w[i] -= (k[m + i] * dt) >> 11
-    elif kind == NONLINEAR:
+            w[i] -= (k[m + i] * dt) >> (11 + e)
+    elif kind == NONLINEAR:      # v^2 in Q(10 - e) g^2: <= 2**16 at +-16 g, k v^2 < 2**30
         s = x
         for i in range(3):
             if i == 1:
                 s = y
             elif i == 2:
                 s = z
-            w[i] -= (k[m + i] * ((s * s) >> 10)) >> 14
+            w[i] -= (k[m + i] * ((s * s) >> (10 + e))) >> 14
     elif kind == TEMP_OFFSET2:
         sq = dT * dT             # <= 1024; |k| <= 2**11 at 2x the bound: the product < 2**22
         for i in range(3):
-            w[i] -= (k[m + i] * sq) >> 6
+            w[i] -= (k[m + i] * sq) >> (6 + e)
 
 
 # correct_u's integers for the default fit, viper on ports with emitters (acal/emit.py): the

@@ -70,8 +70,8 @@ ALPHA_MISALIGN = const(8)
 ALPHA_OFFSET = const(2)
 
 # Calibration bounds.  A result must lie inside them; a calibration inside them keeps the
-# per-sample apply below 2**30 at +-2 g (calibration.Calibration).  They hold every real LIS3DH
-# (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
+# per-sample apply below 2**30 at every full scale (calibration.Calibration).  They hold every
+# real LIS3DH (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
 K_DIAG_MIN = const(12582912)   # 0.75
 K_DIAG_MAX = const(20971520)   # 1.25
 K_OFF_MAX = const(2097152)     # |misalignment| <= 0.125
@@ -84,27 +84,33 @@ FIT_K_OFF_MAX = const(8388608)   # 0.5
 FIT_O_MAX = const(8388608)       # 0.5 g
 
 # --- apply (per sample) -----------------------------------------------------------------------
-# Calibrated sample = K (v + o) in SAMPLE units, with K in Q14 and o in Q14 g:
-#   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 18 (Q10 g).
+# Calibrated sample = K (v + o), with K in Q14 and o in Q14 g:
+#   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 15 (APPLY_OUT: Q13 g, 0.12 mg).
 # At +-2.048 g (the LIS3DH's 12-bit +-2 g range) and inside the parameter bounds:
 # |u| <= (2.048 + 0.25) * 2**14 = 37650 and |k14| row sum <= (1.25 + 2 * 0.125) * 2**14 = 24576,
 # so every product and sum is <= 9.3e8 < 2**30 (tests/device/test_ranges.py runs the worst case).
+# The output keeps the sub-LSB resolution a still sensor's mean has (its noise is below one Q10
+# step, so a Q10 output's rounding would not average out): |a| <= 9.3e8 >> 15 = 28 236, an int16
+# word, as the log's samples are.
 APPLY_Q = const(14)
 APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
 APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
-APPLY_OUT_SHIFT = const(18)         # 2 * APPLY_Q - SAMPLE_Q
+APPLY_OUT_Q = const(13)             # the calibrated sample at +-2 g (APPLY_OUT_Q - e: below)
+APPLY_OUT_SHIFT = const(15)         # 2 * APPLY_Q - APPLY_OUT_Q, at every full scale
 # Larger full scales (+-4, 8, 16 g: range shift e = 1, 2, 3; apply_range_shift()) keep the same
-# bound by giving up e bits of parameter resolution, as their readings give up e bits anyway:
-# K and o in Q(14 - e), u = (x << (4 - e)) + o, a = sum(k u) >> (18 - 2 e), the reading first
+# bound by giving up e bits of the reading and offset formats, as the readings span 2**e times
+# more: u = (x << (4 - e)) + o in Q(14 - e) g (o = param >> (10 + e)), K still in Q14,
+# a = sum(k u) >> 15 in Q(13 - e) g (APPLY_OUT_Q - e: 0.24, 0.49, 0.98 mg), the reading first
 # clamped to the range's full scale, +-(APPLY_IN_MAX << e) in Q10.  Then |u| <=
-# (2.048 + 0.25 / 2**e) 2**14 <= 37650 and |k| row sums <= 1.5 * 2**(14 - e) <= 24576 again, at
-# every range (tests/device/test_ranges.py; on the 32-bit MicroPython under heap_lock, test_heap.py).
+# (2.048 + 0.25 / 2**e) 2**(14 - e) <= 37650 and the row sums <= 24576 again, so the products stay
+# <= 9.3e8 and |a| <= 28 236 (an int16) at every range (tests/device/test_ranges.py; on the
+# 32-bit MicroPython under heap_lock, test_heap.py).
 APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
-# A composed model first removes its effects (acal/effects.py) from the reading in Q14; the
-# result is clamped to the range a reading can have, +-2.048 g, so the bound above still holds
-# (a correction that would go beyond full scale is clipped, as the sensor itself clips).
-APPLY_W_MAX = const(33552)          # 2097 << 4
-
+# A composed model first removes its effects (acal/effects.py) from the reading in Q(14 - e) g;
+# the result is clamped to the range a reading can have, +-2.048 * 2**e g, so the bound above
+# still holds (a correction that would go beyond full scale is clipped, as the sensor itself
+# clips).
+APPLY_W_MAX = const(33552)          # 2097 << 4: 2.048 * 2**e g in Q(14 - e)
 
 
 def apply_range_shift(range_g):
@@ -113,6 +119,11 @@ def apply_range_shift(range_g):
         if range_g == 2 << e:
             return e
     raise ValueError("full scale must be 2, 4, 8 or 16 g")
+
+
+def apply_out_q(range_g):
+    """The calibrated sample's format at a full scale of range_g: Q(APPLY_OUT_Q - e) g."""
+    return APPLY_OUT_Q - apply_range_shift(range_g)
 
 
 # Parameter order (paper eq. 6).

@@ -33,8 +33,8 @@ FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit run
 class Processor:
     """profile: acal.profile.WEAR (the default) or PAPER, whose settings (profile.settings) any of
     seconds, threshold, axis, min_count, max_count, differ, policy, iterations, fit given here
-    override (as Pipeline); range_g: the sensor's full scale (the apply's format, fixed.py; a
-    composed model applies at 2 g); recal_seconds: least time between calibrations; logger: a log.Log;
+    override (as Pipeline); range_g: the sensor's full scale (the apply's format, fixed.py);
+    recal_seconds: least time between calibrations; logger: a log.Log;
     capture: a log.Log for the raw samples or None; store: a log.CalStore or None; model: 'base'
     (the paper's) or a composed model, e.g. 'base+temp_offset' (effects.py).
 
@@ -65,8 +65,9 @@ class Processor:
         self.day_samples = 86400 * rate_hz
         self.time_unit_samples = effects.DT_UNIT_S * rate_hz
         self.calibration = Calibration(self.kinds, range_g)
-        # The calibrated samples of each block go to on_samples(buf, n) (Q10 g, interleaved),
-        # once a calibration exists: the wearable's own use of the data hooks in there.
+        # The calibrated samples of each block go to on_samples(buf, n) (interleaved, in
+        # Q(calibration.out_q) g: Q13 at 2 g, fixed.py "apply"), once a calibration exists: the
+        # wearable's own use of the data hooks in there.
         self.on_samples = None
         self.calibrated = array("i", bytearray(12 * log.SAMPLES_PER_RECORD))
         self.params = [0] * self.calibration.n_params

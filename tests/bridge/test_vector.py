@@ -130,10 +130,33 @@ def test_apply_equals_the_device_calibration(off, diag, seed, range_g):
     assert (twin.apply_params(p, q, range_g=range_g) == np.array(buf).reshape(-1, 3)).all()
 
 
+@pytest.mark.parametrize("range_g", [2, 8])
+def test_the_apps_calibrated_blocks_are_the_twins(rng, range_g, tmp_path):
+    """What the app hands on_samples (Processor.feed: the block copied and applied in one pass)
+    is the twin's output at the board's full scale, in Q(13 - e) g."""
+    from array import array
+    from acal import fixed, log
+    from acal.processor import Processor
+    p = [int(v) for v in rng.integers(15 << 20, 17 << 20, 3)] + \
+        [int(v) for v in rng.integers(-(1 << 20), 1 << 20, 6)]
+    proc = Processor(log.Log(str(tmp_path / "log.bin")), 100, range_g=range_g)
+    proc.calibration.set(p)
+    proc.calibrations = 1
+    got = []
+    proc.on_samples = lambda buf, n: got.extend(buf[:3 * n])
+    n = log.SAMPLES_PER_RECORD
+    q = rng.integers(-1100 * range_g, 1100 * range_g, (4 * n, 3))
+    for b in range(4):
+        proc.feed(array("i", q[b * n:(b + 1) * n].ravel().tolist()), n)
+    assert proc.calibration.out_q == fixed.apply_out_q(range_g)
+    assert (np.array(got).reshape(-1, 3) == twin.apply_params(p, q, range_g=range_g)).all()
+
+
 @st.composite
 def composed_cases(draw):
-    """A composed model of any of the device's effects inside the calibration bounds, samples to
-    the extremes, dT, dt and the supply's dV past the device's clamps, a step's time anywhere."""
+    """A composed model of any of the device's effects inside the calibration bounds at any full
+    scale, samples to the extremes, dT, dt and the supply's dV past the device's clamps, a step's
+    time anywhere."""
     from acal import effects as deff
     kinds = draw(st.lists(st.sampled_from(sorted(deff.NAMES)), min_size=1, max_size=4, unique=True))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
@@ -143,30 +166,36 @@ def composed_cases(draw):
     for k in kinds:
         b = deff.BOUNDS[k]
         p += [int(v) for v in rng.choice([-b, b, *rng.integers(-b, b, 3)], 3)]
+    range_g = draw(st.sampled_from([2, 4, 8, 16]))
     n = 300
-    q = rng.integers(-2048, 2048, (n, 3))
-    q[:8] = rng.choice([-16383, -2048, 2047, 16383], (8, 3))
+    fs = 1024 * range_g
+    q = rng.integers(-fs, fs, (n, 3))
+    q[:8] = rng.choice([-16383, -fs, fs - 1, 16383], (8, 3))
     dT = rng.integers(-50, 51, n)
     dt = rng.integers(-(1 << 21), 1 << 21, n)
     dt[n // 2:] = rng.integers(-(1 << 15), 1 << 15, n - n // 2)   # inside the generic clamp too
     step_time = int(rng.integers(-(1 << 15), 1 << 15))
     dV = rng.integers(-3000, 3001, n)
-    return tuple(kinds), p, q.astype(np.int64), dT, dt, step_time, dV
+    return tuple(kinds), p, q.astype(np.int64), dT, dt, step_time, dV, range_g
 
 
 @settings(max_examples=150, deadline=None)
 @given(composed_cases())
 def test_composed_apply_equals_the_device_calibration(case):
-    kinds, p, q, dT, dt, step_time, dV = case
-    cal = Calibration(kinds)
+    kinds, p, q, dT, dt, step_time, dV, range_g = case
+    cal = Calibration(kinds, range_g)
     cal.set(p, 0, 0, step_time, 120)
     dev = []
     for (x, y, z), a, b, c in zip(q.tolist(), dT.tolist(), dt.tolist(), dV.tolist()):
         cal.temp, cal.time, cal.supply = a, b, c + 120
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
-    assert (twin.apply_params(p, q, kinds, dT, dt, step_time=step_time, dV=dV) ==
-            np.array(dev)).all()
+    assert (twin.apply_params(p, q, kinds, dT, dt, range_g, step_time, dV) == np.array(dev)).all()
+    # and the block form (apply_samples) gives the one-sample form's integers
+    cal.temp, cal.time, cal.supply = int(dT[-1]), int(dt[-1]), int(dV[-1]) + 120
+    buf = q[-50:].ravel().tolist()
+    cal.apply_samples(buf, 0, 50)
+    assert (np.array(buf).reshape(-1, 3)[-1] == dev[-1]).all()
 
 
 def _with_gaps(src, dst):

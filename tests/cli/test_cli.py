@@ -204,6 +204,47 @@ def test_apply_at_the_full_scale_and_says_what_it_clipped(tmp_path):
     assert a[1, 1] == pytest.approx(3.0, abs=2e-3) and a[2, 2] == pytest.approx(-2.5, abs=2e-3)
 
 
+def test_apply_composed_at_8_g_at_the_device_outputs_full_resolution(tmp_path, rng):
+    """A composed model at +-8 g (a composed model was held at +-2 g): readings to 7.5 g are
+    not clipped, and what apply writes is the device's output, Q11 g at 8 g, to the last bit
+    (the twin's integers back from the CSV, exactly), within the format's rounding of the
+    float model; at --range 2 the same file is clipped."""
+    from acal import fixed
+    from accelcal.bridge import twin
+    from accelcal.fixedpoint import g_to_sample
+    from accelcal.model.effects import ModelSpec
+    spec = ModelSpec.parse("base+temp_offset")
+    theta = np.array([1.02, 0.98, 1.01, 0.01, -0.02, 0.005, 0.05, -0.03, 0.02,
+                      0.002, -0.001, 0.0015])       # g per degC from T0
+    p_int = [int(v) for v in spec.to_int(theta)]
+    params = tmp_path / "p.json"
+    params.write_text(json.dumps({"model": str(spec), "reference": {"T0": 25.0, "t0": 0.0},
+                                  "params_int": dict(zip(spec.param_names, p_int))}))
+    n = 2000
+    xyz = rng.uniform(-7.5, 7.5, (n, 3))
+    temp = rng.uniform(15, 35, n).round(1)
+    rec = tmp_path / "rec.csv"
+    np.savetxt(rec, np.c_[np.arange(n) / 10, xyz, temp], delimiter=",", header="t,x,y,z,temp",
+               comments="", fmt="%.6f")
+    out = tmp_path / "o.csv"
+    r = run_cli("apply", params, rec, "-o", out, "--range", "8")
+    assert r.returncode == 0 and "clipped" not in r.stderr, r.stderr
+    a = np.loadtxt(out, delimiter=",", skiprows=1)[:, 1:4]
+    one_g = 1 << fixed.apply_out_q(8)
+    assert one_g == 2048
+    written = np.loadtxt(rec, delimiter=",", skiprows=1)   # the recording as apply reads it
+    q, temp = g_to_sample(written[:, 1:4]), written[:, 4]
+    dT = np.rint(temp).astype(np.int64) - 25
+    want_int = twin.apply_params(p_int, q, spec.kinds, dT, np.zeros(n, np.int64), 8)
+    assert (np.rint(a * one_g).astype(np.int64) == want_int).all()
+    assert np.abs(a * one_g - want_int).max() < 0.01   # written to 1e-6 g: every step kept
+    want = spec.correct(spec.from_int(p_int), q / 1024, np.rint(temp), np.zeros(n),
+                        {"T0": 25.0, "t0": 0.0}, {})
+    assert np.abs(a - want).max() < 3 / one_g       # K Q14, offsets and effect Q12, output Q11
+    r = run_cli("apply", params, rec, "-o", out, "--range", "2", "--force")
+    assert r.returncode == 0 and "were clipped" in r.stderr, r.stderr
+
+
 @pytest.mark.parametrize("argv", [["--help"], ["calibrate", "--help"], ["apply", "--help"],
                                   ["diagnose", "--help"], ["bench", "--help"]])
 def test_help_loads_no_heavy_library(argv):

@@ -121,16 +121,21 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
         got.append((cal.x, cal.y, cal.z))
     want = SPEC.correct(theta, np.rint(v * 1024) / 1024, temps.astype(float), None,
                         {"T0": float(cal.ref_temp), "t0": 0.0})
-    assert np.abs(np.array(got) / 1024 - want).max() < 0.0012  # Q10 out: rounding only
+    # Q13 out: the parameters' Q14 and the effect's rounding, a step of 0.12 mg
+    assert np.abs(np.array(got) / (1 << cal.out_q) - want).max() < 0.0004
 
 
 APPLY_SCRIPT = r'''
+from array import array
 from acal import effects
 from acal.calibration import Calibration
-buf = [rnd(2097) for _ in range(3 * 1000)]
-# the first effects; then a step and two generic offsets (time^4, temperature^4)
-for m, kinds in enumerate(((1, 3, 4), (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4))):
-    cal = Calibration(kinds)
+buf = array("i", [rnd(2097) * 4 for _ in range(3 * 2000)])   # to +-8 g: clamped at 2 g
+# the first effects; then a step and two generic offsets (time^4, temperature^4); then at
+# +-8 g full scale, without effects (the viper block alone) and with two
+for m, (kinds, r) in enumerate((((1, 3, 4), 2),
+                                ((effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4), 2),
+                                ((), 8), ((2, 4), 8))):
+    cal = Calibration(kinds, r)
     p = [16777216 + rnd(800000), 16777216 + rnd(800000), 16777216 + rnd(800000),
          rnd(200000), rnd(200000), rnd(200000), rnd(900000), rnd(900000), rnd(900000)]
     for k in kinds:
@@ -138,16 +143,18 @@ for m, kinds in enumerate(((1, 3, 4), (effects.STEP, effects.TIME_OFFSET4, effec
     cal.set(p, 30, 5000, 2000)
     for j in range(10):
         cal.temp = rnd(60) + 30
-        cal.time = 5000 + (rnd(1 << 21) if m == 0 else rnd(1 << 15))
+        cal.time = 5000 + (rnd(1 << 21) if m != 1 else rnd(1 << 15))
         if micropython:  # MicroPython: a MemoryError if the per-sample path allocates
             micropython.heap_lock()
         cal.apply_samples(buf, 500 * m + 50 * j, 50)
+        cal.apply(buf[0], buf[1], buf[2])    # one sample: the same block, on its own buffer
         if micropython:
             micropython.heap_unlock()
+        buf[0] = cal.x
 print(" ".join([str(v) for v in buf]))
 '''
 
 
 def test_composed_apply_is_allocation_free_and_identical_under_micropython(tmp_path, mp):
     got, host = run_both(APPLY_SCRIPT, tmp_path, mp)   # both ports, the 32-bit one too
-    assert got.split() == host.split() and len(got.split()) == 3000
+    assert got.split() == host.split() and len(got.split()) == 6000

@@ -52,19 +52,43 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
         assert np.abs(np.array(acc) / 2 ** 14 - exact).max() < 3e-4
 
 
-def test_apply_path_stays_small_at_the_worst_case():
+@pytest.mark.parametrize("e", [0, 1, 2, 3])
+def test_apply_path_stays_small_at_the_worst_case(e):
+    # at every full scale (2.048 * 2**e g, readings in Q(14 - e) g: fixed.py "apply")
     tr = Tracer()
     T = traced(tr)
-    edge = 2097  # 2.048 g in Q10
+    edge = 2097 << e  # the full scale in Q10
     for kind, sign, temp, far in itertools.product(deff.NAMES, (-1, 1), (-100, 100),
                                                    (0, 10 ** 7, -(10 ** 7))):
         k = [0, 0, 0]
         deff.apply_params(kind, [sign * deff.BOUNDS[kind]] * 3, 0, k, 0)
         for x in (-edge, edge):
-            acc = [T(x << 4)] * 3
+            acc = [T(x << (4 - e))] * 3
             deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x), T(temp), T(far),
-                                T(0), T(far // 100))      # supply past its clamp too
+                                T(0), T(far // 100), e)      # supply past its clamp too
     assert tr.ops > 100 and tr.max_abs < 2 ** 30, tr.max_abs
+
+
+@pytest.mark.parametrize("name", device_effects())
+def test_apply_form_at_larger_full_scales_matches_the_float_model(name, rng):
+    """The per-sample form at +-4, 8 and 16 g (readings in Q(14 - e) g, each product shifted e
+    bits further) against the float model, to the coarser format's rounding."""
+    e_ = CATALOGUE[name]
+    theta = rng.uniform(-e_.bound, e_.bound, 3)
+    p = e_.to_int(theta)
+    k = [0, 0, 0]
+    deff.apply_params(e_.kind, p, 0, k, 0)
+    ref = {"T0": 0.0, "t0": 0.0, "ts": STEP_AT * float(DT_UNIT), "supply_mv0": 0.0}
+    for e in (1, 2, 3):
+        v, dT, dt, dV = inputs(rng, 100)
+        s = np.rint(v * (1 << e) * 1024).astype(int)     # across the full scale
+        want = e_.correct(s / 1024.0, e_.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref,
+                          {"supply_mv": dV.astype(float)})
+        for row, a, b, c_v, w in zip(s.tolist(), dT.tolist(), dt.tolist(), dV.tolist(), want):
+            acc = [c << (4 - e) for c in row]
+            deff.correct_sample(e_.kind, k, 0, acc, row[0], row[1], row[2], a, b, STEP_AT, c_v, e)
+            # floors in Q(14 - e) and q v^2's in Q(10 - e) g^2: a few LSB of Q(14 - e)
+            assert np.abs(np.array(acc) / 2 ** (14 - e) - w).max() < 3e-4 * 2 ** e
 
 
 SCRIPT = r'''
@@ -96,25 +120,35 @@ def test_micropython_gives_the_same_integers(tmp_path, mp):
 
 def test_apply_stays_small_in_every_composition_and_order():
     """The per-sample apply of a composed model (calibration.Calibration) at the worst case: every
-    set of effects in every order (conftest.effect_orders), parameters at the corners of their bounds and of the
-    calibration bounds, readings at full scale (+-2.048 g), dT and dt at and past their clamps
+    set of effects in every order (conftest.effect_orders) at every full scale, parameters at the
+    corners of their bounds and of the calibration bounds, readings at and past full scale
+    (+-2.048 * 2**e g), dT and dt at and past their clamps
     (a drift removed over years, then temp_scale multiplying what is left): below 2**30."""
+    from acal import calibration
     from acal.calibration import Calibration
     tr = Tracer()
     T = traced(tr)
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
-    for order in effect_orders():
-        for sign in (-1, 1):
-            cal = Calibration(order)
+    calibration.int = lambda v: v   # viper's cast in _apply_block: the traced ints pass
+    try:
+        # +-2 and +-16 g: the readings' bound is one at every range, and of the products that
+        # change with it only q v^2's grows, largest at 16 g (test_apply_path_stays_small_at_the_
+        # worst_case runs every range, effect by effect)
+        for order, range_g, sign in itertools.product(effect_orders(), (2, 16), (-1, 1)):
+            cal = Calibration(order, range_g)
             p = [sign * v if i >= 3 else v for i, v in enumerate(base)]
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
             cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
+            cal.w = [0, 0, 0]                 # a list: what is stored there stays traced
             for temp, time, supply in ((-100, -(10 ** 7), -(10 ** 6)), (100, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
                 cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
-                for x in (-2097, 2097):
+                for x in (-2097 << cal.e, 16383):   # at and past the full scale (clamped)
                     cal.apply(T(x), T(-x), T(x))
+                    assert max(abs(cal.x), abs(cal.y), abs(cal.z)) <= 28236   # an int16
+    finally:
+        del calibration.int
     assert tr.ops > 10000 and tr.max_abs < 2 ** 30, tr.max_abs
 
 

@@ -2,13 +2,14 @@
 
 Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
 max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.calibration.Calibration.apply_samples for
-the paper's model, on int64 arrays, tied to those modules by bit-exact tests
+the paper's model and composed ones, on int64 arrays, tied to those modules by bit-exact tests
 (tests/bridge/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
 means go to the device's own Pipeline.offer in stream order.
 
 Integer formats as the device's (device/acal/fixed.py): samples Q10 g, sums < 2^30 (segments of
 <= 65 535 samples), means Q16 = floor(sum * 2^6 / n) (the device computes the same floor in two
-steps to stay below 2^30; int64 needs no such care), parameters Q24 -> Q14 for the apply.
+steps to stay below 2^30; int64 needs no such care), parameters Q24 -> the apply's (K Q14,
+offsets Q(14 - e)), calibrated samples Q(13 - e) g at the full scale's shift e.
 
 Streaming: RestStream.feed takes consecutive chunks; the open segment's samples (fewer than one
 segment) carry over to the next chunk, as the device's detector carries lo/hi/sums across FIFO
@@ -216,56 +217,61 @@ def samples_planar(x, y, z) -> np.ndarray:
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
                  step_time: int = 0, dV=None) -> np.ndarray:
     """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters
-    (9, then 3 per effect), Q10 samples in and out (m x 3 int64), the format of the full scale
-    range_g (fixed.py), readings clamped to it.  A composed model also takes each
+    (9, then 3 per effect), Q10 samples in, calibrated samples out in Q(13 - e) g
+    (fixed.apply_out_q(range_g)) (m x 3 int64), the format of the full scale range_g (fixed.py),
+    readings clamped to it.  A composed model also takes each
     sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
     time), as the device's temp - ref_temp and time - ref_time, and dV (mV of the board's supply
     from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
     effect); a step from dt >= step_time on."""
     e = fixed.apply_range_shift(range_g)
-    if kinds and e:
-        raise ValueError("a composed model applies at +-2 g full scale")
-    shift = fixed.APPLY_PARAM_SHIFT + e
-    k = [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[:9]]
+    k = [(int(v) + (1 << (fixed.APPLY_PARAM_SHIFT - 1))) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:6]]
+    shift = fixed.APPLY_PARAM_SHIFT + e   # the offsets in Q(14 - e)
+    k += [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[6:9]]
     m = fixed.APPLY_IN_MAX << e
     q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
     off = np.array(k[6:9], dtype=np.int64)
+    u = q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)
     if kinds:
-        w = q << fixed.APPLY_FROM_SAMPLE_SHIFT
-        m = len(q)
-        dT = np.clip(np.broadcast_to(np.asarray(0 if dT is None else dT, np.int64), (m,)),
-                     -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
-        dt_raw = np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,))[:, None]
-        dt = np.clip(dt_raw, -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)
-        dV = np.broadcast_to(np.asarray(0 if dV is None else dV, np.int64), (m,))[:, None]
-        for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
-            kind = kinds[j]
-            ke = [0, 0, 0]
-            deff.apply_params(kind, [int(v) for v in p_int[9 + 3 * j:12 + 3 * j]], 0, ke, 0)
-            ke = np.array(ke, dtype=np.int64)
-            if deff.is_generic(kind):
-                w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> 14
-            elif kind == deff.TEMP_OFFSET:
-                w -= (ke * dT) >> 4
-            elif kind == deff.TEMP_SCALE:
-                w -= (((ke * dT) >> 4) * w) >> 18
-            elif kind == deff.DRIFT:
-                w -= (ke * dt) >> 11
-            elif kind == deff.NONLINEAR:
-                w -= (ke * ((q * q) >> 10)) >> 14
-            elif kind == deff.TEMP_OFFSET2:
-                w -= (ke * (dT * dT)) >> 6
-            np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
-        u = w + off
-    else:
-        u = (q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)) + off
-    s = fixed.APPLY_OUT_SHIFT - 2 * e
+        _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
+    u += off
+    s = fixed.APPLY_OUT_SHIFT
     half = 1 << (s - 1)
     out = np.empty_like(u)
     out[:, 0] = (k[0] * u[:, 0] + half) >> s
     out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> s
     out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> s
     return out
+
+
+def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_time: int, dV,
+                    e: int) -> None:
+    """Calibration._remove_effects on every sample: the effects out of w (Q(14 - e) g, in
+    place), last first, each clamped after; q: the clamped readings (Q10 g)."""
+    m = len(q)
+    dT = np.clip(np.broadcast_to(np.asarray(0 if dT is None else dT, np.int64), (m,)),
+                 -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
+    dt_raw = np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,))[:, None]
+    dt = np.clip(dt_raw, -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)
+    dV = np.broadcast_to(np.asarray(0 if dV is None else dV, np.int64), (m,))[:, None]
+    for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
+        kind = kinds[j]
+        ke = [0, 0, 0]
+        deff.apply_params(kind, [int(v) for v in p_int[9 + 3 * j:12 + 3 * j]], 0, ke, 0)
+        ke = np.array(ke, dtype=np.int64)
+        if deff.is_generic(kind):
+            w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> (14 + e)
+        elif kind == deff.TEMP_OFFSET:
+            w -= (ke * dT) >> (4 + e)
+        elif kind == deff.TEMP_SCALE:
+            w -= (((ke * dT) >> 4) * w) >> 18
+        elif kind == deff.DRIFT:
+            w -= (ke * dt) >> (11 + e)
+        elif kind == deff.NONLINEAR:
+            w -= (ke * ((q * q) >> (10 + e))) >> 14
+        elif kind == deff.TEMP_OFFSET2:
+            w -= (ke * (dT * dT)) >> (6 + e)
+        np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
 
 
 def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,

@@ -201,8 +201,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--device", help="which device of a `calibrate --by ... --save` file")
     add_effects_arg(p)
     p.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=None,
-                   help="full scale of the device's apply, g: its fixed-point format (Q14 at 2 g, "
-                        "one bit less per doubling) and where readings are clipped (default: the "
-                        "file's declared range, else 2)")
+                   help="full scale of the device's apply, g: its fixed-point format (output Q13 g "
+                        "at 2 g, 0.12 mg; one bit less per doubling) and where readings are "
+                        "clipped (default: the file's declared range, else 2)")
     p.set_defaults(func=cmd_apply)
 

@@ -11,7 +11,7 @@ from acal.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
-from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample, sample_to_g
+from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample
 from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
 
@@ -28,9 +28,6 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     spec = ModelSpec.parse(model)
     if spec.host_only:
         return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source, cols)
-    if spec.effects and range_g != 2:
-        raise InputError(f"model {spec} applies at +-2 g full scale (the device's composed apply); "
-                         f"{source} is at +-{range_g} g")
     cal = Calibration(spec.kinds, range_g)
     ref_temp = int(round(ref["T0"])) if spec.effects else 0
     try:
@@ -40,8 +37,9 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
                          "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
                          "bounds)") from None
     q = g_to_sample(xyz_g)
+    one_g = float(1 << cal.out_q)   # the calibrated samples' format, Q(13 - e) g (fixed.py)
     if not spec.effects:  # the twin of cal.apply_samples (tests/bridge/test_vector.py: bit-exact)
-        return sample_to_g(twin.apply_params(p_int, q, range_g=range_g))
+        return twin.apply_params(p_int, q, range_g=range_g) / one_g
     board = [c for c in spec.columns if c in {q.column for q in COLUMN_QUANTITIES}]
     _check_inputs(spec, temp, board, cols, source)
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q),
@@ -54,8 +52,8 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         if "ts" not in ref:
             raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
         step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
-    return sample_to_g(twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1],
-                                         step_time=step_time, dV=dV))
+    return twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1], range_g,
+                             step_time, dV) / one_g
 
 
 def _check_inputs(spec: ModelSpec, temp, columns, cols: dict | None, source: str) -> None:
@@ -94,7 +92,8 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
                range_g: int | None = None) -> tuple[int, int, int]:
     """Calibrate a recording of any format and length chunk by chunk (accelcal.files.recordings) with
     the device's per-sample code at the full scale apply_range() picks (readings past it are
-    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6, degC to 1e-3), then the
+    clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6: every step of the device's
+    output format, >= 122 ug, kept distinct; degC to 1e-3), then the
     file's further columns as read.  Returns (samples, samples clipped, full scale in g)."""
     from accelcal.files.recordings import arrow, open_recording
     pa, pacsv = arrow()
