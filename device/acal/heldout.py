@@ -5,7 +5,9 @@
 # so a candidate effect fitted on the fit points is scored on points it never saw.
 # Formats (fixed.py): points Q16 g; conditions as bins.py: temperature degC, time in 64 s units,
 # supply mV.  Storage is preallocated (CAPACITY points, int32 slots), nothing is allocated per
-# point: when full, the oldest point is replaced (a ring), so the set follows the wear.
+# point: when full, a new point replaces the oldest point of the block holding most (of equals,
+# the oldest), so the set follows the wear and stays spread over every block seen: the naming
+# rule counts the blocks a candidate improves (a ring of the newest points held one block).
 # Byte budget: CAPACITY x (3 point + COND condition + 1 block) int32 slots = 72 x 7 x 4 = 2016
 # bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks it).
 from acal.bins import COND, int32s
@@ -41,7 +43,6 @@ class HeldOut:
         self.cond = int32s(COND * capacity)
         self.block = int32s(capacity)
         self.count = 0
-        self.next = 0      # the slot the next point goes to (the oldest once full)
 
     def nbytes(self):
         """The bytes of the preallocated arrays."""
@@ -49,13 +50,12 @@ class HeldOut:
 
     def clear(self):
         self.count = 0
-        self.next = 0
 
     def offer(self, x, y, z, temp=0, time=0, supply=0):
         """Keep a rest mean when its time falls in a held-out block; True when kept."""
         if not held_out(time):
             return False
-        s = self.next
+        s = self.count if self.count < self.capacity else self._victim()
         self.xyz[3 * s] = x
         self.xyz[3 * s + 1] = y
         self.xyz[3 * s + 2] = z
@@ -63,10 +63,26 @@ class HeldOut:
         self.cond[COND * s + 1] = time
         self.cond[COND * s + 2] = supply
         self.block[s] = block_of(time)
-        self.next = s + 1 if s + 1 < self.capacity else 0
         if self.count < self.capacity:
             self.count += 1
         return True
+
+    def _victim(self):
+        # the slot of the oldest point of the block holding most points (of equals, the oldest)
+        best = 0
+        most = 0
+        blk = self.block
+        cond = self.cond
+        for i in range(self.count):
+            b = blk[i]
+            n = 0
+            for j in range(self.count):
+                if blk[j] == b:
+                    n += 1
+            if n > most or (n == most and cond[COND * i + 1] < cond[COND * best + 1]):
+                best = i
+                most = n
+        return best
 
     def blocks(self):
         """How many distinct held-out blocks the kept points span (no allocation: points of one

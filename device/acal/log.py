@@ -30,6 +30,11 @@
 #   GAP      <II            raw capture: sample index, samples lost there
 #   SUPPLY   <IH            raw capture of a model that follows the board's supply: the sample
 #                          index from which the supply (mV) holds, written when it changes
+#   DISCOVERY <IBBIIBB3i    after a board's own model discovery (acal/discover.py): sample
+#                          index, the effect adopted (effects id; 0: none), the closest
+#                          candidate (the one candidates.best chose; 0: none testable), the
+#                          held-out error before and with it (heldscore's Q16 g^2 sums), the
+#                          held-out blocks it is better in and of how many, its 3 parameters (Q24)
 #   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
 #                          EFFECT payload per effect of a composed model, under one CRC, so a
 #                          cut anywhere leaves the whole calibration or none of it
@@ -47,11 +52,13 @@ GAP = 6
 EFFECT = 7
 STORE = 8
 SUPPLY = 9
+DISCOVERY = 10
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply"}
+              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply",
+              DISCOVERY: "discovery"}
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH"}
+           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 22: a STORE of 4 effects is 141 bytes

@@ -2,7 +2,8 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, N_SUBSETS, SUPPLY_DIFFER, TEMP_DIFFER,
-                       TIME_DIFFER, conditions, int32s)
+                       TIME_DIFFER, conditions, gravity, int32s)
+from acal.heldout import held_out
 from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
@@ -40,18 +41,28 @@ class Pipeline:
     worn: the feeder's wear signal.  A rest segment that closes while it is False (a device off
     the wrist, on a table; imputed or idle-sleep stretches) is counted in `excluded` but not
     offered: it is still, but not what the wearer's data looks like.  The app leaves it True;
-    the host sets it from its non-wear and quality masks."""
+    the host sets it from its non-wear and quality masks.
+
+    discover (NEWTON, the paper's model only): the board finds its own missing effect
+    (acal/discover.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
+    held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
+    condition a candidate needs (but are ready without their spread) and the fit's points carry
+    them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
+    runs (begin, step); adopt() then makes its chosen effect the model."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  iterations=None, on_rest=None,
-                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT):
+                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT,
+                 discover=False):
         self.kinds = tuple(kinds)
         self.fit = fit
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
-        temp_differ = 0
-        time_differ = 0
-        supply_differ = 0
+        if discover and (self.kinds or fit != NEWTON):
+            raise ValueError("discovery starts from the paper's model with the wear fit (NEWTON)")
+        temp_differ = TEMP_DIFFER if discover else 0
+        time_differ = TIME_DIFFER if discover else 0
+        supply_differ = SUPPLY_DIFFER if discover else 0
         base_kinds = []
         for k in self.kinds:   # the spread each effect's regressor needs in the held points
             source = effects.source_of(k)
@@ -65,6 +76,14 @@ class Pipeline:
                 base_kinds.append(k)
         self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
                          fit == NEWTON, supply_differ)
+        self.held = None
+        self.discovery = None
+        if discover:
+            from acal.heldout import HeldOut   # a discovering board's modules only
+            from acal.discover import Discover
+            self.bins.need_span = False
+            self.held = HeldOut()
+            self.discovery = Discover(N_SUBSETS * max_count, self.held)
         self.base_fit = None
         self.search = None
         self.step_time = 0
@@ -112,7 +131,12 @@ class Pipeline:
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
         subset it was kept in or -1."""
         self.rest_count += 1
-        s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
+        if self.held is not None and held_out(self.time):
+            if gravity(x, y, z):
+                self.held.offer(x, y, z, self.temp, self.time, self.supply)
+            s = -1
+        else:
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
         if self.on_rest is not None:
             self.on_rest(x, y, z, s)
         return s
@@ -150,7 +174,7 @@ class Pipeline:
         profile's fit: the base fit of the same points first)."""
         self.stage = 1
         self.step_time = 0
-        if not self.kinds:
+        if not self.kinds and self.held is None:
             self.n_fit = self.bins.gather(self.points)
             self.optimiser.begin(self.points, self.n_fit, self.iterations)
             return
@@ -226,6 +250,33 @@ class Pipeline:
             copy_params(b.p, self.base_kinds, self.start, self.kinds)
         self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
                              self.start if from_base else None)
+
+    def adopt(self):
+        """The discovery's adopted effect becomes the model (its fit, re-kinded, the model's
+        optimiser; this base fit its base fit; the bins then track, and wait for, the spread
+        of that effect only); the parameters are the discovery's.  No further discovery: the
+        held-out blocks' rest means go to the bins again."""
+        d = self.discovery
+        kinds = d.fit.kinds
+        for i in range(len(d.params)):
+            d.fit.p[i] = d.params[i]
+        self.base_fit = self.optimiser
+        self.optimiser = d.fit
+        self.kinds = kinds
+        self.base_kinds = ()
+        self.start = [0] * d.fit.n_params
+        self.step_time = d.step_time
+        if kinds[0] == effects.STEP:
+            self.search = d.search
+        source = effects.source_of(kinds[0])
+        b = self.bins
+        b.temp_differ = TEMP_DIFFER if source == effects.SOURCE_TEMP else 0
+        b.time_differ = TIME_DIFFER if source == effects.SOURCE_TIME else 0
+        b.supply_differ = SUPPLY_DIFFER if source == effects.SOURCE_SUPPLY else 0
+        b.need_span = True
+        b.changes += 1
+        self.held = None
+        self.discovery = None
 
     def _keep_base(self, why):
         o = self.optimiser

@@ -1,6 +1,7 @@
 """The board's held-out set (device/acal/heldout.py, issue 29): it keeps exactly the rest points
 the host's diagnose holds out (odd 2-hour blocks from the start), with their conditions; its
-preallocated storage is the written byte budget; once full it follows the wear (oldest replaced);
+preallocated storage is the written byte budget; once full it follows the wear (the oldest point
+of the fullest block replaced, so every block seen keeps points);
 and keeping a point allocates nothing under the real MicroPython, 64- and 32-bit ports."""
 from acal import heldout
 from acal.bins import COND
@@ -43,6 +44,18 @@ def test_a_full_set_replaces_its_oldest_point_and_counts_blocks():
     assert h.count == 3
     assert sorted(h.xyz[3 * s] for s in range(3)) == [1, 2, 3]   # point 0 was the oldest
     assert h.blocks() == 3                    # blocks 1, 3, 5 remain
+
+
+def test_a_full_set_stays_spread_over_the_blocks():
+    # 4 points a block in blocks 1, 3, ..., 35: the newest 8 would be two blocks; the kept 8
+    # span seven, the newest (the current block takes a second slot from the oldest block)
+    h = heldout.HeldOut(capacity=8)
+    for b in range(1, 36, 2):
+        for k in range(4):
+            h.offer(100 * b + k, 0, 0, time=(b * 225 + 1) // 2 + 10 * k)
+    blocks = sorted(h.block[i] for i in range(h.count))
+    assert h.count == 8 and h.blocks() == 7, blocks
+    assert blocks == [23, 25, 27, 29, 31, 33, 35, 35]
 
 
 SCRIPT = r'''

@@ -32,6 +32,8 @@ FIELDS = {
     log.GAP: ("index", "lost"),
     log.EFFECT: ("index", "effect", "ref_temp", "ref_time", "p0", "p1", "p2"),
     log.SUPPLY: ("index", "supply_mv"),
+    log.DISCOVERY: ("index", "adopted", "closest", "heldout_before", "heldout_after",
+                    "blocks_better", "blocks", "p0", "p1", "p2"),
 }
 
 
@@ -121,6 +123,9 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         checks = [(v[2] < _STATUS_COUNT, "status")]
     elif rtype == log.EFFECT:
         checks = [(v[1] in deff.NAMES, "effect")]
+    elif rtype == log.DISCOVERY:
+        checks = [(v[1] == 0 or v[1] in deff.NAMES, "adopted"),
+                  (v[2] == 0 or v[2] in deff.NAMES, "closest"), (v[5] <= v[6], "blocks")]
     else:
         checks = []
     for ok, field_name in checks:
@@ -220,7 +225,8 @@ def replay(dirpath: str | Path, profile: str | None = None) -> dict:
     last_boot = max((i for i, (t, _) in enumerate(board.records) if t == log.BOOT), default=0)
     session = board.records[last_boot:]
     out = {"samples_replayed": end, "profile": profile or "the board's"}
-    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect")):
+    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect"),
+                        (log.DISCOVERY, "discovery")):
         theirs = [v for t, v in session if t == rtype and v[0] <= end]
         ours = mine.of(rtype)
         if rtype == log.CAL:  # the number counts calibrations before the capture began too
@@ -231,7 +237,7 @@ def replay(dirpath: str | Path, profile: str | None = None) -> dict:
                      "first_difference": (diffs[0] if diffs else (min(len(theirs), len(ours))
                                                                  if len(theirs) != len(ours) else None))}
     out["identical"] = all(out[k]["differ"] == 0 and out[k]["board"] == out[k]["replay"]
-                           for k in ("rest", "cal", "effect"))
+                           for k in ("rest", "cal", "effect", "discovery"))
     return out
 
 

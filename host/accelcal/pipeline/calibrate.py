@@ -117,6 +117,11 @@ def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config,
     A model with an effect the device does not have is fitted by lsq on every rest point, the
     device handing over each point's conditions."""
     spec = spec or ModelSpec(())
+    if cfg.discover:   # the board's own discovery: from its base model, with its fit
+        if spec.effects or method != "device" or cfg.fit != dprofile.NEWTON:
+            raise InputError("--discover runs the board's own discovery: model base, --method "
+                             "device, --profile wear")
+        return spec, replace(cfg, kinds=(), conditions=True)
     if spec.effects and method not in ("device", "lsq"):
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
     if spec.host_only:
@@ -195,7 +200,10 @@ class Fit:
             rec["note"] = r.status_name
         rec["iterations"] = r.iterations
         rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
-        return self._params_record(rec, r.params_int)
+        rec = self._params_record(rec, r.params_int)
+        if cfg.discover:
+            rec["discovery"] = discovery_record(r, self.group.t_first)
+        return rec
 
     def rest_columns(self) -> dict:
         """The recording columns the model's effects follow, one value per rest point the device
@@ -290,6 +298,40 @@ class Fit:
         a = self.spec.correct(self.spec.from_int(p_int), rest, self.rest.temp, self.rest.time, ref,
                               self.rest_columns())
         return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def heldout_mg(err: int, points: int) -> float | None:
+    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2) as
+    mean | |a| - 1 g | in mg, near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
+    return err / points / (2 * fixed.POINT_ONE_G) * 1e3 if points and err >= 0 else None
+
+
+def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
+    """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
+    adopted (None: none) or the closest candidate, the held-out error before and after (the
+    board's integers and in mg), its blocks, each candidate, and the adopted model's parameters."""
+    if r.discovery is None:
+        return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
+                "not end OK)"}
+    adopted, closest, before, after, betters, blocks, held, step_time = r.discovery[:8]
+    p_int = r.discovery[8:]
+    out = {"effect": deff.NAMES.get(adopted), "closest": deff.NAMES.get(closest),
+           "heldout_points": held, "heldout_before": before, "heldout_after": after,
+           "heldout_error_before_mg": heldout_mg(before, held),
+           "heldout_error_after_mg": heldout_mg(after, held) if closest else None,
+           "blocks_better": betters, "blocks": blocks,
+           "candidates": [{"effect": deff.NAMES[k], "heldout": e, "heldout_error_mg":
+                           heldout_mg(e, held), "blocks_better": b} for k, e, b in r.candidates]}
+    if held < 30 or before <= 0:
+        out["reason"] = f"{held} held-out rest points (needs >= 30)"
+    if closest:
+        spec = ModelSpec.parse(f"base+{deff.NAMES[closest]}")
+        out["model"] = str(spec) if adopted else "base"
+        out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
+        out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
+        if closest == deff.STEP:
+            out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
+    return out
 
 
 def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,

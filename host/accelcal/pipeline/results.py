@@ -25,6 +25,19 @@ SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format
                    "error_before_mg", "error_after_mg", "iterations", "seconds", *PARAM_NAMES)
 
 
+def discovery_line(d: dict) -> str:
+    """The board's own discovery in one line (pipeline/calibrate.py discovery_record)."""
+    if d.get("reason"):
+        return f"discovery: nothing tried: {d['reason']}"
+    if d["closest"] is None:
+        return "discovery: no candidate testable on these points"
+    after = (f"{d['heldout_error_before_mg']:.2f} -> {d['heldout_error_after_mg']:.2f} mg "
+             f"held-out, better in {d['blocks_better']} of {d['blocks']} held-out blocks")
+    if d["effect"]:
+        return f"discovery: the board adopts {d['effect']} (model {d['model']}): {after}"
+    return f"discovery: no effect adopted; the closest, {d['closest']}: {after}"
+
+
 class CalibrationResult(dict):
     """One device's (or file's) calibration: its JSON record, and how it reads."""
 
@@ -91,6 +104,8 @@ class CalibrationResult(dict):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if "discovery" in r:
+            lines.append("  " + discovery_line(r["discovery"]))
         return "\n".join(lines)
 
     def summary_row(self) -> dict:

@@ -1,0 +1,215 @@
+# The board's own model discovery (issue 29; docs/model-discovery.md "Discovery on the board"):
+# after a usable calibration of the paper's model (the wear profile's fit), each candidate effect
+# of the catalogue the board can run is fitted on the same gathered fit points, from the base
+# fit's parameters, scored on the held-out rest points (heldout.py, heldscore.py) and the
+# choice made as `diagnose` makes it (candidates.py, discovery.py's rule).
+#
+# Sliced as the fit: begin() then step() until it returns True, each step one slice of a
+# candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py) or the
+# scoring of one candidate.  Nothing is allocated per candidate or per score: one GaussNewton
+# sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
+# effect tuples are made once, here), and the results go to preallocated int32 arrays.
+# Formats: errors heldscore's (Q16 g^2, summed); parameters Q24 (fixed.py, effects.py).
+from acal import candidates, effects
+from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
+from acal.fixed import N_PARAMS
+from acal.gaussnewton import GaussNewton
+from acal.heldscore import HeldScore
+from acal.status import OK
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
+
+# The candidates, as `diagnose` tries them (host/accelcal/model/effects.py, candidate=True),
+# single effects the board runs; the step last (its change-point search runs first).
+KINDS = ((effects.TEMP_OFFSET,), (effects.TEMP_SCALE,), (effects.DRIFT,),
+         (effects.NONLINEAR,), (effects.TEMP_OFFSET2,), (effects.SUPPLY_OFFSET,),
+         (effects.STEP,))
+N_CANDIDATES = const(7)
+N_ALL = const(12)            # N_PARAMS + 3: the largest candidate's parameters
+MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
+UNTESTABLE = const(-1)
+
+_BASE = 0       # the base model scored on the held-out points
+_FIT = 1        # candidate i's fit, a slice a step
+_SEARCH = 2     # a step's change-point search on the base fit
+_SCORE = 3      # candidate i scored
+_DONE = 4
+
+
+def spread_needed(kind):
+    """The spread of its regressor's condition a candidate needs in the fit points (bins.py's
+    thresholds, which `diagnose` asks too): (condition index, least range), or (-1, 0)."""
+    source = effects.source_of(kind)
+    if source == effects.SOURCE_TEMP:
+        return 0, TEMP_DIFFER
+    if source == effects.SOURCE_TIME:
+        return 1, TIME_DIFFER
+    if source == effects.SOURCE_SUPPLY:
+        return 2, SUPPLY_DIFFER
+    return -1, 0
+
+
+class Discover:
+    """After a run (begin(), step() until True): before (the base model's held-out error),
+    errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
+    candidates.best gives, -1: none testable), adopted (True when the rule names it), kind
+    (its effect id, 0: none), params (its 12 parameters, Q24) and step_time (a step's)."""
+
+    def __init__(self, max_points, held):
+        self.held = held
+        self.fit = GaussNewton(max_points, KINDS[0], True)
+        self.score = HeldScore(held.capacity)
+        self.search = None
+        self.kind_ids = int32s(N_CANDIDATES)
+        for i in range(N_CANDIDATES):
+            self.kind_ids[i] = KINDS[i][0]
+        self.errs = int32s(N_CANDIDATES)
+        self.betters = int32s(N_CANDIDATES)
+        self.fits = int32s(4 * N_CANDIDATES)   # per candidate: iterations, points kept,
+        # objective at the start and at the end (the fit's, Q24 g^4 saturated below 2**30)
+        self.all_params = int32s(N_CANDIDATES * N_ALL)
+        self.ts = int32s(N_CANDIDATES)
+        self.params = int32s(N_ALL)
+        self.phase = _DONE
+        self.i = 0
+        self.pipe = None
+        self.before = 0
+        self.blocks = 0
+        self.chosen = -1
+        self.adopted = False
+        self.kind = 0
+        self.step_time = 0
+
+    def begin(self, pipe):
+        """Start on a pipeline whose base fit has just ended usable: its gathered points and
+        conditions (relative to pipe.ref_*), its fit's parameters."""
+        self.pipe = pipe
+        self.i = 0
+        self.chosen = -1
+        self.adopted = False
+        self.kind = 0
+        self.before = 0
+        self.blocks = 0
+        for i in range(N_CANDIDATES):
+            self.errs[i] = UNTESTABLE
+            self.betters[i] = 0
+        self.phase = _BASE
+
+    def step(self):
+        """One slice; True when the choice is made."""
+        ph = self.phase
+        if ph == _BASE:
+            self._score_base()
+        elif ph == _FIT:
+            if self.fit.step():
+                self.phase = _SCORE
+        elif ph == _SEARCH:
+            if self.search.step():
+                self._searched()
+        elif ph == _SCORE:
+            self._score_candidate()
+        return self.phase == _DONE
+
+    def _score_base(self):
+        h = self.held
+        pipe = self.pipe
+        if h.count < MIN_HELD:
+            self.phase = _DONE
+            return
+        self.before = self.score.score(pipe.optimiser.p, (), h)
+        if self.before <= 0:
+            self.phase = _DONE
+            return
+        self.score.keep_as_base(h.count)
+        self.blocks = h.blocks()
+        self._next(0)
+
+    def _next(self, i):
+        # candidate i begins (the untestable ones skipped), or the choice when none is left
+        pipe = self.pipe
+        while i < N_CANDIDATES:
+            c, least = spread_needed(KINDS[i][0])
+            if c < 0 or _range(pipe.aux, pipe.n_fit, c) >= least:
+                break
+            i += 1
+        self.i = i
+        if i == N_CANDIDATES:
+            self._choose()
+            return
+        fit = self.fit
+        fit.kinds = KINDS[i]          # re-kinded: a preallocated tuple of as many effects
+        fit.kind_ids[0] = KINDS[i][0]
+        fit.ts = 0
+        if KINDS[i][0] == effects.STEP:
+            if self.search is None:   # imported and made at the first step only
+                from acal.changepoint import ChangePoint
+                self.search = ChangePoint()
+            self.search.begin(pipe.optimiser)
+            self.phase = _SEARCH
+            return
+        fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        self.phase = _FIT
+
+    def _searched(self):
+        pipe = self.pipe
+        if not self.search.found:
+            self._next(self.i + 1)
+            return
+        self.fit.ts = self.search.ts
+        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        self.phase = _FIT
+
+    def _score_candidate(self):
+        fit = self.fit
+        i = self.i
+        pipe = self.pipe
+        if fit.status == OK:
+            e = self.score.score(fit.p, fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
+                                 pipe.ref_supply, fit.ts)
+            self.errs[i] = e
+            if e >= 0:
+                self.betters[i] = self.score.better_blocks(self.held)
+            f = 4 * i
+            self.fits[f] = fit.iterations
+            self.fits[f + 1] = fit.n
+            self.fits[f + 2] = fit.objective_start
+            self.fits[f + 3] = fit.objective
+            for k in range(N_ALL):
+                self.all_params[N_ALL * i + k] = fit.p[k]
+            self.ts[i] = fit.ts
+        self._next(i + 1)
+
+    def _choose(self):
+        i = candidates.best(self.kind_ids, self.errs, N_CANDIDATES)
+        self.chosen = i
+        self.adopted = candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
+        if i >= 0:
+            for k in range(N_ALL):
+                self.params[k] = self.all_params[N_ALL * i + k]
+            self.step_time = self.ts[i]
+            if self.adopted:
+                self.kind = self.kind_ids[i]
+        self.phase = _DONE
+
+    def run(self, pipe):
+        """begin() and every step at once."""
+        self.begin(pipe)
+        while not self.step():
+            pass
+
+
+def _range(cond, n, c):
+    # the range of condition c over n points' conditions (flat, COND apiece)
+    if n == 0:
+        return 0
+    lo = hi = cond[c]
+    for i in range(1, n):
+        v = cond[COND * i + c]
+        if v < lo:
+            lo = v
+        elif v > hi:
+            hi = v
+    return hi - lo
