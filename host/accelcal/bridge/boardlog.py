@@ -270,13 +270,14 @@ def summary(dirpath: str | Path) -> dict:
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
                     "ref_temp": e["ref_temp"], when: value}
     rests = lg.dicts(log.REST)
+    out_discoveries = [_discovery(d, CATALOGUE) for d in lg.dicts(log.DISCOVERY)]
     for r in rests:
         for k in "xyz":
             r[k] = r[k] / fixed.POINT_ONE_G
         r["subset"] = dbins.SUBSET_NAMES[r["subset"]] if r["subset"] >= 0 else None
     out = {"log_bytes": lg.size, "boots": len(lg.of(log.BOOT)),
            "counters": lg.dicts(log.COUNTERS)[-1] if lg.of(log.COUNTERS) else None,
-           "calibrations": cals, "rest_points": rests,
+           "calibrations": cals, "discoveries": out_discoveries, "rest_points": rests,
            "dropped": lg.dropped_report(data)}
     for f in ("cal_a.bin", "cal_b.bin"):
         note_input(d / f)
@@ -287,4 +288,24 @@ def summary(dirpath: str | Path) -> dict:
     out["stored_calibration"] = None if rec is None else {
         "slot": "ab"[slot], "number": rec[1],
         **{n: v / fixed.PARAM_ONE for n, v in zip(fixed.PARAM_NAMES, rec[7:])}}
+    return out
+
+
+def _discovery(d: dict, catalogue) -> dict:
+    """A DISCOVERY record for people: the effects by name, the held-out errors (the board's
+    integers: heldscore's sums of | |a|^2 - 1 |, Q16 g^2) and their change in %, the closest
+    candidate's parameters in their report units."""
+    out = {"index": d["index"],
+           "adopted": deff.NAMES.get(d["adopted"]) if d["adopted"] else None,
+           "closest": deff.NAMES.get(d["closest"]) if d["closest"] else None,
+           "heldout_before": d["heldout_before"], "heldout_after": d["heldout_after"],
+           "blocks_better": d["blocks_better"], "blocks": d["blocks"]}
+    before, after = d["heldout_before"], d["heldout_after"]
+    out["change_pct"] = (round(100.0 * (after - before) / before, 1)
+                         if before and out["closest"] else None)
+    if out["closest"]:
+        eff = catalogue[out["closest"]]
+        vals = eff.from_int([d["p0"], d["p1"], d["p2"]]) * eff.scale
+        out["unit"] = eff.report_unit
+        out["params"] = dict(zip(eff.param_names, vals.tolist()))
     return out

@@ -272,7 +272,24 @@ class BoardReport(dict):
             lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
+        lines += [discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
         return "\n".join(lines)
+
+
+def discovery_line(d: dict, rate_hz: int | None = None) -> str:
+    """One DISCOVERY record of a board (boardlog.summary's form), as `pull` and `report` say it:
+    when, the effect adopted or the closest candidate, the held-out error's change, the blocks."""
+    when = f"sample {d['index']}" + (f" ({d['index'] / rate_hz / 3600:.1f} h)" if rate_hz else "")
+    if d["closest"] is None:
+        return (f"discovery at {when}: no candidate testable (too few held-out points or "
+                "blocks, or no spread in temperature, time or supply)")
+    change = f"held-out error {d['change_pct']:+.0f} %" if d["change_pct"] is not None else ""
+    blocks = f"better in {d['blocks_better']} of {d['blocks']} held-out blocks"
+    vals = " ".join(f"{n}={v:+.4g}" for n, v in d.get("params", {}).items())
+    if d["adopted"]:
+        return (f"discovery at {when}: ADOPTED {d['adopted']} ({change}, {blocks}): "
+                f"{vals} {d.get('unit', '')}".rstrip())
+    return f"discovery at {when}: nothing adopted; closest {d['closest']} ({change}, {blocks})"
 
 
 class ApplyResult(dict):
