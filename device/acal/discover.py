@@ -47,17 +47,18 @@ _SCORE = 3      # candidate i scored
 _DONE = 4
 
 
-def spread_needed(kind):
-    """The spread of its regressor's condition a candidate needs in the fit points (bins.py's
-    thresholds, which `diagnose` asks too): (condition index, least range), or (-1, 0)."""
+def testable(kind, cond, n):
+    """True when n fit points' conditions (flat, COND apiece) span what the candidate's
+    regressor needs (bins.py's thresholds, which `diagnose` asks too; a reading's effect needs
+    none).  Two returns, not a pair: a tuple would be an allocation."""
     source = effects.source_of(kind)
     if source == effects.SOURCE_TEMP:
-        return 0, TEMP_DIFFER
+        return _range(cond, n, 0) >= TEMP_DIFFER
     if source == effects.SOURCE_TIME:
-        return 1, TIME_DIFFER
+        return _range(cond, n, 1) >= TIME_DIFFER
     if source == effects.SOURCE_SUPPLY:
-        return 2, SUPPLY_DIFFER
-    return -1, 0
+        return _range(cond, n, 2) >= SUPPLY_DIFFER
+    return True
 
 
 class Discover:
@@ -142,10 +143,7 @@ class Discover:
     def _next(self, i):
         # candidate i begins (the untestable ones skipped), or the choice when none is left
         pipe = self.pipe
-        while i < N_CANDIDATES:
-            c, least = spread_needed(KINDS[i][0])
-            if c < 0 or _range(pipe.aux, pipe.n_fit, c) >= least:
-                break
+        while i < N_CANDIDATES and not testable(KINDS[i][0], pipe.aux, pipe.n_fit):
             i += 1
         self.i = i
         if i == N_CANDIDATES:

@@ -108,3 +108,97 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
     found = boardlog.decode(tmp_path / "clean.bin").dicts(log.DISCOVERY)
     assert found and all(f["adopted"] == 0 for f in found), found
     assert not boardlog.decode(tmp_path / "clean.bin").of(log.EFFECT)
+
+
+HEAP = r'''
+import micropython
+from acal.pipeline import Pipeline
+from acal import profile, candidates, discover
+from acal.bins import int32s
+
+# x y z (Q16 g) temp time, per rest mean (a string: a list literal this long exhausts the
+# 32-bit port's pystack)
+PTS = [int(v) for v in "%s".split()]
+pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+for i in range(len(PTS) // 5):
+    pipe.temp = PTS[5 * i + 3]
+    pipe.time = PTS[5 * i + 4]
+    pipe.offer(PTS[5 * i], PTS[5 * i + 1], PTS[5 * i + 2])
+status = pipe.calibrate()
+d = pipe.discovery
+d.begin(pipe)
+# the rule at its largest errors: every candidate saturated, one just below
+errs = int32s(discover.N_CANDIDATES)
+betters = int32s(discover.N_CANDIDATES)
+out = int32s(4)
+
+
+def work(d, errs, betters, out):
+    while not d.step():
+        pass
+    for i in range(discover.N_CANDIDATES):
+        errs[i] = discover.ERR_MAX - i
+        betters[i] = 72
+    out[0] = candidates.best(d.kind_ids, errs, discover.N_CANDIDATES)
+    out[1] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
+    errs[0] = 0
+    out[2] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0
+
+
+micropython.heap_lock()
+try:
+    work(d, errs, betters, out)
+    micropython.heap_unlock()
+    print("OK", status, d.before, d.blocks, d.chosen, int(d.adopted), d.kind,
+          " ".join(str(e) for e in d.errs), " ".join(str(b) for b in d.betters),
+          " ".join(str(v) for v in out[:3]))
+except MemoryError:
+    micropython.heap_unlock()
+    print("ALLOCATED")
+'''
+
+
+def _heap_script(tmp_path, name):
+    rng = np.random.default_rng(9)
+    d = simulate.unit_points(rng, 420)
+    pts = []
+    for i in range(420):
+        time = 7 * i                       # 64 s units: 2.2 days
+        temp = int(round(28 + 6 * np.sin(2 * np.pi * time * 64 / 86400)))
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp - 28)
+        v += rng.normal(scale=0.001, size=3)
+        pts += [int(round(x * 65536)) for x in v] + [temp, time]
+    f = tmp_path / name
+    f.write_text(HEAP % " ".join(map(str, pts)))
+    return f
+
+
+def _cpython_heap_result(f):
+    import contextlib
+    import io
+    text = f.read_text().replace("import micropython\n", "").replace(
+        "micropython.heap_lock()", "").replace("micropython.heap_unlock()", "")
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        exec(compile(text, str(f), "exec"), {"__name__": "heap"})
+    return buf.getvalue().split()
+
+
+def test_candidate_fits_and_scores_allocate_nothing(tmp_path):
+    """Every candidate's fit (the step's search too) and every score, then the rule at the
+    saturated errors, under heap_lock on the unix port: the same integers as CPython."""
+    out = runtime.run_micropython_script(str(_heap_script(tmp_path, "heap.py"))).split()
+    assert out[0] == "OK", out
+    want = _cpython_heap_result(tmp_path / "heap.py")
+    assert out == want
+    assert int(out[6]) == effects.TEMP_OFFSET, out      # adopted: the hidden effect
+    # at the saturated errors: the lowest is the step's, which gives way to the plain effect
+    # next to it (index 5), not adopted (no gain); a zero error against ERR_MAX is adopted
+    assert out[-3:] == ["5", "0", "1"]
+
+
+def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
+    """The same on the 32-bit port, where an int past 2**30 would allocate."""
+    out = mp32(str(_heap_script(tmp_path, "heap32.py"))).split()
+    assert out[0] == "OK", out
+    assert out == _cpython_heap_result(tmp_path / "heap32.py")
