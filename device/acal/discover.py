@@ -9,8 +9,10 @@
 # scoring of one candidate.  Nothing is allocated per candidate or per score: one GaussNewton
 # sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
-# Formats: errors heldscore's (Q16 g^2, summed); parameters Q24 (fixed.py, effects.py).
-from acal import candidates, effects
+# Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
+# products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
+# lets a sum reach 72 x 2**22); parameters Q24 (fixed.py, effects.py).
+from acal import candidates, discovery, effects
 from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
@@ -30,7 +32,13 @@ KINDS = ((effects.TEMP_OFFSET,), (effects.TEMP_SCALE,), (effects.DRIFT,),
 N_CANDIDATES = const(7)
 N_ALL = const(12)            # N_PARAMS + 3: the largest candidate's parameters
 MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
+# Held-out blocks needed before a board tries (a day of wear: 6 odd 2-hour blocks).  A board
+# tries again after each calibration, and nobody confirms what it adopts: it adopts an effect
+# only on clear evidence (discovery.clear), where `diagnose` also names weak evidence for a
+# person to confirm on a longer recording.
+MIN_BLOCKS = const(6)
 UNTESTABLE = const(-1)
+ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g^2 a point)
 
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
@@ -39,17 +47,18 @@ _SCORE = 3      # candidate i scored
 _DONE = 4
 
 
-def spread_needed(kind):
-    """The spread of its regressor's condition a candidate needs in the fit points (bins.py's
-    thresholds, which `diagnose` asks too): (condition index, least range), or (-1, 0)."""
+def testable(kind, cond, n):
+    """True when n fit points' conditions (flat, COND apiece) span what the candidate's
+    regressor needs (bins.py's thresholds, which `diagnose` asks too; a reading's effect needs
+    none).  Two returns, not a pair: a tuple would be an allocation."""
     source = effects.source_of(kind)
     if source == effects.SOURCE_TEMP:
-        return 0, TEMP_DIFFER
+        return _range(cond, n, 0) >= TEMP_DIFFER
     if source == effects.SOURCE_TIME:
-        return 1, TIME_DIFFER
+        return _range(cond, n, 1) >= TIME_DIFFER
     if source == effects.SOURCE_SUPPLY:
-        return 2, SUPPLY_DIFFER
-    return -1, 0
+        return _range(cond, n, 2) >= SUPPLY_DIFFER
+    return True
 
 
 class Discover:
@@ -62,7 +71,8 @@ class Discover:
         self.held = held
         self.fit = GaussNewton(max_points, KINDS[0], True)
         self.score = HeldScore(held.capacity)
-        self.search = None
+        from acal.changepoint import ChangePoint   # the step's search: nothing per point
+        self.search = ChangePoint()
         self.kind_ids = int32s(N_CANDIDATES)
         for i in range(N_CANDIDATES):
             self.kind_ids[i] = KINDS[i][0]
@@ -119,21 +129,21 @@ class Discover:
         if h.count < MIN_HELD:
             self.phase = _DONE
             return
-        self.before = self.score.score(pipe.optimiser.p, (), h)
+        self.before = _saturated(self.score.score(pipe.optimiser.p, (), h))
         if self.before <= 0:
             self.phase = _DONE
             return
         self.score.keep_as_base(h.count)
         self.blocks = h.blocks()
+        if self.blocks < MIN_BLOCKS:
+            self.phase = _DONE
+            return
         self._next(0)
 
     def _next(self, i):
         # candidate i begins (the untestable ones skipped), or the choice when none is left
         pipe = self.pipe
-        while i < N_CANDIDATES:
-            c, least = spread_needed(KINDS[i][0])
-            if c < 0 or _range(pipe.aux, pipe.n_fit, c) >= least:
-                break
+        while i < N_CANDIDATES and not testable(KINDS[i][0], pipe.aux, pipe.n_fit):
             i += 1
         self.i = i
         if i == N_CANDIDATES:
@@ -144,9 +154,6 @@ class Discover:
         fit.kind_ids[0] = KINDS[i][0]
         fit.ts = 0
         if KINDS[i][0] == effects.STEP:
-            if self.search is None:   # imported and made at the first step only
-                from acal.changepoint import ChangePoint
-                self.search = ChangePoint()
             self.search.begin(pipe.optimiser)
             self.phase = _SEARCH
             return
@@ -167,8 +174,8 @@ class Discover:
         i = self.i
         pipe = self.pipe
         if fit.status == OK:
-            e = self.score.score(fit.p, fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
-                                 pipe.ref_supply, fit.ts)
+            e = _saturated(self.score.score(fit.p, fit.kinds, self.held, pipe.ref_temp,
+                                            pipe.ref_time, pipe.ref_supply, fit.ts))
             self.errs[i] = e
             if e >= 0:
                 self.betters[i] = self.score.better_blocks(self.held)
@@ -185,7 +192,8 @@ class Discover:
     def _choose(self):
         i = candidates.best(self.kind_ids, self.errs, N_CANDIDATES)
         self.chosen = i
-        self.adopted = candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
+        self.adopted = (candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
+                        and discovery.clear(self.betters[i], self.blocks))
         if i >= 0:
             for k in range(N_ALL):
                 self.params[k] = self.all_params[N_ALL * i + k]
@@ -194,11 +202,26 @@ class Discover:
                 self.kind = self.kind_ids[i]
         self.phase = _DONE
 
+    def take(self):
+        """The fit re-kinded to the chosen candidate and holding its parameters and step
+        time (the fit holds the last candidate tried until then); returns it."""
+        fit = self.fit
+        fit.kinds = KINDS[self.chosen]
+        fit.kind_ids[0] = fit.kinds[0]
+        for k in range(N_ALL):
+            fit.p[k] = self.params[k]
+        fit.ts = self.step_time
+        return fit
+
     def run(self, pipe):
         """begin() and every step at once."""
         self.begin(pipe)
         while not self.step():
             pass
+
+
+def _saturated(e):
+    return ERR_MAX if e > ERR_MAX else e
 
 
 def _range(cond, n, c):

@@ -257,14 +257,13 @@ class Pipeline:
         of that effect only); the parameters are the discovery's.  No further discovery: the
         held-out blocks' rest means go to the bins again."""
         d = self.discovery
-        kinds = d.fit.kinds
-        for i in range(len(d.params)):
-            d.fit.p[i] = d.params[i]
+        fit = d.take()
+        kinds = fit.kinds
         self.base_fit = self.optimiser
-        self.optimiser = d.fit
+        self.optimiser = fit
         self.kinds = kinds
         self.base_kinds = ()
-        self.start = [0] * d.fit.n_params
+        self.start = [0] * fit.n_params
         self.step_time = d.step_time
         if kinds[0] == effects.STEP:
             self.search = d.search

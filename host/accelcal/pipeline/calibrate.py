@@ -322,8 +322,10 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
            "blocks_better": betters, "blocks": blocks,
            "candidates": [{"effect": deff.NAMES[k], "heldout": e, "heldout_error_mg":
                            heldout_mg(e, held), "blocks_better": b} for k, e, b in r.candidates]}
-    if held < 30 or before <= 0:
-        out["reason"] = f"{held} held-out rest points (needs >= 30)"
+    from acal.discover import MIN_BLOCKS, MIN_HELD
+    if held < MIN_HELD or blocks < MIN_BLOCKS or before <= 0:
+        out["reason"] = (f"{held} held-out rest points in {blocks} held-out 2-hour blocks "
+                         f"(the board tries from {MIN_HELD} in {MIN_BLOCKS})")
     if closest:
         spec = ModelSpec.parse(f"base+{deff.NAMES[closest]}")
         out["model"] = str(spec) if adopted else "base"
