@@ -6,12 +6,14 @@
 # (reporting what it skipped): a torn record is dropped, the records after it are found again.
 #
 # Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
-#   BOOT     <IHHBHBBBBBHBIbHB log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g;
+#   BOOT     <IHHBHBBBBBHBIbHBB log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g;
 #                          0: from the noise, rest.AUTO), axis (3: all), range_g, fifo, min_count,
 #                          max_count, differ (Q16 g), iterations, recal_seconds, temperature
 #                          reference (degC; -128: none, temperatures are relative), model
 #                          (effects.model_code: 0 is the paper's model), fit (profile.GRADIENT or
-#                          NEWTON).  Version 1 (before profiles) lacks fit: read as GRADIENT.
+#                          NEWTON), discover (1: the board discovers its own missing effect,
+#                          acal/discover.py).  Version 1 (before profiles) lacks fit and
+#                          discover, read as GRADIENT and 0; version 2 lacks discover: 0.
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
 #                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
@@ -57,7 +59,8 @@ TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMP
               GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply",
               DISCOVERY: "discovery"}
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
-FORMATS = {BOOT: "<IHHBHBBBBBHBIbHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+BOOT_V2 = "<IHHBHBBBBBHBIbHB"
+FORMATS = {BOOT: "<IHHBHBBBBBHBIbHBB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
            GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
@@ -209,7 +212,9 @@ def unpack(rtype, payload):
         first, count, temp = struct.unpack_from(SAMPLES_HEAD, payload, 0)
         return first, count, temp, struct.unpack_from("<%dh" % (3 * count), payload, 6)
     if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V1):
-        return struct.unpack(BOOT_V1, payload) + (0,)
+        return struct.unpack(BOOT_V1, payload) + (0, 0)
+    if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V2):
+        return struct.unpack(BOOT_V2, payload) + (0,)
     return struct.unpack(FORMATS[rtype], payload)
 
 

@@ -72,3 +72,19 @@ def test_the_virtual_board_discovers_a_hidden_temp_offset_and_replays(tmp_path):
     rep = run_cli("replay", tmp_path / "pulled", "--json")
     out = json.loads(rep.stdout)
     assert out["identical"] and out["discovery"]["board"] >= 1, out
+
+
+def test_boot_records_of_earlier_versions_read_as_not_discovering():
+    """A board flashed before discovery logged a shorter BOOT (version 2 without `discover`,
+    version 1 without `fit` too): pulled logs of those boards still decode, as not discovering."""
+    import struct
+    from acal import log
+    from accelcal.bridge import boardlog
+    values = (0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600, -128, 0, 1)
+    for fmt, vals, fit in ((log.BOOT_V2, values, 1), (log.BOOT_V1, values[:-1], 0)):
+        payload = struct.pack(fmt, *vals)
+        assert boardlog.malformed(log.BOOT, payload) is None
+        b = dict(zip(boardlog.FIELDS[log.BOOT], log.unpack(log.BOOT, payload)))
+        assert b["discover"] == 0 and b["fit"] == fit and b["rate_hz"] == 25
+    now = struct.pack(log.FORMATS[log.BOOT], *values, 1)
+    assert dict(zip(boardlog.FIELDS[log.BOOT], log.unpack(log.BOOT, now)))["discover"] == 1

@@ -23,7 +23,7 @@ LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FILE_MAX_BYTES = 1 << 30    # a pulled file is read whole: the largest capture deploy allows
 FIELDS = {
     log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
-               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit"),
+               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit", "discover"),
     log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
     log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
               "objective", *fixed.PARAM_NAMES),
@@ -106,7 +106,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         if n < 6 or (n - 6) % 6 or payload[4] != (n - 6) // 6 or payload[4] > log.SAMPLES_PER_RECORD:
             return f"{name} record of {n} bytes does not hold the samples it counts"
         return None
-    sizes = (_SIZES[rtype], struct.calcsize(log.BOOT_V1)) if rtype == log.BOOT else (_SIZES[rtype],)
+    sizes = ((_SIZES[rtype], struct.calcsize(log.BOOT_V1), struct.calcsize(log.BOOT_V2))
+             if rtype == log.BOOT else (_SIZES[rtype],))
     if n not in sizes:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)
@@ -116,7 +117,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
                   (1 <= v[3] and v[2] * v[3] <= 65535, "seconds (a segment of 1..65535 samples)"),
                   (all(k in deff.NAMES for k in kinds) and len(set(kinds)) == len(kinds), "model"),
                   (v[6] in (2, 4, 8, 16), "range_g"), (v[7] <= 1, "fifo"),
-                  (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit")]
+                  (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit"),
+                  (v[16] <= 1, "discover")]
     elif rtype == log.REST:
         checks = [(-1 <= v[5] < 9, "subset")]
     elif rtype == log.CAL:
@@ -164,10 +166,12 @@ def _processor(lg, b: dict, profile: str | None):
         return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                          threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
                          max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                         model=model, fit=b["fit"], range_g=b["range_g"])
+                         model=model, fit=b["fit"], range_g=b["range_g"],
+                         discover=bool(b["discover"]))
     from acal import profile as dprofile
     return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                     model=model, profile=dprofile.parse(profile), range_g=b["range_g"])
+                     model=model, profile=dprofile.parse(profile), range_g=b["range_g"],
+                     discover=bool(b["discover"]) and profile == "wear")
 
 
 def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None = None):
