@@ -17,10 +17,10 @@ def test_held_out_blocks_are_the_hosts_odd_two_hour_blocks():
 
 def test_byte_budget_is_the_preallocated_storage():
     h = heldout.HeldOut()
-    arrays = (h.xyz, h.cond, h.block)
+    arrays = (h.xyz, h.cond, h.block, h.held)
     stored = sum(a.itemsize * len(a) for a in arrays)
-    assert stored == heldout.BUDGET_BYTES == 2016      # the figure docs/model-discovery.md states
-    assert stored == heldout.CAPACITY * (3 + COND + 1) * 4
+    assert stored == heldout.BUDGET_BYTES == 2304      # the figure docs/model-discovery.md states
+    assert stored == heldout.CAPACITY * (3 + COND + 2) * 4
     assert h.nbytes() == stored
 
 
