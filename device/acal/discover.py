@@ -11,7 +11,7 @@
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
-# lets a sum reach 72 x 2**22); parameters Q24 (fixed.py, effects.py).
+# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
 from acal import candidates, discovery, effects
 from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
 from acal.fixed import N_PARAMS
@@ -41,7 +41,8 @@ UNTESTABLE = const(-1)
 ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g^2 a point)
 
 SCORE_POINTS = const(8)      # held-out points scored per step (as a fit's trial slice)
-BLOCK_SLOTS = const(8)       # held-out slots per step of the block comparison
+BLOCK_SLOTS = const(4)       # held-out slots per step of the block comparison (each up to
+# CAPACITY comparisons)
 
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step

@@ -1,7 +1,7 @@
 # A model's error on the board's held-out points (issue 29; docs/model-discovery.md
 # "Held-out points on the board"): what discovery.py's rule compares, in integers.  Each held-out point's
 # error is |r|, r = |a|^2 - 1 g^2 of the point with the model's effects removed (model.residual),
-# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 72 of them sum below 2**30; the held-out
+# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 144 (heldout.CAPACITY) sum below 2**30; the held-out
 # error is their sum, a block's error the sum over its points.  All storage preallocated.
 from acal import model
 from acal.bins import COND, int32s
@@ -14,7 +14,7 @@ except ImportError:  # CPython
         return x
 
 ERR_SHIFT = const(6)       # Q22 g^2 -> Q16 g^2
-ERR_CAP = const(4194304)   # 64 g^2 in Q16: 72 x 2**22 < 2**30
+ERR_CAP = const(4194304)   # 64 g^2 in Q16: 144 x 2**22 < 2**30 (255 would still be)
 
 
 class HeldScore:
