@@ -40,9 +40,12 @@ MIN_BLOCKS = const(6)
 UNTESTABLE = const(-1)
 ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g^2 a point)
 
-SCORE_POINTS = const(8)      # held-out points scored per step (as a fit's trial slice)
-BLOCK_SLOTS = const(4)       # held-out slots per step of the block comparison (each up to
-# CAPACITY comparisons)
+# Per step, so that no step outlasts the fit's own (emulated RP2040: the base fit's longest
+# slice 1.1 ms; 8 points scored took 5.7 ms, 4 slots compared 4.0 ms; docs/model-discovery.md
+# "Discovery on the board"):
+SCORE_POINTS = const(2)      # held-out points scored
+BLOCK_SLOTS = const(1)       # held-out slots of the block comparison (each up to CAPACITY
+# comparisons)
 
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
