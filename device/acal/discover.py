@@ -11,7 +11,7 @@
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
-# lets a sum reach 72 x 2**22); parameters Q24 (fixed.py, effects.py).
+# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
 from acal import candidates, discovery, effects
 from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
 from acal.fixed import N_PARAMS
@@ -40,11 +40,20 @@ MIN_BLOCKS = const(6)
 UNTESTABLE = const(-1)
 ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g^2 a point)
 
+# Per step, so that no step outlasts the fit's own (emulated RP2040: the base fit's longest
+# slice 1.1 ms; 8 points scored took 5.7 ms, 4 slots compared 4.0 ms; docs/model-discovery.md
+# "Discovery on the board"):
+SCORE_POINTS = const(2)      # held-out points scored
+BLOCK_SLOTS = const(1)       # held-out slots of the block comparison (each up to CAPACITY
+# comparisons)
+
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
 _SEARCH = 2     # a step's change-point search on the base fit
 _SCORE = 3      # candidate i scored
 _DONE = 4
+_BLOCKS = 5     # the held-out blocks counted
+_BETTER = 6     # candidate i's blocks compared with the base model's
 
 
 def testable(kind, cond, n):
@@ -85,6 +94,7 @@ class Discover:
         self.params = int32s(N_ALL)
         self.phase = _DONE
         self.i = 0
+        self.pos = 0           # where a sliced score or block comparison stands
         self.pipe = None
         self.before = 0
         self.blocks = 0
@@ -98,6 +108,7 @@ class Discover:
         conditions (relative to pipe.ref_*), its fit's parameters."""
         self.pipe = pipe
         self.i = 0
+        self.pos = 0
         self.chosen = -1
         self.adopted = False
         self.kind = 0
@@ -115,26 +126,48 @@ class Discover:
             self._score_base()
         elif ph == _FIT:
             if self.fit.step():
-                self.phase = _SCORE
+                self._fitted()
         elif ph == _SEARCH:
             if self.search.step():
                 self._searched()
         elif ph == _SCORE:
             self._score_candidate()
+        elif ph == _BLOCKS:
+            self._count_blocks()
+        elif ph == _BETTER:
+            self._compare_blocks()
         return self.phase == _DONE
 
     def _score_base(self):
+        # the base model's held-out error, SCORE_POINTS a step
+        s = self.score
         h = self.held
-        pipe = self.pipe
-        if h.count < MIN_HELD:
-            self.phase = _DONE
+        if self.pos == 0:
+            if h.count < MIN_HELD:
+                self.phase = _DONE
+                return
+            s.begin(self.pipe.optimiser.p, (), h)
+            self.pos = 1
+        if not s.part(SCORE_POINTS):
             return
-        self.before = _saturated(self.score.score(pipe.optimiser.p, (), h))
+        self.before = _saturated(s.total)
         if self.before <= 0:
             self.phase = _DONE
             return
-        self.score.keep_as_base(h.count)
-        self.blocks = h.blocks()
+        s.keep_as_base(h.count)
+        s.firsts = 0
+        self.pos = 0
+        self.phase = _BLOCKS
+
+    def _count_blocks(self):
+        # the held-out blocks (the base against itself: no block better), BLOCK_SLOTS a step
+        s = self.score
+        end = _slots_end(self.pos, self.held.count)
+        s.better_part(self.held, self.pos, end)
+        self.pos = end
+        if end < self.held.count:
+            return
+        self.blocks = s.firsts
         if self.blocks < MIN_BLOCKS:
             self.phase = _DONE
             return
@@ -169,25 +202,45 @@ class Discover:
         self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
         self.phase = _FIT
 
-    def _score_candidate(self):
+    def _fitted(self):
+        # candidate i's fit has ended: kept and scored when it is OK
         fit = self.fit
         i = self.i
+        if fit.status != OK:
+            self._next(i + 1)
+            return
+        f = 4 * i
+        self.fits[f] = fit.iterations
+        self.fits[f + 1] = fit.n
+        self.fits[f + 2] = fit.objective_start
+        self.fits[f + 3] = fit.objective
+        for k in range(N_ALL):
+            self.all_params[N_ALL * i + k] = fit.p[k]
+        self.ts[i] = fit.ts
         pipe = self.pipe
-        if fit.status == OK:
-            e = _saturated(self.score.score(fit.p, fit.kinds, self.held, pipe.ref_temp,
-                                            pipe.ref_time, pipe.ref_supply, fit.ts))
-            self.errs[i] = e
-            if e >= 0:
-                self.betters[i] = self.score.better_blocks(self.held)
-            f = 4 * i
-            self.fits[f] = fit.iterations
-            self.fits[f + 1] = fit.n
-            self.fits[f + 2] = fit.objective_start
-            self.fits[f + 3] = fit.objective
-            for k in range(N_ALL):
-                self.all_params[N_ALL * i + k] = fit.p[k]
-            self.ts[i] = fit.ts
-        self._next(i + 1)
+        self.score.begin(fit.p, fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
+                         pipe.ref_supply, fit.ts)
+        self.phase = _SCORE
+
+    def _score_candidate(self):
+        # candidate i's held-out error, SCORE_POINTS a step
+        if not self.score.part(SCORE_POINTS):
+            return
+        e = _saturated(self.score.total)
+        self.errs[self.i] = e
+        if e < 0:
+            self._next(self.i + 1)
+            return
+        self.pos = 0
+        self.phase = _BETTER
+
+    def _compare_blocks(self):
+        # the blocks candidate i is better in, BLOCK_SLOTS a step
+        end = _slots_end(self.pos, self.held.count)
+        self.betters[self.i] += self.score.better_part(self.held, self.pos, end)
+        self.pos = end
+        if end == self.held.count:
+            self._next(self.i + 1)
 
     def _choose(self):
         i = candidates.best(self.kind_ids, self.errs, N_CANDIDATES)
@@ -218,6 +271,11 @@ class Discover:
         self.begin(pipe)
         while not self.step():
             pass
+
+
+def _slots_end(pos, count):
+    end = pos + BLOCK_SLOTS
+    return end if end < count else count
 
 
 def _saturated(e):

@@ -351,14 +351,16 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
         raise InputError(f"model {spec}: its column effects ({', '.join(spec.columns)}) are "
                          "fitted on the rest points the host finds: --engine vector")
     rec_in = open_recording(path)
+    # a discovering board reads its own columns (its supply) for the candidates that follow them
+    wanted = set(spec.columns) | ({q.column for q in COLUMN_QUANTITIES} if cfg.discover else set())
     out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
-               progress=progress, extras=bool(spec.columns))
+               progress=progress, extras=bool(wanted))
     sc, whole = out if engine == "device" else (out, None)
     cfg = replace(cfg, rate_hz=sc.rate_hz)
     m = sc.masks()
     kept = m["kept"]
     temp = None if sc.seg_temp is None else sc.seg_temp[kept]
-    cols = {c: sc.seg_column(c)[kept] for c in sc.columns if c in spec.columns}
+    cols = {c: sc.seg_column(c)[kept] for c in sc.columns if c in wanted}
     try:
         spec.check_data(temp, sc.seg_t[kept], path, cols)
     except ValueError as e:
