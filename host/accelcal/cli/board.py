@@ -104,9 +104,9 @@ def _print_summary(s, where):
                      f"step at {e['step_time_s']} s of running time" if "step_time_s" in e else
                      f"supply {e['ref_supply_mv']} mV")
             print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, {where}")
-    from accelcal.pipeline.results import discovery_line
+    from accelcal.pipeline.results import board_discovery_line
     for d in s.get("discoveries", []):
-        print("  " + discovery_line(d))
+        print("  " + board_discovery_line(d))
     if s["stored_calibration"]:
         print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
     for d in s["dropped"]:

@@ -272,11 +272,11 @@ class BoardReport(dict):
             lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
-        lines += [discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
+        lines += [board_discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
         return "\n".join(lines)
 
 
-def discovery_line(d: dict, rate_hz: int | None = None) -> str:
+def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
     """One DISCOVERY record of a board (boardlog.summary's form), as `pull` and `report` say it:
     when, the effect adopted or the closest candidate, the held-out error's change, the blocks."""
     when = f"sample {d['index']}" + (f" ({d['index'] / rate_hz / 3600:.1f} h)" if rate_hz else "")
