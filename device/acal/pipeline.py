@@ -126,6 +126,10 @@ class Pipeline:
         self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 3 a step's
         # search, 1 the model's own
         self.n_fit = 0     # points gathered for the fit
+        # A discovering app's bins also take the held-out blocks' rest means until its first
+        # calibration (the Processor sets this; leave_early() ends it): held out from the start,
+        # a wearer's bins filled 29 h later (docs/model-discovery.md "Discovery on the board").
+        self.early = False
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
@@ -134,12 +138,28 @@ class Pipeline:
         if self.held is not None and held_out(self.time):
             if gravity(x, y, z):
                 self.held.offer(x, y, z, self.temp, self.time, self.supply)
-            s = -1
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply) if self.early else -1
         else:
             s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
         if self.on_rest is not None:
             self.on_rest(x, y, z, s)
         return s
+
+    def leave_early(self):
+        """The first calibration has ended: the held-out blocks' points leave the bins (the
+        next fit, the discovery's, never sees a point the held-out set may hold) and from now
+        on go to the held-out set only."""
+        self.early = False
+        b = self.bins
+        m = b.max_count
+        for s in range(N_SUBSETS):
+            k = 0
+            while k < b.counts[s]:
+                j = s * m + k
+                if held_out(b.cond[COND * j + 1]):
+                    b.remove(b.xyz[3 * j], b.xyz[3 * j + 1], b.xyz[3 * j + 2])
+                else:
+                    k += 1
 
     def add_samples(self, buf, start, n):
         """Feed n interleaved samples (Q10 g) from sample index start."""

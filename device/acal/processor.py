@@ -70,6 +70,7 @@ class Processor:
             settings[k] = pipeline_settings[k]
         self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, discover=discover,
                              **settings)
+        self.pipe.early = discover   # calibrated as early as without discovery (Pipeline.early)
         self.tracks = bool(self.kinds) or discover   # the feeder's conditions reach the bins
         self.fitting = False
         self.discovering = False
@@ -253,7 +254,9 @@ class Processor:
                                               o.objective_start, o.objective)
         if usable(status):
             self._take(values, extra)
-            if pipe.discovery is not None:
+            if pipe.early:
+                pipe.leave_early()   # this fit saw held-out blocks: discovery from the next one
+            elif pipe.discovery is not None:
                 pipe.discovery.begin(pipe)
                 self.discovering = True
         if not self.kinds and pipe.fit == profiles.GRADIENT:

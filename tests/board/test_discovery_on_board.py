@@ -88,3 +88,52 @@ def test_boot_records_of_earlier_versions_read_as_not_discovering():
         assert b["discover"] == 0 and b["fit"] == fit and b["rate_hz"] == 25
     now = struct.pack(log.FORMATS[log.BOOT], *values, 1)
     assert dict(zip(boardlog.FIELDS[log.BOOT], log.unpack(log.BOOT, now)))["discover"] == 1
+
+
+def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
+    """Until its first calibration a discovering board's bins take the held-out blocks' rest
+    means too (Pipeline.early), so that calibration comes when it would without discovery;
+    after it those points leave the bins, and the discovery runs from the next calibration, on
+    points its held-out set never shares.  Held out from the start, the same stream's bins
+    fill later."""
+    from acal import log
+    from accelcal.bridge import boardlog
+    script = test_discover._stream(tmp_path, "hidden", test_discover.C_TRUE)
+    text = script.read_text()
+    variants = {"discover": text, "plain": text.replace("discover=True", "discover=False"),
+                "held_from_start": text.replace("discover=True)", "discover=True)\n    p.pipe.early = False")}
+    first = {}
+    for name, t in variants.items():
+        f = tmp_path / f"{name}.py"
+        f.write_text(t)
+        test_discover._run_cpython(f, tmp_path / f"{name}.bin")
+        d = boardlog.decode(tmp_path / f"{name}.bin")
+        first[name] = d.dicts(log.CAL)[0]["index"]
+        if name == "discover":
+            found = d.dicts(log.DISCOVERY)
+            assert found and found[0]["index"] > first[name]   # not after the first calibration
+            assert found[-1]["adopted"]
+    assert first["discover"] == first["plain"] < first["held_from_start"], first
+
+
+def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
+    from acal import profile
+    from acal.bins import N_SUBSETS
+    from acal.heldout import held_out
+    from acal.pipeline import Pipeline
+    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR, False))
+    pipe.early = True
+    rng = np.random.default_rng(3)
+    for i in range(600):          # 600 rest means over 40 h, in every direction
+        v = rng.normal(size=3)
+        v = v / np.linalg.norm(v)
+        pipe.time = i * 4         # 64 s units: 256 s apart
+        pipe.temp = 20 + i % 9
+        pipe.offer(*(int(c * 65536) for c in v))
+    b = pipe.bins
+    def times():
+        return [b.condition(s, k)[1] for s in range(N_SUBSETS) for k in range(b.counts[s])]
+    assert any(held_out(t) for t in times())           # early: the bins took them too
+    kept = [t for t in times() if not held_out(t)]
+    pipe.leave_early()
+    assert sorted(times()) == sorted(kept) and not pipe.early
