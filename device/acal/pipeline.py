@@ -265,13 +265,20 @@ class Pipeline:
         self.base_kinds = ()
         self.start = [0] * fit.n_params
         self.step_time = d.step_time
-        if kinds[0] == effects.STEP:
+        if effects.STEP in kinds:
             self.search = d.search
-        source = effects.source_of(kinds[0])
         b = self.bins
-        b.temp_differ = TEMP_DIFFER if source == effects.SOURCE_TEMP else 0
-        b.time_differ = TIME_DIFFER if source == effects.SOURCE_TIME else 0
-        b.supply_differ = SUPPLY_DIFFER if source == effects.SOURCE_SUPPLY else 0
+        b.temp_differ = 0
+        b.time_differ = 0
+        b.supply_differ = 0
+        for k in kinds:
+            source = effects.source_of(k)
+            if source == effects.SOURCE_TEMP:
+                b.temp_differ = TEMP_DIFFER
+            elif source == effects.SOURCE_TIME:
+                b.time_differ = TIME_DIFFER
+            elif source == effects.SOURCE_SUPPLY:
+                b.supply_differ = SUPPLY_DIFFER
         b.need_span = True
         b.changes += 1
         self.held = None

@@ -124,8 +124,9 @@ def malformed(rtype: int, payload: bytes) -> str | None:
     elif rtype == log.EFFECT:
         checks = [(v[1] in deff.NAMES, "effect")]
     elif rtype == log.DISCOVERY:
-        checks = [(v[1] == 0 or v[1] in deff.NAMES, "adopted"),
-                  (v[2] == 0 or v[2] in deff.NAMES, "closest"), (v[5] <= v[6], "blocks")]
+        checks = [(all(k in deff.NAMES for k in deff.model_kinds(v[1])), "adopted"),
+                  (all(k in deff.NAMES for k in deff.model_kinds(v[2])), "closest"),
+                  (v[5] <= v[6], "blocks")]
     else:
         checks = []
     for ok, field_name in checks:
