@@ -24,13 +24,17 @@ except ImportError:  # CPython
     def const(x):
         return x
 
-# The candidates, as `diagnose` tries them (host/accelcal/model/effects.py, candidate=True),
-# single effects the board runs; the step last (its change-point search runs first).
+# The candidates, as `diagnose` tries them (host/accelcal/model/effects.py, candidate=True):
+# the single effects the board runs, the step last of them (its change-point search runs
+# first), then the curve with its straight part, tried together (diagnose's curves(),
+# docs/model-discovery.md "Curves"), from the straight part's fit.
 KINDS = ((effects.TEMP_OFFSET,), (effects.TEMP_SCALE,), (effects.DRIFT,),
          (effects.NONLINEAR,), (effects.TEMP_OFFSET2,), (effects.SUPPLY_OFFSET,),
-         (effects.STEP,))
-N_CANDIDATES = const(7)
-N_ALL = const(12)            # N_PARAMS + 3: the largest candidate's parameters
+         (effects.STEP,), (effects.TEMP_OFFSET, effects.TEMP_OFFSET2))
+N_SINGLE = const(7)          # the single effects, among which candidates.best chooses
+PAIR = const(7)              # the curve with its straight part
+N_CANDIDATES = const(8)
+N_ALL = const(15)            # N_PARAMS + 6: the largest candidate's parameters
 MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
 # Held-out blocks needed before a board tries (a day of wear: 6 odd 2-hour blocks).  A board
 # tries again after each calibration, and nobody confirms what it adopts: it adopts an effect
@@ -73,18 +77,19 @@ def testable(kind, cond, n):
 class Discover:
     """After a run (begin(), step() until True): before (the base model's held-out error),
     errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
-    candidates.best gives, -1: none testable), adopted (True when the rule names it), kind
-    (its effect id, 0: none), params (its 12 parameters, Q24) and step_time (a step's)."""
+    candidates.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
+    (True when the rule names it), kind (its effects.model_code, 0: none; kind_ids: every
+    candidate's), params (its parameters, Q24) and step_time (a step's)."""
 
     def __init__(self, max_points, held):
         self.held = held
-        self.fit = GaussNewton(max_points, KINDS[0], True)
+        self.fit = GaussNewton(max_points, KINDS[PAIR], True)   # sized for the largest
         self.score = HeldScore(held.capacity)
         from acal.changepoint import ChangePoint   # the step's search: nothing per point
         self.search = ChangePoint()
         self.kind_ids = int32s(N_CANDIDATES)
         for i in range(N_CANDIDATES):
-            self.kind_ids[i] = KINDS[i][0]
+            self.kind_ids[i] = effects.model_code(KINDS[i])
         self.errs = int32s(N_CANDIDATES)
         self.betters = int32s(N_CANDIDATES)
         self.fits = int32s(4 * N_CANDIDATES)   # per candidate: iterations, points kept,
@@ -154,16 +159,16 @@ class Discover:
         if self.before <= 0:
             self.phase = _DONE
             return
-        s.keep_as_base(h.count)
         s.firsts = 0
         self.pos = 0
         self.phase = _BLOCKS
 
     def _count_blocks(self):
-        # the held-out blocks (the base against itself: no block better), BLOCK_SLOTS a step
+        # the base errors kept and the blocks' first slots marked, BLOCK_SLOTS a step
         s = self.score
         end = _slots_end(self.pos, self.held.count)
-        s.better_part(self.held, self.pos, end)
+        s.keep_as_base(end, self.pos)
+        s.mark_first(self.held, self.pos, end)
         self.pos = end
         if end < self.held.count:
             return
@@ -183,14 +188,16 @@ class Discover:
             self._choose()
             return
         fit = self.fit
-        fit.kinds = KINDS[i]          # re-kinded: a preallocated tuple of as many effects
-        fit.kind_ids[0] = KINDS[i][0]
+        _rekind(fit, KINDS[i])
         fit.ts = 0
         if KINDS[i][0] == effects.STEP:
             self.search.begin(pipe.optimiser)
             self.phase = _SEARCH
             return
         fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        if i == PAIR and self.errs[0] != UNTESTABLE:   # from the straight part's fit
+            for k in range(N_PARAMS, N_PARAMS + 3):
+                fit.p[k] = self.all_params[k]
         self.phase = _FIT
 
     def _searched(self):
@@ -243,10 +250,16 @@ class Discover:
             self._next(self.i + 1)
 
     def _choose(self):
-        i = candidates.best(self.kind_ids, self.errs, N_CANDIDATES)
+        i = candidates.best(self.kind_ids, self.errs, N_SINGLE)
+        named = (candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
+                 and discovery.clear(self.betters[i], self.blocks))
+        if candidates.adopted(self.before, self.errs, self.betters, self.blocks, PAIR) and \
+                discovery.clear(self.betters[PAIR], self.blocks) and self.errs[PAIR] >= 0 and \
+                (not named or not discovery.plain_preferred(self.errs[PAIR], self.errs[i])):
+            i = PAIR      # diagnose: the curve unless the best single comes within 1.5x
+            named = True
         self.chosen = i
-        self.adopted = (candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
-                        and discovery.clear(self.betters[i], self.blocks))
+        self.adopted = named
         if i >= 0:
             for k in range(N_ALL):
                 self.params[k] = self.all_params[N_ALL * i + k]
@@ -259,8 +272,7 @@ class Discover:
         """The fit re-kinded to the chosen candidate and holding its parameters and step
         time (the fit holds the last candidate tried until then); returns it."""
         fit = self.fit
-        fit.kinds = KINDS[self.chosen]
-        fit.kind_ids[0] = fit.kinds[0]
+        _rekind(fit, KINDS[self.chosen])
         for k in range(N_ALL):
             fit.p[k] = self.params[k]
         fit.ts = self.step_time
@@ -271,6 +283,15 @@ class Discover:
         self.begin(pipe)
         while not self.step():
             pass
+
+
+def _rekind(fit, kinds):
+    # the one fit made another candidate: a preallocated tuple of at most as many effects
+    fit.kinds = kinds
+    fit.nk = len(kinds)
+    fit.n_params = N_PARAMS + 3 * len(kinds)
+    for k in range(len(kinds)):
+        fit.kind_ids[k] = kinds[k]
 
 
 def _slots_end(pos, count):

@@ -26,6 +26,7 @@ class HeldScore:
         self.w = int32s(3 * capacity)
         self.err = int32s(capacity)
         self.base = int32s(capacity)
+        self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_first)
         self.p = None
         self.kinds = ()
         self.h = None
@@ -89,29 +90,39 @@ class HeldScore:
         self.pos = end
         return end == h.count
 
-    def keep_as_base(self, n):
-        """The last score's errors become the ones candidates are compared with."""
-        for i in range(n):
+    def keep_as_base(self, n, lo=0):
+        """The last score's errors (of slots lo..n-1) become the ones candidates are compared
+        with."""
+        for i in range(lo, n):
             self.base[i] = self.err[i]
+
+    def mark_first(self, h, lo, hi):
+        """Mark the slots in [lo, hi) that are the first of their block (first[i] 1, else 0),
+        counted in `firsts` (sliced; better_part reads the marks)."""
+        blk = h.block
+        for i in range(lo, hi):
+            b = blk[i]
+            f = 1
+            for j in range(i):
+                if blk[j] == b:
+                    f = 0
+                    break
+            self.first[i] = f
+            self.firsts += f
 
     def better_blocks(self, h):
         """How many held-out blocks have a lower error in the last score than in base (each
         block summed at the first slot holding it: no allocation)."""
+        self.mark_first(h, 0, h.count)
         return self.better_part(h, 0, h.count)
 
     def better_part(self, h, lo, hi):
-        """better_blocks() over the blocks whose first slot lies in [lo, hi) (sliced)."""
+        """better_blocks() over the blocks whose first slot (mark_first) lies in [lo, hi)."""
         better = 0
         blk = h.block
         for i in range(lo, hi):
-            b = blk[i]
-            first = True
-            for j in range(i):
-                if blk[j] == b:
-                    first = False
-                    break
-            if first:
-                self.firsts += 1
+            if self.first[i]:
+                b = blk[i]
                 before = 0
                 after = 0
                 for j in range(i, h.count):

@@ -60,22 +60,13 @@ class Pipeline:
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
         if discover and (self.kinds or fit != NEWTON):
             raise ValueError("discovery starts from the paper's model with the wear fit (NEWTON)")
-        temp_differ = TEMP_DIFFER if discover else 0
-        time_differ = TIME_DIFFER if discover else 0
-        supply_differ = SUPPLY_DIFFER if discover else 0
         base_kinds = []
-        for k in self.kinds:   # the spread each effect's regressor needs in the held points
-            source = effects.source_of(k)
-            if source == effects.SOURCE_TEMP:
-                temp_differ = TEMP_DIFFER
-            elif source == effects.SOURCE_TIME:
-                time_differ = TIME_DIFFER
-            elif source == effects.SOURCE_SUPPLY:
-                supply_differ = SUPPLY_DIFFER
+        for k in self.kinds:
             if k != effects.STEP:
                 base_kinds.append(k)
-        self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
-                         fit == NEWTON, supply_differ)
+        self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON)
+        # the spread each effect's regressor needs in the held points (discovery: all of them)
+        track(self.bins, self.kinds, discover)
         self.held = None
         self.discovery = None
         if discover:
@@ -285,13 +276,10 @@ class Pipeline:
         self.base_kinds = ()
         self.start = [0] * fit.n_params
         self.step_time = d.step_time
-        if kinds[0] == effects.STEP:
+        if effects.STEP in kinds:
             self.search = d.search
-        source = effects.source_of(kinds[0])
         b = self.bins
-        b.temp_differ = TEMP_DIFFER if source == effects.SOURCE_TEMP else 0
-        b.time_differ = TIME_DIFFER if source == effects.SOURCE_TIME else 0
-        b.supply_differ = SUPPLY_DIFFER if source == effects.SOURCE_SUPPLY else 0
+        track(b, kinds)
         b.need_span = True
         b.changes += 1
         self.held = None
@@ -309,6 +297,22 @@ class Pipeline:
         o.iterations = b.iterations
         o.objective = b.objective
         o.status = why
+
+
+def track(bins, kinds, every=False):
+    """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
+    all three conditions, for a discovering board's candidates)."""
+    bins.temp_differ = TEMP_DIFFER if every else 0
+    bins.time_differ = TIME_DIFFER if every else 0
+    bins.supply_differ = SUPPLY_DIFFER if every else 0
+    for k in kinds:
+        source = effects.source_of(k)
+        if source == effects.SOURCE_TEMP:
+            bins.temp_differ = TEMP_DIFFER
+        elif source == effects.SOURCE_TIME:
+            bins.time_differ = TIME_DIFFER
+        elif source == effects.SOURCE_SUPPLY:
+            bins.supply_differ = SUPPLY_DIFFER
 
 
 def _mean_above(f1, n1, f2, n2):

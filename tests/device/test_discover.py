@@ -139,7 +139,7 @@ def work(d, errs, betters, out):
     for i in range(discover.N_CANDIDATES):
         errs[i] = discover.ERR_MAX - i
         betters[i] = 72
-    out[0] = candidates.best(d.kind_ids, errs, discover.N_CANDIDATES)
+    out[0] = candidates.best(d.kind_ids, errs, discover.N_SINGLE)
     out[1] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
     errs[0] = 0
     out[2] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0

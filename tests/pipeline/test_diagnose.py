@@ -221,7 +221,7 @@ def test_the_board_names_what_diagnose_names(recordings, capsys):
     assert code == 0 and d["effect"] == "temp_offset" and d["model"] == "base+temp_offset", d
     assert d["heldout_error_after_mg"] < 0.9 * d["heldout_error_before_mg"]
     assert 10 * d["blocks_better"] >= 7 * d["blocks"] and d["blocks"] >= 12, d
-    assert set(d["params"]) >= {"cx", "cy", "cz"} and len(d["candidates"]) == 7
+    assert set(d["params"]) >= {"cx", "cy", "cz"} and len(d["candidates"]) == 8
     clean = calibrate_api(str(recordings["clean31"]), cfg=DISCOVER)["discovery"]
     assert clean["effect"] is None and clean["closest"] is not None, clean
     for bad in (["--model", "base+drift"], ["--method", "lsq"], ["--profile", "paper"]):

@@ -126,8 +126,9 @@ def malformed(rtype: int, payload: bytes) -> str | None:
     elif rtype == log.EFFECT:
         checks = [(v[1] in deff.NAMES, "effect")]
     elif rtype == log.DISCOVERY:
-        checks = [(v[1] == 0 or v[1] in deff.NAMES, "adopted"),
-                  (v[2] == 0 or v[2] in deff.NAMES, "closest"), (v[5] <= v[6], "blocks")]
+        checks = [(all(k in deff.NAMES for k in deff.model_kinds(v[1])), "adopted"),
+                  (all(k in deff.NAMES for k in deff.model_kinds(v[2])), "closest"),
+                  (v[5] <= v[6], "blocks")]
     else:
         checks = []
     for ok, field_name in checks:
@@ -299,16 +300,16 @@ def _discovery(d: dict, catalogue) -> dict:
     """A DISCOVERY record for people: the effects by name, the held-out errors (the board's
     integers: heldscore's sums of | |a|^2 - 1 |, Q16 g^2) and their change in %, the closest
     candidate's parameters in their report units."""
-    out = {"index": d["index"],
-           "adopted": deff.NAMES.get(d["adopted"]) if d["adopted"] else None,
-           "closest": deff.NAMES.get(d["closest"]) if d["closest"] else None,
+    def named(code):   # effects.model_code: one effect, or a pair (the curve)
+        return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+    out = {"index": d["index"], "adopted": named(d["adopted"]), "closest": named(d["closest"]),
            "heldout_before": d["heldout_before"], "heldout_after": d["heldout_after"],
            "blocks_better": d["blocks_better"], "blocks": d["blocks"]}
     before, after = d["heldout_before"], d["heldout_after"]
     out["change_pct"] = (round(100.0 * (after - before) / before, 1)
                          if before and out["closest"] else None)
-    if out["closest"]:
-        eff = catalogue[out["closest"]]
+    if out["closest"]:    # the record holds its first effect's parameters
+        eff = catalogue[out["closest"].split("+")[0]]
         vals = eff.from_int([d["p0"], d["p1"], d["p2"]]) * eff.scale
         out["unit"] = eff.report_unit
         out["params"] = dict(zip(eff.param_names, vals.tolist()))

@@ -306,6 +306,11 @@ def heldout_mg(err: int, points: int) -> float | None:
     return err / points / (2 * fixed.POINT_ONE_G) * 1e3 if points and err >= 0 else None
 
 
+def _effects_named(code: int) -> str | None:
+    """A model code of the board's (effects.model_code) as its effects' names joined by '+'."""
+    return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+
+
 def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
     """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
     adopted (None: none) or the closest candidate, the held-out error before and after (the
@@ -315,23 +320,24 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
                 "not end OK)"}
     adopted, closest, before, after, betters, blocks, held, step_time = r.discovery[:8]
     p_int = r.discovery[8:]
-    out = {"effect": deff.NAMES.get(adopted), "closest": deff.NAMES.get(closest),
+    out = {"effect": _effects_named(adopted), "closest": _effects_named(closest),
            "heldout_points": held, "heldout_before": before, "heldout_after": after,
            "heldout_error_before_mg": heldout_mg(before, held),
            "heldout_error_after_mg": heldout_mg(after, held) if closest else None,
            "blocks_better": betters, "blocks": blocks,
-           "candidates": [{"effect": deff.NAMES[k], "heldout": e, "heldout_error_mg":
+           "candidates": [{"effect": _effects_named(k), "heldout": e, "heldout_error_mg":
                            heldout_mg(e, held), "blocks_better": b} for k, e, b in r.candidates]}
     from acal.discover import MIN_BLOCKS, MIN_HELD
     if held < MIN_HELD or blocks < MIN_BLOCKS or before <= 0:
         out["reason"] = (f"{held} held-out rest points in {blocks} held-out 2-hour blocks "
                          f"(the board tries from {MIN_HELD} in {MIN_BLOCKS})")
     if closest:
-        spec = ModelSpec.parse(f"base+{deff.NAMES[closest]}")
+        spec = ModelSpec.parse(f"base+{out['closest']}")
+        p_int = p_int[:len(spec.param_names)]
         out["model"] = str(spec) if adopted else "base"
         out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
         out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
-        if closest == deff.STEP:
+        if deff.STEP in deff.model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
     return out
 
