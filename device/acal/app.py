@@ -126,7 +126,8 @@ class App:
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
                        p.bins.max_count, p.bins.differ, p.iterations,
                        self.proc.recal_samples // rate_hz, -128 if ref is None else ref,
-                       effects.model_code(self.proc.kinds), p.fit)
+                       effects.model_code(self.proc.kinds), p.fit,
+                       0 if p.discovery is None else 1)
 
     def _retry(self, fn):
         for attempt in range(RETRIES):

@@ -1,10 +1,11 @@
 # A model's error on the board's held-out points (issue 29; docs/model-discovery.md
 # "Held-out points on the board"): what discovery.py's rule compares, in integers.  Each held-out point's
 # error is |r|, r = |a|^2 - 1 g^2 of the point with the model's effects removed (model.residual),
-# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 72 of them sum below 2**30; the held-out
+# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 144 (heldout.CAPACITY) sum below 2**30; the held-out
 # error is their sum, a block's error the sum over its points.  All storage preallocated.
 from acal import model
 from acal.bins import COND, int32s
+from acal.fixed import POINT_TO_PARAM_SHIFT
 from acal.heldout import CAPACITY
 try:
     from micropython import const
@@ -13,63 +14,115 @@ except ImportError:  # CPython
         return x
 
 ERR_SHIFT = const(6)       # Q22 g^2 -> Q16 g^2
-ERR_CAP = const(4194304)   # 64 g^2 in Q16: 72 x 2**22 < 2**30
+ERR_CAP = const(4194304)   # 64 g^2 in Q16: 144 x 2**22 < 2**30 (255 would still be)
 
 
 class HeldScore:
     """Scores models on a heldout.HeldOut: err (per point, Q16 g^2) of the last score, base (of
-    the model a candidate must beat)."""
+    the model a candidate must beat).  Sliced as the fit (acal/discover.py runs it between FIFO
+    reads): begin(), then part() until it returns True, the error in `total`; score() at once."""
 
     def __init__(self, capacity=CAPACITY):
         self.w = int32s(3 * capacity)
-        self.aux = int32s(COND * capacity)
         self.err = int32s(capacity)
         self.base = int32s(capacity)
+        self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_first)
+        self.p = None
+        self.kinds = ()
+        self.h = None
+        self.ref_temp = 0
+        self.ref_time = 0
+        self.ref_supply = 0
+        self.ts = 0
+        self.pos = 0
+        self.total = 0
+        self.firsts = 0    # blocks better_part has met (their first slots), summed by callers
 
     def score(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
         """The held-out error (Q16 g^2, summed) of parameters p (int32 array, Q24) with effects
         `kinds` on the points of h; -1 when a point lies past the fit's domain."""
-        n = h.count
-        if not model.load_points(h.xyz, n, self.w):
-            return -1
-        aux = self.aux
-        cond = h.cond
-        for i in range(n):
-            j = COND * i
-            aux[j] = cond[j] - ref_temp
-            aux[j + 1] = cond[j + 1] - ref_time
-            aux[j + 2] = cond[j + 2] - ref_supply
+        self.begin(p, kinds, h, ref_temp, ref_time, ref_supply, ts)
+        while not self.part(h.count):
+            pass
+        return self.total
+
+    def begin(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
+        """Start scoring p with `kinds` on h (score's arguments)."""
+        self.p = p
+        self.kinds = kinds
+        self.h = h
+        self.ref_temp = ref_temp
+        self.ref_time = ref_time
+        self.ref_supply = ref_supply
+        self.ts = ts
+        self.pos = 0
+        self.total = 0
+
+    def part(self, count):
+        """Score up to `count` more points; True when every point is scored (or one lay past
+        the domain: total -1)."""
+        h = self.h
+        end = self.pos + count
+        if end > h.count:
+            end = h.count
+        p = self.p
         w = self.w
-        model.points_without_effects(p, w, aux, n, kinds, w, ts)
-        total = 0
-        for i in range(n):
+        xyz = h.xyz
+        cond = h.cond
+        for i in range(self.pos, end):
+            for c in range(3 * i, 3 * i + 3):
+                v = xyz[c]
+                if v >= model.POINT_LIMIT or v < -model.POINT_LIMIT:
+                    self.total = -1
+                    return True
+                w[c] = v << POINT_TO_PARAM_SHIFT
+            j = COND * i
+            model.remove_effects(p, self.kinds, w, 3 * i, cond[j] - self.ref_temp,
+                                 cond[j + 1] - self.ref_time, self.ts,
+                                 cond[j + 2] - self.ref_supply)
             r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
             if r < 0:
                 r = -r
             if r > ERR_CAP:
                 r = ERR_CAP
             self.err[i] = r
-            total += r
-        return total
+            self.total += r
+        self.pos = end
+        return end == h.count
 
-    def keep_as_base(self, n):
-        """The last score's errors become the ones candidates are compared with."""
-        for i in range(n):
+    def keep_as_base(self, n, lo=0):
+        """The last score's errors (of slots lo..n-1) become the ones candidates are compared
+        with."""
+        for i in range(lo, n):
             self.base[i] = self.err[i]
+
+    def mark_first(self, h, lo, hi):
+        """Mark the slots in [lo, hi) that are the first of their block (first[i] 1, else 0),
+        counted in `firsts` (sliced; better_part reads the marks)."""
+        blk = h.block
+        for i in range(lo, hi):
+            b = blk[i]
+            f = 1
+            for j in range(i):
+                if blk[j] == b:
+                    f = 0
+                    break
+            self.first[i] = f
+            self.firsts += f
 
     def better_blocks(self, h):
         """How many held-out blocks have a lower error in the last score than in base (each
         block summed at the first slot holding it: no allocation)."""
+        self.mark_first(h, 0, h.count)
+        return self.better_part(h, 0, h.count)
+
+    def better_part(self, h, lo, hi):
+        """better_blocks() over the blocks whose first slot (mark_first) lies in [lo, hi)."""
         better = 0
         blk = h.block
-        for i in range(h.count):
-            b = blk[i]
-            first = True
-            for j in range(i):
-                if blk[j] == b:
-                    first = False
-                    break
-            if first:
+        for i in range(lo, hi):
+            if self.first[i]:
+                b = blk[i]
                 before = 0
                 after = 0
                 for j in range(i, h.count):

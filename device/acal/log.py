@@ -6,12 +6,14 @@
 # (reporting what it skipped): a torn record is dropped, the records after it are found again.
 #
 # Payloads (little-endian; points Q16 g, parameters Q24, fixed.py):
-#   BOOT     <IHHBHBBBBBHBIbHB log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g;
+#   BOOT     <IHHBHBBBBBHBIbHBB log size at boot (bytes), version, rate_hz, seconds, threshold (Q10 g;
 #                          0: from the noise, rest.AUTO), axis (3: all), range_g, fifo, min_count,
 #                          max_count, differ (Q16 g), iterations, recal_seconds, temperature
 #                          reference (degC; -128: none, temperatures are relative), model
 #                          (effects.model_code: 0 is the paper's model), fit (profile.GRADIENT or
-#                          NEWTON).  Version 1 (before profiles) lacks fit: read as GRADIENT.
+#                          NEWTON), discover (1: the board discovers its own missing effect,
+#                          acal/discover.py).  Version 1 (before profiles) lacks fit and
+#                          discover, read as GRADIENT and 0; version 2 lacks discover: 0.
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
 #                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
@@ -30,6 +32,12 @@
 #   GAP      <II            raw capture: sample index, samples lost there
 #   SUPPLY   <IH            raw capture of a model that follows the board's supply: the sample
 #                          index from which the supply (mV) holds, written when it changes
+#   DISCOVERY <IBBIIBB3i    after a board's own model discovery (acal/discover.py): sample
+#                          index, the effects adopted (effects.model_code: an id, or two ids in
+#                          4 bits each; 0: none), the closest candidate (the one chosen; 0: none
+#                          testable), the held-out error before and with it (heldscore's Q16 g^2
+#                          sums), the held-out blocks it is better in and of how many, its first
+#                          effect's 3 parameters (Q24; all of them in the EFFECT records after)
 #   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
 #                          EFFECT payload per effect of a composed model, under one CRC, so a
 #                          cut anywhere leaves the whole calibration or none of it
@@ -47,11 +55,14 @@ GAP = 6
 EFFECT = 7
 STORE = 8
 SUPPLY = 9
+DISCOVERY = 10
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply"}
+              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply",
+              DISCOVERY: "discovery"}
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
-FORMATS = {BOOT: "<IHHBHBBBBBHBIbHB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH"}
+BOOT_V2 = "<IHHBHBBBBBHBIbHB"
+FORMATS = {BOOT: "<IHHBHBBBBBHBIbHBB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
+           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 22: a STORE of 4 effects is 141 bytes
@@ -202,7 +213,9 @@ def unpack(rtype, payload):
         first, count, temp = struct.unpack_from(SAMPLES_HEAD, payload, 0)
         return first, count, temp, struct.unpack_from("<%dh" % (3 * count), payload, 6)
     if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V1):
-        return struct.unpack(BOOT_V1, payload) + (0,)
+        return struct.unpack(BOOT_V1, payload) + (0, 0)
+    if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V2):
+        return struct.unpack(BOOT_V2, payload) + (0,)
     return struct.unpack(FORMATS[rtype], payload)
 
 

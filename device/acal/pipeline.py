@@ -2,7 +2,8 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, N_SUBSETS, SUPPLY_DIFFER, TEMP_DIFFER,
-                       TIME_DIFFER, conditions, int32s)
+                       TIME_DIFFER, conditions, gravity, int32s)
+from acal.heldout import held_out
 from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
@@ -40,31 +41,40 @@ class Pipeline:
     worn: the feeder's wear signal.  A rest segment that closes while it is False (a device off
     the wrist, on a table; imputed or idle-sleep stretches) is counted in `excluded` but not
     offered: it is still, but not what the wearer's data looks like.  The app leaves it True;
-    the host sets it from its non-wear and quality masks."""
+    the host sets it from its non-wear and quality masks.
+
+    discover (NEWTON, the paper's model only): the board finds its own missing effect
+    (acal/discover.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
+    held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
+    condition a candidate needs (but are ready without their spread) and the fit's points carry
+    them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
+    runs (begin, step); adopt() then makes its chosen effect the model."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  iterations=None, on_rest=None,
-                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT):
+                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT,
+                 discover=False):
         self.kinds = tuple(kinds)
         self.fit = fit
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
-        temp_differ = 0
-        time_differ = 0
-        supply_differ = 0
+        if discover and (self.kinds or fit != NEWTON):
+            raise ValueError("discovery starts from the paper's model with the wear fit (NEWTON)")
         base_kinds = []
-        for k in self.kinds:   # the spread each effect's regressor needs in the held points
-            source = effects.source_of(k)
-            if source == effects.SOURCE_TEMP:
-                temp_differ = TEMP_DIFFER
-            elif source == effects.SOURCE_TIME:
-                time_differ = TIME_DIFFER
-            elif source == effects.SOURCE_SUPPLY:
-                supply_differ = SUPPLY_DIFFER
+        for k in self.kinds:
             if k != effects.STEP:
                 base_kinds.append(k)
-        self.bins = Bins(min_count, max_count, differ, policy, temp_differ, time_differ,
-                         fit == NEWTON, supply_differ)
+        self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON)
+        # the spread each effect's regressor needs in the held points (discovery: all of them)
+        track(self.bins, self.kinds, discover)
+        self.held = None
+        self.discovery = None
+        if discover:
+            from acal.heldout import HeldOut   # a discovering board's modules only
+            from acal.discover import Discover
+            self.bins.need_span = False
+            self.held = HeldOut()
+            self.discovery = Discover(N_SUBSETS * max_count, self.held)
         self.base_fit = None
         self.search = None
         self.step_time = 0
@@ -107,15 +117,40 @@ class Pipeline:
         self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 3 a step's
         # search, 1 the model's own
         self.n_fit = 0     # points gathered for the fit
+        # A discovering app's bins also take the held-out blocks' rest means until its first
+        # calibration (the Processor sets this; leave_early() ends it): held out from the start,
+        # a wearer's bins filled 29 h later (docs/model-discovery.md "Discovery on the board").
+        self.early = False
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
         subset it was kept in or -1."""
         self.rest_count += 1
-        s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
+        if self.held is not None and held_out(self.time):
+            if gravity(x, y, z):
+                self.held.offer(x, y, z, self.temp, self.time, self.supply)
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply) if self.early else -1
+        else:
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
         if self.on_rest is not None:
             self.on_rest(x, y, z, s)
         return s
+
+    def leave_early(self):
+        """The first calibration has ended: the held-out blocks' points leave the bins (the
+        next fit, the discovery's, never sees a point the held-out set may hold) and from now
+        on go to the held-out set only."""
+        self.early = False
+        b = self.bins
+        m = b.max_count
+        for s in range(N_SUBSETS):
+            k = 0
+            while k < b.counts[s]:
+                j = s * m + k
+                if held_out(b.cond[COND * j + 1]):
+                    b.remove(b.xyz[3 * j], b.xyz[3 * j + 1], b.xyz[3 * j + 2])
+                else:
+                    k += 1
 
     def add_samples(self, buf, start, n):
         """Feed n interleaved samples (Q10 g) from sample index start."""
@@ -150,7 +185,7 @@ class Pipeline:
         profile's fit: the base fit of the same points first)."""
         self.stage = 1
         self.step_time = 0
-        if not self.kinds:
+        if not self.kinds and self.held is None:
             self.n_fit = self.bins.gather(self.points)
             self.optimiser.begin(self.points, self.n_fit, self.iterations)
             return
@@ -227,6 +262,29 @@ class Pipeline:
         self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
                              self.start if from_base else None)
 
+    def adopt(self):
+        """The discovery's adopted effect becomes the model (its fit, re-kinded, the model's
+        optimiser; this base fit its base fit; the bins then track, and wait for, the spread
+        of that effect only); the parameters are the discovery's.  No further discovery: the
+        held-out blocks' rest means go to the bins again."""
+        d = self.discovery
+        fit = d.take()
+        kinds = fit.kinds
+        self.base_fit = self.optimiser
+        self.optimiser = fit
+        self.kinds = kinds
+        self.base_kinds = ()
+        self.start = [0] * fit.n_params
+        self.step_time = d.step_time
+        if effects.STEP in kinds:
+            self.search = d.search
+        b = self.bins
+        track(b, kinds)
+        b.need_span = True
+        b.changes += 1
+        self.held = None
+        self.discovery = None
+
     def _keep_base(self, why):
         o = self.optimiser
         b = self.base_fit
@@ -239,6 +297,22 @@ class Pipeline:
         o.iterations = b.iterations
         o.objective = b.objective
         o.status = why
+
+
+def track(bins, kinds, every=False):
+    """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
+    all three conditions, for a discovering board's candidates)."""
+    bins.temp_differ = TEMP_DIFFER if every else 0
+    bins.time_differ = TIME_DIFFER if every else 0
+    bins.supply_differ = SUPPLY_DIFFER if every else 0
+    for k in kinds:
+        source = effects.source_of(k)
+        if source == effects.SOURCE_TEMP:
+            bins.temp_differ = TEMP_DIFFER
+        elif source == effects.SOURCE_TIME:
+            bins.time_differ = TIME_DIFFER
+        elif source == effects.SOURCE_SUPPLY:
+            bins.supply_differ = SUPPLY_DIFFER
 
 
 def _mean_above(f1, n1, f2, n2):

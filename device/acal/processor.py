@@ -10,7 +10,7 @@ from acal import profile as profiles
 from acal.fixed import N_PARAMS, POINT_ONE_G
 from acal.calibration import Calibration
 from acal.model import in_bounds, effects_within
-from acal.status import usable
+from acal.status import OK, usable
 from acal.pipeline import Pipeline
 
 VERSION = 2  # 2: profiles (BOOT carries the fit)
@@ -46,20 +46,34 @@ class Processor:
     their temperature and time spread keeps growing (the paper's model starts afresh after
     each; the wear profile keeps its bins too, its CENTRE rule keeps improving them).  Its time is the board's running time since
     boot in 64 s units (no clock survives a power cut): a stored composed calibration is resumed
-    at boot as if the board had not been off."""
+    at boot as if the board had not been off.
+
+    discover (model 'base', the wear profile, range_g 2): after a usable calibration the board
+    looks for its own missing effect (Pipeline's discover, sliced as the fit;
+    docs/model-discovery.md "Discovery on the board"), and logs a DISCOVERY record; when an
+    effect is adopted, the calibration (and the store) switch to the composed model at once, logged as a CAL and
+    its EFFECT record."""
 
     def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
-                 model="base", profile=profiles.DEFAULT, range_g=2, **pipeline_settings):
+                 model="base", profile=profiles.DEFAULT, range_g=2, discover=False,
+                 **pipeline_settings):
         self.log = logger
         self.capture = capture
         self.store = store
         self.rate_hz = rate_hz
+        self.range_g = range_g
         self.kinds = effects.parse_model(model)
+        if discover and range_g != 2:
+            raise ValueError("a composed model applies at +-2 g full scale: discover needs 2")
         settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
-        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, **settings)
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, discover=discover,
+                             **settings)
+        self.pipe.early = discover   # calibrated as early as without discovery (Pipeline.early)
+        self.tracks = bool(self.kinds) or discover   # the feeder's conditions reach the bins
         self.fitting = False
+        self.discovering = False
         self.recal_samples = recal_seconds * rate_hz
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
@@ -163,7 +177,7 @@ class Processor:
             self._capture(buf, n)
         self.batch_start = self.index
         pipe = self.pipe
-        if self.kinds:  # the block's conditions, for the bins and for applying the calibration
+        if self.tracks:  # the block's conditions, for the bins and for applying the calibration
             pipe.temp = self.temp
             pipe.time = self.index // self.time_unit_samples
             pipe.supply = self.supply
@@ -180,6 +194,11 @@ class Processor:
             for _ in range(FIT_STEPS_PER_FEED):
                 if pipe.fit_step():
                     self._fitted()
+                    break
+        elif self.discovering:
+            for _ in range(FIT_STEPS_PER_FEED):
+                if pipe.discovery.step():
+                    self._discovered()
                     break
         elif pipe.ready() and (self.last_cal_index < 0 or
                                self.index - self.last_cal_index >= self.recal_samples):
@@ -216,20 +235,42 @@ class Processor:
         self.pipe.begin_fit()
         while not self.pipe.fit_step():
             pass
-        return self._fitted()
+        status = self._fitted()
+        if self.discovering:
+            while not self.pipe.discovery.step():
+                pass
+            self._discovered()
+        return status
 
     def _fitted(self):
         # The fit has ended: log it, take its parameters if it is good, start the bins afresh
-        # (the paper's model).
+        # (the paper's model); a discovering board starts its discovery.
         self.fitting = False
         pipe = self.pipe
         o = pipe.optimiser
         status = o.status
-        number = self.calibrations + 1
-        values = (self.index, number, status, o.iterations,
-                  o.n if pipe.fit == profiles.NEWTON else pipe.bins.total(),
-                  _sat32(o.objective_start >> (o.OBJ_Q - 24)),
-                  _sat32(o.objective >> (o.OBJ_Q - 24))) + tuple(o.p[:N_PARAMS])
+        values, extra = self._log_calibration(status, o.iterations,
+                                              o.n if pipe.fit == profiles.NEWTON
+                                              else pipe.bins.total(),
+                                              o.objective_start, o.objective)
+        if usable(status):
+            self._take(values, extra)
+            if pipe.early:
+                pipe.leave_early()   # this fit saw held-out blocks: discovery from the next one
+            elif pipe.discovery is not None:
+                pipe.discovery.begin(pipe)
+                self.discovering = True
+        if not self.kinds and pipe.fit == profiles.GRADIENT:
+            pipe.bins.clear()
+        return status
+
+    def _log_calibration(self, status, iterations, points, objective_start, objective):
+        # CAL and a composed model's EFFECT records of the optimiser's parameters
+        pipe = self.pipe
+        p = pipe.optimiser.p
+        values = (self.index, self.calibrations + 1, status, iterations, points,
+                  _sat32(objective_start >> (pipe.optimiser.OBJ_Q - 24)),
+                  _sat32(objective >> (pipe.optimiser.OBJ_Q - 24))) + tuple(p[:N_PARAMS])
         self.log.write(log.CAL, *values)
         extra = []
         for j in range(len(self.kinds)):
@@ -239,20 +280,42 @@ class Processor:
                 at += pipe.step_time
             elif self.kinds[j] == effects.SUPPLY_OFFSET:
                 at = pipe.ref_supply   # and a supply's its reference (mV)
-            extra.append((self.index, self.kinds[j], pipe.ref_temp, at,
-                          o.p[e], o.p[e + 1], o.p[e + 2]))
+            extra.append((self.index, self.kinds[j], pipe.ref_temp, at, p[e], p[e + 1], p[e + 2]))
             self.log.write(log.EFFECT, *extra[j])
-        if usable(status):
-            self.calibrations = number
-            for i in range(len(self.params)):
-                self.params[i] = o.p[i]
-            self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time,
-                                 pipe.ref_supply)
-            if self.store is not None:
-                self.store.save(values, extra)
-        if not self.kinds and pipe.fit == profiles.GRADIENT:
-            pipe.bins.clear()
-        return status
+        return values, extra
+
+    def _take(self, values, extra):
+        # a usable calibration: applied from now on, and stored
+        pipe = self.pipe
+        self.calibrations = values[1]
+        for i in range(len(self.params)):
+            self.params[i] = pipe.optimiser.p[i]
+        self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time,
+                             pipe.ref_supply)
+        if self.store is not None:
+            self.store.save(values, extra)
+
+    def _discovered(self):
+        # The discovery has chosen: logged; an adopted effect becomes the model at once.
+        self.discovering = False
+        pipe = self.pipe
+        d = pipe.discovery
+        i = d.chosen
+        self.log.write(log.DISCOVERY, self.index, d.kind, d.kind_ids[i] if i >= 0 else 0,
+                       d.before, d.errs[i] if i >= 0 else 0, d.betters[i] if i >= 0 else 0,
+                       d.blocks, d.params[N_PARAMS], d.params[N_PARAMS + 1],
+                       d.params[N_PARAMS + 2])
+        if not d.adopted:
+            return
+        f = d.fits
+        pipe.adopt()
+        self.kinds = pipe.kinds
+        self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
+        self.calibration = Calibration(self.kinds, self.range_g)
+        self.params = [0] * self.calibration.n_params
+        values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
+                                              f[4 * i + 3])
+        self._take(values, extra)
 
 
 def _sat32(v):

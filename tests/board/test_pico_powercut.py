@@ -27,7 +27,7 @@ def test_the_judge_sees_lost_damaged_and_mixed(tmp_path):
     of looking."""
     good = [powercut.rest_values(i) for i in range(5)]
     resumed = "ACAL_RESUMED 0 0\n"
-    boot = log._encode_values(log.BOOT, (0, 2, 100, 5, 0, 0, 2, 1, 2, 2, 0, 50, 0, -128, 0, 0))
+    boot = log._encode_values(log.BOOT, (0, 2, 100, 5, 0, 0, 2, 1, 2, 2, 0, 50, 0, -128, 0, 0, 0))
     after = (_log_bytes(good[:3]) + boot).hex()
     rec = {"out": "W 0\nW 1\nW 2\nW 3\n", "resume_out": resumed,
            "before": {"log.bin": _log_bytes(good[:3]).hex()}, "after": {"log.bin": after}}

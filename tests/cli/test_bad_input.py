@@ -188,17 +188,17 @@ def bad_logs(tmp_path_factory):
     from acal import log
     d = tmp_path_factory.mktemp("badlogs")
     boot = struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600, -128,
-                       0, 1)
+                       0, 1, 0)
     cases = {
         "short_rest": [(log.BOOT, boot), (log.REST, b"\x01\x02")],
         "short_cal": [(log.BOOT, boot), (log.CAL, bytes(10))],
         "long_boot": [(log.BOOT, boot + b"xx")],
         "boot_rate0": [(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 0, 5, 0, 3, 2, 0, 2,
-                                              8, 6553, 20, 600, -128, 0, 1))],
+                                              8, 6553, 20, 600, -128, 0, 1, 0))],
         "boot_axis9": [(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 9, 2, 0, 2,
-                                              8, 6553, 20, 600, -128, 0, 1))],
+                                              8, 6553, 20, 600, -128, 0, 1, 0))],
         "boot_range3": [(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 3, 0, 2,
-                                               8, 6553, 20, 600, -128, 0, 1))],
+                                               8, 6553, 20, 600, -128, 0, 1, 0))],
         "rest_subset50": [(log.BOOT, boot), (log.REST, struct.pack(log.FORMATS[log.REST], 10, 0, 0,
                                                                     65536, 25, 50, 0))],
         "unknown_type": [(log.BOOT, boot), (99, b"abc")],
@@ -383,7 +383,7 @@ def pulled(tmp_path):
     d = tmp_path / "pulled"
     d.mkdir()
     boot = struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600,
-                       -128, 0, 1)
+                       -128, 0, 1, 0)
     (d / "log.bin").write_bytes(board_log([(log.BOOT, boot)]))
     (d / "capture.bin").write_bytes(board_log([(log.BOOT, boot)]))
     (d / "cal_a.bin").write_bytes(b"")
@@ -468,7 +468,7 @@ def test_a_forced_pull_holds_only_the_new_pull(pulled, capsys, monkeypatch):
     new_log = board_log([])  # replaced below by a BOOT with another rate
     from acal import log
     new_log = board_log([(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 50, 5, 0, 3, 2, 0,
-                                                2, 8, 6553, 20, 600, -128, 0, 1))])
+                                                2, 8, 6553, 20, 600, -128, 0, 1, 0))])
     board = pulled.parent / "board"
     board.mkdir()
     (board / "log.bin").write_bytes(new_log)
@@ -600,7 +600,7 @@ def test_huge_files_are_one_line_in_bounded_memory(tmp_path):
 def _boot(rate=25, seconds=5, min_count=2, max_count=8, model=0):
     from acal import log
     return struct.pack(log.FORMATS[log.BOOT], 0, 2, rate, seconds, 0, 3, 2, 0, min_count,
-                       max_count, 6553, 20, 600, -128, model, 1)
+                       max_count, 6553, 20, 600, -128, model, 1, 0)
 
 
 @pytest.mark.parametrize("boot", [dict(seconds=0), dict(model=0xFFFF), dict(model=15),

@@ -172,7 +172,7 @@ def test_effect_kinds_fit_the_logs_model_field():
     longest = tuple(sorted(E.NAMES)[-E.MODEL_EFFECTS_MAX:])
     code = E.model_code(longest)
     assert E.model_kinds(code) == longest
-    struct.pack(log.FORMATS[log.BOOT][-2:], code, 0)          # the field holds it
+    struct.pack(log.FORMATS[log.BOOT][-3:-1], code, 0)          # the field holds it
     with pytest.raises(ValueError):
         E.model_code(tuple(sorted(E.NAMES)[:E.MODEL_EFFECTS_MAX + 1]))
     with pytest.raises(ValueError):

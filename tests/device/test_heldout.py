@@ -1,6 +1,7 @@
 """The board's held-out set (device/acal/heldout.py, issue 29): it keeps exactly the rest points
 the host's diagnose holds out (odd 2-hour blocks from the start), with their conditions; its
-preallocated storage is the written byte budget; once full it follows the wear (oldest replaced);
+preallocated storage is the written byte budget; once full it follows the wear (the oldest point
+of the fullest block replaced, so every block seen keeps points);
 and keeping a point allocates nothing under the real MicroPython, 64- and 32-bit ports."""
 from acal import heldout
 from acal.bins import COND
@@ -16,10 +17,10 @@ def test_held_out_blocks_are_the_hosts_odd_two_hour_blocks():
 
 def test_byte_budget_is_the_preallocated_storage():
     h = heldout.HeldOut()
-    arrays = (h.xyz, h.cond, h.block)
+    arrays = (h.xyz, h.cond, h.block, h.held)
     stored = sum(a.itemsize * len(a) for a in arrays)
-    assert stored == heldout.BUDGET_BYTES == 2016      # the figure docs/model-discovery.md states
-    assert stored == heldout.CAPACITY * (3 + COND + 1) * 4
+    assert stored == heldout.BUDGET_BYTES == 4608      # the figure docs/model-discovery.md states
+    assert stored == heldout.CAPACITY * (3 + COND + 2) * 4
     assert h.nbytes() == stored
 
 
@@ -43,6 +44,29 @@ def test_a_full_set_replaces_its_oldest_point_and_counts_blocks():
     assert h.count == 3
     assert sorted(h.xyz[3 * s] for s in range(3)) == [1, 2, 3]   # point 0 was the oldest
     assert h.blocks() == 3                    # blocks 1, 3, 5 remain
+
+
+def test_the_same_posture_in_a_block_is_one_point():
+    h = heldout.HeldOut(capacity=8)
+    h.offer(65536, 0, 0, temp=30, time=120)
+    h.offer(65536 + 6553, 100, -100, temp=31, time=125)     # within 0.1 g: replaces it
+    assert h.count == 1 and h.xyz[0] == 65536 + 6553 and h.cond[0] == 31
+    h.offer(65536 + 6553 + 6554, 0, 0, time=126)            # 0.1 g away: a point of its own
+    h.offer(65536, 0, 0, time=400)                          # the same posture, another block
+    assert h.count == 3 and h.blocks() == 2
+
+
+def test_a_full_set_stays_spread_over_the_blocks():
+    # 4 points a block in blocks 1, 3, ..., 35: the newest 8 would be two blocks; the kept 8
+    # span seven, the newest (the current block takes a second slot from the oldest block)
+    h = heldout.HeldOut(capacity=8)
+    postures = ((65536, 0, 0), (0, 65536, 0), (0, 0, 65536), (-65536, 0, 0))
+    for b in range(1, 36, 2):
+        for k in range(4):
+            h.offer(*postures[k], time=(b * 225 + 1) // 2 + 10 * k)
+    blocks = sorted(h.block[i] for i in range(h.count))
+    assert h.count == 8 and h.blocks() == 7, blocks
+    assert blocks == [23, 25, 27, 29, 31, 33, 35, 35]
 
 
 SCRIPT = r'''

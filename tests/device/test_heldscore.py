@@ -41,8 +41,8 @@ def test_error_per_point_is_the_float_formula():
 
 def test_better_blocks_counts_blocks_whose_sum_falls():
     h = heldout.HeldOut()
-    for t in (120, 130, 400, 410, 620):        # blocks 1, 1, 3, 3, 5
-        h.offer(65536, 0, 0, time=t)
+    for i, t in enumerate((120, 130, 400, 410, 620)):        # blocks 1, 1, 3, 3, 5
+        h.offer(65536 if i % 2 else 0, 0 if i % 2 else 65536, 0, time=t)   # two postures
     s = heldscore.HeldScore()
     for i, v in enumerate((10, 10, 10, 10, 10)):
         s.err[i] = v
@@ -115,5 +115,5 @@ def test_scoring_allocates_nothing_on_the_32_bit_port(tmp_path, mp32):
 
 def test_scoring_storage_is_the_stated_budget():
     s = heldscore.HeldScore()
-    stored = sum(a.itemsize * len(a) for a in (s.w, s.aux, s.err, s.base))
-    assert stored == 2304     # docs/model-discovery.md states it
+    stored = sum(a.itemsize * len(a) for a in (s.w, s.err, s.base, s.first))
+    assert stored == 3456     # docs/model-discovery.md states it

@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from accelcal.bridge.runtime import Config
 from accelcal.pipeline.diagnose import heldout_error_of
+from accelcal.pipeline.job import calibrate as calibrate_api
 from acal.fixed import PARAM_NAMES
-from conftest import ROOT, run_cli, simulate_wrists
+from conftest import ROOT, run_cli, run_main, simulate_wrists
 
 DAYS, RATE = 3, 10
 EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear")
@@ -209,3 +211,25 @@ def test_few_blocks_are_weak_evidence_and_explanations_fit_the_device():
     for name in ("nonlinear", "temp_offset", "temp_scale"):
         assert "LIS3DH" not in CATALOGUE[name].explain(gt3x)
         assert "Typical for the LIS3DH" in CATALOGUE[name].explain("LIS3DH")
+
+
+DISCOVER = Config.for_profile("wear", discover=True)
+
+
+def test_the_board_names_what_diagnose_names(recordings, capsys):
+    """The board's own discovery (`calibrate --discover`, device/acal/discover.py) on the
+    recordings diagnose names temp_offset on and nothing on (the tests above): the same, the
+    effect better in >= 70 % of >= 12 held-out blocks; `--json` carries it; bad options are one
+    line, exit 2, before the file is read."""
+    code, out, err = run_main(capsys, ["calibrate", recordings["temp_offset"], "--discover",
+                                       "--json"])
+    d = json.loads(out)["discovery"]
+    assert code == 0 and d["effect"] == "temp_offset" and d["model"] == "base+temp_offset", d
+    assert d["heldout_error_after_mg"] < 0.9 * d["heldout_error_before_mg"]
+    assert 10 * d["blocks_better"] >= 7 * d["blocks"] and d["blocks"] >= 12, d
+    assert set(d["params"]) >= {"cx", "cy", "cz"} and len(d["candidates"]) == 8
+    clean = calibrate_api(str(recordings["clean31"]), cfg=DISCOVER)["discovery"]
+    assert clean["effect"] is None and clean["closest"] is not None, clean
+    for bad in (["--model", "base+drift"], ["--method", "lsq"], ["--profile", "paper"]):
+        code, out, err = run_main(capsys, ["calibrate", recordings["clean31"], "--discover", *bad])
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "--discover" in err, err

@@ -23,7 +23,7 @@ LOG_FILES = ("log.bin", "capture.bin", "cal_a.bin", "cal_b.bin")
 FILE_MAX_BYTES = 1 << 30    # a pulled file is read whole: the largest capture deploy allows
 FIELDS = {
     log.BOOT: ("log_bytes_at_boot", "version", "rate_hz", "seconds", "threshold", "axis", "range_g", "fifo",
-               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit"),
+               "min_count", "max_count", "differ", "iterations", "recal_seconds", "temp_ref", "model", "fit", "discover"),
     log.REST: ("index", "x", "y", "z", "temp", "subset", "merged"),
     log.CAL: ("index", "number", "status", "iterations", "points", "objective_start",
               "objective", *fixed.PARAM_NAMES),
@@ -32,6 +32,8 @@ FIELDS = {
     log.GAP: ("index", "lost"),
     log.EFFECT: ("index", "effect", "ref_temp", "ref_time", "p0", "p1", "p2"),
     log.SUPPLY: ("index", "supply_mv"),
+    log.DISCOVERY: ("index", "adopted", "closest", "heldout_before", "heldout_after",
+                    "blocks_better", "blocks", "p0", "p1", "p2"),
 }
 
 
@@ -104,7 +106,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         if n < 6 or (n - 6) % 6 or payload[4] != (n - 6) // 6 or payload[4] > log.SAMPLES_PER_RECORD:
             return f"{name} record of {n} bytes does not hold the samples it counts"
         return None
-    sizes = (_SIZES[rtype], struct.calcsize(log.BOOT_V1)) if rtype == log.BOOT else (_SIZES[rtype],)
+    sizes = ((_SIZES[rtype], struct.calcsize(log.BOOT_V1), struct.calcsize(log.BOOT_V2))
+             if rtype == log.BOOT else (_SIZES[rtype],))
     if n not in sizes:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)
@@ -114,13 +117,18 @@ def malformed(rtype: int, payload: bytes) -> str | None:
                   (1 <= v[3] and v[2] * v[3] <= 65535, "seconds (a segment of 1..65535 samples)"),
                   (all(k in deff.NAMES for k in kinds) and len(set(kinds)) == len(kinds), "model"),
                   (v[6] in (2, 4, 8, 16), "range_g"), (v[7] <= 1, "fifo"),
-                  (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit")]
+                  (1 <= v[8] <= v[9] <= 64, "min_count/max_count"), (v[15] <= 1, "fit"),
+                  (v[16] <= 1, "discover")]
     elif rtype == log.REST:
         checks = [(-1 <= v[5] < 9, "subset")]
     elif rtype == log.CAL:
         checks = [(v[2] < _STATUS_COUNT, "status")]
     elif rtype == log.EFFECT:
         checks = [(v[1] in deff.NAMES, "effect")]
+    elif rtype == log.DISCOVERY:
+        checks = [(all(k in deff.NAMES for k in deff.model_kinds(v[1])), "adopted"),
+                  (all(k in deff.NAMES for k in deff.model_kinds(v[2])), "closest"),
+                  (v[5] <= v[6], "blocks")]
     else:
         checks = []
     for ok, field_name in checks:
@@ -159,10 +167,12 @@ def _processor(lg, b: dict, profile: str | None):
         return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                          threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
                          max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
-                         model=model, fit=b["fit"], range_g=b["range_g"])
+                         model=model, fit=b["fit"], range_g=b["range_g"],
+                         discover=bool(b["discover"]))
     from acal import profile as dprofile
     return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
-                     model=model, profile=dprofile.parse(profile), range_g=b["range_g"])
+                     model=model, profile=dprofile.parse(profile), range_g=b["range_g"],
+                     discover=bool(b["discover"]) and profile == "wear")
 
 
 def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None = None):
@@ -220,7 +230,8 @@ def replay(dirpath: str | Path, profile: str | None = None) -> dict:
     last_boot = max((i for i, (t, _) in enumerate(board.records) if t == log.BOOT), default=0)
     session = board.records[last_boot:]
     out = {"samples_replayed": end, "profile": profile or "the board's"}
-    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect")):
+    for rtype, name in ((log.REST, "rest"), (log.CAL, "cal"), (log.EFFECT, "effect"),
+                        (log.DISCOVERY, "discovery")):
         theirs = [v for t, v in session if t == rtype and v[0] <= end]
         ours = mine.of(rtype)
         if rtype == log.CAL:  # the number counts calibrations before the capture began too
@@ -231,7 +242,7 @@ def replay(dirpath: str | Path, profile: str | None = None) -> dict:
                      "first_difference": (diffs[0] if diffs else (min(len(theirs), len(ours))
                                                                  if len(theirs) != len(ours) else None))}
     out["identical"] = all(out[k]["differ"] == 0 and out[k]["board"] == out[k]["replay"]
-                           for k in ("rest", "cal", "effect"))
+                           for k in ("rest", "cal", "effect", "discovery"))
     return out
 
 
@@ -264,13 +275,14 @@ def summary(dirpath: str | Path) -> dict:
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
                     "ref_temp": e["ref_temp"], when: value}
     rests = lg.dicts(log.REST)
+    out_discoveries = [_discovery(d, CATALOGUE) for d in lg.dicts(log.DISCOVERY)]
     for r in rests:
         for k in "xyz":
             r[k] = r[k] / fixed.POINT_ONE_G
         r["subset"] = dbins.SUBSET_NAMES[r["subset"]] if r["subset"] >= 0 else None
     out = {"log_bytes": lg.size, "boots": len(lg.of(log.BOOT)),
            "counters": lg.dicts(log.COUNTERS)[-1] if lg.of(log.COUNTERS) else None,
-           "calibrations": cals, "rest_points": rests,
+           "calibrations": cals, "discoveries": out_discoveries, "rest_points": rests,
            "dropped": lg.dropped_report(data)}
     for f in ("cal_a.bin", "cal_b.bin"):
         note_input(d / f)
@@ -281,4 +293,24 @@ def summary(dirpath: str | Path) -> dict:
     out["stored_calibration"] = None if rec is None else {
         "slot": "ab"[slot], "number": rec[1],
         **{n: v / fixed.PARAM_ONE for n, v in zip(fixed.PARAM_NAMES, rec[7:])}}
+    return out
+
+
+def _discovery(d: dict, catalogue) -> dict:
+    """A DISCOVERY record for people: the effects by name, the held-out errors (the board's
+    integers: heldscore's sums of | |a|^2 - 1 |, Q16 g^2) and their change in %, the closest
+    candidate's parameters in their report units."""
+    def named(code):   # effects.model_code: one effect, or a pair (the curve)
+        return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+    out = {"index": d["index"], "adopted": named(d["adopted"]), "closest": named(d["closest"]),
+           "heldout_before": d["heldout_before"], "heldout_after": d["heldout_after"],
+           "blocks_better": d["blocks_better"], "blocks": d["blocks"]}
+    before, after = d["heldout_before"], d["heldout_after"]
+    out["change_pct"] = (round(100.0 * (after - before) / before, 1)
+                         if before and out["closest"] else None)
+    if out["closest"]:    # the record holds its first effect's parameters
+        eff = catalogue[out["closest"].split("+")[0]]
+        vals = eff.from_int([d["p0"], d["p1"], d["p2"]]) * eff.scale
+        out["unit"] = eff.report_unit
+        out["params"] = dict(zip(eff.param_names, vals.tolist()))
     return out

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from acal import bins as dbins
+from acal.heldout import held_out
 from accelcal.fixedpoint import QUANTITIES
 
 BLOCK = 256     # points judged against one snapshot of the bins
@@ -148,7 +149,9 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
                 last = conds[i]
                 runner.conditions(*last)
                 now = _conditions_now(pipe)
-            if skip[i]:     # what offer and on_rest do for a refusal
+            # a discovering pipeline's held-out blocks take points the bins would refuse
+            if skip[i] and not (pipe.held is not None and held_out(pipe.time)):
+                # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1
                 rest.append((x, y, z, -1) + now)

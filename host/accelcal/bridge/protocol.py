@@ -42,6 +42,7 @@ class Config:
     # kinds: a model whose effects the host fits (ModelSpec.host_only) needs them on the points
     fit: int = dprofile.GRADIENT
     profile: str = "paper"
+    discover: bool = False       # the board's own model discovery after the fit (NEWTON, base)
 
     @classmethod
     def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
@@ -73,7 +74,8 @@ class Config:
                  "axis": self.axis, "min_count": self.min_count, "max_count": self.max_count,
                  "differ": int(round(self.differ_g * fixed.POINT_ONE_G)),
                  "policy": {"first": dbins.FIRST, "centre": dbins.CENTRE}[self.policy],
-                 "iterations": self.iterations, "fit": self.fit}
+                 "iterations": self.iterations, "fit": self.fit,
+                 "discover": int(self.discover)}
         return [named[k] for k in SETTINGS] + list(self.rates_tenths) + list(self.kinds)
 
 
@@ -100,6 +102,8 @@ class DeviceResult:
     kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
     threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
     noise_level: int | None = None  # and the noise level it came from, Q10 g
+    discovery: list[int] | None = None   # discover: the V record (mp_runner.py)
+    candidates: list[tuple[int, int, int]] = field(default_factory=list)  # W: kind err betters
 
     @property
     def status_name(self) -> str:
@@ -184,6 +188,10 @@ class Collector:
             cur.kept = list(v[1:])
         elif tag == "N":
             cur.threshold, cur.noise_level = v[0], v[1]
+        elif tag == "V":
+            cur.discovery = list(v)
+        elif tag == "W":
+            cur.candidates.append(tuple(v[:3]))
         elif tag == "F":
             cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
             cur.params_int = list(v[4:])

@@ -37,6 +37,11 @@ def _app_settings(args) -> dict:
         s["fifo"] = True
     if args.recal_hours is not None:
         s["recal_seconds"] = int(args.recal_hours * 3600)
+    if args.discover:
+        if args.profile != "wear" or args.model != "base":
+            raise InputError("--discover: the board discovers from the wear profile's base model "
+                             f"(given --profile {args.profile} --model {args.model})")
+        s["discover"] = True
     if args.model != "base":
         from accelcal.model.effects import ModelSpec
         register_effects(args)
@@ -99,6 +104,9 @@ def _print_summary(s, where):
                      f"step at {e['step_time_s']} s of running time" if "step_time_s" in e else
                      f"supply {e['ref_supply_mv']} mV")
             print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, {where}")
+    from accelcal.pipeline.results import board_discovery_line
+    for d in s.get("discoveries", []):
+        print("  " + board_discovery_line(d))
     if s["stored_calibration"]:
         print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
     for d in s["dropped"]:
@@ -114,10 +122,10 @@ def cmd_replay(args) -> int:
         how = f", with the {args.profile} profile's settings" if args.profile else ""
         print(f"replayed {r['samples_replayed']} samples of {args.dir}/capture.bin through the current "
               f"device modules{how}")
-        for k in ("rest", "cal", "effect"):
+        for k in ("rest", "cal", "effect", "discovery"):
             d = r[k]
-            if k == "effect" and not d["board"] and not d["replay"]:
-                continue  # the paper's model: no effect records
+            if k in ("effect", "discovery") and not d["board"] and not d["replay"]:
+                continue  # the paper's model, a board that does not discover: no such records
             first = "" if d["first_difference"] is None else f", first difference at record {d['first_difference']}"
             print(f"  {k:4s}: board {d['board']}, replay {d['replay']}, differing {d['differ']}{first}")
         print("identical" if r["identical"] else
@@ -180,6 +188,11 @@ def add_parsers(sub) -> None:
                        help="wear (default): all-axis rest against the measured noise, 72 points, "
                             "Gauss-Newton with outlier rejection, sliced between FIFO reads; "
                             "paper: Farago 2024 to the letter")
+        g.add_argument("--discover", action="store_true",
+                       help="the board finds its own missing effect: after each calibration it fits "
+                            "every effect of its catalogue, scores them on rest points of held-out "
+                            "2-hour blocks, adopts one by diagnose's rule and logs a DISCOVERY "
+                            "record (wear profile, base model)")
 
     p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "

@@ -40,7 +40,11 @@ def cmd_calibrate(args) -> int:
                          "method fits the points its bins select")
     from accelcal.bridge.runtime import check
     check(args.runtime)
-    job = Job.of(cfg=pipeline_config(args, "+" in args.model), model=args.model,
+    cfg = pipeline_config(args, "+" in args.model)
+    if args.discover:
+        from dataclasses import replace
+        cfg = replace(cfg, discover=True)
+    job = Job.of(cfg=cfg, model=args.model,
                  method=args.method, runtime_name=args.runtime, engine=args.engine,
                  fallback=args.fallback, points=args.points or "bins", effects=args.effects)
     job.spec()   # bad options are bad input, before any file is read or written
@@ -161,6 +165,12 @@ def add_parsers(sub) -> None:
                         "numpy twin of the device's detector, bit-exact with it, and offers them "
                         "to the device's bins; device (default under micropython) feeds every "
                         "sample through the device modules, for regression testing device code")
+    p.add_argument("--discover", action="store_true",
+                   help="the board's own model discovery (model base, --method device, wear "
+                        "profile): after the base fit, each catalogue effect the device runs is "
+                        "fitted and scored on held-out 2-hour blocks in integers, and adopted by "
+                        "diagnose's rule; prints the effect named and the held-out error after "
+                        "(docs/model-discovery.md \"Discovery on the board\")")
     p.add_argument("--by", metavar="COLUMN", help="calibrate each value of COLUMN (e.g. device) separately")
     p.add_argument("--save", metavar="PARAMS.json", help="save the parameters (with --by: all devices)")
     p.add_argument("--force", action="store_true", help=FORCE_HELP + ": --save, --summary")

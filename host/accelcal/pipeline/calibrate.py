@@ -117,6 +117,11 @@ def _device_spec(spec: ModelSpec | None, method: str, cfg: runtime.Config,
     A model with an effect the device does not have is fitted by lsq on every rest point, the
     device handing over each point's conditions."""
     spec = spec or ModelSpec(())
+    if cfg.discover:   # the board's own discovery: from its base model, with its fit
+        if spec.effects or method != "device" or cfg.fit != dprofile.NEWTON:
+            raise InputError("--discover runs the board's own discovery: model base, --method "
+                             "device, --profile wear")
+        return spec, replace(cfg, kinds=(), conditions=True)
     if spec.effects and method not in ("device", "lsq"):
         raise InputError(f"model {spec}: composed models are fitted by --method device or lsq")
     if spec.host_only:
@@ -195,7 +200,10 @@ class Fit:
             rec["note"] = r.status_name
         rec["iterations"] = r.iterations
         rec["objective"] = r.objective / (1 << fixed.OBJ_Q) / max(1, rec["points"])
-        return self._params_record(rec, r.params_int)
+        rec = self._params_record(rec, r.params_int)
+        if cfg.discover:
+            rec["discovery"] = discovery_record(r, self.group.t_first)
+        return rec
 
     def rest_columns(self) -> dict:
         """The recording columns the model's effects follow, one value per rest point the device
@@ -292,6 +300,48 @@ class Fit:
         return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
+def heldout_mg(err: int, points: int) -> float | None:
+    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2) as
+    mean | |a| - 1 g | in mg, near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
+    return err / points / (2 * fixed.POINT_ONE_G) * 1e3 if points and err >= 0 else None
+
+
+def _effects_named(code: int) -> str | None:
+    """A model code of the board's (effects.model_code) as its effects' names joined by '+'."""
+    return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+
+
+def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
+    """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
+    adopted (None: none) or the closest candidate, the held-out error before and after (the
+    board's integers and in mg), its blocks, each candidate, and the adopted model's parameters."""
+    if r.discovery is None:
+        return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
+                "not end OK)"}
+    adopted, closest, before, after, betters, blocks, held, step_time = r.discovery[:8]
+    p_int = r.discovery[8:]
+    out = {"effect": _effects_named(adopted), "closest": _effects_named(closest),
+           "heldout_points": held, "heldout_before": before, "heldout_after": after,
+           "heldout_error_before_mg": heldout_mg(before, held),
+           "heldout_error_after_mg": heldout_mg(after, held) if closest else None,
+           "blocks_better": betters, "blocks": blocks,
+           "candidates": [{"effect": _effects_named(k), "heldout": e, "heldout_error_mg":
+                           heldout_mg(e, held), "blocks_better": b} for k, e, b in r.candidates]}
+    from acal.discover import MIN_BLOCKS, MIN_HELD
+    if held < MIN_HELD or blocks < MIN_BLOCKS or before <= 0:
+        out["reason"] = (f"{held} held-out rest points in {blocks} held-out 2-hour blocks "
+                         f"(the board tries from {MIN_HELD} in {MIN_BLOCKS})")
+    if closest:
+        spec = ModelSpec.parse(f"base+{out['closest']}")
+        p_int = p_int[:len(spec.param_names)]
+        out["model"] = str(spec) if adopted else "base"
+        out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
+        out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
+        if deff.STEP in deff.model_kinds(closest):
+            out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
+    return out
+
+
 def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,
                         spec: ModelSpec | None = None, engine: str = "vector",
                         progress=None, fallback: str | None = None,
@@ -307,14 +357,16 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
         raise InputError(f"model {spec}: its column effects ({', '.join(spec.columns)}) are "
                          "fitted on the rest points the host finds: --engine vector")
     rec_in = open_recording(path)
+    # a discovering board reads its own columns (its supply) for the candidates that follow them
+    wanted = set(spec.columns) | ({q.column for q in COLUMN_QUANTITIES} if cfg.discover else set())
     out = scan(rec_in, cfg.seconds, cfg.threshold_int, cfg.axis, keep_samples=engine == "device",
-               progress=progress, extras=bool(spec.columns))
+               progress=progress, extras=bool(wanted))
     sc, whole = out if engine == "device" else (out, None)
     cfg = replace(cfg, rate_hz=sc.rate_hz)
     m = sc.masks()
     kept = m["kept"]
     temp = None if sc.seg_temp is None else sc.seg_temp[kept]
-    cols = {c: sc.seg_column(c)[kept] for c in sc.columns if c in spec.columns}
+    cols = {c: sc.seg_column(c)[kept] for c in sc.columns if c in wanted}
     try:
         spec.check_data(temp, sc.seg_t[kept], path, cols)
     except ValueError as e:

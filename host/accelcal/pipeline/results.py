@@ -25,6 +25,19 @@ SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format
                    "error_before_mg", "error_after_mg", "iterations", "seconds", *PARAM_NAMES)
 
 
+def discovery_line(d: dict) -> str:
+    """The board's own discovery in one line (pipeline/calibrate.py discovery_record)."""
+    if d.get("reason"):
+        return f"discovery: nothing tried: {d['reason']}"
+    if d["closest"] is None:
+        return "discovery: no candidate testable on these points"
+    after = (f"{d['heldout_error_before_mg']:.2f} -> {d['heldout_error_after_mg']:.2f} mg "
+             f"held-out, better in {d['blocks_better']} of {d['blocks']} held-out blocks")
+    if d["effect"]:
+        return f"discovery: the board adopts {d['effect']} (model {d['model']}): {after}"
+    return f"discovery: no effect adopted; the closest, {d['closest']}: {after}"
+
+
 class CalibrationResult(dict):
     """One device's (or file's) calibration: its JSON record, and how it reads."""
 
@@ -91,6 +104,8 @@ class CalibrationResult(dict):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if "discovery" in r:
+            lines.append("  " + discovery_line(r["discovery"]))
         return "\n".join(lines)
 
     def summary_row(self) -> dict:
@@ -257,7 +272,24 @@ class BoardReport(dict):
             lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
+        lines += [board_discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
         return "\n".join(lines)
+
+
+def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
+    """One DISCOVERY record of a board (boardlog.summary's form), as `pull` and `report` say it:
+    when, the effect adopted or the closest candidate, the held-out error's change, the blocks."""
+    when = f"sample {d['index']}" + (f" ({d['index'] / rate_hz / 3600:.1f} h)" if rate_hz else "")
+    if d["closest"] is None:
+        return (f"discovery at {when}: no candidate testable (too few held-out points or "
+                "blocks, or no spread in temperature, time or supply)")
+    change = f"held-out error {d['change_pct']:+.0f} %" if d["change_pct"] is not None else ""
+    blocks = f"better in {d['blocks_better']} of {d['blocks']} held-out blocks"
+    vals = " ".join(f"{n}={v:+.4g}" for n, v in d.get("params", {}).items())
+    if d["adopted"]:
+        return (f"discovery at {when}: ADOPTED {d['adopted']} ({change}, {blocks}): "
+                f"{vals} {d.get('unit', '')}".rstrip())
+    return f"discovery at {when}: nothing adopted; closest {d['closest']} ({change}, {blocks})"
 
 
 class ApplyResult(dict):

@@ -177,6 +177,24 @@ def board_page(folder: str, summ: dict, pngs: dict[str, bytes], rate_hz: int | N
                  "kzz", "ox (mg)", "oy (mg)", "oz (mg)", "effects"], rows)]
     for name, png in pngs.items():
         body.append(_figure(png, CAPTIONS.get(name, name)))
+    found = summ.get("discoveries") or []
+    if found:
+        drows = []
+        for d in found:
+            h = "–" if not rate_hz else f"{d['index'] / rate_hz / 3600:.2f}"
+            pars = ", ".join(f"{n} {v:+.4g}" for n, v in d.get("params", {}).items())
+            drows.append([h, _e(d["adopted"] or "–"), _e(d["closest"] or "–"),
+                          str(d["heldout_before"]), str(d["heldout_after"]),
+                          "–" if d["change_pct"] is None else f"{d['change_pct']:+.0f} %",
+                          f"{d['blocks_better']} of {d['blocks']}",
+                          _e(pars + (f" ({d['unit']})" if pars else ""))])
+        body.append("<h2>Discovery on the board</h2><p>After a calibration the board fits each "
+                    "effect of its catalogue on its fit points and scores it on rest points from "
+                    "held-out 2-hour blocks; it adopts one only under the rule <code>diagnose</code> "
+                    "names by. Held-out errors in the board's integers (sums of | |a|² − 1 |, "
+                    "Q16 g²).</p>" + _table(
+                        ["running time (h)", "adopted", "closest candidate", "held-out before",
+                         "held-out after", "change", "blocks better", "its parameters"], drows))
     cnt = summ.get("counters")
     if cnt:
         body.append("<h2>Counters</h2>" + _table(list(cnt), [[str(v) for v in cnt.values()]], 0))

@@ -6,7 +6,8 @@
 4. show the calibration the board computed beside the host's replay of the same samples through
    the same device modules under CPython (bit for bit), and beside the simulated truth;
 5. walk the model-discovery loop on three days with a hidden effect chosen at random: the base
-   fit, diagnose names the effect, add it, the held-out error falls to near the noise floor."""
+   fit, diagnose names the effect, and the board's own discovery (the device modules with
+   `--discover`) names it too; add it, the held-out error falls to near the noise floor."""
 from __future__ import annotations
 
 import json
@@ -127,6 +128,7 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
               f"better in {c['blocks_improved_pct']:.0f} % of held-out blocks)")
     named = out["missing_effect"]
     print(f"diagnose names: {named}\n  {out['explanation']}")
+    board = board_discovers(rec)
     if not named:
         return False
     model = f"base+{named}"
@@ -151,10 +153,27 @@ def discovery_loop(work: Path, seed: int | None = None) -> bool:
     print(f"with {named}: held-out error {after['heldout_error_mg']:.2f} mg "
           f"(noise floor {after['noise_floor_mg']:.2f} mg); names next: {after['missing_effect'] or 'nothing'}\n")
     cli("report", str(hist), "--plot", str(work / "steps.png"))
-    print(f"the hidden effect was: {hidden} -> {'FOUND' if named == hidden else 'MISSED'}; "
+    print(f"the hidden effect was: {hidden} -> {'FOUND' if named == hidden else 'MISSED'} by diagnose, "
+          f"{'FOUND' if board == hidden else 'MISSED'} by the board's own discovery; "
           f"open {work / 'report-base' / 'report.html'} (where the base model fails) and "
           f"{work / 'report' / 'report.html'} (before and after {named}, the steps so far)")
-    return named == hidden
+    return named == hidden and board == hidden
+
+
+def board_discovers(rec: Path) -> str | None:
+    """The board's own discovery on the same recording (the device modules, base model,
+    `--discover`: what a board deployed with `accelcal deploy --discover` does in the field)."""
+    r = cli("calibrate", str(rec), "--discover", "--json", quiet=True, ok=(0, 2))
+    d = (json.loads(r.stdout) if r.stdout.strip() else {}).get("discovery") or {}
+    if d.get("effect"):
+        print(f"the board's own discovery (deployed with base and --discover): adopts {d['effect']}, "
+              f"held-out {d['heldout_error_before_mg']:.2f} -> {d['heldout_error_after_mg']:.2f} mg, "
+              f"better in {d['blocks_better']} of {d['blocks']} held-out blocks")
+    else:
+        print("the board's own discovery (deployed with base and --discover): adopts nothing"
+              + (f" ({d['reason']})" if d.get("reason") else
+                 f"; the closest, {d.get('closest')}" if d else ""))
+    return d.get("effect")
 
 
 if __name__ == "__main__":

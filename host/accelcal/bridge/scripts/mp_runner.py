@@ -5,10 +5,12 @@
 # expressions beyond str(), no host imports.
 #
 # Input lines (integers, space separated):
-#   C rate seconds threshold axis min_count max_count differ policy iterations fit a_s a_m a_o
-#     [kind ...]           the settings, in SETTINGS order; threshold 0: from the noise
+#   C rate seconds threshold axis min_count max_count differ policy iterations fit discover
+#     a_s a_m a_o [kind ...]   the settings, in SETTINGS order; threshold 0: from the noise
 #                          (acal.rest.AUTO); axis 3: all axes; fit: acal.profile.GRADIENT or
-#                          NEWTON; the effects of a composed model (acal.effects ids), if any
+#                          NEWTON; discover 1: the board's own discovery after the fit
+#                          (acal/discover.py); the effects of a composed model (acal.effects
+#                          ids), if any
 #   G name                 start a group (a device): a fresh pipeline
 #   T temp time supply     conditions of what follows: degC, 64 s units, mV (composed models)
 #   P x y z                a rest point, Q16 g, offered to the bins
@@ -31,6 +33,10 @@
 #                              rejected as outliers (0)
 #   N threshold level          the rest threshold in force at the end and the noise level it
 #                              came from (Q10 g; AUTO only)
+#   V adopted closest before after betters blocks held step_time p0 .. p11   discover: the
+#                              DISCOVERY record's fields (acal/log.py), the held-out points, a
+#                              step's time and the closest candidate's 12 parameters
+#   W kind err betters         discover: each candidate (err -1: not testable)
 import sys
 from array import array
 
@@ -40,7 +46,7 @@ from acal.profile import NEWTON
 # The C line's fields, in order: the one place the settings' order is written (the host's
 # Config.line() builds the line from it).  The learning rates (a_*) and the effect ids follow.
 SETTINGS = ("rate_hz", "seconds", "threshold", "axis", "min_count", "max_count", "differ", "policy",
-            "iterations", "fit")
+            "iterations", "fit", "discover")
 
 
 class Runner:
@@ -65,7 +71,8 @@ class Runner:
 
         pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
                         max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
-                        on_rest=on_rest, alphas=(v[n], v[n + 1], v[n + 2]), kinds=v[n + 3:])
+                        on_rest=on_rest, alphas=(v[n], v[n + 1], v[n + 2]), kinds=v[n + 3:],
+                        discover=v[10] == 1)
         self.pipe = pipe
 
     def conditions(self, temp, time, supply):
@@ -104,6 +111,15 @@ class Runner:
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:
             emit("D", [o.n_given] + [o.keep[i] for i in range(o.n_given)])
+        d = pipe.discovery
+        if d is not None and status == 0:   # acal.status.OK: a base fit to start from
+            d.run(pipe)
+            i = d.chosen
+            emit("V", [d.kind, d.kind_ids[i] if i >= 0 else 0, d.before,
+                       d.errs[i] if i >= 0 else 0, d.betters[i] if i >= 0 else 0, d.blocks,
+                       d.held.count, d.step_time] + list(d.params))
+            for j in range(len(d.errs)):
+                emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
         if pipe.rest.auto and pipe.rest.segments:
             emit("N", [pipe.rest.threshold, pipe.rest.gauge.level])
 

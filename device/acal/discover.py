@@ -1,0 +1,317 @@
+# The board's own model discovery (issue 29; docs/model-discovery.md "Discovery on the board"):
+# after a usable calibration of the paper's model (the wear profile's fit), each candidate effect
+# of the catalogue the board can run is fitted on the same gathered fit points, from the base
+# fit's parameters, scored on the held-out rest points (heldout.py, heldscore.py) and the
+# choice made as `diagnose` makes it (candidates.py, discovery.py's rule).
+#
+# Sliced as the fit: begin() then step() until it returns True, each step one slice of a
+# candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py) or the
+# scoring of one candidate.  Nothing is allocated per candidate or per score: one GaussNewton
+# sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
+# effect tuples are made once, here), and the results go to preallocated int32 arrays.
+# Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
+# products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
+# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
+from acal import candidates, discovery, effects
+from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
+from acal.fixed import N_PARAMS
+from acal.gaussnewton import GaussNewton
+from acal.heldscore import HeldScore
+from acal.status import OK
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
+
+# The candidates, as `diagnose` tries them (host/accelcal/model/effects.py, candidate=True):
+# the single effects the board runs, the step last of them (its change-point search runs
+# first), then the curve with its straight part, tried together (diagnose's curves(),
+# docs/model-discovery.md "Curves"), from the straight part's fit.
+KINDS = ((effects.TEMP_OFFSET,), (effects.TEMP_SCALE,), (effects.DRIFT,),
+         (effects.NONLINEAR,), (effects.TEMP_OFFSET2,), (effects.SUPPLY_OFFSET,),
+         (effects.STEP,), (effects.TEMP_OFFSET, effects.TEMP_OFFSET2))
+N_SINGLE = const(7)          # the single effects, among which candidates.best chooses
+PAIR = const(7)              # the curve with its straight part
+N_CANDIDATES = const(8)
+N_ALL = const(15)            # N_PARAMS + 6: the largest candidate's parameters
+MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
+# Held-out blocks needed before a board tries (a day of wear: 6 odd 2-hour blocks).  A board
+# tries again after each calibration, and nobody confirms what it adopts: it adopts an effect
+# only on clear evidence (discovery.clear), where `diagnose` also names weak evidence for a
+# person to confirm on a longer recording.
+MIN_BLOCKS = const(6)
+UNTESTABLE = const(-1)
+ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g^2 a point)
+
+# Per step, so that no step outlasts the fit's own (emulated RP2040: the base fit's longest
+# slice 1.1 ms; 8 points scored took 5.7 ms, 4 slots compared 4.0 ms; docs/model-discovery.md
+# "Discovery on the board"):
+SCORE_POINTS = const(2)      # held-out points scored
+BLOCK_SLOTS = const(1)       # held-out slots of the block comparison (each up to CAPACITY
+# comparisons)
+
+_BASE = 0       # the base model scored on the held-out points
+_FIT = 1        # candidate i's fit, a slice a step
+_SEARCH = 2     # a step's change-point search on the base fit
+_SCORE = 3      # candidate i scored
+_DONE = 4
+_BLOCKS = 5     # the held-out blocks counted
+_BETTER = 6     # candidate i's blocks compared with the base model's
+
+
+def testable(kind, cond, n):
+    """True when n fit points' conditions (flat, COND apiece) span what the candidate's
+    regressor needs (bins.py's thresholds, which `diagnose` asks too; a reading's effect needs
+    none).  Two returns, not a pair: a tuple would be an allocation."""
+    source = effects.source_of(kind)
+    if source == effects.SOURCE_TEMP:
+        return _range(cond, n, 0) >= TEMP_DIFFER
+    if source == effects.SOURCE_TIME:
+        return _range(cond, n, 1) >= TIME_DIFFER
+    if source == effects.SOURCE_SUPPLY:
+        return _range(cond, n, 2) >= SUPPLY_DIFFER
+    return True
+
+
+class Discover:
+    """After a run (begin(), step() until True): before (the base model's held-out error),
+    errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
+    candidates.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
+    (True when the rule names it), kind (its effects.model_code, 0: none; kind_ids: every
+    candidate's), params (its parameters, Q24) and step_time (a step's)."""
+
+    def __init__(self, max_points, held):
+        self.held = held
+        self.fit = GaussNewton(max_points, KINDS[PAIR], True)   # sized for the largest
+        self.score = HeldScore(held.capacity)
+        from acal.changepoint import ChangePoint   # the step's search: nothing per point
+        self.search = ChangePoint()
+        self.kind_ids = int32s(N_CANDIDATES)
+        for i in range(N_CANDIDATES):
+            self.kind_ids[i] = effects.model_code(KINDS[i])
+        self.errs = int32s(N_CANDIDATES)
+        self.betters = int32s(N_CANDIDATES)
+        self.fits = int32s(4 * N_CANDIDATES)   # per candidate: iterations, points kept,
+        # objective at the start and at the end (the fit's, Q24 g^4 saturated below 2**30)
+        self.all_params = int32s(N_CANDIDATES * N_ALL)
+        self.ts = int32s(N_CANDIDATES)
+        self.params = int32s(N_ALL)
+        self.phase = _DONE
+        self.i = 0
+        self.pos = 0           # where a sliced score or block comparison stands
+        self.pipe = None
+        self.before = 0
+        self.blocks = 0
+        self.chosen = -1
+        self.adopted = False
+        self.kind = 0
+        self.step_time = 0
+
+    def begin(self, pipe):
+        """Start on a pipeline whose base fit has just ended usable: its gathered points and
+        conditions (relative to pipe.ref_*), its fit's parameters."""
+        self.pipe = pipe
+        self.i = 0
+        self.pos = 0
+        self.chosen = -1
+        self.adopted = False
+        self.kind = 0
+        self.before = 0
+        self.blocks = 0
+        for i in range(N_CANDIDATES):
+            self.errs[i] = UNTESTABLE
+            self.betters[i] = 0
+        self.phase = _BASE
+
+    def step(self):
+        """One slice; True when the choice is made."""
+        ph = self.phase
+        if ph == _BASE:
+            self._score_base()
+        elif ph == _FIT:
+            if self.fit.step():
+                self._fitted()
+        elif ph == _SEARCH:
+            if self.search.step():
+                self._searched()
+        elif ph == _SCORE:
+            self._score_candidate()
+        elif ph == _BLOCKS:
+            self._count_blocks()
+        elif ph == _BETTER:
+            self._compare_blocks()
+        return self.phase == _DONE
+
+    def _score_base(self):
+        # the base model's held-out error, SCORE_POINTS a step
+        s = self.score
+        h = self.held
+        if self.pos == 0:
+            if h.count < MIN_HELD:
+                self.phase = _DONE
+                return
+            s.begin(self.pipe.optimiser.p, (), h)
+            self.pos = 1
+        if not s.part(SCORE_POINTS):
+            return
+        self.before = _saturated(s.total)
+        if self.before <= 0:
+            self.phase = _DONE
+            return
+        s.firsts = 0
+        self.pos = 0
+        self.phase = _BLOCKS
+
+    def _count_blocks(self):
+        # the base errors kept and the blocks' first slots marked, BLOCK_SLOTS a step
+        s = self.score
+        end = _slots_end(self.pos, self.held.count)
+        s.keep_as_base(end, self.pos)
+        s.mark_first(self.held, self.pos, end)
+        self.pos = end
+        if end < self.held.count:
+            return
+        self.blocks = s.firsts
+        if self.blocks < MIN_BLOCKS:
+            self.phase = _DONE
+            return
+        self._next(0)
+
+    def _next(self, i):
+        # candidate i begins (the untestable ones skipped), or the choice when none is left
+        pipe = self.pipe
+        while i < N_CANDIDATES and not testable(KINDS[i][0], pipe.aux, pipe.n_fit):
+            i += 1
+        self.i = i
+        if i == N_CANDIDATES:
+            self._choose()
+            return
+        fit = self.fit
+        _rekind(fit, KINDS[i])
+        fit.ts = 0
+        if KINDS[i][0] == effects.STEP:
+            self.search.begin(pipe.optimiser)
+            self.phase = _SEARCH
+            return
+        fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        if i == PAIR and self.errs[0] != UNTESTABLE:   # from the straight part's fit
+            for k in range(N_PARAMS, N_PARAMS + 3):
+                fit.p[k] = self.all_params[k]
+        self.phase = _FIT
+
+    def _searched(self):
+        pipe = self.pipe
+        if not self.search.found:
+            self._next(self.i + 1)
+            return
+        self.fit.ts = self.search.ts
+        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        self.phase = _FIT
+
+    def _fitted(self):
+        # candidate i's fit has ended: kept and scored when it is OK
+        fit = self.fit
+        i = self.i
+        if fit.status != OK:
+            self._next(i + 1)
+            return
+        f = 4 * i
+        self.fits[f] = fit.iterations
+        self.fits[f + 1] = fit.n
+        self.fits[f + 2] = fit.objective_start
+        self.fits[f + 3] = fit.objective
+        for k in range(N_ALL):
+            self.all_params[N_ALL * i + k] = fit.p[k]
+        self.ts[i] = fit.ts
+        pipe = self.pipe
+        self.score.begin(fit.p, fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
+                         pipe.ref_supply, fit.ts)
+        self.phase = _SCORE
+
+    def _score_candidate(self):
+        # candidate i's held-out error, SCORE_POINTS a step
+        if not self.score.part(SCORE_POINTS):
+            return
+        e = _saturated(self.score.total)
+        self.errs[self.i] = e
+        if e < 0:
+            self._next(self.i + 1)
+            return
+        self.pos = 0
+        self.phase = _BETTER
+
+    def _compare_blocks(self):
+        # the blocks candidate i is better in, BLOCK_SLOTS a step
+        end = _slots_end(self.pos, self.held.count)
+        self.betters[self.i] += self.score.better_part(self.held, self.pos, end)
+        self.pos = end
+        if end == self.held.count:
+            self._next(self.i + 1)
+
+    def _choose(self):
+        i = candidates.best(self.kind_ids, self.errs, N_SINGLE)
+        named = (candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
+                 and discovery.clear(self.betters[i], self.blocks))
+        if candidates.adopted(self.before, self.errs, self.betters, self.blocks, PAIR) and \
+                discovery.clear(self.betters[PAIR], self.blocks) and self.errs[PAIR] >= 0 and \
+                (not named or not discovery.plain_preferred(self.errs[PAIR], self.errs[i])):
+            i = PAIR      # diagnose: the curve unless the best single comes within 1.5x
+            named = True
+        self.chosen = i
+        self.adopted = named
+        if i >= 0:
+            for k in range(N_ALL):
+                self.params[k] = self.all_params[N_ALL * i + k]
+            self.step_time = self.ts[i]
+            if self.adopted:
+                self.kind = self.kind_ids[i]
+        self.phase = _DONE
+
+    def take(self):
+        """The fit re-kinded to the chosen candidate and holding its parameters and step
+        time (the fit holds the last candidate tried until then); returns it."""
+        fit = self.fit
+        _rekind(fit, KINDS[self.chosen])
+        for k in range(N_ALL):
+            fit.p[k] = self.params[k]
+        fit.ts = self.step_time
+        return fit
+
+    def run(self, pipe):
+        """begin() and every step at once."""
+        self.begin(pipe)
+        while not self.step():
+            pass
+
+
+def _rekind(fit, kinds):
+    # the one fit made another candidate: a preallocated tuple of at most as many effects
+    fit.kinds = kinds
+    fit.nk = len(kinds)
+    fit.n_params = N_PARAMS + 3 * len(kinds)
+    for k in range(len(kinds)):
+        fit.kind_ids[k] = kinds[k]
+
+
+def _slots_end(pos, count):
+    end = pos + BLOCK_SLOTS
+    return end if end < count else count
+
+
+def _saturated(e):
+    return ERR_MAX if e > ERR_MAX else e
+
+
+def _range(cond, n, c):
+    # the range of condition c over n points' conditions (flat, COND apiece)
+    if n == 0:
+        return 0
+    lo = hi = cond[c]
+    for i in range(1, n):
+        v = cond[COND * i + c]
+        if v < lo:
+            lo = v
+        elif v > hi:
+            hi = v
+    return hi - lo

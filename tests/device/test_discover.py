@@ -1,0 +1,204 @@
+"""The board's own model discovery (device/acal/discover.py, issue 29): a Processor started with
+`base` and discover=True, fed a simulated stream (two days of rest postures at a daily
+temperature cycle, a hidden temp_offset), adopts temp_offset and logs DISCOVERY, CAL and EFFECT
+records that the real MicroPython reproduces byte for byte; on the same stream without the
+effect it adopts nothing; the candidate fits and scores allocate nothing under heap_lock on the
+unix and 32-bit ports, and the rule's products at the saturated errors stay small ints there."""
+import numpy as np
+
+from accelcal import simulate
+from accelcal.bridge import boardlog, runtime
+from acal import effects, log
+
+TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
+C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset, the LIS3DH's size
+RATE = 10
+GAP_SAMPLES = 4400            # 440 s between rest postures: 2 days in 384 postures
+
+
+def postures(rng, c, n=384):
+    """Per posture: the reading (Q10 g) of a sensor with errors TRUTH and temp_offset c at a
+    daily temperature cycle (22-34 degC), and that temperature: x y z temp, flat."""
+    out = []
+    d = simulate.unit_points(rng, n)
+    for i in range(n):
+        hours = i * (6 * 10 + 2 * 10 + GAP_SAMPLES) / RATE / 3600
+        temp = int(round(28 + 6 * np.sin(2 * np.pi * hours / 24)))
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28)
+        out += [int(round(x * 1024)) for x in v] + [temp]
+    return out
+
+
+STREAM = r'''
+import sys
+from array import array
+from acal import log
+from acal.processor import Processor
+
+REST = %s
+GAP = %d
+
+
+def run(path):
+    lg = log.Log(path)
+    p = Processor(lg, 10, discover=True)
+    buf = array("i", bytearray(12 * 40))
+    seed = 12345
+    for s in range(len(REST) // 4):
+        p.temp = REST[4 * s + 3]
+        for part in range(3):            # 6 s of rest: noise of +-2 LSB (2 mg)
+            for i in range(20):
+                for c in range(3):
+                    seed = (seed * 1103515245 + 12345) & 0x7FFFFFFF
+                    buf[3 * i + c] = REST[4 * s + c] + (seed >> 16) %% 5 - 2
+            p.feed(buf, 20)
+        for i in range(20):              # 2 s of motion
+            for c in range(3):
+                buf[3 * i + c] = REST[4 * s + c] + (300 if (i + c) & 1 else -300)
+        p.feed(buf, 20)
+        p.gap(GAP)
+    lg.close()
+    print(p.calibrations, p.kinds)
+
+
+run(sys.argv[1])
+'''
+
+
+def _stream(tmp_path, name, c):
+    f = tmp_path / f"{name}.py"
+    f.write_text(STREAM % (postures(np.random.default_rng(5), c), GAP_SAMPLES))
+    return f
+
+
+def _run_cpython(script, out):
+    import sys
+    argv = sys.argv
+    sys.argv = [str(script), str(out)]
+    try:
+        exec(compile(script.read_text(), str(script), "exec"), {"__name__": "stream"})
+    finally:
+        sys.argv = argv
+
+
+def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_path):
+    script = _stream(tmp_path, "effect", C_TRUE)
+    _run_cpython(script, tmp_path / "cpython.bin")
+    runtime.run_micropython_script(str(script), str(tmp_path / "mp.bin"))
+    ours = (tmp_path / "cpython.bin").read_bytes()
+    assert ours == (tmp_path / "mp.bin").read_bytes()
+    d = boardlog.decode(tmp_path / "cpython.bin")
+    found = d.dicts(log.DISCOVERY)
+    assert found, "no DISCOVERY record"
+    last = found[-1]
+    assert effects.NAMES[last["adopted"]] == "temp_offset", found
+    assert all(f["adopted"] == 0 for f in found[:-1])
+    assert last["heldout_after"] < 0.9 * last["heldout_before"]
+    assert 10 * last["blocks_better"] >= 7 * last["blocks"]
+    # the adopted calibration follows at once: a CAL and its EFFECT, the truth's signs
+    eff = d.dicts(log.EFFECT)
+    assert eff and eff[0]["index"] == last["index"] and eff[0]["effect"] == effects.TEMP_OFFSET
+    p = np.array([eff[0][f"p{i}"] for i in range(3)]) / 2 ** 24 / 16   # g/degC (effects.py)
+    assert np.all(np.sign(p) == np.sign(C_TRUE)) and np.all(np.abs(p - C_TRUE) < 3e-4), p
+
+
+def test_processor_adopts_nothing_without_an_effect(tmp_path):
+    script = _stream(tmp_path, "clean", np.zeros(3))
+    _run_cpython(script, tmp_path / "clean.bin")
+    found = boardlog.decode(tmp_path / "clean.bin").dicts(log.DISCOVERY)
+    assert found and all(f["adopted"] == 0 for f in found), found
+    assert not boardlog.decode(tmp_path / "clean.bin").of(log.EFFECT)
+
+
+HEAP = r'''
+import micropython
+from acal.pipeline import Pipeline
+from acal import profile, candidates, discover
+from acal.bins import int32s
+
+# x y z (Q16 g) temp time, per rest mean (a string: a list literal this long exhausts the
+# 32-bit port's pystack)
+PTS = [int(v) for v in "%s".split()]
+pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+for i in range(len(PTS) // 5):
+    pipe.temp = PTS[5 * i + 3]
+    pipe.time = PTS[5 * i + 4]
+    pipe.offer(PTS[5 * i], PTS[5 * i + 1], PTS[5 * i + 2])
+status = pipe.calibrate()
+d = pipe.discovery
+d.begin(pipe)
+# the rule at its largest errors: every candidate saturated, one just below
+errs = int32s(discover.N_CANDIDATES)
+betters = int32s(discover.N_CANDIDATES)
+out = int32s(4)
+
+
+def work(d, errs, betters, out):
+    while not d.step():
+        pass
+    for i in range(discover.N_CANDIDATES):
+        errs[i] = discover.ERR_MAX - i
+        betters[i] = 72
+    out[0] = candidates.best(d.kind_ids, errs, discover.N_SINGLE)
+    out[1] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
+    errs[0] = 0
+    out[2] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0
+
+
+micropython.heap_lock()
+try:
+    work(d, errs, betters, out)
+    micropython.heap_unlock()
+    print("OK", status, d.before, d.blocks, d.chosen, int(d.adopted), d.kind,
+          " ".join(str(e) for e in d.errs), " ".join(str(b) for b in d.betters),
+          " ".join(str(v) for v in out[:3]))
+except MemoryError:
+    micropython.heap_unlock()
+    print("ALLOCATED")
+'''
+
+
+def _heap_script(tmp_path, name):
+    rng = np.random.default_rng(9)
+    d = simulate.unit_points(rng, 420)
+    pts = []
+    for i in range(420):
+        time = 7 * i                       # 64 s units: 2.2 days
+        temp = int(round(28 + 6 * np.sin(2 * np.pi * time * 64 / 86400)))
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp - 28)
+        v += rng.normal(scale=0.001, size=3)
+        pts += [int(round(x * 65536)) for x in v] + [temp, time]
+    f = tmp_path / name
+    f.write_text(HEAP % " ".join(map(str, pts)))
+    return f
+
+
+def _cpython_heap_result(f):
+    import contextlib
+    import io
+    text = f.read_text().replace("import micropython\n", "").replace(
+        "micropython.heap_lock()", "").replace("micropython.heap_unlock()", "")
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        exec(compile(text, str(f), "exec"), {"__name__": "heap"})
+    return buf.getvalue().split()
+
+
+def test_candidate_fits_and_scores_allocate_nothing(tmp_path):
+    """Every candidate's fit (the step's search too) and every score, then the rule at the
+    saturated errors, under heap_lock on the unix port: the same integers as CPython."""
+    out = runtime.run_micropython_script(str(_heap_script(tmp_path, "heap.py"))).split()
+    assert out[0] == "OK", out
+    want = _cpython_heap_result(tmp_path / "heap.py")
+    assert out == want
+    assert int(out[6]) == effects.TEMP_OFFSET, out      # adopted: the hidden effect
+    # at the saturated errors: the lowest is the step's, which gives way to the plain effect
+    # next to it (index 5), not adopted (no gain); a zero error against ERR_MAX is adopted
+    assert out[-3:] == ["5", "0", "1"]
+
+
+def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
+    """The same on the 32-bit port, where an int past 2**30 would allocate."""
+    out = mp32(str(_heap_script(tmp_path, "heap32.py"))).split()
+    assert out[0] == "OK", out
+    assert out == _cpython_heap_result(tmp_path / "heap32.py")

@@ -1,0 +1,55 @@
+"""The board's own discovery (`calibrate FILE --discover`, device/acal/discover.py) beside the
+host's `diagnose` on simulated wear, behind `slow`: every catalogue effect x seeds, the share of
+recordings where the board names what diagnose names (goal >= 90 %), and the board's false names
+on 10 clean seeds.  (The default suite's cases: tests/pipeline/test_diagnose.py.)"""
+import pytest
+
+from accelcal.bridge.runtime import Config
+from accelcal.pipeline.diagnose import diagnose
+from accelcal.pipeline.job import calibrate
+from conftest import simulate_wrists
+
+DAYS, RATE = 3, 10
+DISCOVER = Config.for_profile("wear", discover=True)
+
+
+def board_names(path):
+    """The board's named effect (None: none) and its discovery record."""
+    d = calibrate(str(path), cfg=DISCOVER)["discovery"]
+    return d["effect"], d
+
+
+EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear", "temp_offset2", "step",
+           "supply_offset")
+SEEDS = (51, 52, 53)
+CLEAN_SEEDS = tuple(range(61, 71))
+
+
+@pytest.mark.slow
+def test_study_agreement_with_diagnose_and_false_names(tmp_path):
+    """Each catalogue effect x SEEDS and 10 clean seeds, simulated two at a time and deleted
+    after use (3 days at 10 Hz are 94 MB each): prints each case and the shares."""
+    cases = [(e, s, (e,)) for e in EFFECTS for s in SEEDS] + [("clean", s, ()) for s in CLEAN_SEEDS]
+    rows = []
+    for k in range(0, len(cases), 2):
+        pair = {f"{n}_{s}": (s, eff) for n, s, eff in cases[k:k + 2]}
+        paths = simulate_wrists(tmp_path, pair, DAYS, RATE)
+        for key, path in paths.items():
+            host = diagnose(str(path))["missing_effect"]
+            named, d = board_names(path)
+            rows.append((key, host, named, d.get("closest"), d.get("blocks_better"), d.get("blocks"),
+                         d.get("heldout_error_before_mg"), d.get("heldout_error_after_mg")))
+            print(*rows[-1], flush=True)
+            path.unlink()
+            path.with_suffix(".truth.json").unlink()
+    hidden = [r for r in rows if not r[0].startswith("clean")]
+    agree = sum(r[1] == r[2] for r in rows)
+    right = sum(r[2] == r[0].rsplit("_", 1)[0] for r in hidden)
+    false = sum(r[2] is not None for r in rows if r[0].startswith("clean"))
+    print(f"board names what diagnose names in {agree} of {len(rows)} recordings "
+          f"({100 * agree / len(rows):.0f} %); the hidden effect in {right} of {len(hidden)}; "
+          f"false names on {false} of {len(CLEAN_SEEDS)} clean seeds")
+    assert false == 0
+    # the goal is 90 %; measured 84 % (26 of 31, docs/model-discovery.md "Discovery on the
+    # board" says where they differ): this floor catches a regression, not the goal
+    assert agree >= 0.8 * len(rows)
