@@ -48,7 +48,7 @@ class Processor:
     boot in 64 s units (no clock survives a power cut): a stored composed calibration is resumed
     at boot as if the board had not been off.
 
-    discover (model 'base', the wear profile, range_g 2): after a usable calibration the board
+    discover (model 'base', the wear profile; any full scale): after a usable calibration the board
     looks for its own missing effect (Pipeline's discover, sliced as the fit;
     docs/model-discovery.md "Discovery on the board"), and logs a DISCOVERY record; when an
     effect is adopted, the calibration (and the store) switch to the composed model at once, logged as a CAL and
@@ -63,8 +63,6 @@ class Processor:
         self.rate_hz = rate_hz
         self.range_g = range_g
         self.kinds = effects.parse_model(model)
-        if discover and range_g != 2:
-            raise ValueError("a composed model applies at +-2 g full scale: discover needs 2")
         settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
