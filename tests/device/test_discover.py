@@ -57,6 +57,8 @@ def run(path):
                 buf[3 * i + c] = REST[4 * s + c] + (300 if (i + c) & 1 else -300)
         p.feed(buf, 20)
         p.gap(GAP)
+    while p.discovering:   # its last slices: the gaps, most of the stream's time, feed nothing
+        p.feed(buf, 20)
     lg.close()
     print(p.calibrations, p.kinds)
 

@@ -50,6 +50,6 @@ def test_study_agreement_with_diagnose_and_false_names(tmp_path):
           f"({100 * agree / len(rows):.0f} %); the hidden effect in {right} of {len(hidden)}; "
           f"false names on {false} of {len(CLEAN_SEEDS)} clean seeds")
     assert false == 0
-    # the goal is 90 %; measured 84 % (26 of 31, docs/model-discovery.md "Discovery on the
-    # board" says where they differ): this floor catches a regression, not the goal
+    # the goal is 90 %; measured 84 % (26 of 31; where they differ:
+    # docs/model-discovery.md "Discovery on the board"): this floor catches a regression
     assert agree >= 0.8 * len(rows)
