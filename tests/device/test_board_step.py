@@ -16,6 +16,7 @@ from conftest import run_cli, wear_on_virtual_board
 RATE = 10
 
 
+@pytest.mark.slow   # CI's time limit (stop 37)
 def test_the_app_finds_and_removes_a_shock(tmp_path):
     """In the default run (about 30 s): the board's own code path, app to log to replay."""
     sys.path.insert(0, str(CHIP_DIR))

@@ -78,6 +78,7 @@ class NoSupply:
         return self.sim.i2c()
 
 
+@pytest.mark.slow   # CI's time limit (stop 37)
 def test_the_app_follows_the_board_supply(wrist, tmp_path):
     sys.path.insert(0, str(CHIP_DIR))
     from simboard import SimBoard

@@ -94,6 +94,7 @@ def test_fallback_is_reported_not_silent(files, tmp_path):
     assert run_cli("calibrate", morning).returncode == 2   # no fallback: a failure
 
 
+@pytest.mark.slow   # CI's time limit (stop 37)
 def test_dask_local_cluster_gives_the_local_pool_results(files):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
