@@ -283,8 +283,10 @@ def site_package(name):
     return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
 
 
-# slow since stop 37: on a fresh clone's flash image the 74-s run never ended (22 min, twice); with
-# the image built in the main checkout (same key, other bytes) it passes in ~100 s. Cause not found.
+# slow (~100-160 s). In stop 37 it did not end on one fresh clone's flash image (22 min, twice), whose
+# bytes differed from the main checkout's (the .mpy files named the paths they were compiled from).
+# Not reproduced since: 7 images from other paths and temporary names, and the deterministic one
+# (mpy-cross -s, test_rp2040.py) all pass; cause not found.
 @pytest.mark.slow
 def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,

@@ -122,3 +122,20 @@ def test_missing_firmware_is_one_line(monkeypatch, tmp_path):
     monkeypatch.setattr(rp2040, "_root", lambda: tmp_path)   # a checkout without firmware/
     with pytest.raises(InputError, match="firmware.uf2 is missing"):
         rp2040.run_script("print(1)\n")
+
+
+@pytest.mark.parametrize("fw", [rp2040.MICROPYTHON, rp2040.CIRCUITPYTHON], ids=lambda f: f.name)
+def test_the_same_sources_give_the_same_mpy_bytes_in_any_checkout(tmp_path, fw):
+    """A module compiled from two places (another checkout; a viper module goes through a
+    temporary file) gives the same .mpy bytes, so a flash image is the same in every clone."""
+    from accelcal.locations import DEVICE_PACKAGE
+    src = DEVICE_PACKAGE / "rest.py"
+    assert rp2040.VIPER_MARKER.search(src.read_text())   # the temporary-file path is taken
+    other = tmp_path / "another" / "checkout" / "device" / "acal"
+    other.mkdir(parents=True)
+    (other / src.name).write_text(src.read_text())
+    a, b = tmp_path / "a.mpy", tmp_path / "b.mpy"
+    rp2040.mpy_cross(src, a, fw.arch, fw)
+    rp2040.mpy_cross(other / src.name, b, fw.arch, fw)
+    assert a.read_bytes() == b.read_bytes() and b"rest.py" in a.read_bytes()
+    assert str(DEVICE_PACKAGE).encode() not in a.read_bytes()

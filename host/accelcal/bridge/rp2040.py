@@ -168,7 +168,10 @@ def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON
             src = Path(tmp) / src.name
             src.write_text(emitted_source(text, arch) if arch in EMITTER_ARCHS
                            else plain_source(text))
-        p = subprocess.run([*cmd, *march, "-o", str(dst), str(src)], capture_output=True, text=True)
+        # -s: the module's own name, not the path it was compiled from, so that the same sources
+        # give the same bytes in any checkout (and the board's tracebacks name its files)
+        p = subprocess.run([*cmd, *march, "-s", src.name, "-o", str(dst), str(src)],
+                           capture_output=True, text=True)
     if p.returncode != 0:
         raise InputError(f"mpy-cross failed on {src.name} for {arch or fw.name}: "
                          f"{p.stderr.strip()[-200:]}")
