@@ -31,6 +31,10 @@ SLOT_BYTES = const(4)
 # replaces it: a wearer still in one posture for hours would otherwise fill a block with one
 # point, and a block's error would be that point's.
 NEAR = const(6554)
+# Each slot counts the rest means it stands for (the newest kept), up to WEIGHT_CAP: `diagnose`
+# scores a block on every rest point in it, so a posture held for an hour weighs more than one
+# glanced at; heldscore.py weighs each point's error so.
+WEIGHT_CAP = const(16)
 BUDGET_BYTES = const(4608)  # CAPACITY * (3 + COND + 2) * SLOT_BYTES
 
 
@@ -53,11 +57,20 @@ class HeldOut:
         self.cond = int32s(COND * capacity)
         self.block = int32s(capacity)
         self.held = int32s(capacity)   # how many kept points share slot i's block
+        self.weight = int32s(capacity)  # how many rest means slot i stands for (<= WEIGHT_CAP)
         self.count = 0
 
     def nbytes(self):
         """The bytes of the preallocated arrays."""
-        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held))
+        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held) +
+                             len(self.weight))
+
+    def total_weight(self):
+        """The rest means the kept points stand for (the sum of their weights)."""
+        n = 0
+        for i in range(self.count):
+            n += self.weight[i]
+        return n
 
     def clear(self):
         self.count = 0
@@ -70,6 +83,8 @@ class HeldOut:
         near = self._near(x, y, z, b)
         if near >= 0:
             s = near        # the same posture again in its block: the newer reading kept
+            if self.weight[s] < WEIGHT_CAP:
+                self.weight[s] += 1
         elif self.count < self.capacity:
             s = self.count
             self.count += 1
@@ -83,6 +98,7 @@ class HeldOut:
         self.cond[COND * s + 1] = time
         self.cond[COND * s + 2] = supply
         if near < 0:
+            self.weight[s] = 1
             self.block[s] = b
             self._recount(b, 1)
         return True

@@ -85,6 +85,7 @@ class HeldScore:
                 r = -r
             if r > ERR_CAP:
                 r = ERR_CAP
+            r *= h.weight[i]
             self.err[i] = r
             self.total += r
         self.pos = end

@@ -2,12 +2,13 @@
 host's `diagnose` on simulated wear, behind `slow`: every catalogue effect x seeds, the share of
 recordings where the board names what diagnose names (goal >= 90 %), and the board's false names
 on 10 clean seeds.  (The default suite's cases: tests/pipeline/test_diagnose.py.)"""
+import numpy as np
 import pytest
 
 from accelcal.bridge.runtime import Config
 from accelcal.pipeline.diagnose import diagnose
 from accelcal.pipeline.job import calibrate
-from conftest import simulate_wrists
+from conftest import simulate_wrists, true_corrected
 
 DAYS, RATE = 3, 10
 DISCOVER = Config.for_profile("wear", discover=True)
@@ -17,6 +18,17 @@ def board_names(path):
     """The board's named effect (None: none) and its discovery record."""
     d = calibrate(str(path), cfg=DISCOVER)["discovery"]
     return d["effect"], d
+
+
+def true_board_heldout_mg(path, d) -> float:
+    """The simulation's true sensor model scored as the board scores a model (heldscore.py): on
+    the board's held-out points and their conditions, each point's | |a|^2 - 1 | weighted by
+    the rest means it stands for, as mg (heldout_mg's |a|^2 - 1 ~ 2 (|a| - 1))."""
+    hs = d["heldout_set"]
+    a = true_corrected(path, hs["xyz_g"], np.array(hs["temp"]), np.array(hs["time"]),
+                       {"supply_mv": np.array(hs["supply"])})
+    r = np.abs(np.sum(a * a, axis=1) - 1) / 2
+    return float(np.average(r, weights=hs["weight"]) * 1e3)
 
 
 EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear", "temp_offset2", "step",
@@ -37,8 +49,9 @@ def test_study_agreement_with_diagnose_and_false_names(tmp_path):
         for key, path in paths.items():
             host = diagnose(str(path))["missing_effect"]
             named, d = board_names(path)
+            after = d["heldout_error_after_mg"] if named else d["heldout_error_before_mg"]
             rows.append((key, host, named, d.get("closest"), d.get("blocks_better"), d.get("blocks"),
-                         d.get("heldout_error_before_mg"), d.get("heldout_error_after_mg")))
+                         d.get("heldout_error_before_mg"), after, true_board_heldout_mg(path, d)))
             print(*rows[-1], flush=True)
             path.unlink()
             path.with_suffix(".truth.json").unlink()
