@@ -9,8 +9,8 @@
 # the oldest point of the block holding most (of equals, the oldest), so the set follows the
 # wear and stays spread over every block seen: the naming rule counts the blocks a candidate
 # improves (a ring of the newest points held one block).
-# Byte budget: CAPACITY x (3 point + COND condition + 1 block + 1 block's count) int32 slots =
-# 144 x 8 x 4 = 4608 bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks
+# Byte budget: CAPACITY x (3 point + COND condition + 1 block + 1 block's count + 1 weight)
+# int32 slots = 144 x 9 x 4 = 5184 bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks
 # it).  The counts keep choosing the point to replace linear in the points (a count per offer
 # was CAPACITY**2 comparisons).
 from acal.bins import COND, int32s
@@ -35,7 +35,7 @@ NEAR = const(6554)
 # scores a block on every rest point in it, so a posture held for an hour weighs more than one
 # glanced at; heldscore.py weighs each point's error so.
 WEIGHT_CAP = const(16)
-BUDGET_BYTES = const(4608)  # CAPACITY * (3 + COND + 2) * SLOT_BYTES
+BUDGET_BYTES = const(5184)  # CAPACITY * (3 + COND + 3) * SLOT_BYTES
 
 
 def block_of(time):

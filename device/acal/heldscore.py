@@ -1,8 +1,10 @@
 # A model's error on the board's held-out points (issue 29; docs/model-discovery.md
 # "Held-out points on the board"): what discovery.py's rule compares, in integers.  Each held-out point's
 # error is |r|, r = |a|^2 - 1 g^2 of the point with the model's effects removed (model.residual),
-# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 144 (heldout.CAPACITY) sum below 2**30; the held-out
-# error is their sum, a block's error the sum over its points.  All storage preallocated.
+# taken in Q16 g^2 (r >> 6), capped at ERR_CAP and times the point's weight (the rest means it
+# stands for, heldout.WEIGHT_CAP at most: `diagnose` scores a block on every rest point in it),
+# so 144 (heldout.CAPACITY) sum below 2**30; the held-out error is their sum, a block's error the
+# sum over its points.  All storage preallocated.
 from acal import model
 from acal.bins import COND, int32s
 from acal.fixed import POINT_TO_PARAM_SHIFT
@@ -14,7 +16,9 @@ except ImportError:  # CPython
         return x
 
 ERR_SHIFT = const(6)       # Q22 g^2 -> Q16 g^2
-ERR_CAP = const(4194304)   # 64 g^2 in Q16: 144 x 2**22 < 2**30 (255 would still be)
+# 4 g^2 in Q16 (a rest mean's |a|^2 - 1 lies in -0.75 .. 1.25 g^2 before a model's effects):
+# CAPACITY x WEIGHT_CAP x ERR_CAP = 144 x 16 x 2**18 < 2**30
+ERR_CAP = const(262144)
 
 
 class HeldScore:
