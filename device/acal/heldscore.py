@@ -41,6 +41,11 @@ class HeldScore:
         self.pos = 0
         self.total = 0
         self.firsts = 0    # blocks better_part has met (their first slots), summed by callers
+        # mark_slot / compare_slot: a slot's scan over the others, resumed `scan` slots on
+        # (-1: not begun), with its block's sums so far
+        self.scan = -1
+        self.sum_base = 0
+        self.sum_err = 0
 
     def score(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
         """The held-out error (Q16 g^2, summed) of parameters p (int32 array, Q24) with effects
@@ -137,3 +142,55 @@ class HeldScore:
                 if after < before:
                     better += 1
         return better
+
+    def mark_slot(self, h, i, budget):
+        """mark_first() of slot i alone, scanning at most `budget` earlier slots a call (the
+        scan resumes where it stood); True once slot i is marked."""
+        blk = h.block
+        b = blk[i]
+        j = self.scan
+        if j < 0:
+            j = 0
+            self.first[i] = 1
+        end = j + budget
+        if end > i:
+            end = i
+        while j < end:
+            if blk[j] == b:
+                self.first[i] = 0
+                self.scan = -1
+                return True
+            j += 1
+        if end < i:
+            self.scan = end
+            return False
+        self.firsts += 1
+        self.scan = -1
+        return True
+
+    def compare_slot(self, h, i, budget):
+        """better_part() of slot i alone, summing at most `budget` slots of its block's a call
+        (resumed); 1 once slot i, its block's first, is found better, 0 once done otherwise,
+        -1 while not done."""
+        if not self.first[i]:
+            return 0
+        blk = h.block
+        b = blk[i]
+        j = self.scan
+        if j < 0:
+            j = i
+            self.sum_base = 0
+            self.sum_err = 0
+        end = j + budget
+        if end > h.count:
+            end = h.count
+        while j < end:
+            if blk[j] == b:
+                self.sum_base += self.base[j]
+                self.sum_err += self.err[j]
+            j += 1
+        if end < h.count:
+            self.scan = end
+            return -1
+        self.scan = -1
+        return 1 if self.sum_err < self.sum_base else 0
