@@ -66,7 +66,7 @@ def test_study_agreement_with_diagnose_and_false_names(tmp_path):
     # the held-out error after beside the true sensor model's on the same points: where the
     # board's model is the true one's form (the hidden effect named, or clean), but not the
     # step: its held-out points between the shock and the first fit point after it (the
-    # board's step time) are left 3-5 mg off (docs/model-discovery.md "Discovery on the board")
+    # board's step time) are left 2.6-5.4 mg off (docs/model-discovery.md "Discovery on the board")
     ratio = {r[0]: r[7] / r[8] for r in right + rows[len(hidden):]}
     print("after / true:", " ".join(f"{k} {v:.2f}" for k, v in ratio.items()))
     assert false == 0
