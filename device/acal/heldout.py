@@ -10,9 +10,9 @@
 # wear and stays spread over every block seen: the naming rule counts the blocks a candidate
 # improves (a ring of the newest points held one block).
 # Byte budget: CAPACITY x (3 point + COND condition + 1 block + 1 block's count + 1 weight)
-# int32 slots = 144 x 9 x 4 = 5184 bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks
-# it).  The counts keep choosing the point to replace linear in the points (a count per offer
-# was CAPACITY**2 comparisons).
+# int32 slots = 144 x 9 x 4 = 5184 bytes of array storage (BUDGET_BYTES;
+# tests/device/test_heldout.py checks it).  The counts keep choosing the point to replace
+# linear in the points (a count per offer was CAPACITY**2 comparisons).
 from acal.bins import COND, int32s
 try:
     from micropython import const
