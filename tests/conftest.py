@@ -63,22 +63,29 @@ def true_heldout_error(rec, effects_file=None) -> float:
     removed with its true values and its own true reference (a curve's vertex, a step's time, a
     column's reference), then the true 9 parameters - independent of how the fitted models are
     parametrised.  effects_file: the declarations the simulator hid an effect of."""
+    import numpy as np
+    from accelcal.pipeline.restpoints import rest_points, split, usable
+    _, test, _ = split(usable(rest_points(str(rec))))
+    a = true_corrected(rec, test.v, test.temp, test.t, test.cols, effects_file)
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def true_corrected(rec, v, temp, t, cols, effects_file=None):
+    """Measurements v (g) with conditions temp (degC), t (s), cols (columns by name) corrected
+    by a simulated recording's true sensor model (true_heldout_error's way)."""
     import json
     import numpy as np
     from acal.fixed import PARAM_NAMES
     from accelcal.methods import correct as base_correct
     from accelcal.model.declared import register
     from accelcal.model.effects import CATALOGUE
-    from accelcal.pipeline.restpoints import rest_points, split, usable
     register(str(effects_file) if effects_file else None)
     truth = json.loads(rec.with_suffix(".truth.json").read_text())
-    _, test, _ = split(usable(rest_points(str(rec))))
-    w = test.v
+    w = np.asarray(v, dtype=np.float64)
     for e in reversed(truth["effects"]):
-        w = CATALOGUE[e["effect"]].correct(w, np.array(list(e["params"].values())), test.temp,
-                                           test.t, e["reference"], test.cols)
-    a = base_correct(np.array([truth["params"][n] for n in PARAM_NAMES]), w)
-    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+        w = CATALOGUE[e["effect"]].correct(w, np.array(list(e["params"].values())), temp, t,
+                                           e["reference"], cols)
+    return base_correct(np.array([truth["params"][n] for n in PARAM_NAMES]), w)
 
 
 def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):

@@ -48,8 +48,8 @@ ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g
 # slice 1.1 ms; 8 points scored took 5.7 ms, 4 slots compared 4.0 ms; docs/model-discovery.md
 # "Discovery on the board"):
 SCORE_POINTS = const(2)      # held-out points scored
-BLOCK_SLOTS = const(1)       # held-out slots of the block comparison (each up to CAPACITY
-# comparisons)
+BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slot's block (a
+# whole pass of CAPACITY took 2.35 and 2.45 ms)
 
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
@@ -119,6 +119,7 @@ class Discover:
         self.kind = 0
         self.before = 0
         self.blocks = 0
+        self.score.scan = -1
         for i in range(N_CANDIDATES):
             self.errs[i] = UNTESTABLE
             self.betters[i] = 0
@@ -164,13 +165,16 @@ class Discover:
         self.phase = _BLOCKS
 
     def _count_blocks(self):
-        # the base errors kept and the blocks' first slots marked, BLOCK_SLOTS a step
+        # the base errors kept and the blocks' first slots marked, BLOCK_SCAN slots scanned a
+        # step
         s = self.score
-        end = _slots_end(self.pos, self.held.count)
-        s.keep_as_base(end, self.pos)
-        s.mark_first(self.held, self.pos, end)
-        self.pos = end
-        if end < self.held.count:
+        i = self.pos
+        if s.scan < 0:
+            s.keep_as_base(i + 1, i)
+        if not s.mark_slot(self.held, i, BLOCK_SCAN):
+            return
+        self.pos = i + 1
+        if self.pos < self.held.count:
             return
         self.blocks = s.firsts
         if self.blocks < MIN_BLOCKS:
@@ -242,11 +246,13 @@ class Discover:
         self.phase = _BETTER
 
     def _compare_blocks(self):
-        # the blocks candidate i is better in, BLOCK_SLOTS a step
-        end = _slots_end(self.pos, self.held.count)
-        self.betters[self.i] += self.score.better_part(self.held, self.pos, end)
-        self.pos = end
-        if end == self.held.count:
+        # the blocks candidate i is better in, BLOCK_SCAN slots scanned a step
+        better = self.score.compare_slot(self.held, self.pos, BLOCK_SCAN)
+        if better < 0:
+            return
+        self.betters[self.i] += better
+        self.pos += 1
+        if self.pos == self.held.count:
             self._next(self.i + 1)
 
     def _choose(self):
@@ -292,11 +298,6 @@ def _rekind(fit, kinds):
     fit.n_params = N_PARAMS + 3 * len(kinds)
     for k in range(len(kinds)):
         fit.kind_ids[k] = kinds[k]
-
-
-def _slots_end(pos, count):
-    end = pos + BLOCK_SLOTS
-    return end if end < count else count
 
 
 def _saturated(e):

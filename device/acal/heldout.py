@@ -9,10 +9,10 @@
 # the oldest point of the block holding most (of equals, the oldest), so the set follows the
 # wear and stays spread over every block seen: the naming rule counts the blocks a candidate
 # improves (a ring of the newest points held one block).
-# Byte budget: CAPACITY x (3 point + COND condition + 1 block + 1 block's count) int32 slots =
-# 144 x 8 x 4 = 4608 bytes of array storage (BUDGET_BYTES; tests/device/test_heldout.py checks
-# it).  The counts keep choosing the point to replace linear in the points (a count per offer
-# was CAPACITY**2 comparisons).
+# Byte budget: CAPACITY x (3 point + COND condition + 1 block + 1 block's count + 1 weight)
+# int32 slots = 144 x 9 x 4 = 5184 bytes of array storage (BUDGET_BYTES;
+# tests/device/test_heldout.py checks it).  The counts keep choosing the point to replace
+# linear in the points (a count per offer was CAPACITY**2 comparisons).
 from acal.bins import COND, int32s
 try:
     from micropython import const
@@ -31,7 +31,11 @@ SLOT_BYTES = const(4)
 # replaces it: a wearer still in one posture for hours would otherwise fill a block with one
 # point, and a block's error would be that point's.
 NEAR = const(6554)
-BUDGET_BYTES = const(4608)  # CAPACITY * (3 + COND + 2) * SLOT_BYTES
+# Each slot counts the rest means it stands for (the newest kept), up to WEIGHT_CAP: `diagnose`
+# scores a block on every rest point in it, so a posture held for an hour weighs more than one
+# glanced at; heldscore.py weighs each point's error so.
+WEIGHT_CAP = const(16)
+BUDGET_BYTES = const(5184)  # CAPACITY * (3 + COND + 3) * SLOT_BYTES
 
 
 def block_of(time):
@@ -53,11 +57,20 @@ class HeldOut:
         self.cond = int32s(COND * capacity)
         self.block = int32s(capacity)
         self.held = int32s(capacity)   # how many kept points share slot i's block
+        self.weight = int32s(capacity)  # how many rest means slot i stands for (<= WEIGHT_CAP)
         self.count = 0
 
     def nbytes(self):
         """The bytes of the preallocated arrays."""
-        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held))
+        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held) +
+                             len(self.weight))
+
+    def total_weight(self):
+        """The rest means the kept points stand for (the sum of their weights)."""
+        n = 0
+        for i in range(self.count):
+            n += self.weight[i]
+        return n
 
     def clear(self):
         self.count = 0
@@ -70,6 +83,8 @@ class HeldOut:
         near = self._near(x, y, z, b)
         if near >= 0:
             s = near        # the same posture again in its block: the newer reading kept
+            if self.weight[s] < WEIGHT_CAP:
+                self.weight[s] += 1
         elif self.count < self.capacity:
             s = self.count
             self.count += 1
@@ -83,6 +98,7 @@ class HeldOut:
         self.cond[COND * s + 1] = time
         self.cond[COND * s + 2] = supply
         if near < 0:
+            self.weight[s] = 1
             self.block[s] = b
             self._recount(b, 1)
         return True

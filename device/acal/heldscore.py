@@ -1,8 +1,10 @@
 # A model's error on the board's held-out points (issue 29; docs/model-discovery.md
 # "Held-out points on the board"): what discovery.py's rule compares, in integers.  Each held-out point's
 # error is |r|, r = |a|^2 - 1 g^2 of the point with the model's effects removed (model.residual),
-# taken in Q16 g^2 (r >> 6) and capped at ERR_CAP so 144 (heldout.CAPACITY) sum below 2**30; the held-out
-# error is their sum, a block's error the sum over its points.  All storage preallocated.
+# taken in Q16 g^2 (r >> 6), capped at ERR_CAP and times the point's weight (the rest means it
+# stands for, heldout.WEIGHT_CAP at most: `diagnose` scores a block on every rest point in it),
+# so 144 (heldout.CAPACITY) sum below 2**30; the held-out error is their sum, a block's error the
+# sum over its points.  All storage preallocated.
 from acal import model
 from acal.bins import COND, int32s
 from acal.fixed import POINT_TO_PARAM_SHIFT
@@ -14,7 +16,9 @@ except ImportError:  # CPython
         return x
 
 ERR_SHIFT = const(6)       # Q22 g^2 -> Q16 g^2
-ERR_CAP = const(4194304)   # 64 g^2 in Q16: 144 x 2**22 < 2**30 (255 would still be)
+# 4 g^2 in Q16 (a rest mean's |a|^2 - 1 lies in -0.75 .. 1.25 g^2 before a model's effects):
+# CAPACITY x WEIGHT_CAP x ERR_CAP = 144 x 16 x 2**18 < 2**30
+ERR_CAP = const(262144)
 
 
 class HeldScore:
@@ -37,6 +41,11 @@ class HeldScore:
         self.pos = 0
         self.total = 0
         self.firsts = 0    # blocks better_part has met (their first slots), summed by callers
+        # mark_slot / compare_slot: a slot's scan over the others, resumed `scan` slots on
+        # (-1: not begun), with its block's sums so far
+        self.scan = -1
+        self.sum_base = 0
+        self.sum_err = 0
 
     def score(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
         """The held-out error (Q16 g^2, summed) of parameters p (int32 array, Q24) with effects
@@ -85,6 +94,7 @@ class HeldScore:
                 r = -r
             if r > ERR_CAP:
                 r = ERR_CAP
+            r *= h.weight[i]
             self.err[i] = r
             self.total += r
         self.pos = end
@@ -132,3 +142,55 @@ class HeldScore:
                 if after < before:
                     better += 1
         return better
+
+    def mark_slot(self, h, i, budget):
+        """mark_first() of slot i alone, scanning at most `budget` earlier slots a call (the
+        scan resumes where it stood); True once slot i is marked."""
+        blk = h.block
+        b = blk[i]
+        j = self.scan
+        if j < 0:
+            j = 0
+            self.first[i] = 1
+        end = j + budget
+        if end > i:
+            end = i
+        while j < end:
+            if blk[j] == b:
+                self.first[i] = 0
+                self.scan = -1
+                return True
+            j += 1
+        if end < i:
+            self.scan = end
+            return False
+        self.firsts += 1
+        self.scan = -1
+        return True
+
+    def compare_slot(self, h, i, budget):
+        """better_part() of slot i alone, summing at most `budget` slots of its block's a call
+        (resumed); 1 once slot i, its block's first, is found better, 0 once done otherwise,
+        -1 while not done."""
+        if not self.first[i]:
+            return 0
+        blk = h.block
+        b = blk[i]
+        j = self.scan
+        if j < 0:
+            j = i
+            self.sum_base = 0
+            self.sum_err = 0
+        end = j + budget
+        if end > h.count:
+            end = h.count
+        while j < end:
+            if blk[j] == b:
+                self.sum_base += self.base[j]
+                self.sum_err += self.err[j]
+            j += 1
+        if end < h.count:
+            self.scan = end
+            return -1
+        self.scan = -1
+        return 1 if self.sum_err < self.sum_base else 0

@@ -36,8 +36,9 @@
 #                          index, the effects adopted (effects.model_code: an id, or two ids in
 #                          4 bits each; 0: none), the closest candidate (the one chosen; 0: none
 #                          testable), the held-out error before and with it (heldscore's Q16 g^2
-#                          sums), the held-out blocks it is better in and of how many, its first
-#                          effect's 3 parameters (Q24; all of them in the EFFECT records after)
+#                          sums, weighted), the held-out blocks it is better in and of how
+#                          many, its first effect's 3 parameters (Q24; all of them in the
+#                          EFFECT records after)
 #   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
 #                          EFFECT payload per effect of a composed model, under one CRC, so a
 #                          cut anywhere leaves the whole calibration or none of it

@@ -17,10 +17,10 @@ def test_held_out_blocks_are_the_hosts_odd_two_hour_blocks():
 
 def test_byte_budget_is_the_preallocated_storage():
     h = heldout.HeldOut()
-    arrays = (h.xyz, h.cond, h.block, h.held)
+    arrays = (h.xyz, h.cond, h.block, h.held, h.weight)
     stored = sum(a.itemsize * len(a) for a in arrays)
-    assert stored == heldout.BUDGET_BYTES == 4608      # the figure docs/model-discovery.md states
-    assert stored == heldout.CAPACITY * (3 + COND + 2) * 4
+    assert stored == heldout.BUDGET_BYTES == 5184      # the figure docs/model-discovery.md states
+    assert stored == heldout.CAPACITY * (3 + COND + 3) * 4
     assert h.nbytes() == stored
 
 
@@ -54,6 +54,16 @@ def test_the_same_posture_in_a_block_is_one_point():
     h.offer(65536 + 6553 + 6554, 0, 0, time=126)            # 0.1 g away: a point of its own
     h.offer(65536, 0, 0, time=400)                          # the same posture, another block
     assert h.count == 3 and h.blocks() == 2
+    assert list(h.weight[:3]) == [2, 1, 1] and h.total_weight() == 4
+
+
+def test_a_point_weighs_the_rest_means_it_stands_for_up_to_the_cap():
+    h = heldout.HeldOut(capacity=4)
+    for k in range(heldout.WEIGHT_CAP + 5):                 # one posture held for long
+        h.offer(65536, k, 0, time=120 + k % 3)
+    assert h.count == 1 and h.weight[0] == heldout.WEIGHT_CAP
+    h.offer(0, 65536, 0, time=400)                          # a new point starts at 1
+    assert h.weight[1] == 1 and h.total_weight() == heldout.WEIGHT_CAP + 1
 
 
 def test_a_full_set_stays_spread_over_the_blocks():

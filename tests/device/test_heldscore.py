@@ -52,6 +52,36 @@ def test_better_blocks_counts_blocks_whose_sum_falls():
     assert s.better_blocks(h) == 2
 
 
+def test_slot_by_slot_scans_count_what_whole_passes_count(rng):
+    """mark_slot / compare_slot (acal/discover.py's sliced steps, a scan resumed every `budget`
+    slots) give the whole passes' marks and blocks better, at every budget."""
+    for _ in range(20):
+        h = heldout.HeldOut()
+        n = int(rng.integers(1, heldout.CAPACITY + 1))
+        for i in range(n):
+            h.offer(int(rng.integers(-70000, 70000)), int(rng.integers(-70000, 70000)),
+                    int(rng.integers(-70000, 70000)), time=int(rng.integers(0, 4000)))
+        s = heldscore.HeldScore()
+        for i in range(h.count):
+            s.base[i] = int(rng.integers(0, 200))
+            s.err[i] = int(rng.integers(0, 200))
+        whole = s.better_blocks(h)
+        marks = list(s.first[:h.count])
+        for budget in (1, 7, 48, heldout.CAPACITY):
+            s.firsts = 0
+            for i in range(h.count):
+                while not s.mark_slot(h, i, budget):
+                    pass
+            assert list(s.first[:h.count]) == marks and s.firsts == sum(marks) == h.blocks()
+            better = 0
+            for i in range(h.count):
+                b = s.compare_slot(h, i, budget)
+                while b < 0:
+                    b = s.compare_slot(h, i, budget)
+                better += b
+            assert better == whole
+
+
 SCRIPT = r'''
 import micropython
 from acal.heldout import HeldOut

@@ -431,3 +431,50 @@ def test_change_point_search_stays_small_at_the_worst_case(rng):
         return b @ np.linalg.solve(S, b)
     assert abs(k - 80) <= 1 and cp.ts == t[cp.at], (cp.at, k)
     assert gain(cp.at) >= 0.99 * gain(k), (cp.at, k, gain(cp.at), gain(k))
+
+
+def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
+    """The board's own discovery (acal/discover.py, heldscore.py, discovery.py): a full held-out
+    set (144 points at +-1.25 g per axis, past what gravity() keeps, each standing for
+    heldout.WEIGHT_CAP rest means, conditions far past the fit's clamps) scored with parameters
+    at the fit region's corners and effects at 4x their bounds (every point's error at ERR_CAP),
+    its blocks compared, the rule on errors at discover.ERR_MAX and every block count the sign
+    test takes, and the conditions' ranges: no intermediate reaches 2^30."""
+    from acal import discover, discovery, effects, heldout, heldscore
+    from acal.bins import COND
+    tr = Tracer()
+    T = traced(tr)
+    h = heldout.HeldOut()
+    g125 = 5 * (1 << 16) // 4
+    for i in range(h.capacity):      # 144 points in 72 blocks, each its own posture
+        h.offer(g125 * (-1) ** i, -g125, g125 * (-1) ** (i >> 1), 0, (2 * (i >> 1) + 1) * 113)
+    assert h.count == h.capacity
+    for name in ("xyz", "cond", "block", "weight"):
+        setattr(h, name, [T(v) for v in getattr(h, name)])
+    for i in range(h.count):
+        h.weight[i] = T(heldout.WEIGHT_CAP)
+        h.cond[COND * i: COND * i + COND] = [T((-1) ** i * 1000), T((1 << 28) * (-1) ** i),
+                                             T((-1) ** i * 65535)]
+    s = heldscore.HeldScore()
+    for name in ("w", "err", "base", "first"):
+        setattr(s, name, [T(0)] * len(getattr(s, name)))
+    kinds = discover.KINDS[discover.PAIR]
+    totals = []
+    with viper_casts():
+        for k, o in ((fixed.FIT_K_DIAG_MAX, fixed.FIT_O_MAX), (fixed.FIT_K_DIAG_MIN, -fixed.FIT_O_MAX)):
+            for sgn in (-1, 1):
+                p = [T(k)] * 3 + [T(sgn * fixed.FIT_K_OFF_MAX)] * 3 + [T(o)] * 3 + \
+                    [T(sgn * 4 * effects.BOUNDS[kd]) for kd in kinds for _ in range(3)]
+                total = s.score(p, kinds, h, T(-1000), T(-(1 << 28)), T(65535), T(1 << 28))
+                totals.append(int(total))
+                s.keep_as_base(h.count)
+                assert s.better_blocks(h) == 0
+    assert max(totals) == h.count * heldout.WEIGHT_CAP * heldscore.ERR_CAP   # every point capped
+    e = T(discover.ERR_MAX)
+    assert discovery.names(e, T(0), T(72), T(72)) and discovery.plain_preferred(e, e)
+    for blocks in range(1, discovery.SIGN_BLOCKS + 2):
+        for better in range(blocks + 1):
+            discovery.clear(T(better), T(blocks))
+    for c in range(COND):
+        assert discover._range(h.cond, h.count, c) > 0
+    assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))

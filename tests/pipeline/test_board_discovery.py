@@ -1,13 +1,15 @@
 """The board's own discovery (`calibrate FILE --discover`, device/acal/discover.py) beside the
 host's `diagnose` on simulated wear, behind `slow`: every catalogue effect x seeds, the share of
-recordings where the board names what diagnose names (goal >= 90 %), and the board's false names
-on 10 clean seeds.  (The default suite's cases: tests/pipeline/test_diagnose.py.)"""
+recordings where the board names what diagnose names (goal >= 90 %), the board's false names
+on 10 clean seeds, and its held-out error after within 1.5x the true sensor model's on the same
+held-out points.  (The default suite's cases: tests/pipeline/test_diagnose.py.)"""
+import numpy as np
 import pytest
 
 from accelcal.bridge.runtime import Config
 from accelcal.pipeline.diagnose import diagnose
 from accelcal.pipeline.job import calibrate
-from conftest import simulate_wrists
+from conftest import simulate_wrists, true_corrected
 
 DAYS, RATE = 3, 10
 DISCOVER = Config.for_profile("wear", discover=True)
@@ -17,6 +19,17 @@ def board_names(path):
     """The board's named effect (None: none) and its discovery record."""
     d = calibrate(str(path), cfg=DISCOVER)["discovery"]
     return d["effect"], d
+
+
+def true_board_heldout_mg(path, d) -> float:
+    """The simulation's true sensor model scored as the board scores a model (heldscore.py): on
+    the board's held-out points and their conditions, each point's | |a|^2 - 1 | weighted by
+    the rest means it stands for, as mg (heldout_mg's |a|^2 - 1 ~ 2 (|a| - 1))."""
+    hs = d["heldout_set"]
+    a = true_corrected(path, hs["xyz_g"], np.array(hs["temp"]), np.array(hs["time"]),
+                       {"supply_mv": np.array(hs["supply"])})
+    r = np.abs(np.sum(a * a, axis=1) - 1) / 2
+    return float(np.average(r, weights=hs["weight"]) * 1e3)
 
 
 EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear", "temp_offset2", "step",
@@ -37,19 +50,25 @@ def test_study_agreement_with_diagnose_and_false_names(tmp_path):
         for key, path in paths.items():
             host = diagnose(str(path))["missing_effect"]
             named, d = board_names(path)
+            after = d["heldout_error_after_mg"] if named else d["heldout_error_before_mg"]
             rows.append((key, host, named, d.get("closest"), d.get("blocks_better"), d.get("blocks"),
-                         d.get("heldout_error_before_mg"), d.get("heldout_error_after_mg")))
+                         d.get("heldout_error_before_mg"), after, true_board_heldout_mg(path, d)))
             print(*rows[-1], flush=True)
             path.unlink()
             path.with_suffix(".truth.json").unlink()
     hidden = [r for r in rows if not r[0].startswith("clean")]
     agree = sum(r[1] == r[2] for r in rows)
-    right = sum(r[2] == r[0].rsplit("_", 1)[0] for r in hidden)
+    right = [r for r in hidden if r[2] == r[0].rsplit("_", 1)[0]]
     false = sum(r[2] is not None for r in rows if r[0].startswith("clean"))
     print(f"board names what diagnose names in {agree} of {len(rows)} recordings "
-          f"({100 * agree / len(rows):.0f} %); the hidden effect in {right} of {len(hidden)}; "
+          f"({100 * agree / len(rows):.0f} %); the hidden effect in {len(right)} of {len(hidden)}; "
           f"false names on {false} of {len(CLEAN_SEEDS)} clean seeds")
+    # the held-out error after beside the true sensor model's on the same points: where the
+    # board's model is the true one's form (the hidden effect named, or clean), but not the
+    # step: its held-out points between the shock and the first fit point after it (the
+    # board's step time) are left 2.6-5.4 mg off (docs/model-discovery.md "Discovery on the board")
+    ratio = {r[0]: r[7] / r[8] for r in right + rows[len(hidden):]}
+    print("after / true:", " ".join(f"{k} {v:.2f}" for k, v in ratio.items()))
     assert false == 0
-    # the goal is 90 %; measured 84 % (26 of 31; where they differ:
-    # docs/model-discovery.md "Discovery on the board"): this floor catches a regression
-    assert agree >= 0.8 * len(rows)
+    assert agree >= 0.9 * len(rows)     # the goal (measured: docs/model-discovery.md)
+    assert max(v for k, v in ratio.items() if not k.startswith("step")) <= 1.5

@@ -104,6 +104,7 @@ class DeviceResult:
     noise_level: int | None = None  # and the noise level it came from, Q10 g
     discovery: list[int] | None = None   # discover: the V record (mp_runner.py)
     candidates: list[tuple[int, int, int]] = field(default_factory=list)  # W: kind err betters
+    heldout: list[list[int]] = field(default_factory=list)  # H: x y z temp time supply weight
 
     @property
     def status_name(self) -> str:
@@ -192,6 +193,8 @@ class Collector:
             cur.discovery = list(v)
         elif tag == "W":
             cur.candidates.append(tuple(v[:3]))
+        elif tag == "H":
+            cur.heldout.append(list(v[:7]))
         elif tag == "F":
             cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
             cur.params_int = list(v[4:])

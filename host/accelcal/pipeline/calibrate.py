@@ -300,10 +300,21 @@ class Fit:
         return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
 
 
-def heldout_mg(err: int, points: int) -> float | None:
-    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2) as
-    mean | |a| - 1 g | in mg, near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
-    return err / points / (2 * fixed.POINT_ONE_G) * 1e3 if points and err >= 0 else None
+def heldout_mg(err: int, weight: int) -> float | None:
+    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2, each
+    point's weighted by the rest means it stands for, `weight` in all) as mean | |a| - 1 g | in mg,
+    near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
+    return err / weight / (2 * fixed.POINT_ONE_G) * 1e3 if weight and err >= 0 else None
+
+
+def heldout_set(r: runtime.DeviceResult, t_first: float) -> dict:
+    """The board's held-out points (the runner's H records) in physical units, as lists: xyz_g,
+    temp (degC), time (s on the recording's clock), supply (mV) and weight (the rest means each
+    stands for)."""
+    h = np.array(r.heldout, dtype=np.int64).reshape(-1, 7)
+    c = physical(h[:, 3:6], t_first)
+    return {"xyz_g": (h[:, :3] / fixed.POINT_ONE_G).tolist(), "temp": c.temp.tolist(),
+            "time": c.time.tolist(), "supply": c.supply.tolist(), "weight": h[:, 6].tolist()}
 
 
 def _effects_named(code: int) -> str | None:
@@ -318,15 +329,17 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
     if r.discovery is None:
         return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
                 "not end OK)"}
-    adopted, closest, before, after, betters, blocks, held, step_time = r.discovery[:8]
-    p_int = r.discovery[8:]
+    adopted, closest, before, after, betters, blocks, held, weight, step_time = r.discovery[:9]
+    p_int = r.discovery[9:]
     out = {"effect": _effects_named(adopted), "closest": _effects_named(closest),
-           "heldout_points": held, "heldout_before": before, "heldout_after": after,
-           "heldout_error_before_mg": heldout_mg(before, held),
-           "heldout_error_after_mg": heldout_mg(after, held) if closest else None,
+           "heldout_points": held, "heldout_rest_means": weight,
+           "heldout_before": before, "heldout_after": after,
+           "heldout_error_before_mg": heldout_mg(before, weight),
+           "heldout_error_after_mg": heldout_mg(after, weight) if closest else None,
            "blocks_better": betters, "blocks": blocks,
            "candidates": [{"effect": _effects_named(k), "heldout": e, "heldout_error_mg":
-                           heldout_mg(e, held), "blocks_better": b} for k, e, b in r.candidates]}
+                           heldout_mg(e, weight), "blocks_better": b} for k, e, b in r.candidates],
+           "heldout_set": heldout_set(r, t_first)}
     from acal.discover import MIN_BLOCKS, MIN_HELD
     if held < MIN_HELD or blocks < MIN_BLOCKS or before <= 0:
         out["reason"] = (f"{held} held-out rest points in {blocks} held-out 2-hour blocks "

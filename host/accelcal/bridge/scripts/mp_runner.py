@@ -33,9 +33,11 @@
 #                              rejected as outliers (0)
 #   N threshold level          the rest threshold in force at the end and the noise level it
 #                              came from (Q10 g; AUTO only)
-#   V adopted closest before after betters blocks held step_time p0 .. p11   discover: the
-#                              DISCOVERY record's fields (acal/log.py), the held-out points, a
-#                              step's time and the closest candidate's 12 parameters
+#   V adopted closest before after betters blocks held weight step_time p0 .. p14   discover:
+#                              the DISCOVERY record's fields (acal/log.py), the held-out points
+#                              and the rest means they stand for (their weights' sum), a step's
+#                              time and the closest candidate's 15 parameters
+#   H x y z temp time supply weight   discover: each held-out point (acal/heldout.py)
 #   W kind err betters         discover: each candidate (err -1: not testable)
 import sys
 from array import array
@@ -117,7 +119,11 @@ class Runner:
             i = d.chosen
             emit("V", [d.kind, d.kind_ids[i] if i >= 0 else 0, d.before,
                        d.errs[i] if i >= 0 else 0, d.betters[i] if i >= 0 else 0, d.blocks,
-                       d.held.count, d.step_time] + list(d.params))
+                       d.held.count, d.held.total_weight(), d.step_time] + list(d.params))
+            h = d.held
+            for j in range(h.count):
+                emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2], h.cond[3 * j],
+                           h.cond[3 * j + 1], h.cond[3 * j + 2], h.weight[j]])
             for j in range(len(d.errs)):
                 emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
         if pipe.rest.auto and pipe.rest.segments:

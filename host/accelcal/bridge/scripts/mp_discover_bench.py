@@ -1,0 +1,60 @@
+# `accelcal bench` (studies/bench_chip.py, on the emulated RP2040): the longest step of the board
+# discovery's block marking and block comparing (acal/discover.py's _BLOCKS and _BETTER phases)
+# on a full held-out set: 144 points, 8 postures in each of 18 odd 2-hour blocks, a candidate
+# better in a third of them.  Prints "key value" lines (us, and the steps taken).
+import time
+from acal import discover
+from acal.heldout import HeldOut
+
+# CircuitPython has no ticks_us: monotonic_ns (as mp_paths_bench.py)
+ticks = getattr(time, "ticks_us", None) or (lambda: time.monotonic_ns() // 1000)
+
+
+def us(t0):
+    t = ticks()
+    return time.ticks_diff(t, t0) if hasattr(time, "ticks_diff") else t - t0
+
+
+POSTURES = ((65536, 0, 0), (0, 65536, 0), (0, 0, 65536), (-65536, 0, 0), (0, -65536, 0),
+            (0, 0, -65536), (46341, 46341, 0), (0, 46341, 46341))
+
+
+def _phase(d, run):
+    # every step of one phase: (steps, the longest in us)
+    ph = d.phase
+    steps = worst = 0
+    while d.phase == ph:
+        t = ticks()
+        run()
+        dt = us(t)
+        steps += 1
+        if dt > worst:
+            worst = dt
+    return steps, worst
+
+
+def main():
+    h = HeldOut()
+    for b in range(18):
+        for k in range(8):
+            x, y, z = POSTURES[k]
+            h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300)
+    d = discover.Discover(72, h)
+    s = d.score
+    for i in range(h.count):
+        s.err[i] = 120      # the base model's errors, kept as base while marking
+    d._next = lambda i: setattr(d, "phase", discover._DONE)   # the two phases alone
+    d.phase = discover._BLOCKS
+    s.firsts = 0
+    steps, worst = _phase(d, d._count_blocks)
+    print("discover_blocks", d.blocks)
+    print("discover_mark_steps", steps)
+    print("discover_mark_worst_us", worst)
+    for i in range(h.count):
+        s.err[i] = 100 + (i * 37) % 50 if (i // 8) % 3 else 60
+    d.phase = discover._BETTER
+    d.pos = 0
+    steps, worst = _phase(d, d._compare_blocks)
+    print("discover_better_blocks", d.betters[0])
+    print("discover_compare_steps", steps)
+    print("discover_compare_worst_us", worst)
