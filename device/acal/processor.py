@@ -52,7 +52,8 @@ class Processor:
     looks for its own missing effect (Pipeline's discover, sliced as the fit;
     docs/model-discovery.md "Discovery on the board"), and logs a DISCOVERY record; when an
     effect is adopted, the calibration (and the store) switch to the composed model at once, logged as a CAL and
-    its EFFECT record."""
+    its EFFECT record.  Powered up again with a stored calibration of a model the discovery
+    adopts, the board goes on with that model, not discovering (as if flashed with it)."""
 
     def __init__(self, logger, rate_hz=100, recal_seconds=6 * 3600, capture=None, store=None,
                  model="base", profile=profiles.DEFAULT, range_g=2, discover=False,
@@ -63,6 +64,11 @@ class Processor:
         self.rate_hz = rate_hz
         self.range_g = range_g
         self.kinds = effects.parse_model(model)
+        if discover and store is not None and not self.kinds:
+            adopted = _adopted_before(store)
+            if adopted:   # resumed as a board flashed with the adopted model (its BOOT says so)
+                self.kinds = adopted
+                discover = False
         settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
@@ -314,6 +320,20 @@ class Processor:
         values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
                                               f[4 * i + 3])
         self._take(values, extra)
+
+
+def _adopted_before(store):
+    # The stored calibration's effects when they are a model the discovery adopts (a board that
+    # discovered an effect and was then powered off goes on with it), else None.
+    store.load()
+    kinds = tuple(e[1] for e in store.effects)
+    if not kinds:
+        return None
+    from acal.discover import KINDS   # only a discovering board loads the discovery
+    for candidate in KINDS:
+        if tuple(candidate) == kinds:
+            return kinds
+    return None
 
 
 def _sat32(v):

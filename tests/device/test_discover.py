@@ -9,6 +9,7 @@ import numpy as np
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
 from acal import effects, log
+from acal.fixed import PARAM_NAMES
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
 C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset, the LIS3DH's size
@@ -41,7 +42,7 @@ GAP = %d
 
 def run(path):
     lg = log.Log(path)
-    p = Processor(lg, 10, discover=True)
+    p = Processor(lg, 10, discover=True, store=log.CalStore(path + ".a", path + ".b"))
     buf = array("i", bytearray(12 * 40))
     seed = 12345
     for s in range(len(REST) // 4):
@@ -102,6 +103,16 @@ def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_pa
     assert eff and eff[0]["index"] == last["index"] and eff[0]["effect"] == effects.TEMP_OFFSET
     p = np.array([eff[0][f"p{i}"] for i in range(3)]) / 2 ** 24 / 16   # g/degC (effects.py)
     assert np.all(np.sign(p) == np.sign(C_TRUE)) and np.all(np.abs(p - C_TRUE) < 3e-4), p
+    # powered up again (the same store, still flashed with base and --discover): it goes on
+    # with the adopted model and its stored parameters, not discovering again
+    from acal.processor import Processor
+    cal = d.dicts(log.CAL)[-1]
+    for f in ("cpython.bin", "mp.bin"):
+        store = log.CalStore(str(tmp_path / f) + ".a", str(tmp_path / f) + ".b")
+        again = Processor(log.Log(str(tmp_path / f"again-{f}")), 10, discover=True, store=store)
+        assert again.kinds == (effects.TEMP_OFFSET,) and again.pipe.discovery is None
+        assert again.calibrations == cal["number"] and again.params[:9] == \
+            [cal[n] for n in PARAM_NAMES] and again.params[9:] == [eff[-1][f"p{i}"] for i in range(3)]
 
 
 def test_processor_adopts_nothing_without_an_effect(tmp_path):
@@ -110,6 +121,27 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
     found = boardlog.decode(tmp_path / "clean.bin").dicts(log.DISCOVERY)
     assert found and all(f["adopted"] == 0 for f in found), found
     assert not boardlog.decode(tmp_path / "clean.bin").of(log.EFFECT)
+    # powered up again: base, discovering (its store holds a base calibration)
+    from acal.processor import Processor
+    store = log.CalStore(str(tmp_path / "clean.bin") + ".a", str(tmp_path / "clean.bin") + ".b")
+    again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
+    assert again.kinds == () and again.pipe.discovery is not None and again.calibrations >= 1
+
+
+def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
+    """A store left by a board flashed with base+temp_offset+drift (not a discovery candidate):
+    a board flashed with base and --discover starts afresh, discovering."""
+    from acal.processor import Processor
+    store = log.CalStore(str(tmp_path / "a"), str(tmp_path / "b"))
+    cal = (100, 3, 0, 5, 72, 0, 0) + (1 << 24, 1 << 24, 1 << 24, 0, 0, 0, 0, 0, 0)
+    store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
+    p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
+    assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
+    cal = cal[:1] + (4,) + cal[2:]
+    store.save(cal, [(100, effects.DRIFT, 28, 0, 0, 0, 0)])   # drift alone: a candidate
+    p = Processor(log.Log(str(tmp_path / "m.bin")), 10, discover=True, store=store)
+    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 4
+    assert p.params[:9] == list(cal[7:]) and p.calibration.kinds == (effects.DRIFT,)
 
 
 HEAP = r'''
