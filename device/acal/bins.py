@@ -379,7 +379,7 @@ class Bins:
             return -1
         tracked = self.temp_differ or self.time_differ or self.supply_differ
         gain = ((self.temp_differ or 1) * (self.time_differ or 1) *
-                (self.supply_differ or 1)) >> 2  # a quarter threshold
+                (self.supply_differ or 1)) >> 2 or 1  # a quarter threshold (3 degC: 0 -> 1)
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
             s = subset_of(c, axis, self.lo_out)
@@ -402,7 +402,8 @@ class Bins:
                 b = badness(self.xyz[i], self.xyz[i + 1], self.xyz[i + 2], s)
                 if tracked and k >= (m >> 1):
                     # A spread slot: the widest replacement, and of equals the worst placed.
-                    if spread > widest_spread or (spread == widest_spread and b > widest_bad):
+                    if spread > widest_spread or (widest >= 0 and spread == widest_spread
+                                                  and b > widest_bad):
                         widest_spread = spread
                         widest_bad = b
                         widest = k

@@ -99,6 +99,22 @@ def test_a_full_composed_subset_takes_points_that_widen_its_spread():
     assert b.offer(*only_xp(0.8, 0.35, 0.45), 25) == -1  # would narrow: refused
 
 
+def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
+    """With temperature alone tracked a quarter threshold (3 degC >> 2) is 0 in integers: it is
+    taken as 1, so a point that only keeps the range does not replace a spread slot (before,
+    every such point did, and the placement slots kept the first points ever seen); a better
+    placed one replaces the placement slot (the CENTRE rule)."""
+    b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER)
+
+    def only_xp(x, y, z):  # y and z between the bands: C_xp alone
+        return int(x * G), int(y * G), int(z * G)
+
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30) == 2 and b.offer(*only_xp(0.8, 0.55, 0.3), 31) == 2
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31) == -1   # keeps 30..31, placed worse
+    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30) == 2     # keeps 30..31, placed better
+    assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31
+
+
 def test_composed_bins_are_ready_only_with_the_spread():
     b = Bins(1, 1, temp_differ=3)
     for s, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),

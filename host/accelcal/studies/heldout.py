@@ -9,7 +9,8 @@ error of every report here, mean | |a| - 1 g | over those windows, in mg.
 Rows: raw; the device pipeline with the paper profile; with the wear profile (the default);
 the wear profile after the discovery loop (diagnose on the fit part names an effect, the device
 fits base+EFFECT, up to two steps); float least squares on every rest point of the fit part with
-the loop's model; scikit-digital-health and actipy (offset and scale per axis, and a temperature
+the loop's model; the same with every point's temperature in whole degC, as the device reads it
+(lsq_degc: what that resolution leaves the model); scikit-digital-health and actipy (offset and scale per axis, and a temperature
 term where the file has temperature) fitted by their own functions on the fit part (--others);
 the true sensor model; and wear_loop / true.
 
@@ -102,6 +103,18 @@ def others(python: str, fit: Path, win, workdir: Path) -> dict:
     return out
 
 
+def lsq_whole_degc(path: Path, model: str, win) -> float:
+    """lsq_all with each rest point's temperature rounded to whole degC, as the device's
+    conditions hold it (fixedpoint.device_conditions): the best the device's points could give."""
+    from dataclasses import replace
+    from accelcal.pipeline.composed_lsq import fit_with_reference, prepare, refs
+    spec, p = prepare(str(path), model)
+    if p.temp is not None:
+        p = replace(p, temp=np.rint(p.temp))
+    theta, ref = fit_with_reference(spec, p, refs(p, spec))
+    return score_mg(model, list(theta), ref, win)
+
+
 def run_case(case: tuple[str, int], workdir: str, others_python: str | None = None) -> dict:
     effect, seed = case
     from accelcal.simulate import wearer
@@ -136,6 +149,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
         row["wear_loop_reason"] = why
     lsq = calibrate_model(str(fit), model)
     row["lsq_all"] = score_mg(model, list(lsq["params"].values()), lsq["reference"], win)
+    row["lsq_degc"] = lsq_whole_degc(fit, model, win)
     theta = [truth["params"][n] for n in fixed.PARAM_NAMES]
     true_model, ref = "base", None
     for e in truth["effects"]:
@@ -150,7 +164,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     return row
 
 
-COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_all", "skdh", "actipy", "true")
+COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_all", "lsq_degc", "skdh", "actipy", "true")
 
 
 def table(rows: list[dict]) -> str:
