@@ -114,8 +114,8 @@ def test_csv_streams_in_blocks_with_row_numbers_in_errors(tmp_path):
 
 def test_csv_pieces_parsed_at_once_give_the_streaming_readers_rows(tmp_path, monkeypatch):
     """The CSV in pieces parsed two at a time (files/csvpieces.py) gives the rows Arrow's
-    streaming reader gives, its first block as the first chunk (scan's rate comes from it); a
-    bad row in a later piece is named by its line in the file, the first bad row of a piece
+    streaming reader gives, its first block as the first chunk (scan's rate comes from it),
+    quoted values too; a bad row in a later piece is named by its line in the file, the first bad row of a piece
     first whatever its column; a short row is named without the piece's own row count."""
     import pyarrow.csv as pacsv
 
@@ -133,6 +133,10 @@ def test_csv_pieces_parsed_at_once_give_the_streaming_readers_rows(tmp_path, mon
     for name, got in (("t", [c.t for c in chunks]), ("y", [c.xyz[:, 1] for c in chunks]),
                       ("temp", [c.temp for c in chunks])):
         assert np.array_equal(np.concatenate(got), np.concatenate([b[name].to_numpy() for b in stream]))
+    quoted = list(lines)     # a piece with quoted values: parsed again with quoting
+    quoted[50_001] = '"' + lines[50_001].replace(",", '","') + '"'
+    f.write_text("\n".join(quoted) + "\n")
+    assert np.array_equal(np.concatenate([c.t for c in open_recording(f).chunks()]), t)
     bad = list(lines)
     bad[100_001] = "1000.0000,0.01,0.5,inf,30.5"
     bad[100_002] = "1000.0100,nan,0.5,0.99,30.5"
