@@ -4,10 +4,10 @@ checked by numpy in a worker thread, WORKERS pieces at once, and handed on in th
 Arrow's streaming reader parses one block after another on one core: on the 14-day 100 Hz file
 (4.5 GB) the parse alone was most of the command's time.
 
-What is handed on is what the streaming reader gave: the same rows, values and errors (a row's
-line number counted from the file's start).  The first piece is Arrow's first 1 MB block as the
+What is handed on is what the streaming reader gave: the same rows and values; a bad row is
+named by its line in the file (the first bad row of a piece, whatever its column).  The first piece is Arrow's first 1 MB block as the
 streaming reader cut it, so the first chunk, on which scan estimates the rate, is the same.
-Memory: at most WORKERS + 1 pieces of text and their columns (~100 MB)."""
+Memory: at most WORKERS + 1 pieces of text and their columns in flight, a few MB."""
 from __future__ import annotations
 
 import re
@@ -18,7 +18,7 @@ import numpy as np
 from accelcal.errors import InputError
 
 BLOCK = 1 << 20       # Arrow's block: a longer line is refused (not a recording's)
-PIECE = 8 << 20       # bytes of text per piece after the first
+PIECE = 1 << 20       # bytes of text per piece after the first (Arrow's block: the least memory)
 WORKERS = 2
 LONG_LINE = "a line longer than 1 MB (not a recording's line)"
 

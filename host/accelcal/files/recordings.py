@@ -120,7 +120,7 @@ class CsvRecording(Recording):
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per piece of the file parsed on both cores (files/csvpieces.py: the first
-        is Arrow's first 1 MB block, then 16 MB of text each): memory stays constant; `size`
+        is Arrow's first 1 MB block, then 1 MB of text each): memory stays constant; `size`
         is not used."""
         from accelcal.files.csvpieces import parsed
         first = 0
