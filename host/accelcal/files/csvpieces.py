@@ -23,6 +23,28 @@ WORKERS = 2
 LONG_LINE = "a line longer than 1 MB (not a recording's line)"
 
 
+def arrow():
+    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
+    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
+    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
+    for whatever imports it itself (pygt3x)."""
+    import sys
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    if "pandas" not in sys.modules:
+        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
+            def find_spec(self, name, path=None, target=None):
+                if name == "pandas":
+                    raise ModuleNotFoundError("pandas", name="pandas")
+        blocker = NoPandas()
+        sys.meta_path.insert(0, blocker)
+        try:
+            pa.array([0.0]).to_numpy()
+        finally:
+            sys.meta_path.remove(blocker)
+    return pa, pacsv
+
+
 def cut(path: str, fh, first: int, size: int):
     """The file's bytes from fh's position in pieces ending at a line end (the last may not):
     the first piece within `first` bytes, then within `size` bytes each."""
@@ -84,7 +106,6 @@ def parsed(path: str, names: list[str]):
     """The data rows of a CSV file (its first line the header) in order, as lists of columns
     (float64), parsed WORKERS pieces at a time; InputError for the first bad row, by its line
     number."""
-    from accelcal.files.recordings import arrow
     pa, pacsv = arrow()     # once, here: it tells pyarrow that pandas is not there
     with open(path, "rb") as fh, ThreadPoolExecutor(WORKERS) as pool:
         pending = []

@@ -27,6 +27,7 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
+from accelcal.files.csvpieces import parsed
 from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
 # Which file is a recording, and its header's names: files/readers.py (the one rule).
@@ -46,28 +47,6 @@ class Chunk:
     temp: np.ndarray | None
     first: int
     cols: dict = field(default_factory=dict)
-
-
-def arrow():
-    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
-    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
-    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
-    for whatever imports it itself (pygt3x)."""
-    import sys
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    if "pandas" not in sys.modules:
-        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
-            def find_spec(self, name, path=None, target=None):
-                if name == "pandas":
-                    raise ModuleNotFoundError("pandas", name="pandas")
-        blocker = NoPandas()
-        sys.meta_path.insert(0, blocker)
-        try:
-            pa.array([0.0]).to_numpy()
-        finally:
-            sys.meta_path.remove(blocker)
-    return pa, pacsv
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -122,7 +101,6 @@ class CsvRecording(Recording):
         """One chunk per piece of the file parsed on both cores (files/csvpieces.py: the first
         is Arrow's first 1 MB block, then 1 MB of text each): memory stays constant; `size`
         is not used."""
-        from accelcal.files.csvpieces import parsed
         first = 0
         self._last_t = None
         for cols in parsed(self.path, self.header):
