@@ -2,14 +2,16 @@
 
 * throughput of the vectorised path, one core: floats in g -> the device's Q10 samples, the rest
   detector's twin, the apply twin (samples per second, best of 3 over 20 M samples);
-* a 14-day 100 Hz simulated wrist recording (CSV, made once under build/bench/) calibrated end to
-  end by `accelcal calibrate` in its own process: wall time and peak RSS (the kernel's count for
-  that process, os.wait4);
+* a 14-day 100 Hz simulated wrist recording (CSV, simulated into a temporary folder and deleted
+  after, or --csv FILE) calibrated end to end by `accelcal calibrate` in its own process: wall
+  time, CPU time and peak RSS (the kernel's count for that process, os.wait4); then the same
+  samples as an Axivity AX3 .cwa (accelcal.simulate.cwa; at an AX3 rate only);
 * the same file through scikit-digital-health's CalibrateAccelerometer and actipy's
   calibrate_gravity (each in its own process in .venv-bench, their defaults), scored on the same
   still windows (accelcal.studies.bench_others).
 
-    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--others PYTHON] [--json]
+    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--csv FILE] [--no-cwa]
+                                           [--others PYTHON] [--json]
 """
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ import numpy as np
 from accelcal.bridge import twin
 from accelcal.locations import checkout
 
-ROOT = checkout() or Path.cwd()   # build/bench and .venv-bench live in the checkout
+ROOT = checkout() or Path.cwd()   # .venv-bench and build/pycache live in the checkout
 
 
 def throughput(n: int = 20_000_000) -> dict:
