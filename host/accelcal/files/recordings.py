@@ -99,7 +99,7 @@ class CsvRecording(Recording):
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         """One chunk per piece of the file parsed on both cores (files/csvpieces.py: the first
-        is Arrow's first 1 MB block, then 1 MB of text each): memory stays constant; `size`
+        is Arrow's first 1 MB block, then 4 MB of text each): memory stays constant; `size`
         is not used."""
         first = 0
         self._last_t = None
