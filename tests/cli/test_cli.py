@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from accelcal import simulate
-from conftest import run_cli
+from conftest import ROOT, run_cli
 
 
 @pytest.fixture
@@ -259,3 +259,30 @@ def test_help_loads_no_heavy_library(argv):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert out.stderr.strip().splitlines()[-1] == "[]", out.stderr
+
+
+def test_calibrate_and_apply_load_what_they_use(points_csv, tmp_path):
+    """Issue 30 part 4: `calibrate` (a points file, a recording CSV, a .cwa) and `apply` on the
+    in-process runtime load no float library they do not call and not the emulated chip (its
+    firmware and build tools: only the chip runtimes use it); the CWA reader does not load
+    Arrow.  Read from sys.modules in a fresh interpreter (not timed)."""
+    import subprocess
+    import sys
+    params = tmp_path / "p.json"
+    assert run_cli("calibrate", points_csv, "--by", "device", "--save", params).returncode == 0
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,x,y,z,temp\n" + "".join(f"{i / 100},0.1,0.2,0.97,30\n" for i in range(3000)))
+    cwa = ROOT / "tests" / "data" / "real" / "ax3_sample.cwa"
+    heavy = ("accelcal.bridge.rp2040",)
+    for argv, also in ((["calibrate", str(points_csv), "--quiet"], ()),
+                       (["calibrate", str(rec), "--quiet"], ()),
+                       (["calibrate", str(cwa), "--quiet"], ("pyarrow",)),
+                       (["apply", str(params), str(rec), "-o", str(tmp_path / "o.csv"), "--device",
+                         "s0001", "--quiet"], ())):
+        code = ("import sys\nfrom accelcal.cli import main\n"
+                f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass\n"
+                f"print(sorted(m for m in sys.modules if m in {heavy + also!r} or "
+                "m.split('.')[0] in ('scipy', 'matplotlib', 'pandas', 'dask', 'sklearn')), "
+                "file=sys.stderr)")
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert out.stderr.strip().splitlines()[-1] == "[]", (argv, out.stderr)

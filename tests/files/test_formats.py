@@ -112,6 +112,44 @@ def test_csv_streams_in_blocks_with_row_numbers_in_errors(tmp_path):
         list(open_recording(f).chunks())
 
 
+def test_csv_pieces_parsed_at_once_give_the_streaming_readers_rows(tmp_path, monkeypatch):
+    """The CSV in pieces parsed two at a time (files/csvpieces.py) gives the rows Arrow's
+    streaming reader gives, its first block as the first chunk (scan's rate comes from it),
+    quoted values too; a bad row in a later piece is named by its line in the file, the first bad row of a piece
+    first whatever its column; a short row is named without the piece's own row count."""
+    import pyarrow.csv as pacsv
+
+    from accelcal.files import csvpieces
+    monkeypatch.setattr(csvpieces, "PIECE", 200_000)
+    f = tmp_path / "r.csv"
+    n = 120_000      # ~3 MB: a first 1 MB block, then ~12 pieces
+    t = np.round(np.arange(n) / 100 + np.sin(np.arange(n)) * 1e-3, 4)
+    lines = ["t,x,y,z,temp"] + [f"{v:.4f},0.01,{v % 1:.3f},0.99,30.5" for v in t]
+    f.write_text("\n".join(lines) + "\n")
+    stream = list(pacsv.open_csv(f, read_options=pacsv.ReadOptions(block_size=1 << 20)))
+    chunks = list(open_recording(f).chunks())
+    assert 10 < len(chunks) < len(stream) * 5 and len(chunks[0].t) == stream[0].num_rows
+    assert [c.first for c in chunks] == list(np.cumsum([0] + [len(c.t) for c in chunks[:-1]]))
+    for name, got in (("t", [c.t for c in chunks]), ("y", [c.xyz[:, 1] for c in chunks]),
+                      ("temp", [c.temp for c in chunks])):
+        assert np.array_equal(np.concatenate(got), np.concatenate([b[name].to_numpy() for b in stream]))
+    quoted = list(lines)     # a piece with quoted values: parsed again with quoting
+    quoted[50_001] = '"' + lines[50_001].replace(",", '","') + '"'
+    f.write_text("\n".join(quoted) + "\n")
+    assert np.array_equal(np.concatenate([c.t for c in open_recording(f).chunks()]), t)
+    bad = list(lines)
+    bad[100_001] = "1000.0000,0.01,0.5,inf,30.5"
+    bad[100_002] = "1000.0100,nan,0.5,0.99,30.5"
+    bad[100_003] = "1000.0200,0.01,,0.99,30.5"
+    f.write_text("\n".join(bad) + "\n")
+    with pytest.raises(InputError, match=r"r.csv:100002: inf in column z"):
+        list(open_recording(f).chunks())
+    bad[100_001] = "1000.0000,0.01,0.5"
+    f.write_text("\n".join(bad) + "\n")
+    with pytest.raises(InputError, match=r"r.csv: CSV parse error: Expected 5 columns, got 3: 1000"):
+        list(open_recording(f).chunks())
+
+
 @pytest.mark.parametrize("name", ["ax3_sample.cwa", "ax6_sample.cwa"])
 def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     """A .cwa goes to actfast a few blocks at a time (constant memory): the pieces give the

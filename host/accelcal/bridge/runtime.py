@@ -16,7 +16,6 @@ from pathlib import Path
 from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, PointsGroup,
                                       RestMeans, SamplesGroup, condition_changes,
                                       device_conditions, parse, protocol_items, protocol_lines)
-from accelcal.bridge import rp2040
 from accelcal.bridge.feed import offer_points
 from accelcal.bridge.scripts import mp_runner
 from accelcal.errors import InputError, InterpreterFailed
@@ -33,8 +32,15 @@ RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "rp2040-romfs",
 # The runtimes on the emulated chip, by the firmware they boot: MicroPython's RPI_PICO (the
 # package on littlefs, or in ROMFS on the same firmware built with a ROMFS partition) and
 # CircuitPython's Feather RP2040
-CHIP_FIRMWARES = {"rp2040": rp2040.MICROPYTHON, "rp2040-romfs": rp2040.MICROPYTHON_ROMFS,
-                  "circuitpython": rp2040.CIRCUITPYTHON}
+# (bridge/rp2040.py's names: it is imported when a chip runs, not by every command)
+CHIP_FIRMWARES = {"rp2040": "MICROPYTHON", "rp2040-romfs": "MICROPYTHON_ROMFS",
+                  "circuitpython": "CIRCUITPYTHON"}
+
+
+def chip_firmware(runtime: str):
+    """The emulated chip, bridge/rp2040.py, and the firmware a chip runtime boots."""
+    from accelcal.bridge import rp2040
+    return rp2040, getattr(rp2040, CHIP_FIRMWARES[runtime])
 
 
 def micropython_path() -> str:
@@ -57,6 +63,7 @@ def emitted_device_dir() -> str:
     viper), written once per content under the temporary directory.  The unix port runs this copy,
     so its identity tests exercise the viper code; the WebAssembly port (no emitters) runs device/
     itself, the plain Python."""
+    from accelcal.bridge import rp2040
     files = sorted((DEVICE_DIR / "acal").glob("*.py"))
     key = hashlib.sha256(b"".join(f.name.encode() + b"\0" + f.read_bytes() for f in files))
     root = Path(tempfile.gettempdir()) / f"accelcal-emitted-{key.hexdigest()[:16]}"
@@ -124,7 +131,8 @@ def check(runtime: str) -> None:
     elif runtime == "micropython32":
         micropython32_module()
     elif runtime in CHIP_FIRMWARES:
-        rp2040.check(CHIP_FIRMWARES[runtime])
+        chip, firmware = chip_firmware(runtime)
+        chip.check(firmware)
 
 
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
@@ -147,6 +155,7 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
                     fh.write(line + "\n")
             return parse(script(str(RUNNER), str(inp)).splitlines())
     if runtime in CHIP_FIRMWARES:
-        lines = protocol_lines(groups, cfg, rp2040.SAMPLES_PER_LINE)
-        return parse(rp2040.run_protocol(list(lines), CHIP_FIRMWARES[runtime]).out.splitlines())
+        chip, firmware = chip_firmware(runtime)
+        lines = protocol_lines(groups, cfg, chip.SAMPLES_PER_LINE)
+        return parse(chip.run_protocol(list(lines), firmware).out.splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

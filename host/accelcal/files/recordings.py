@@ -1,8 +1,9 @@
 """Recordings of any size and format, read in chunks onto our recording model (docs/method-and-formats.md "Files"):
 time t in s, x/y/z in g, temperature in degC where the device records it.
 
-* CSV (header t,x,y,z[,temp][,NAME...]) streams through Apache Arrow's CSV reader: a C++ engine, parsed in
-  blocks on both cores, so memory stays constant whatever the file's length.
+* CSV (header t,x,y,z[,temp][,NAME...]) streams through Apache Arrow's CSV reader: a C++ engine,
+  pieces of the file parsed on both cores at once (files/csvpieces.py), so memory stays constant
+  whatever the file's length.
 * Axivity .cwa (AX3, AX6), GENEActiv .bin and ActiGraph .gt3x go through `actfast`, a maintained
   reader of all three.  It reads a whole file at once (about 20 bytes a sample: a 14-day 100 Hz
   file would need ~2.4 GB), so a .cwa, made of self-contained 512-byte blocks, goes to it in
@@ -26,6 +27,7 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.checks import check_values
+from accelcal.files.csvpieces import parsed
 from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
 # Which file is a recording, and its header's names: files/readers.py (the one rule).
@@ -45,28 +47,6 @@ class Chunk:
     temp: np.ndarray | None
     first: int
     cols: dict = field(default_factory=dict)
-
-
-def arrow():
-    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
-    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
-    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
-    for whatever imports it itself (pygt3x)."""
-    import sys
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    if "pandas" not in sys.modules:
-        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
-            def find_spec(self, name, path=None, target=None):
-                if name == "pandas":
-                    raise ModuleNotFoundError("pandas", name="pandas")
-        blocker = NoPandas()
-        sys.meta_path.insert(0, blocker)
-        try:
-            pa.array([0.0]).to_numpy()
-        finally:
-            sys.meta_path.remove(blocker)
-    return pa, pacsv
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -118,39 +98,19 @@ class CsvRecording(Recording):
         self.columns = lay.further
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
-        """One chunk per block Arrow parses (1 MB of text, ~23 000 rows): memory stays
-        constant; `size` is not used (Arrow's blocks are the natural unit)."""
-        pa, pacsv = arrow()
-        types = {h: pa.float64() for h in self.header}
+        """One chunk per piece of the file parsed on both cores (files/csvpieces.py: the first
+        is Arrow's first 1 MB block, then 4 MB of text each): memory stays constant; `size`
+        is not used."""
         first = 0
         self._last_t = None
-        try:
-            reader = pacsv.open_csv(
-                self.path, read_options=pacsv.ReadOptions(block_size=1 << 20, use_threads=True,
-                                                          column_names=self.header, skip_rows=1),
-                convert_options=pacsv.ConvertOptions(column_types=types, null_values=[""]))
-            for batch in reader:
-                if batch.num_rows:
-                    yield self._chunk(batch, first)
-                    first += batch.num_rows
-        except pa.ArrowInvalid as e:
-            raise InputError(f"{self.path}: {_arrow_message(e)}") from None
+        for cols in parsed(self.path, self.header):
+            yield self._chunk(cols, first)
+            first += len(cols[0])
         if first == 0:
             raise InputError(f"{self.path}: no data rows")
 
-    def _chunk(self, batch, first: int) -> Chunk:
-        cols = []
-        for i, h in enumerate(self.header):
-            c = batch.column(i)
-            if c.null_count:
-                row = first + int(np.argmax(c.is_null().to_numpy(zero_copy_only=False)))
-                raise InputError(f"{self.path}:{row + 2}: missing value in column {h}")
-            v = c.to_numpy()
-            if not np.isfinite(v).all():
-                row = first + int(np.argmax(~np.isfinite(v)))
-                raise InputError(f"{self.path}:{row + 2}: {v[row - first]} in column {h} "
-                                 "(values must be finite)")
-            cols.append(v)
+    def _chunk(self, cols: list, first: int) -> Chunk:
+        # the rows' columns, each parsed and finite (csvpieces.parse): the value checks
         check_values(self.path, cols[0], np.column_stack(cols[1:4]),
                      cols[4] if self.has_temp else None, first, self._last_t)
         extra = dict(zip(self.columns, cols[len(self.header) - len(self.columns):]))
@@ -163,12 +123,6 @@ class CsvRecording(Recording):
         self._last_t = float(cols[0][-1])
         return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first,
                      extra)
-
-
-def _arrow_message(e: Exception) -> str:
-    if "straddl" in str(e):   # a row longer than Arrow's 1 MB block: no recording's line is
-        return "a line longer than 1 MB (not a recording's line)"
-    return " ".join(str(e).split())[:300]
 
 
 def _actfast(path: str, fmt: str) -> dict:
@@ -200,9 +154,20 @@ def _columns(data: dict):
     temp = None
     if lf is not None:
         tl = lf["datetime"].astype(np.float64) / 1e9
-        held = np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
-        temp = lf["temperature"].astype(np.float64)[held]
+        temp = lf["temperature"].astype(np.float64)[held_index(tl, t)]
     return t, hf["acceleration"], temp
+
+
+def held_index(tl: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """For each time in t, the index of the last reading at tl at or before it (0 before the
+    first): np.searchsorted(tl, t, "right") - 1, clipped at 0.  Both in order (as a file's
+    clock runs): counted in one pass over t, a binary search per reading rather than per
+    sample (a quarter of a .cwa's read time)."""
+    if len(t) and len(tl) and (np.diff(t) >= 0).all() and (np.diff(tl) >= 0).all():
+        starts = np.searchsorted(t, tl, side="left")   # the first sample at or after each reading
+        count = np.cumsum(np.bincount(starts, minlength=len(t) + 1)[:len(t)])
+        return np.clip(count - 1, 0, None)
+    return np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
 
 
 def _pygt3x_read(path: str):

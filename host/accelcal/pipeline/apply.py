@@ -95,7 +95,8 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
     clipped, as the device's); writes CSV t,x,y,z[,temp] (g to 1e-6: every step of the device's
     output format, >= 122 ug, kept distinct; degC to 1e-3), then the
     file's further columns as read.  Returns (samples, samples clipped, full scale in g)."""
-    from accelcal.files.recordings import arrow, open_recording
+    from accelcal.files.csvpieces import arrow
+    from accelcal.files.recordings import open_recording
     pa, pacsv = arrow()
     rec = open_recording(path)
     rng = apply_range(rec.range_g, range_g)

@@ -2,14 +2,16 @@
 
 * throughput of the vectorised path, one core: floats in g -> the device's Q10 samples, the rest
   detector's twin, the apply twin (samples per second, best of 3 over 20 M samples);
-* a 14-day 100 Hz simulated wrist recording (CSV, made once under build/bench/) calibrated end to
-  end by `accelcal calibrate` in its own process: wall time and peak RSS (the kernel's count for
-  that process, os.wait4);
+* a 14-day 100 Hz simulated wrist recording (CSV, simulated into a temporary folder and deleted
+  after, or --csv FILE) calibrated end to end by `accelcal calibrate` in its own process: wall
+  time, CPU time and peak RSS (the kernel's count for that process, os.wait4); then the same
+  samples as an Axivity AX3 .cwa (accelcal.simulate.cwa; at an AX3 rate only);
 * the same file through scikit-digital-health's CalibrateAccelerometer and actipy's
   calibrate_gravity (each in its own process in .venv-bench, their defaults), scored on the same
   still windows (accelcal.studies.bench_others).
 
-    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--others PYTHON] [--json]
+    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--csv FILE] [--no-cwa]
+                                           [--others PYTHON] [--json]
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import argparse
 import json
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -25,7 +28,7 @@ import numpy as np
 from accelcal.bridge import twin
 from accelcal.locations import checkout
 
-ROOT = checkout() or Path.cwd()   # build/bench and .venv-bench live in the checkout
+ROOT = checkout() or Path.cwd()   # .venv-bench and build/pycache live in the checkout
 
 
 def throughput(n: int = 20_000_000) -> dict:
@@ -108,27 +111,67 @@ def compiled_env() -> dict:
     return env
 
 
-def ensure_recording(days: float, rate: int, seed: int = 14) -> Path:
-    d = ROOT / "build" / "bench"
-    d.mkdir(parents=True, exist_ok=True)
-    f = d / f"wrist-{days:g}d-{rate}hz-s{seed}.csv"
-    if not f.exists():
-        print(f"simulating {days:g} days at {rate} Hz into {f} (once) ...", file=sys.stderr, flush=True)
-        tmp = f.with_suffix(".part.csv")
-        subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", str(days),
-                        "--rate", str(rate), "--seed", str(seed), "-o", str(tmp), "--force"], check=True)
-        tmp.with_suffix(".truth.json").rename(f.with_suffix(".truth.json"))
-        tmp.rename(f)
+def simulated(folder: Path, days: float, rate: int, seed: int = 14) -> Path:
+    """A simulated wrist recording CSV in folder (`accelcal simulate wrist`, its truth beside)."""
+    f = folder / f"wrist-{days:g}d-{rate}hz-s{seed}.csv"
+    print(f"simulating {days:g} days at {rate} Hz into {f} ...", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", str(days),
+                    "--rate", str(rate), "--seed", str(seed), "-o", str(f), "--force"], check=True)
+    print(f"  ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     return f
 
 
-def still_windows(path: Path) -> Path:
+def as_cwa(csv: Path, folder: Path) -> Path | None:
+    """The recording as an Axivity AX3 .cwa in folder (accelcal.simulate.cwa), None when its
+    rate is no AX3 rate (3200 / 2^k Hz: not 10 Hz)."""
+    from accelcal.files.recordings import open_recording
+    from accelcal.simulate.cwa import CwaWriter, rate_code
+    rec = open_recording(csv)
+    out = folder / (csv.stem + ".cwa")
+    writer = None
+    with open(out, "wb") as fh:
+        for ch in rec.chunks():
+            if writer is None:
+                rate = int(round(1.0 / float(np.median(np.diff(ch.t[:1 << 16])))))
+                try:
+                    rate_code(rate)
+                except ValueError:
+                    break
+                writer = CwaWriter(fh, rate)
+            writer.write(ch.t, ch.xyz, ch.temp)
+        if writer is not None:
+            writer.close()
+    if writer is None:
+        out.unlink()
+        return None
+    return out
+
+
+def calibrated(f: Path, n: int, days: float, rate: int) -> dict:
+    """`accelcal calibrate` on f in its own process: wall, CPU, peak RSS, what it found."""
+    wall, rss, out, err, cpu = measured_alone([sys.executable, "-m", "accelcal.cli", "calibrate",
+                                               str(f), "--json", "--quiet"], compiled_env())
+    rec = json.loads(out)
+    kind = "CSV" if f.suffix == ".csv" else f.suffix.lstrip(".").upper()
+    print(f"{days:g} days at {rate} Hz ({n / 1e6:.0f} M samples, {f.stat().st_size / 1e9:.2f} GB of "
+          f"{kind}), end to end: accelcal {wall:.1f} s ({n / wall / 1e6:.1f} M samples/s; CPU "
+          f"{cpu:.1f} s), peak RSS {rss:.0f} MB, {rec['status']}, calibration error "
+          f"{rec['error_before_mg']:.2f} -> {rec.get('error_after_mg', float('nan')):.2f} mg on "
+          f"{rec['still_windows']} still windows", flush=True)
+    return {"wall_s": wall, "cpu_s": cpu, "peak_rss_mb": rss, "status": rec["status"],
+            "error_before_mg": rec["error_before_mg"], "error_after_mg": rec.get("error_after_mg"),
+            "still_windows": rec["still_windows"], "samples_per_s": n / wall,
+            "file_gb": f.stat().st_size / 1e9}
+
+
+def still_windows(path: Path, folder: Path) -> Path:
     """accelcal's kept still windows of the file (first sample, length), for scoring the others."""
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline.scan import scan
     sc = scan(open_recording(path), 5, 123, 0)
     kept = sc.masks()["kept"]
-    out = path.with_suffix(".windows.npz")
+    out = folder / (path.stem + ".windows.npz")
     np.savez(out, starts=sc.segments.end[kept] - sc.length + 1, length=sc.length)
     return out
 
@@ -141,6 +184,10 @@ def main(argv=None) -> int:
     ap.add_argument("--others", metavar="PYTHON", help="interpreter with scikit-digital-health and "
                                                         "actipy (default: .venv-bench/bin/python)")
     ap.add_argument("--no-throughput", action="store_true", help="only the end-to-end runs")
+    ap.add_argument("--csv", metavar="FILE", help="an existing recording CSV of that length "
+                                                  "(default: simulated into a temporary folder, "
+                                                  "deleted after)")
+    ap.add_argument("--no-cwa", action="store_true", help="not the .cwa of the same samples")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     res: dict = {}
@@ -149,23 +196,29 @@ def main(argv=None) -> int:
         print(f"vectorised path, one core: g -> Q10 {tp['convert_samples_per_s'] / 1e6:.0f} M samples/s, "
               f"rest twin {tp['rest_samples_per_s'] / 1e6:.0f} M/s, both {tp['convert_and_rest_samples_per_s'] / 1e6:.0f} M/s, "
               f"apply {tp['apply_samples_per_s'] / 1e6:.0f} M/s", flush=True)
-    f = ensure_recording(a.days, a.rate)
-    n = a.days * 86400 * a.rate
-    size_gb = f.stat().st_size / 1e9
-    wall, rss, out, err, cpu = measured_alone([sys.executable, "-m", "accelcal.cli", "calibrate",
-                                               str(f), "--json", "--quiet"], compiled_env())
-    rec = json.loads(out)
-    res["accelcal"] = {"wall_s": wall, "cpu_s": cpu, "peak_rss_mb": rss, "status": rec["status"],
-                       "error_before_mg": rec["error_before_mg"],
-                       "error_after_mg": rec.get("error_after_mg"), "still_windows": rec["still_windows"],
-                       "samples_per_s": n / wall}
-    print(f"{a.days:g} days at {a.rate} Hz ({n / 1e6:.0f} M samples, {size_gb:.1f} GB of CSV), end to "
-          f"end: accelcal {wall:.1f} s ({n / wall / 1e6:.1f} M samples/s; CPU {cpu:.1f} s), peak RSS {rss:.0f} MB, "
-          f"{rec['status']}, calibration error {rec['error_before_mg']:.2f} -> "
-          f"{rec.get('error_after_mg', float('nan')):.2f} mg on {rec['still_windows']} still windows", flush=True)
+    with tempfile.TemporaryDirectory(prefix="accelcal-bench-") as tmp:
+        f = Path(a.csv) if a.csv else simulated(Path(tmp), a.days, a.rate)
+        n = int(a.days * 86400 * a.rate)
+        res["accelcal"] = calibrated(f, n, a.days, a.rate)
+        cwa = None if a.no_cwa else as_cwa(f, Path(tmp))
+        if cwa is not None:
+            res["accelcal_cwa"] = calibrated(cwa, n, a.days, a.rate)
+            cwa.unlink()    # the peers read the CSV: room on the disk for their copies
+        elif not a.no_cwa:
+            print(f"  (no .cwa: {a.rate} Hz is no Axivity rate)", flush=True)
+        others(a, f, Path(tmp), res)
+    if a.json:
+        print(json.dumps(res))
+    return 0
+
+
+def others(a, f: Path, tmp: Path, res: dict) -> None:
+    """The same file through scikit-digital-health and actipy (each in its own process)."""
+    wall = res["accelcal"]["wall_s"]
+    cpu = res["accelcal"]["cpu_s"]
     py = a.others or str(ROOT / ".venv-bench" / "bin" / "python")
     if Path(py).exists():
-        win = still_windows(f)
+        win = still_windows(f, tmp)
         for tool in ("skdh", "actipy"):
             try:
                 wall_o, rss_o, out_o, _, cpu_o = measured_alone(
@@ -186,9 +239,6 @@ def main(argv=None) -> int:
                       "on the same windows", flush=True)
     else:
         print(f"  (skdh/actipy skipped: {py} not found; `make bench` creates it)")
-    if a.json:
-        print(json.dumps(res))
-    return 0
 
 
 if __name__ == "__main__":

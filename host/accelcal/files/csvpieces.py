@@ -1,0 +1,141 @@
+"""A recording CSV parsed in pieces on both cores (CsvRecording.chunks): the file is cut at line
+ends into pieces of PIECE bytes, each parsed by Arrow's CSV reader (C++, the GIL released) and
+checked by numpy in a worker thread, WORKERS pieces at once, and handed on in the file's order.
+Arrow's streaming reader parses one block after another on one core: on the 14-day 100 Hz file
+(4.5 GB) the parse alone was most of the command's time.
+
+What is handed on is what the streaming reader gave: the same rows and values; a bad row is
+named by its line in the file (the first bad row of a piece, whatever its column).  The first piece is Arrow's first 1 MB block as the
+streaming reader cut it, so the first chunk, on which scan estimates the rate, is the same.
+Memory: at most WORKERS + 1 pieces of text and their columns in flight, a few MB."""
+from __future__ import annotations
+
+import re
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from accelcal.errors import InputError
+
+BLOCK = 1 << 20       # Arrow's block: a longer line is refused (not a recording's)
+PIECE = 4 << 20       # bytes of text per piece after the first (1 MB: ~25 % more CPU in read_csv calls)
+WORKERS = 2
+LONG_LINE = "a line longer than 1 MB (not a recording's line)"
+
+
+def arrow():
+    """(pyarrow, pyarrow.csv), told once that pandas is not there: its lazy pandas check (on the
+    first array it makes or converts) would import pandas where installed, 0.3-1.4 s here, for
+    nothing: no pandas object is made from Arrow's here.  pandas, if installed, stays importable
+    for whatever imports it itself (pygt3x)."""
+    import sys
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    if "pandas" not in sys.modules:
+        class NoPandas:      # import pandas -> ImportError, remembered by pyarrow
+            def find_spec(self, name, path=None, target=None):
+                if name == "pandas":
+                    raise ModuleNotFoundError("pandas", name="pandas")
+        blocker = NoPandas()
+        sys.meta_path.insert(0, blocker)
+        try:
+            pa.array([0.0]).to_numpy()
+        finally:
+            sys.meta_path.remove(blocker)
+    return pa, pacsv
+
+
+def cut(path: str, fh, first: int, size: int):
+    """The file's bytes from fh's position in pieces ending at a line end (the last may not):
+    the first piece within `first` bytes, then within `size` bytes each."""
+    rest = b""
+    want = first
+    while True:
+        data = fh.read(want - len(rest)) if want > len(rest) else b""
+        buf = rest + data
+        if not data:
+            if buf:
+                yield buf
+            return
+        end = buf.rfind(b"\n") + 1
+        if end == 0:           # no line end in a whole piece (Arrow: "straddling")
+            raise InputError(f"{path}: {LONG_LINE}")
+        yield buf[:end]
+        rest = buf[end:]
+        want = size
+
+
+def parse(buf: bytes, names: list[str], skip: int, pa, pacsv):
+    """One piece's columns as float64 arrays, or the error it holds:
+    ("bad", row, column, None for a missing value or the value that is not finite), the row
+    counted from the piece's first; or ("arrow", message)."""
+    # Without quoting first (a tenth faster): a piece with a quote or an odd row fails to
+    # convert or to split and is parsed again as CSV, which then gives the answer
+    table = None
+    for quoting in (False, True):
+        try:
+            table = pacsv.read_csv(
+                pa.py_buffer(buf),
+                read_options=pacsv.ReadOptions(block_size=BLOCK, use_threads=False,
+                                               column_names=names, skip_rows=skip),
+                parse_options=pacsv.ParseOptions(**({} if quoting else {"quote_char": False})),
+                convert_options=pacsv.ConvertOptions(column_types={h: pa.float64() for h in names},
+                                                     null_values=[""]))
+            break
+        except pa.ArrowInvalid as e:
+            if quoting:
+                return ("arrow", str(e))
+    cols, bad = [], []
+    for i, c in enumerate(table.columns):
+        if c.null_count:
+            nulls = np.concatenate([k.is_null().to_numpy(zero_copy_only=False) for k in c.chunks])
+            bad.append((int(np.argmax(nulls)), i, None))
+            continue
+        v = c.to_numpy()
+        finite = np.isfinite(v)
+        if not finite.all():
+            row = int(np.argmax(~finite))
+            bad.append((row, i, float(v[row])))
+        cols.append(v)
+    if bad:     # the first bad row, its first bad column: what a row by row reader meets first
+        return ("bad",) + min(bad)
+    return cols
+
+
+def parsed(path: str, names: list[str]):
+    """The data rows of a CSV file (its first line the header) in order, as lists of columns
+    (float64), parsed WORKERS pieces at a time; InputError for the first bad row, by its line
+    number."""
+    pa, pacsv = arrow()     # once, here: it tells pyarrow that pandas is not there
+    with open(path, "rb") as fh, ThreadPoolExecutor(WORKERS) as pool:
+        pending = []
+        first = 0
+        pieces = cut(path, fh, BLOCK, PIECE)
+        try:
+            for k, buf in enumerate(pieces):
+                pending.append(pool.submit(parse, buf, names, 1 if k == 0 else 0,
+                                           pa, pacsv))
+                if len(pending) <= WORKERS:
+                    continue
+                first = yield from _handed(path, names, pending.pop(0).result(), first)
+            while pending:
+                first = yield from _handed(path, names, pending.pop(0).result(), first)
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+def _handed(path, names, got, first):
+    if isinstance(got, tuple):
+        if got[0] == "arrow":   # a row longer than Arrow's block: no recording's line is
+            said = LONG_LINE if "straddl" in got[1] else \
+                " ".join(re.sub(r"Row #\d+: ", "", got[1]).split())[:300]   # the piece's row
+            raise InputError(f"{path}: {said}")
+        _, row, col, value = got
+        where = f"{path}:{first + row + 2}"
+        if value is None:
+            raise InputError(f"{where}: missing value in column {names[col]}")
+        raise InputError(f"{where}: {value} in column {names[col]} (values must be finite)")
+    if len(got[0]):
+        yield got
+    return first + len(got[0])
