@@ -13,6 +13,23 @@ for _folder in sorted(Path(__file__).parent.iterdir()):
         sys.path.insert(0, str(_folder))
 
 
+def pytest_collection_modifyitems(config, items):
+    """Under `-n 2 --dist loadgroup` (make test) a module's tests that share a module-scoped
+    fixture run on one worker, so that its set-up (simulated recordings, a chip's bench: up to
+    a minute) is made once, not once per worker; the other tests are spread one by one.  The
+    grouped tests go first, so that the workers end together."""
+    grouped = set()
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        for name in (info.names_closure if info else ()):
+            defs = info.name2fixturedefs.get(name)
+            if defs and defs[-1].scope == "module":
+                item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+                grouped.add(item.nodeid)
+                break
+    items.sort(key=lambda item: item.nodeid not in grouped)   # stable: each part in its order
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -101,7 +101,8 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
     script = test_discover._stream(tmp_path, "hidden", test_discover.C_TRUE)
     text = script.read_text()
     variants = {"discover": text, "plain": text.replace("discover=True", "discover=False"),
-                "held_from_start": text.replace("discover=True)", "discover=True)\n    p.pipe.early = False")}
+                "held_from_start": text.replace("    buf = array(", "    p.pipe.early = False\n    buf = array(", 1)}
+    assert len({variants[k] for k in variants}) == 3
     first = {}
     for name, t in variants.items():
         f = tmp_path / f"{name}.py"
