@@ -103,12 +103,15 @@ def test_csv_streams_in_blocks_with_row_numbers_in_errors(tmp_path):
     assert all(np.array_equal(c.t, t[c.first:c.first + len(c.t)]) for c in chunks)
     lines = f.read_text().splitlines()
     lines[300_001] = "3000.00,0.01,,0.99"
-    f.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InputError, match=r"r.csv:300002: missing value in column y"):
-        list(open_recording(f).chunks())
+    _refused(f, lines, r"r.csv:300002: missing value in column y")
     lines[300_001] = "3000.00,0.01,nan,0.99"
+    _refused(f, lines, r"r.csv:300002: nan in column y")
+
+
+def _refused(f, lines, match):
+    """The recording written as these lines is refused in one line matching match."""
     f.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InputError, match=r"r.csv:300002: nan in column y"):
+    with pytest.raises(InputError, match=match):
         list(open_recording(f).chunks())
 
 
@@ -141,13 +144,9 @@ def test_csv_pieces_parsed_at_once_give_the_streaming_readers_rows(tmp_path, mon
     bad[100_001] = "1000.0000,0.01,0.5,inf,30.5"
     bad[100_002] = "1000.0100,nan,0.5,0.99,30.5"
     bad[100_003] = "1000.0200,0.01,,0.99,30.5"
-    f.write_text("\n".join(bad) + "\n")
-    with pytest.raises(InputError, match=r"r.csv:100002: inf in column z"):
-        list(open_recording(f).chunks())
+    _refused(f, bad, r"r.csv:100002: inf in column z")
     bad[100_001] = "1000.0000,0.01,0.5"
-    f.write_text("\n".join(bad) + "\n")
-    with pytest.raises(InputError, match=r"r.csv: CSV parse error: Expected 5 columns, got 3: 1000"):
-        list(open_recording(f).chunks())
+    _refused(f, bad, r"r.csv: CSV parse error: Expected 5 columns, got 3: 1000")
 
 
 @pytest.mark.parametrize("name", ["ax3_sample.cwa", "ax6_sample.cwa"])
