@@ -46,10 +46,9 @@ $(STAMP_RP2040JS):
 demo: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo
 
-# on both cores (pytest-xdist): the suite is CPU-bound, its emulated chips most of all;
-# loadgroup: a module-scoped fixture is made on one worker only (tests/conftest.py)
+# on both cores (pytest-xdist): the suite is CPU-bound, its emulated chips most of all
 test: setup
-	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -n 2 --dist loadgroup
+	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -n 2
 
 $(STAMP_BENCH): pyproject.toml
 	$(PY) -m venv $(VENV_BENCH)

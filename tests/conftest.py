@@ -1,3 +1,5 @@
+import contextlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -11,23 +13,6 @@ ROOT = Path(__file__).resolve().parents[1]
 for _folder in sorted(Path(__file__).parent.iterdir()):
     if _folder.is_dir() and _folder.name not in ("data", "__pycache__"):
         sys.path.insert(0, str(_folder))
-
-
-def pytest_collection_modifyitems(config, items):
-    """Under `-n 2 --dist loadgroup` (make test) a module's tests that share a module-scoped
-    fixture run on one worker, so that its set-up (simulated recordings, a chip's bench: up to
-    a minute) is made once, not once per worker; the other tests are spread one by one.  The
-    grouped tests go first, so that the workers end together."""
-    grouped = set()
-    for item in items:
-        info = getattr(item, "_fixtureinfo", None)
-        for name in (info.names_closure if info else ()):
-            defs = info.name2fixturedefs.get(name)
-            if defs and defs[-1].scope == "module":
-                item.add_marker(pytest.mark.xdist_group(item.module.__name__))
-                grouped.add(item.nodeid)
-                break
-    items.sort(key=lambda item: item.nodeid not in grouped)   # stable: each part in its order
 
 
 @pytest.fixture
@@ -48,7 +33,50 @@ def catalogue_restored():
 
 def simulate_wrists(folder, cases: dict, days, rate) -> dict:
     """Simulated wrist recordings, name -> (seed, hidden effects), made in parallel (both cores);
-    name -> path."""
+    name -> path.  Under xdist the two workers share them: the first to ask simulates, the other
+    takes the same files (a module fixture on both workers made them twice, up to a minute)."""
+    import shutil
+    shared = next((p.parent for p in Path(folder).parents if p.name.startswith("popen-gw")), None)
+    if shared is None:
+        return _simulate_wrists(folder, cases, days, rate)
+    with _first_worker(shared, ("wrists", sorted(cases.items()), str(days), str(rate))) as made:
+        if not (made / "done").exists():
+            _simulate_wrists(made, cases, days, rate)
+            (made / "done").touch()
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    for f in made.iterdir():
+        if f.name != "done":
+            shutil.copyfile(f, Path(folder) / f.name)
+    return {name: Path(folder) / f"{name}.csv" for name in cases}
+
+
+@contextlib.contextmanager
+def _first_worker(session_dir: Path, what):
+    """A folder for `what` in the session's folder that the xdist workers share, held under a
+    lock: the first worker makes what goes in it, the others wait and take it."""
+    import fcntl
+    import hashlib
+    key = hashlib.sha256(repr(what).encode()).hexdigest()[:16]
+    folder = session_dir / "shared" / key
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield folder
+
+
+def made_once(tmp_path_factory, what, make):
+    """make()'s JSON result, made once per test session (by one of the xdist workers)."""
+    base = tmp_path_factory.getbasetemp()
+    if not base.name.startswith("popen-gw"):
+        return make()
+    with _first_worker(base.parent, what) as folder:
+        f = folder / "result.json"
+        if not f.exists():
+            f.write_text(json.dumps(make()))
+        return json.loads(f.read_text())
+
+
+def _simulate_wrists(folder, cases: dict, days, rate) -> dict:
     out, procs = {}, []
     for name, (seed, effects) in cases.items():
         path = folder / f"{name}.csv"

@@ -12,7 +12,7 @@ import pytest
 from accelcal import simulate
 from accelcal.bridge import protocol, rp2040, runtime
 from accelcal.errors import InputError
-from conftest import ROOT, emulated_chip, run_main
+from conftest import ROOT, emulated_chip, made_once, run_main
 from test_runtimes import random_recording
 
 FW = rp2040.CIRCUITPYTHON
@@ -127,10 +127,11 @@ def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def cp_bench(chip):
-    """bridge/scripts/cp_bench.py's figures on the chip (the fit timed slice by slice only)."""
+def cp_bench(chip, tmp_path_factory):
+    """bridge/scripts/cp_bench.py's figures on the chip (the fit timed slice by slice only),
+    measured once for both workers."""
     from accelcal.studies import bench_circuitpython
-    return bench_circuitpython.run(whole=False)
+    return made_once(tmp_path_factory, "cp_bench", lambda: bench_circuitpython.run(whole=False))
 
 
 def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
