@@ -30,7 +30,7 @@ class HeldScore:
         self.w = int32s(3 * capacity)
         self.err = int32s(capacity)
         self.base = int32s(capacity)
-        self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_first)
+        self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_slot)
         self.p = None
         self.kinds = ()
         self.h = None
@@ -40,7 +40,7 @@ class HeldScore:
         self.ts = 0
         self.pos = 0
         self.total = 0
-        self.firsts = 0    # blocks better_part has met (their first slots), summed by callers
+        self.firsts = 0    # blocks mark_slot has met (their first slots), summed by callers
         # mark_slot / compare_slot: a slot's scan over the others, resumed `scan` slots on
         # (-1: not begun), with its block's sums so far
         self.scan = -1
@@ -106,46 +106,22 @@ class HeldScore:
         for i in range(lo, n):
             self.base[i] = self.err[i]
 
-    def mark_first(self, h, lo, hi):
-        """Mark the slots in [lo, hi) that are the first of their block (first[i] 1, else 0),
-        counted in `firsts` (sliced; better_part reads the marks)."""
-        blk = h.block
-        for i in range(lo, hi):
-            b = blk[i]
-            f = 1
-            for j in range(i):
-                if blk[j] == b:
-                    f = 0
-                    break
-            self.first[i] = f
-            self.firsts += f
-
     def better_blocks(self, h):
         """How many held-out blocks have a lower error in the last score than in base (each
-        block summed at the first slot holding it: no allocation)."""
-        self.mark_first(h, 0, h.count)
-        return self.better_part(h, 0, h.count)
-
-    def better_part(self, h, lo, hi):
-        """better_blocks() over the blocks whose first slot (mark_first) lies in [lo, hi)."""
+        block summed at the first slot holding it: no allocation): mark_slot and compare_slot
+        over every slot, each in one call."""
+        self.scan = -1
+        for i in range(h.count):
+            self.mark_slot(h, i, h.count)
         better = 0
-        blk = h.block
-        for i in range(lo, hi):
-            if self.first[i]:
-                b = blk[i]
-                before = 0
-                after = 0
-                for j in range(i, h.count):
-                    if blk[j] == b:
-                        before += self.base[j]
-                        after += self.err[j]
-                if after < before:
-                    better += 1
+        for i in range(h.count):
+            better += self.compare_slot(h, i, h.count)
         return better
 
     def mark_slot(self, h, i, budget):
-        """mark_first() of slot i alone, scanning at most `budget` earlier slots a call (the
-        scan resumes where it stood); True once slot i is marked."""
+        """Mark slot i if it is the first of its block (first[i] 1, else 0; counted in
+        `firsts`), scanning at most `budget` earlier slots a call (the scan resumes where it
+        stood); True once slot i is marked."""
         blk = h.block
         b = blk[i]
         j = self.scan
@@ -169,9 +145,10 @@ class HeldScore:
         return True
 
     def compare_slot(self, h, i, budget):
-        """better_part() of slot i alone, summing at most `budget` slots of its block's a call
-        (resumed); 1 once slot i, its block's first, is found better, 0 once done otherwise,
-        -1 while not done."""
+        """Whether the block whose first slot (mark_slot) is i has a lower error in the last
+        score than in base, summing at most `budget` slots of its block's a call (resumed): 1
+        once found better, 0 once done otherwise (or i is not a block's first), -1 while not
+        done."""
         if not self.first[i]:
             return 0
         blk = h.block

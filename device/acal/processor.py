@@ -330,10 +330,7 @@ def _adopted_before(store):
     if not kinds:
         return None
     from acal.discover import KINDS   # only a discovering board loads the discovery
-    for candidate in KINDS:
-        if tuple(candidate) == kinds:
-            return kinds
-    return None
+    return kinds if kinds in KINDS else None
 
 
 def _sat32(v):

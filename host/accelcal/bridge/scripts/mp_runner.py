@@ -42,6 +42,7 @@
 import sys
 from array import array
 
+from acal.bins import COND
 from acal.pipeline import Pipeline
 from acal.profile import NEWTON
 
@@ -122,8 +123,9 @@ class Runner:
                        d.held.count, d.held.total_weight(), d.step_time] + list(d.params))
             h = d.held
             for j in range(h.count):
-                emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2], h.cond[3 * j],
-                           h.cond[3 * j + 1], h.cond[3 * j + 2], h.weight[j]])
+                c = COND * j
+                emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2], h.cond[c],
+                           h.cond[c + 1], h.cond[c + 2], h.weight[j]])
             for j in range(len(d.errs)):
                 emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
         if pipe.rest.auto and pipe.rest.segments:
