@@ -300,9 +300,9 @@ def _discovery(d: dict, catalogue) -> dict:
     """A DISCOVERY record for people: the effects by name, the held-out errors (the board's
     integers: heldscore's sums of | |a|^2 - 1 |, Q16 g^2) and their change in %, the closest
     candidate's parameters in their report units."""
-    def named(code):   # effects.model_code: one effect, or a pair (the curve)
-        return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
-    out = {"index": d["index"], "adopted": named(d["adopted"]), "closest": named(d["closest"]),
+    from accelcal.model.effects import model_name
+    out = {"index": d["index"], "adopted": model_name(d["adopted"]),
+           "closest": model_name(d["closest"]),
            "heldout_before": d["heldout_before"], "heldout_after": d["heldout_after"],
            "blocks_better": d["blocks_better"], "blocks": d["blocks"]}
     before, after = d["heldout_before"], d["heldout_after"]

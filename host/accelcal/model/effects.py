@@ -168,6 +168,12 @@ class Effect:
         return ref
 
 
+def model_name(code: int) -> str | None:
+    """A model code of the board's (acal.effects.model_code: one effect, or a pair such as the
+    curve) as its effects' names joined by '+'; None for 0 (no effect)."""
+    return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+
+
 def column_ref(name: str) -> str:
     """The reference key (fitted model's `reference`) of a recording column: its mean, C0."""
     return f"{name}0"

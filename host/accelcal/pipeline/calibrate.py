@@ -13,7 +13,7 @@ from acal import fixed, hemisphere, optimiser
 from acal import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import ModelSpec, column_ref
+from accelcal.model.effects import ModelSpec, column_ref, model_name
 from accelcal.errors import InputError
 from accelcal.files.table import Table
 from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
@@ -317,11 +317,6 @@ def heldout_set(r: runtime.DeviceResult, t_first: float) -> dict:
             "time": c.time.tolist(), "supply": c.supply.tolist(), "weight": h[:, 6].tolist()}
 
 
-def _effects_named(code: int) -> str | None:
-    """A model code of the board's (effects.model_code) as its effects' names joined by '+'."""
-    return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
-
-
 def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
     """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
     adopted (None: none) or the closest candidate, the held-out error before and after (the
@@ -331,13 +326,13 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
                 "not end OK)"}
     adopted, closest, before, after, betters, blocks, held, weight, step_time = r.discovery[:9]
     p_int = r.discovery[9:]
-    out = {"effect": _effects_named(adopted), "closest": _effects_named(closest),
+    out = {"effect": model_name(adopted), "closest": model_name(closest),
            "heldout_points": held, "heldout_rest_means": weight,
            "heldout_before": before, "heldout_after": after,
            "heldout_error_before_mg": heldout_mg(before, weight),
            "heldout_error_after_mg": heldout_mg(after, weight) if closest else None,
            "blocks_better": betters, "blocks": blocks,
-           "candidates": [{"effect": _effects_named(k), "heldout": e, "heldout_error_mg":
+           "candidates": [{"effect": model_name(k), "heldout": e, "heldout_error_mg":
                            heldout_mg(e, weight), "blocks_better": b} for k, e, b in r.candidates],
            "heldout_set": heldout_set(r, t_first)}
     from acal.discover import MIN_BLOCKS, MIN_HELD
