@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from accelcal import simulate
+from accelcal.files.csvtext import fixed_rows
 from accelcal.files.outputs import atomic, write_text
 from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.simulate.stimulus import StimulusWriter
@@ -306,8 +307,8 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
     segs_all: list[Segment] = []
     hours: dict[str, float] = {}
     clipped = 0
-    with atomic(out_csv) as fh:
-        fh.write(",".join(["t", "x", "y", "z", "temp", *columns]) + "\n")
+    with atomic(out_csv, "wb") as fh:
+        fh.write((",".join(["t", "x", "y", "z", "temp", *columns]) + "\n").encode())
         done = 0
         for day in range(n_days):
             segs = wearer.schedule(day)
@@ -322,9 +323,9 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
             v = sensor.measure(rng, a, temp, t, cols)
             q = quantise(v, range_g)
             clipped += int((np.abs(q) >= range_g - 0.0015).any(axis=1).sum())
-            np.savetxt(fh, np.column_stack([t, q, temp, *cols.values()]), delimiter=",",
-                       fmt=["%.4f", "%.3f", "%.3f", "%.3f", "%.2f"] +
-                       ["%.0f" if c == SUPPLY_COLUMN else "%.4f" for c in columns])
+            # np.savetxt's bytes with fmt %.4f,%.3f,%.3f,%.3f,%.2f then %.0f (mV) or %.4f
+            fh.write(fixed_rows([t, q[:, 0], q[:, 1], q[:, 2], temp, *cols.values()],
+                                [4, 3, 3, 3, 2] + [0 if c == SUPPLY_COLUMN else 4 for c in columns]))
             if stim is not None:
                 stim.write(v, temp, cols.get(SUPPLY_COLUMN))
             end_s = (done + n) / rate_hz
