@@ -2,15 +2,16 @@
 
 * throughput of the vectorised path, one core: floats in g -> the device's Q10 samples, the rest
   detector's twin, the apply twin (samples per second, best of 3 over 20 M samples);
-* a 14-day 100 Hz simulated wrist recording (CSV, simulated into a temporary folder and deleted
-  after, or --csv FILE) calibrated end to end by `accelcal calibrate` in its own process: wall
+* a 14-day 100 Hz simulated wrist recording (CSV, simulated once and kept in a cache outside the
+  checkout, cache_root(), by its arguments and the simulator's code version; --no-cache: into a
+  temporary folder, deleted after; or --csv FILE) calibrated end to end by `accelcal calibrate` in its own process: wall
   time, CPU time and peak RSS (the kernel's count for that process, os.wait4); then the same
   samples as an Axivity AX3 .cwa (accelcal.simulate.cwa; at an AX3 rate only);
 * the same file through scikit-digital-health's CalibrateAccelerometer and actipy's
   calibrate_gravity (each in its own process in .venv-bench, their defaults), scored on the same
   still windows (accelcal.studies.bench_others).
 
-    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--csv FILE] [--no-cwa]
+    python -m accelcal.studies.bench_files [--days 14] [--rate 100] [--csv FILE] [--no-cwa] [--no-cache]
                                            [--others PYTHON] [--json]
 """
 from __future__ import annotations
@@ -111,13 +112,93 @@ def compiled_env() -> dict:
     return env
 
 
+def cache_root() -> Path:
+    """Where simulated bench recordings are kept between runs, outside the checkout:
+    $ACCELCAL_BENCH_CACHE, else $XDG_CACHE_HOME/accelcal/bench (~/.cache/accelcal/bench)."""
+    import os
+    if os.environ.get("ACCELCAL_BENCH_CACHE"):
+        return Path(os.environ["ACCELCAL_BENCH_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "accelcal" / "bench"
+
+
+def code_version(pkg: Path | None = None) -> str:
+    """What the simulated files depend on: the simulator's, the effects' and the writers'
+    sources (accelcal/simulate, accelcal/model, files/csvtext.py, files/outputs.py) and numpy's
+    version (its random streams); 12 hex digits of their SHA-256."""
+    import hashlib
+    import accelcal
+    pkg = pkg or Path(accelcal.__file__).parent
+    h = hashlib.sha256(np.__version__.encode())
+    files = sorted([*pkg.glob("simulate/**/*.py"), *pkg.glob("model/*.py"),
+                    pkg / "files" / "csvtext.py", pkg / "files" / "outputs.py"])
+    for f in files:
+        h.update(str(f.relative_to(pkg)).encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def cached(root: Path, days: float, rate: int, seed: int = 14, cwa: bool = True) -> tuple[Path, Path | None]:
+    """(the simulated CSV, its .cwa or None) from the cache at root, simulated into it first when
+    missing.  An entry is a folder named by the simulation's arguments and code_version(), made
+    under a temporary name and renamed whole into place (a killed run leaves no entry that looks
+    complete); entries of another code version, and temporary folders of runs no longer
+    running, are removed."""
+    import os
+    import shutil
+    version = code_version()
+    name = f"wrist-{days:g}d-{rate}hz-s{seed}"
+    entry = root / f"{name}-{version}"
+    root.mkdir(parents=True, exist_ok=True)
+    for old in root.iterdir():
+        stale = old.name.startswith("wrist-") and old != entry and not old.name.endswith(version)
+        if old.name.startswith(".partial-"):     # .partial-PID-NAME: a run that never finished
+            pid = old.name.split("-")[1]
+            stale = pid.isdigit() and not _running(int(pid))
+        if stale:
+            print(f"removing stale cache entry {old}", file=sys.stderr, flush=True)
+            shutil.rmtree(old, ignore_errors=True)
+    csv = entry / f"{name}.csv"
+    if not csv.exists():
+        tmp = root / f".partial-{os.getpid()}-{entry.name}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+        try:
+            simulated(tmp, days, rate, seed)
+            as_cwa(tmp / csv.name, tmp)     # None (nothing written) at a rate no AX3 has
+            try:
+                os.rename(tmp, entry)
+            except OSError:
+                if not csv.exists():
+                    raise
+                shutil.rmtree(tmp)          # another run put the same entry in place first
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+    else:
+        print(f"simulated recording from the cache: {csv}", file=sys.stderr, flush=True)
+    c = csv.with_suffix(".cwa")
+    return csv, (c if cwa and c.exists() else None)
+
+
+def _running(pid: int) -> bool:
+    import os
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def simulated(folder: Path, days: float, rate: int, seed: int = 14) -> Path:
     """A simulated wrist recording CSV in folder (`accelcal simulate wrist`, its truth beside)."""
     f = folder / f"wrist-{days:g}d-{rate}hz-s{seed}.csv"
     print(f"simulating {days:g} days at {rate} Hz into {f} ...", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "accelcal.cli", "simulate", "wrist", "--days", str(days),
-                    "--rate", str(rate), "--seed", str(seed), "-o", str(f), "--force"], check=True)
+                    "--rate", str(rate), "--seed", str(seed), "-o", str(f), "--force"], check=True,
+                   stdout=subprocess.DEVNULL)
     print(f"  ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     return f
 
@@ -188,6 +269,10 @@ def main(argv=None) -> int:
                                                   "(default: simulated into a temporary folder, "
                                                   "deleted after)")
     ap.add_argument("--no-cwa", action="store_true", help="not the .cwa of the same samples")
+    ap.add_argument("--no-cache", action="store_true",
+                    help="simulate into a temporary folder, deleted after (default: kept in "
+                         "$ACCELCAL_BENCH_CACHE or ~/.cache/accelcal/bench, by arguments and "
+                         "code version)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     res: dict = {}
@@ -197,13 +282,21 @@ def main(argv=None) -> int:
               f"rest twin {tp['rest_samples_per_s'] / 1e6:.0f} M/s, both {tp['convert_and_rest_samples_per_s'] / 1e6:.0f} M/s, "
               f"apply {tp['apply_samples_per_s'] / 1e6:.0f} M/s", flush=True)
     with tempfile.TemporaryDirectory(prefix="accelcal-bench-") as tmp:
-        f = Path(a.csv) if a.csv else simulated(Path(tmp), a.days, a.rate)
+        cwa = None
+        if a.csv:
+            f = Path(a.csv)
+        elif a.no_cache:
+            f = simulated(Path(tmp), a.days, a.rate)
+        else:
+            f, cwa = cached(cache_root(), a.days, a.rate, cwa=not a.no_cwa)
         n = int(a.days * 86400 * a.rate)
         res["accelcal"] = calibrated(f, n, a.days, a.rate)
-        cwa = None if a.no_cwa else as_cwa(f, Path(tmp))
+        if cwa is None and not a.no_cwa and (a.csv or a.no_cache):
+            cwa = as_cwa(f, Path(tmp))
         if cwa is not None:
             res["accelcal_cwa"] = calibrated(cwa, n, a.days, a.rate)
-            cwa.unlink()    # the peers read the CSV: room on the disk for their copies
+            if cwa.parent == Path(tmp):
+                cwa.unlink()    # the peers read the CSV: room on the disk for their copies
         elif not a.no_cwa:
             print(f"  (no .cwa: {a.rate} Hz is no Axivity rate)", flush=True)
         others(a, f, Path(tmp), res)
