@@ -297,3 +297,42 @@ def test_actigraph_files_without_pygt3x_name_the_extra(monkeypatch):
         with pytest.raises(InputError) as e:
             open_recording(PYGT3X / name)
         assert "accelcal[gt3x]" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_csv_value_checks_name_the_row_in_any_piece(tmp_path, monkeypatch):
+    """The value checks (files/checks.py, a further column's bound) are made in the parsing
+    threads when a piece passes them all; a piece that does not is looked at value by value:
+    the same one-line refusal, the row's line in the file, in the first piece or a later one,
+    time going back inside a piece or across two; a line longer than 1 MB is refused."""
+    from accelcal.files import csvpieces
+    monkeypatch.setattr(csvpieces, "PIECE", 100_000)
+    f = tmp_path / "v.csv"
+    n = 60_000
+    lines = ["t,x,y,z,temp,supply_mv"] + [f"{i / 100:.2f},0.01,-0.5,0.99,30.5,3900" for i in range(n)]
+    f.write_text("\n".join(lines) + "\n")
+    assert sum(len(c.t) for c in open_recording(f).chunks()) == n
+    for row in (10, 45_000):        # the first piece (Arrow's first 1 MB block) and a later one
+        line = row + 2
+        for cells, match in (
+                ("0.01,300,0.99,30.5,3900", rf"v.csv:{line}: 300 g is not an acceleration"),
+                ("0.01,-256.5,0.99,30.5,3900", rf"v.csv:{line}: -256.5 g is not an acceleration"),
+                ("0.01,0.5,0.99,200.5,3900", rf"v.csv:{line}: temperature 200.5 degC is outside"),
+                ("0.01,0.5,0.99,30.5,2e9", rf"v.csv:{line}: 2e\+09 in column supply_mv"),
+                ("0.01,0.5,-inf,30.5,3900", rf"v.csv:{line}: -inf in column z"),
+                ("0.01,0.5,0.99,nan,3900", rf"v.csv:{line}: nan in column temp")):
+            bad = list(lines)
+            bad[row + 1] = f"{row / 100:.2f},{cells}"
+            _refused(f, bad, match)
+        bad = list(lines)
+        bad[row + 1] = "0.00,0.01,-0.5,0.99,30.5,3900"
+        _refused(f, bad, rf"v.csv:{line}: time goes back \({(row - 1) / 100:g} s, then 0 s\)")
+    # time going back across two pieces: at the first row of each piece after the first
+    f.write_text("\n".join(lines) + "\n")
+    starts = np.cumsum([0] + [len(c.t) for c in open_recording(f).chunks()])[1:-1]
+    row = int(starts[3])
+    bad = list(lines)
+    bad[row + 1] = "1.00,0.01,-0.5,0.99,30.5,3900"
+    _refused(f, bad, rf"v.csv:{row + 2}: time goes back \({(row - 1) / 100:g} s, then 1 s\)")
+    bad = list(lines)
+    bad[30_000] = "300.00,0.01,-0.5,0.99,30.5," + "9" * (1 << 20)
+    _refused(f, bad, r"v.csv: a line longer than 1 MB")

@@ -47,7 +47,8 @@ def arrow():
 
 def cut(path: str, fh, first: int, size: int):
     """The file's bytes from fh's position in pieces ending at a line end (the last may not):
-    the first piece within `first` bytes, then within `size` bytes each."""
+    the first piece within `first` bytes, then within `size` bytes each.  No line longer than
+    BLOCK (Arrow's streaming reader refused one; the pieces are parsed as one block each)."""
     rest = b""
     want = first
     while True:
@@ -55,28 +56,44 @@ def cut(path: str, fh, first: int, size: int):
         buf = rest + data
         if not data:
             if buf:
+                _short_lines(path, buf)
                 yield buf
             return
         end = buf.rfind(b"\n") + 1
         if end == 0:           # no line end in a whole piece (Arrow: "straddling")
             raise InputError(f"{path}: {LONG_LINE}")
+        _short_lines(path, buf[:end] if end < len(buf) else buf)
         yield buf[:end]
         rest = buf[end:]
         want = size
 
 
-def parse(buf: bytes, names: list[str], skip: int, pa, pacsv):
-    """One piece's columns as float64 arrays, or the error it holds:
-    ("bad", row, column, None for a missing value or the value that is not finite), the row
-    counted from the piece's first; or ("arrow", message)."""
+def _short_lines(path: str, buf: bytes) -> None:
+    """InputError when a line of buf (its last may be cut short) is longer than BLOCK: from each
+    line's start, the last line end within BLOCK bytes, in hops of about BLOCK."""
+    start = 0
+    while len(buf) - start > BLOCK:
+        end = buf.rfind(b"\n", start, start + BLOCK)
+        if end < 0:
+            raise InputError(f"{path}: {LONG_LINE}")
+        start = end + 1
+
+
+def parse(buf: bytes, names: list[str], skip: int, pa, pacsv, limits=None):
+    """One piece's columns as float64 arrays and whether they passed `limits` ((lo, hi) per
+    column: every value within, so finite; "rising": finite and never going back), or the error
+    it holds: ("bad", row, column, None for a missing value or the value that is not finite),
+    the row counted from the piece's first; or ("arrow", message).  Columns that fail the limits
+    are looked at again value by value (finite here; the reader's own checks name the row)."""
     # Without quoting first (a tenth faster): a piece with a quote or an odd row fails to
-    # convert or to split and is parsed again as CSV, which then gives the answer
+    # convert or to split and is parsed again as CSV, which then gives the answer.  One block
+    # per piece: its columns come whole (no copy to numpy), ~10 % less CPU than 1 MB blocks.
     table = None
     for quoting in (False, True):
         try:
             table = pacsv.read_csv(
                 pa.py_buffer(buf),
-                read_options=pacsv.ReadOptions(block_size=BLOCK, use_threads=False,
+                read_options=pacsv.ReadOptions(block_size=len(buf) + 1, use_threads=False,
                                                column_names=names, skip_rows=skip),
                 parse_options=pacsv.ParseOptions(**({} if quoting else {"quote_char": False})),
                 convert_options=pacsv.ConvertOptions(column_types={h: pa.float64() for h in names},
@@ -85,6 +102,14 @@ def parse(buf: bytes, names: list[str], skip: int, pa, pacsv):
         except pa.ArrowInvalid as e:
             if quoting:
                 return ("arrow", str(e))
+    cols = []
+    for c in table.columns:
+        if c.null_count:
+            break
+        cols.append(c.chunk(0).to_numpy() if c.num_chunks == 1 else c.to_numpy())
+    else:
+        if limits is not None and all(_within(v, lim) for v, lim in zip(cols, limits)):
+            return cols, True
     cols, bad = [], []
     for i, c in enumerate(table.columns):
         if c.null_count:
@@ -99,13 +124,23 @@ def parse(buf: bytes, names: list[str], skip: int, pa, pacsv):
         cols.append(v)
     if bad:     # the first bad row, its first bad column: what a row by row reader meets first
         return ("bad",) + min(bad)
-    return cols
+    return cols, False
 
 
-def parsed(path: str, names: list[str]):
-    """The data rows of a CSV file (its first line the header) in order, as lists of columns
-    (float64), parsed WORKERS pieces at a time; InputError for the first bad row, by its line
-    number."""
+def _within(v: np.ndarray, limit) -> bool:
+    # two reductions, no temporaries: a nan makes min/max nan and the comparison false
+    if not len(v):
+        return True
+    if limit == "rising":
+        return bool(-np.inf < v[0] and v[-1] < np.inf and (v[1:] >= v[:-1]).all())
+    lo, hi = limit
+    return bool(lo <= v.min() and v.max() <= hi)
+
+
+def parsed(path: str, names: list[str], limits=None):
+    """The data rows of a CSV file (its first line the header) in order, as (list of columns
+    (float64), whether they passed limits: see parse), parsed WORKERS pieces at a time;
+    InputError for the first bad row, by its line number."""
     pa, pacsv = arrow()     # once, here: it tells pyarrow that pandas is not there
     with open(path, "rb") as fh, ThreadPoolExecutor(WORKERS) as pool:
         pending = []
@@ -114,7 +149,7 @@ def parsed(path: str, names: list[str]):
         try:
             for k, buf in enumerate(pieces):
                 pending.append(pool.submit(parse, buf, names, 1 if k == 0 else 0,
-                                           pa, pacsv))
+                                           pa, pacsv, limits))
                 if len(pending) <= WORKERS:
                     continue
                 first = yield from _handed(path, names, pending.pop(0).result(), first)
@@ -126,7 +161,7 @@ def parsed(path: str, names: list[str]):
 
 
 def _handed(path, names, got, first):
-    if isinstance(got, tuple):
+    if isinstance(got[0], str):
         if got[0] == "arrow":   # a row longer than Arrow's block: no recording's line is
             said = LONG_LINE if "straddl" in got[1] else \
                 " ".join(re.sub(r"Row #\d+: ", "", got[1]).split())[:300]   # the piece's row
@@ -136,6 +171,7 @@ def _handed(path, names, got, first):
         if value is None:
             raise InputError(f"{where}: missing value in column {names[col]}")
         raise InputError(f"{where}: {value} in column {names[col]} (values must be finite)")
-    if len(got[0]):
+    cols, _ = got
+    if len(cols[0]):
         yield got
-    return first + len(got[0])
+    return first + len(cols[0])

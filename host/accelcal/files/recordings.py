@@ -26,7 +26,7 @@ from typing import Iterator
 import numpy as np
 
 from accelcal.errors import InputError
-from accelcal.files.checks import check_values
+from accelcal.files.checks import MAX_ABS_G, TEMP_RANGE_C, check_values
 from accelcal.files.csvpieces import parsed
 from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
@@ -103,17 +103,28 @@ class CsvRecording(Recording):
         is not used."""
         first = 0
         self._last_t = None
-        for cols in parsed(self.path, self.header):
-            yield self._chunk(cols, first)
+        # what check_values and the further columns' bound allow, checked in the parsing threads
+        limits = ["rising"] + [(-MAX_ABS_G, MAX_ABS_G)] * 3 + \
+            ([TEMP_RANGE_C] if self.has_temp else []) + [(-COLUMN_MAX, COLUMN_MAX)] * len(self.columns)
+        for cols, checked in parsed(self.path, self.header, limits):
+            yield self._chunk(cols, first, checked)
             first += len(cols[0])
         if first == 0:
             raise InputError(f"{self.path}: no data rows")
 
-    def _chunk(self, cols: list, first: int) -> Chunk:
-        # the rows' columns, each parsed and finite (csvpieces.parse): the value checks
-        check_values(self.path, cols[0], np.column_stack(cols[1:4]),
-                     cols[4] if self.has_temp else None, first, self._last_t)
+    def _chunk(self, cols: list, first: int, checked: bool) -> Chunk:
+        # the rows' columns, each parsed and finite (csvpieces.parse); checked: within the
+        # limits check_values and COLUMN_MAX set (csvpieces.parse), so only time across pieces
+        # is left; else the value checks find and name the row
+        xyz = np.column_stack(cols[1:4])
         extra = dict(zip(self.columns, cols[len(self.header) - len(self.columns):]))
+        if checked:
+            if self._last_t is not None and cols[0][0] < self._last_t:
+                check_values(self.path, cols[0][:1], xyz[:1], None, first, self._last_t)
+            self._last_t = float(cols[0][-1])
+            return Chunk(cols[0], xyz, cols[4] if self.has_temp else None, first, extra)
+        check_values(self.path, cols[0], xyz, cols[4] if self.has_temp else None, first,
+                     self._last_t)
         for name, v in extra.items():
             big = np.abs(v) > COLUMN_MAX
             if big.any():
@@ -121,8 +132,7 @@ class CsvRecording(Recording):
                 raise InputError(f"{self.path}:{row + 2}: {v[row - first]:g} in column {name} "
                                  f"(|value| <= {COLUMN_MAX:g})")
         self._last_t = float(cols[0][-1])
-        return Chunk(cols[0], np.column_stack(cols[1:4]), cols[4] if self.has_temp else None, first,
-                     extra)
+        return Chunk(cols[0], xyz, cols[4] if self.has_temp else None, first, extra)
 
 
 def _actfast(path: str, fmt: str) -> dict:
