@@ -102,6 +102,30 @@ def test_noise_gauge_halves_its_counts():
     assert g.count < NOISE_HALVE and g.threshold == 3 * 2 + 2
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.sampled_from([1, 2, 7, 128, 512]), st.integers(50, 40_000))
+def test_noise_gauge_twin_through_many_halvings(seed, at_once, chunk):
+    """Updates computed together (NoiseGaugeTwin.AT_ONCE at a time, up to each halving) over
+    ~7 halvings of the counts: the device's NoiseGauge's thresholds and state, whatever the
+    chunks and the number computed at once."""
+    from acal.rest import NoiseGauge
+    rng = np.random.default_rng(seed)
+    n = 60_000
+    level = np.repeat(rng.integers(1, 40, 12), n // 12)          # the sensor's noise changes
+    spread = np.where(rng.random(n) < 0.1, rng.integers(0, 200, n),
+                      rng.poisson(level)).astype(np.int64)
+    dev, g = [], NoiseGauge()
+    for s in spread.tolist():
+        dev.append(g.threshold)
+        g.add(s)
+    gauge = twin.NoiseGaugeTwin()
+    gauge.AT_ONCE = at_once
+    got = np.concatenate([gauge.thresholds(spread[a:a + chunk]) for a in range(0, n, chunk)])
+    assert got.tolist() == dev and len(set(dev)) > 5
+    assert (gauge.threshold, gauge.level, gauge.count, gauge.seen) == (g.threshold, g.level, g.count, g.seen)
+    assert gauge.hist.tolist() == g.hist
+
+
 def test_chunking_never_changes_the_segments(rng):
     q = rng.integers(-1100, 1100, (10_007, 3))
     q[2000:4500] = rng.integers(-10, 10, (2500, 3)) + [0, 0, 1024]   # a long rest
