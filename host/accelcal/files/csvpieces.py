@@ -7,6 +7,9 @@ Arrow's streaming reader parses one block after another on one core: on the 14-d
 What is handed on is what the streaming reader gave: the same rows and values; a bad row is
 named by its line in the file (the first bad row of a piece, whatever its column).  The first piece is Arrow's first 1 MB block as the
 streaming reader cut it, so the first chunk, on which scan estimates the rate, is the same.
+Each piece is parsed as one Arrow block (its columns come to numpy without a copy); the reader's
+value checks (files/checks.py) are made in the same threads as two reductions per column, and
+only a piece that fails them is looked at value by value, on the main thread, to name the row.
 Memory: at most WORKERS + 1 pieces of text and their columns in flight, a few MB."""
 from __future__ import annotations
 
