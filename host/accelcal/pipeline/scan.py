@@ -24,6 +24,7 @@ from acal import fixed
 from accelcal.bridge import twin
 from accelcal.errors import InputError
 from accelcal.files.recordings import STANDARD_RANGES_G, Recording, gap_limit
+from accelcal.files.table import median
 
 WEAR_TEMP_C = 25.0          # worn wrist devices read 28-35 degC; off the wrist: the room's
 SKIN_MIN_C = 28.0           # a file that never reads this has relative temperatures (an LIS3DH
@@ -186,7 +187,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
                 raise InputError(f"{rec.path}: a recording needs at least 2 samples")
             if rate_hz is None:
                 d = np.diff(t[: 1 << 16])
-                med = float(np.median(d))
+                med = median(d)
                 if not med > 0:
                     raise InputError(f"{rec.path}: time does not increase")
                 rate_hz = int(round(1.0 / med))
