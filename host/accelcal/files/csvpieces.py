@@ -1,6 +1,7 @@
 """A recording CSV parsed in pieces on both cores (CsvRecording.chunks): the file is cut at line
 ends into pieces of PIECE bytes, each parsed by Arrow's CSV reader (C++, the GIL released) and
 checked by numpy in a worker thread, WORKERS pieces at once, and handed on in the file's order.
+The file is memory-mapped and the pieces are views into it, parsed in place.
 Arrow's streaming reader parses one block after another on one core: on the 14-day 100 Hz file
 (4.5 GB) the parse alone was most of the command's time.
 
@@ -13,6 +14,8 @@ only a piece that fails them is looked at value by value, on the main thread, to
 Memory: at most WORKERS + 1 pieces of text and their columns in flight, a few MB."""
 from __future__ import annotations
 
+import mmap
+import os
 import re
 from concurrent.futures import ThreadPoolExecutor
 
@@ -48,38 +51,36 @@ def arrow():
     return pa, pacsv
 
 
-def cut(path: str, fh, first: int, size: int):
-    """The file's bytes from fh's position in pieces ending at a line end (the last may not):
-    the first piece within `first` bytes, then within `size` bytes each.  No line longer than
-    BLOCK (Arrow's streaming reader refused one; the pieces are parsed as one block each)."""
-    rest = b""
-    want = first
-    while True:
-        data = fh.read(want - len(rest)) if want > len(rest) else b""
-        buf = rest + data
-        if not data:
-            if buf:
-                _short_lines(path, buf)
-                yield buf
-            return
-        end = buf.rfind(b"\n") + 1
+def cut(path: str, mm, first: int, size: int):
+    """The file's bytes (mm: the file memory-mapped) in pieces ending at a line end (the last
+    may not), as views into the mapping (no copy): the first piece within `first` bytes, then
+    within `size` bytes each.  No line longer than BLOCK (Arrow's streaming reader refused one;
+    the pieces are parsed as one block each)."""
+    n = len(mm)
+    view = memoryview(mm)
+    start, want = 0, first
+    while start < n:
+        stop = min(n, start + want)
+        end = mm.rfind(b"\n", start, stop) + 1
         if end == 0:           # no line end in a whole piece (Arrow: "straddling")
             raise InputError(f"{path}: {LONG_LINE}")
-        _short_lines(path, buf[:end] if end < len(buf) else buf)
-        yield buf[:end]
-        rest = buf[end:]
-        want = size
+        _short_lines(path, mm, start, end)
+        yield view[start:end]
+        start, want = end, size
+        if stop == n and start < n:     # the last line, without its line end
+            _short_lines(path, mm, start, n)
+            yield view[start:n]
+            return
 
 
-def _short_lines(path: str, buf: bytes) -> None:
-    """InputError when a line of buf (its last may be cut short) is longer than BLOCK: from each
-    line's start, the last line end within BLOCK bytes, in hops of about BLOCK."""
-    start = 0
-    while len(buf) - start > BLOCK:
-        end = buf.rfind(b"\n", start, start + BLOCK)
-        if end < 0:
+def _short_lines(path: str, mm, start: int, end: int) -> None:
+    """InputError when a line of mm[start:end] (its last may be cut short) is longer than BLOCK:
+    from each line's start, the last line end within BLOCK bytes, in hops of about BLOCK."""
+    while end - start > BLOCK:
+        nl = mm.rfind(b"\n", start, start + BLOCK)
+        if nl < 0:
             raise InputError(f"{path}: {LONG_LINE}")
-        start = end + 1
+        start = nl + 1
 
 
 def parse(buf: bytes, names: list[str], skip: int, pa, pacsv, limits=None):
@@ -145,10 +146,16 @@ def parsed(path: str, names: list[str], limits=None):
     (float64), whether they passed limits: see parse), parsed WORKERS pieces at a time;
     InputError for the first bad row, by its line number."""
     pa, pacsv = arrow()     # once, here: it tells pyarrow that pandas is not there
-    with open(path, "rb") as fh, ThreadPoolExecutor(WORKERS) as pool:
+    with open(path, "rb") as fh:
+        # mapped, not read: the pieces are views that Arrow parses in place (reading them
+        # copied each byte of a 4.5 GB file two or three times); the mapping closes when the
+        # last view is gone
+        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if os.fstat(fh.fileno()).st_size \
+            else b""
+    with ThreadPoolExecutor(WORKERS) as pool:
         pending = []
         first = 0
-        pieces = cut(path, fh, BLOCK, PIECE)
+        pieces = cut(path, mm, BLOCK, PIECE)
         try:
             for k, buf in enumerate(pieces):
                 pending.append(pool.submit(parse, buf, names, 1 if k == 0 else 0,
