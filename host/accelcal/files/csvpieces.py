@@ -153,21 +153,40 @@ def parsed(path: str, names: list[str], limits=None):
         mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if os.fstat(fh.fileno()).st_size \
             else b""
     with ThreadPoolExecutor(WORKERS) as pool:
-        pending = []
+        pending = []       # (the piece's parse, where it ends in the file)
         first = 0
+        end = 0
+        let_go = [0]       # the file's pages before this are let go
         pieces = cut(path, mm, BLOCK, PIECE)
         try:
             for k, buf in enumerate(pieces):
-                pending.append(pool.submit(parse, buf, names, 1 if k == 0 else 0,
-                                           pa, pacsv, limits))
+                end += len(buf)
+                pending.append((pool.submit(parse, buf, names, 1 if k == 0 else 0,
+                                            pa, pacsv, limits), end))
                 if len(pending) <= WORKERS:
                     continue
-                first = yield from _handed(path, names, pending.pop(0).result(), first)
+                first = yield from _handed(path, names, _parsed_piece(mm, let_go, *pending.pop(0)),
+                                            first)
             while pending:
-                first = yield from _handed(path, names, pending.pop(0).result(), first)
+                first = yield from _handed(path, names, _parsed_piece(mm, let_go, *pending.pop(0)),
+                                            first)
         finally:
-            for f in pending:
+            for f, _ in pending:
                 f.cancel()
+
+
+def _parsed_piece(mm, let_go: list, job, end: int):
+    """The piece's parse, its pages then let go: a mapped page read stays in the process's
+    resident memory until unmapped (the whole 4.5 GB file by the end), though the kernel may drop
+    it; told so, it leaves the process (the file's pages stay in the page cache).  Read again
+    from the file if touched again (a neighbouring piece's line): nothing is lost."""
+    got = job.result()
+    if isinstance(mm, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
+        upto = end - end % mmap.PAGESIZE
+        if upto > let_go[0]:
+            mm.madvise(mmap.MADV_DONTNEED, let_go[0], upto - let_go[0])
+            let_go[0] = upto
+    return got
 
 
 def _handed(path, names, got, first):
