@@ -58,6 +58,13 @@ _SCORE = 3      # candidate i scored
 _DONE = 4
 _BLOCKS = 5     # the held-out blocks counted
 _BETTER = 6     # candidate i's blocks compared with the base model's
+_GAP = 7        # an adopted step: its gap's held-out points gathered and scored either side
+_PLACE = 8      # the step's time placed among them, and each scored leave-one-out
+
+# An adopted step's time placed among the held-out points in its gap (docs/model-discovery.md
+# "Against the true sensor model"): at most GAP_MAX of them are taken, the latest before the
+# fitted time (a gap spans a held-out block or two: 8 points each on a full set).
+GAP_MAX = const(32)
 
 
 def testable(kind, cond, n):
@@ -79,7 +86,14 @@ class Discover:
     errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
     candidates.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
     (True when the rule names it), kind (its effects.model_code, 0: none; kind_ids: every
-    candidate's), params (its parameters, Q24) and step_time (a step's)."""
+    candidate's), params (its parameters, Q24) and step_time (a step's).
+
+    An adopted step's time is then placed among the held-out points that fall between the fit
+    points on either side of it (the fit leaves it free there; the shock may lie anywhere in a
+    held-out block): fitted_time is the fit's, step_time the placed one, gap_n the points, and
+    placed_loo the held-out error with each of them scored at a time placed from the others
+    (leave-one-out: the points that place a time must not judge it), placed_insample with all
+    of them at step_time (-1: not placed).  `before` and errs stay the unplaced model's."""
 
     def __init__(self, max_points, held):
         self.held = held
@@ -107,6 +121,17 @@ class Discover:
         self.adopted = False
         self.kind = 0
         self.step_time = 0
+        self.fitted_time = 0
+        # the step's gap: held-out slots by time, their errors with the step before and
+        # after them (Q16 g^2, weighted), the gap's lower end (the last fit point's time)
+        self.gap = int32s(GAP_MAX)
+        self.gap_stepped = int32s(GAP_MAX)
+        self.gap_unstepped = int32s(GAP_MAX)
+        self.gap_n = 0
+        self.gap_lo = 0
+        self.gap_loo = 0       # the gap's leave-one-out errors summed so far
+        self.placed_loo = -1
+        self.placed_insample = -1
 
     def begin(self, pipe):
         """Start on a pipeline whose base fit has just ended usable: its gathered points and
@@ -119,6 +144,9 @@ class Discover:
         self.kind = 0
         self.before = 0
         self.blocks = 0
+        self.gap_n = 0
+        self.placed_loo = -1
+        self.placed_insample = -1
         self.score.scan = -1
         for i in range(N_CANDIDATES):
             self.errs[i] = UNTESTABLE
@@ -142,6 +170,10 @@ class Discover:
             self._count_blocks()
         elif ph == _BETTER:
             self._compare_blocks()
+        elif ph == _GAP:
+            self._gather_gap()
+        elif ph == _PLACE:
+            self._place()
         return self.phase == _DONE
 
     def _score_base(self):
@@ -210,6 +242,7 @@ class Discover:
             self._next(self.i + 1)
             return
         self.fit.ts = self.search.ts
+        self.gap_lo = self.search.time_before()   # now: the sort buffer is the base fit's
         self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
         self.phase = _FIT
 
@@ -270,8 +303,129 @@ class Discover:
             for k in range(N_ALL):
                 self.params[k] = self.all_params[N_ALL * i + k]
             self.step_time = self.ts[i]
+            self.fitted_time = self.step_time
             if self.adopted:
                 self.kind = self.kind_ids[i]
+                if KINDS[i][0] == effects.STEP:
+                    pipe = self.pipe
+                    self.score.begin(self.params, KINDS[i], self.held, pipe.ref_temp,
+                                     pipe.ref_time, pipe.ref_supply, self.step_time)
+                    self.pos = 0
+                    self.phase = _GAP
+                    return
+        self.phase = _DONE
+
+    def _gather_gap(self):
+        # the held-out points in the step's gap (gap_lo < time < fitted time), kept sorted by
+        # time, each scored with the step before and after it: at most BLOCK_SCAN slots and
+        # one point scored a step
+        h = self.held
+        s = self.score
+        ref = self.pipe.ref_time
+        end = self.pos + BLOCK_SCAN
+        if end > h.count:
+            end = h.count
+        j = self.pos
+        while j < end:
+            t = h.cond[COND * j + 1] - ref
+            j += 1
+            if self.gap_lo < t < self.fitted_time:
+                s.ts = t
+                stepped = s.point(j - 1)
+                s.ts = t + 1
+                unstepped = s.point(j - 1)
+                if stepped < 0 or unstepped < 0:   # past the domain: not placed
+                    self.phase = _DONE
+                    return
+                self._insert(j - 1, t, stepped, unstepped)
+                break
+        self.pos = j
+        if j < h.count:
+            return
+        if self.gap_n == 0:
+            self.phase = _DONE
+            return
+        self.step_time = self._best(-1)
+        self.placed_insample = _saturated(self.errs[self.chosen] + self._outside_change() +
+                                          self._cost(self.step_time))
+        self.gap_loo = 0
+        self.pos = 0
+        self.phase = _PLACE
+
+    def _insert(self, slot, t, stepped, unstepped):
+        # slot into the gap, by time (of equal times, after); past GAP_MAX the earliest drop
+        gap = self.gap
+        cond = self.held.cond
+        n = self.gap_n
+        k = n
+        while k > 0 and cond[COND * gap[k - 1] + 1] - self.pipe.ref_time > t:
+            k -= 1
+        if n == GAP_MAX:
+            if k == 0:
+                return
+            for m in range(1, k):
+                gap[m - 1] = gap[m]
+                self.gap_stepped[m - 1] = self.gap_stepped[m]
+                self.gap_unstepped[m - 1] = self.gap_unstepped[m]
+            k -= 1
+        else:
+            for m in range(n, k, -1):
+                gap[m] = gap[m - 1]
+                self.gap_stepped[m] = self.gap_stepped[m - 1]
+                self.gap_unstepped[m] = self.gap_unstepped[m - 1]
+            self.gap_n = n + 1
+        gap[k] = slot
+        self.gap_stepped[k] = stepped
+        self.gap_unstepped[k] = unstepped
+
+    def _gap_time(self, k):
+        return self.held.cond[COND * self.gap[k] + 1] - self.pipe.ref_time
+
+    def _best(self, left):
+        # the step time that leaves the gap's points (but `left`, -1: none) the lowest error:
+        # the time of the first point after a split between distinct times, or the fitted time
+        # with all of them before it (of equal errors, the later)
+        n = self.gap_n
+        cost = 0
+        for k in range(n):
+            if k != left:
+                cost += self.gap_stepped[k]
+        best = cost
+        at = 0
+        for k in range(1, n + 1):
+            if k - 1 != left:
+                cost += self.gap_unstepped[k - 1] - self.gap_stepped[k - 1]
+            if (k == n or self._gap_time(k - 1) < self._gap_time(k)) and cost <= best:
+                best = cost
+                at = k
+        return self.fitted_time if at == n else self._gap_time(at)
+
+    def _cost(self, ts):
+        # the gap's error with the step at ts
+        e = 0
+        for k in range(self.gap_n):
+            e += self.gap_stepped[k] if self._gap_time(k) >= ts else self.gap_unstepped[k]
+        return e
+
+    def _outside_change(self):
+        # minus the gap's error at the fitted time (every point before it): what the step's
+        # held-out error holds outside the gap, less its own
+        e = 0
+        for k in range(self.gap_n):
+            e -= self.gap_unstepped[k]
+        return e
+
+    def _place(self):
+        # gap point pos scored at the time the others place, one point a step
+        k = self.pos
+        ts = self._best(k)
+        self.gap_loo += self.gap_stepped[k] if self._gap_time(k) >= ts else \
+            self.gap_unstepped[k]
+        self.pos = k + 1
+        if self.pos < self.gap_n:
+            return
+        self.placed_loo = _saturated(self.errs[self.chosen] + self._outside_change() +
+                                     self.gap_loo)
         self.phase = _DONE
 
     def take(self):
