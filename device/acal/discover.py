@@ -11,7 +11,9 @@
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
-# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
+# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).  A placed step's sums:
+# a gap point's error <= WEIGHT_CAP x ERR_CAP = 2**22, GAP_MAX of them < 2**27, and the step's
+# error (<= ERR_MAX) less and plus such sums stays within +-2**28.
 from acal import candidates, discovery, effects
 from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
 from acal.fixed import N_PARAMS
