@@ -124,14 +124,19 @@ class Discover:
         self.kind = 0
         self.step_time = 0
         self.fitted_time = 0
-        # the step's gap: held-out slots by time, their errors with the step before and
-        # after them (Q16 g^2, weighted), the gap's lower end (the last fit point's time)
-        self.gap = int32s(GAP_MAX)
+        # the step's gap: its held-out points' times (sorted, dt), their errors with the step
+        # before and after them (Q16 g^2, weighted), the gap's lower end (the last fit point's
+        # time); while placing: the stepped errors' sum, the step's error off the gap, the
+        # lowest split's error (_best)
+        self.gap_time = int32s(GAP_MAX)
         self.gap_stepped = int32s(GAP_MAX)
         self.gap_unstepped = int32s(GAP_MAX)
         self.gap_n = 0
         self.gap_lo = 0
         self.gap_loo = 0       # the gap's leave-one-out errors summed so far
+        self.stepped_sum = 0
+        self.outside = 0
+        self.best_cost = 0
         self.placed_loo = -1
         self.placed_insample = -1
 
@@ -323,111 +328,111 @@ class Discover:
         # one point scored a step
         h = self.held
         s = self.score
+        cond = h.cond
         ref = self.pipe.ref_time
+        lo = self.gap_lo
+        hi = self.fitted_time
         end = self.pos + BLOCK_SCAN
         if end > h.count:
             end = h.count
         j = self.pos
         while j < end:
-            t = h.cond[COND * j + 1] - ref
+            t = cond[COND * j + 1] - ref
             j += 1
-            if self.gap_lo < t < self.fitted_time:
+            if lo < t < hi:
                 s.ts = t
                 stepped = s.point(j - 1)
                 s.ts = t + 1
                 unstepped = s.point(j - 1)
                 if stepped < 0 or unstepped < 0:   # past the domain: not placed
+                    self.step_time = hi
                     self.phase = _DONE
                     return
-                self._insert(j - 1, t, stepped, unstepped)
+                self._insert(t, stepped, unstepped)
                 break
         self.pos = j
         if j < h.count:
             return
-        if self.gap_n == 0:
-            self.phase = _DONE
-            return
-        self.step_time = self._best(-1)
-        self.placed_insample = _saturated(self.errs[self.chosen] + self._outside_change() +
-                                          self._cost(self.step_time))
-        self.gap_loo = 0
-        self.pos = 0
-        self.phase = _PLACE
+        self.pos = -1
+        self.phase = _PLACE if self.gap_n > 0 else _DONE
 
-    def _insert(self, slot, t, stepped, unstepped):
-        # slot into the gap, by time (of equal times, after); past GAP_MAX the earliest drop
-        gap = self.gap
-        cond = self.held.cond
+    def _insert(self, t, stepped, unstepped):
+        # a gap point by time (of equal times, after); past GAP_MAX the earliest drops
+        tm = self.gap_time
+        st = self.gap_stepped
+        un = self.gap_unstepped
         n = self.gap_n
         k = n
-        while k > 0 and cond[COND * gap[k - 1] + 1] - self.pipe.ref_time > t:
+        while k > 0 and tm[k - 1] > t:
             k -= 1
         if n == GAP_MAX:
             if k == 0:
                 return
             for m in range(1, k):
-                gap[m - 1] = gap[m]
-                self.gap_stepped[m - 1] = self.gap_stepped[m]
-                self.gap_unstepped[m - 1] = self.gap_unstepped[m]
+                tm[m - 1] = tm[m]
+                st[m - 1] = st[m]
+                un[m - 1] = un[m]
             k -= 1
         else:
             for m in range(n, k, -1):
-                gap[m] = gap[m - 1]
-                self.gap_stepped[m] = self.gap_stepped[m - 1]
-                self.gap_unstepped[m] = self.gap_unstepped[m - 1]
+                tm[m] = tm[m - 1]
+                st[m] = st[m - 1]
+                un[m] = un[m - 1]
             self.gap_n = n + 1
-        gap[k] = slot
-        self.gap_stepped[k] = stepped
-        self.gap_unstepped[k] = unstepped
-
-    def _gap_time(self, k):
-        return self.held.cond[COND * self.gap[k] + 1] - self.pipe.ref_time
+        tm[k] = t
+        st[k] = stepped
+        un[k] = unstepped
 
     def _best(self, left):
-        # the step time that leaves the gap's points (but `left`, -1: none) the lowest error:
-        # the time of the first point after a split between distinct times, or the fitted time
-        # with all of them before it (of equal errors, the later)
+        # the split of the gap's points (but `left`, -1: none) that leaves them the lowest
+        # error, between distinct times (of equal errors, the later): the number of points
+        # before it; its error in best_cost.  From every point after the split (stepped_sum)
+        # each split moves one point before it.
         n = self.gap_n
-        cost = 0
-        for k in range(n):
-            if k != left:
-                cost += self.gap_stepped[k]
+        tm = self.gap_time
+        st = self.gap_stepped
+        un = self.gap_unstepped
+        cost = self.stepped_sum
+        if left >= 0:
+            cost -= st[left]
         best = cost
         at = 0
         for k in range(1, n + 1):
             if k - 1 != left:
-                cost += self.gap_unstepped[k - 1] - self.gap_stepped[k - 1]
-            if (k == n or self._gap_time(k - 1) < self._gap_time(k)) and cost <= best:
+                cost += un[k - 1] - st[k - 1]
+            if (k == n or tm[k - 1] < tm[k]) and cost <= best:
                 best = cost
                 at = k
-        return self.fitted_time if at == n else self._gap_time(at)
-
-    def _cost(self, ts):
-        # the gap's error with the step at ts
-        e = 0
-        for k in range(self.gap_n):
-            e += self.gap_stepped[k] if self._gap_time(k) >= ts else self.gap_unstepped[k]
-        return e
-
-    def _outside_change(self):
-        # minus the gap's error at the fitted time (every point before it): what the step's
-        # held-out error holds outside the gap, less its own
-        e = 0
-        for k in range(self.gap_n):
-            e -= self.gap_unstepped[k]
-        return e
+        self.best_cost = best
+        return at
 
     def _place(self):
-        # gap point pos scored at the time the others place, one point a step
+        # first the placed time (in-sample), then gap point pos scored at the split the others
+        # place, one point a step
         k = self.pos
-        ts = self._best(k)
-        self.gap_loo += self.gap_stepped[k] if self._gap_time(k) >= ts else \
-            self.gap_unstepped[k]
-        self.pos = k + 1
-        if self.pos < self.gap_n:
+        n = self.gap_n
+        if k < 0:
+            st = self.gap_stepped
+            un = self.gap_unstepped
+            ss = 0
+            us = 0
+            for m in range(n):
+                ss += st[m]
+                us += un[m]
+            self.stepped_sum = ss
+            self.outside = self.errs[self.chosen] - us   # the step's error off the gap
+            at = self._best(-1)
+            self.step_time = self.fitted_time if at == n else self.gap_time[at]
+            self.placed_insample = _saturated(self.outside + self.best_cost)
+            self.gap_loo = 0
+            self.pos = 0
             return
-        self.placed_loo = _saturated(self.errs[self.chosen] + self._outside_change() +
-                                     self.gap_loo)
+        at = self._best(k)
+        self.gap_loo += self.gap_stepped[k] if k >= at else self.gap_unstepped[k]
+        self.pos = k + 1
+        if self.pos < n:
+            return
+        self.placed_loo = _saturated(self.outside + self.gap_loo)
         self.phase = _DONE
 
     def take(self):
