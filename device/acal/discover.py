@@ -5,8 +5,9 @@
 # choice made as `diagnose` makes it (candidates.py, discovery.py's rule).
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
-# candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py) or the
-# scoring of one candidate.  Nothing is allocated per candidate or per score: one GaussNewton
+# candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py), the
+# scoring of one candidate, or (an adopted step) the placing of its time among the held-out
+# points of its gap.  Nothing is allocated per candidate or per score: one GaussNewton
 # sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
