@@ -322,7 +322,8 @@ def _check_placed(out):
     j = np.array(list(map(int, out[13 + 9:13 + 12]))) / 2 ** 24
     assert np.abs(j - J_TRUE).max() < 0.001, j
     # scored leave-one-out over the gap's points the placed model still beats the unplaced
-    # one; in-sample it can only do as well or better than leave-one-out
+    # one; in-sample (every gap point on the time it helped place) claims no more error than
+    # leave-one-out (never more in 200 000 random gaps of up to 5 points tried by brute force)
     before, step_err = int(out[4]), int(out[5])
     assert 0 <= insample <= loo < step_err < before, out
 
