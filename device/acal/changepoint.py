@@ -89,6 +89,13 @@ class ChangePoint:
             pass
         return self.found
 
+    def time_before(self):
+        """After a search that found a split: the time (the points' dt) of the last point
+        before it, the lower end of the gap in which the fit points leave the step's time free
+        (any time after it, up to ts, fits them alike).  Read before the fit's sort buffer is
+        used again."""
+        return self._time(self.at - 1)
+
     def _time(self, k):
         return self.fit.aux[COND * self.order[k] + 1]
 

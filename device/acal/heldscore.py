@@ -70,35 +70,42 @@ class HeldScore:
     def part(self, count):
         """Score up to `count` more points; True when every point is scored (or one lay past
         the domain: total -1)."""
-        h = self.h
         end = self.pos + count
-        if end > h.count:
-            end = h.count
-        p = self.p
-        w = self.w
-        xyz = h.xyz
-        cond = h.cond
+        if end > self.h.count:
+            end = self.h.count
         for i in range(self.pos, end):
-            for c in range(3 * i, 3 * i + 3):
-                v = xyz[c]
-                if v >= model.POINT_LIMIT or v < -model.POINT_LIMIT:
-                    self.total = -1
-                    return True
-                w[c] = v << POINT_TO_PARAM_SHIFT
-            j = COND * i
-            model.remove_effects(p, self.kinds, w, 3 * i, cond[j] - self.ref_temp,
-                                 cond[j + 1] - self.ref_time, self.ts,
-                                 cond[j + 2] - self.ref_supply)
-            r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
+            r = self.point(i)
             if r < 0:
-                r = -r
-            if r > ERR_CAP:
-                r = ERR_CAP
-            r *= h.weight[i]
+                self.total = -1
+                return True
             self.err[i] = r
             self.total += r
         self.pos = end
-        return end == h.count
+        return end == self.h.count
+
+    def point(self, i):
+        """Point i's error (Q16 g^2, weighted) under the model begin() set (its step time
+        `ts`, which a caller may change between points); -1 when it lies past the domain."""
+        h = self.h
+        w = self.w
+        xyz = h.xyz
+        for c in range(3 * i, 3 * i + 3):
+            v = xyz[c]
+            if v >= model.POINT_LIMIT or v < -model.POINT_LIMIT:
+                return -1
+            w[c] = v << POINT_TO_PARAM_SHIFT
+        j = COND * i
+        cond = h.cond
+        p = self.p
+        model.remove_effects(p, self.kinds, w, 3 * i, cond[j] - self.ref_temp,
+                             cond[j + 1] - self.ref_time, self.ts,
+                             cond[j + 2] - self.ref_supply)
+        r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
+        if r < 0:
+            r = -r
+        if r > ERR_CAP:
+            r = ERR_CAP
+        return r * h.weight[i]
 
     def keep_as_base(self, n, lo=0):
         """The last score's errors (of slots lo..n-1) become the ones candidates are compared

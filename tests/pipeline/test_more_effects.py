@@ -370,3 +370,39 @@ def test_compare_fits_a_declared_model_beside_the_methods(declared, capsys):
         assert r["status"] == "calibrated" and r["error_after_mg"] < 0.6 * best_base, (r, best_base)
     code, _, err = run_main(capsys, ["compare", str(rec), "--model", "base+ageing3"])
     assert code == 2 and "unknown effect 'ageing3'" in err and err.count("\n") == 1
+
+
+def test_diagnose_places_a_step_among_the_held_out_points_of_its_gap():
+    """A shock inside a held-out stretch, between two training points: place_step puts the
+    step's time between the held-out points either side of the shock, and the true model's
+    jumps leave those points less wrong placed than at the fitted time; leave-one-out never
+    claims less than in-sample (simulated truth, no noise but the sensor's)."""
+    from accelcal import simulate
+    from accelcal.model.effects import ModelSpec
+    from accelcal.pipeline.diagnose import place_step
+    from accelcal.pipeline.restpoints import RestPoints
+    truth = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
+    jump = np.array([0.004, -0.006, 0.005])
+    # s: training points at ..., 6000 and 8000, ...: the fitted time halfway (change_point)
+    shock, ts_fitted = 6400.0, 7000.0
+    rng = np.random.default_rng(3)
+
+    def points(t):
+        d = simulate.unit_points(rng, len(t))
+        v = simulate.uncorrect(truth, d) + np.where(t[:, None] >= shock, jump, 0.0)
+        v += rng.normal(scale=0.0003, size=v.shape)
+        return RestPoints(v, t, None, np.full(len(t), 1e-4), "test")
+
+    train = points(np.r_[np.arange(0.0, 6001.0, 500.0), np.arange(8000.0, 14001.0, 500.0)])
+    test = points(np.r_[np.arange(6100.0, 7901.0, 200.0), np.arange(14100.0, 16001.0, 300.0)])
+    spec = ModelSpec.parse("base+step")
+    theta = np.r_[truth, jump]
+    placed = place_step(spec, theta, train, test, {"ts": ts_fitted})
+    inside = test.t[(test.t > 6000) & (test.t < 8000)]
+    below, above = inside[inside < shock].max(), inside[inside >= shock].min()
+    assert placed["step_gap_points"] == len(inside)
+    assert below < placed["step_time_placed_s"] < above, placed
+    unplaced = float(np.mean(np.abs(np.linalg.norm(
+        spec.correct(theta, test.v, np.zeros(len(test.t)), test.t, {"ts": ts_fitted}, {}),
+        axis=1) - 1)) * 1e3)
+    assert placed["heldout_error_placed_insample_mg"] <= placed["heldout_error_placed_mg"] < unplaced

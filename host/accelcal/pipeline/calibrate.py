@@ -325,7 +325,9 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
         return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
                 "not end OK)"}
     adopted, closest, before, after, betters, blocks, held, weight, step_time = r.discovery[:9]
-    p_int = r.discovery[9:]
+    from acal.discover import N_ALL
+    p_int = r.discovery[9:9 + N_ALL]
+    fitted_time, placed_loo, placed_insample, gap_n = r.discovery[9 + N_ALL:13 + N_ALL]
     out = {"effect": model_name(adopted), "closest": model_name(closest),
            "heldout_points": held, "heldout_rest_means": weight,
            "heldout_before": before, "heldout_after": after,
@@ -347,6 +349,15 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
         out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
         if deff.STEP in deff.model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
+            if placed_loo >= 0:
+                # an adopted step's time placed among the held-out points of its gap
+                # (acal/discover.py): its fit's time, and the held-out error with it placed,
+                # each gap point at the time the others place (leave-one-out) and in-sample
+                out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
+                out["step_gap_points"] = gap_n
+                out["heldout_placed"] = placed_loo
+                out["heldout_error_placed_mg"] = heldout_mg(placed_loo, weight)
+                out["heldout_error_placed_insample_mg"] = heldout_mg(placed_insample, weight)
     return out
 
 

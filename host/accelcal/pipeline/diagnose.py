@@ -241,7 +241,51 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
                f"{e.report_unit} ({e.param_names[0][0]})" for e in new)}
     if "ts" in cref and "ts" not in ref:
         out["step_time_s"] = cref["ts"]
+        out.update(place_step(cspec, th, train, test, cref))
     return out
+
+
+def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
+    """A step's time placed among the held-out points between the two training points that
+    bracket the fitted one (the fit cannot tell where the shock lies between them): at the split
+    of those points, between distinct times, whose | |a| - 1 | sums the lowest (of equal sums the
+    later), halfway between its neighbours, as change_point places a time; as the board does
+    (acal/discover.py, docs/model-discovery.md "Against the true sensor model").  Its held-out
+    error leave-one-out (each gap point at the time the other gap points place) and in-sample;
+    {} when no held-out point lies in the gap.  The naming rule is not shown these: the points
+    that place the time would judge it."""
+    ts = cref["ts"]
+    before, after = train.t[train.t < ts], train.t[train.t >= ts]
+    if not len(before) or not len(after):
+        return {}
+    lo, hi = before.max(), after.min()
+    idx = np.flatnonzero((test.t > lo) & (test.t < hi))
+    if not len(idx):
+        return {}
+    idx = idx[np.argsort(test.t[idx], kind="stable")]
+    t = test.t[idx]
+    stepped = np.abs(residuals(cspec, theta, test.take(idx), {**cref, "ts": -np.inf})[1])
+    unstepped = np.abs(residuals(cspec, theta, test.take(idx), {**cref, "ts": np.inf})[1])
+    n = len(idx)
+    split_ok = np.r_[True, t[1:] > t[:-1], True]        # k points before the split, k = 0..n
+
+    def best(left: int) -> int:
+        c1, c0 = stepped.copy(), unstepped.copy()
+        if left >= 0:
+            c1[left] = c0[left] = 0.0
+        cost = np.r_[0.0, np.cumsum(c0)] + np.r_[np.cumsum(c1[::-1])[::-1], 0.0]
+        cost[~split_ok] = np.inf
+        return int(n - np.argmin(cost[::-1]))          # of equal sums the later split
+
+    k = best(-1)
+    edges = np.r_[lo, t, hi]
+    outside = np.abs(residuals(cspec, theta, test, cref)[1]).sum() - unstepped.sum()
+    insample = outside + unstepped[:k].sum() + stepped[k:].sum()
+    loo = outside + sum(unstepped[j] if j < best(j) else stepped[j] for j in range(n))
+    return {"step_time_placed_s": float(0.5 * (edges[k] + edges[k + 1])),
+            "step_gap_points": n,
+            "heldout_error_placed_mg": float(loo / len(test) * 1e3),
+            "heldout_error_placed_insample_mg": float(insample / len(test) * 1e3)}
 
 
 def block_evidence(better: int, blocks: int) -> str:

@@ -291,6 +291,8 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
                "rp2040_emulated_fit_wear_four_effects_worst_slice_ms": "<= 2 ms",
                "rp2040_emulated_discover_mark_worst_step_ms": "<= 2 ms",
                "rp2040_emulated_discover_compare_worst_step_ms": "<= 2 ms",
+               "rp2040_emulated_discover_gap_worst_step_ms": "<= 2 ms",
+               "rp2040_emulated_discover_place_worst_step_ms": "<= 2 ms",
                "rp2040_emulated_app_and_apply_us_per_sample": "<= 5 us",
                "rp2040_emulated_import_app_ms": "<= 300 ms",
                "rp2040_emulated_heap_free_app_largest_bytes": ">= 150 000",

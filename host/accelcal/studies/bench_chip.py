@@ -70,8 +70,9 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
         res[e + f"fit_{name}_status"] = int(status)
         if int(used) >= 0:
             res[e + f"fit_{name}_bytes"] = int(used)
-    disc = _kv(_on_chip("mp_discover_bench.py", "main()", fw, prefix))
-    for phase in ("mark", "compare"):   # the board's discovery: its block steps
+    disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()", fw, prefix))
+    # the board's discovery: its block steps, and an adopted step's placement at its largest
+    for phase in ("mark", "compare", "gap", "place"):
         res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
         res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
     return res
