@@ -18,8 +18,8 @@
 # Composed models (docs/model-discovery.md "Bins for composed models").  An effect's parameters are
 # only seen in
 # points that differ in temperature (temp_offset, temp_scale) or in time (drift).  With
-# temp_differ (degC) or time_differ (64 s units) set, each slot also holds its point's temperature
-# (int degC) and time (int, 64 s units), and:
+# temp_differ (Q2 degC, fixed.TEMP_Q) or time_differ (64 s units) set, each slot also holds its
+# point's temperature (Q2 degC) and time (int, 64 s units), and:
 #   - a point near a held one in orientation still differs from it when |dT| >= temp_differ or
 #     |dt| >= time_differ (the same point seen warmer, or a day later, tells the effect apart);
 #   - a full subset's slots have two roles: the first half keep well-placed points (the CENTRE
@@ -36,19 +36,19 @@
 from array import array
 
 from acal import hemisphere
-from acal.fixed import POINT_ONE_G
+from acal.fixed import POINT_ONE_G, TEMP_Q
 try:
     from micropython import const
 except ImportError:
     def const(x):
         return x
 
-COND = const(3)     # conditions per point, flat: temperature (degC), time (64 s), supply (mV)
+COND = const(3)     # conditions per point, flat: temperature (Q2 degC), time (64 s), supply (mV)
 
 
 def int32s(n):
     """n zeroed int32 slots: an array takes 4 bytes a slot where a list takes 8 on a 64-bit
-    port, in one block (points in Q16 g and conditions - degC, 64 s units, mV - all fit)."""
+    port, in one block (points in Q16 g and conditions - Q2 degC, 64 s units, mV - all fit)."""
     return array("i", bytearray(4 * n))
 
 
@@ -77,7 +77,7 @@ _LO_OUT = (3 * POINT_ONE_G) // 4  # 0.75 g
 _HI_OUT = (5 * POINT_ONE_G) // 4  # 1.25 g
 _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
-TEMP_DIFFER = 3     # degC: what a temperature effect needs (host diagnose: the same 3 degC)
+TEMP_DIFFER = 3 << TEMP_Q  # 3 degC in Q2: what a temperature effect needs (host diagnose: the same)
 TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
 SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
@@ -112,6 +112,14 @@ def _abs(v):
     return v if v >= 0 else -v
 
 
+def _gcd(x, y):
+    while y:
+        r = x % y
+        x = y
+        y = r
+    return x
+
+
 def badness(x, y, z, s):
     """How far a point lies from the ideal members of subset s (Q16 g, smaller is better).
 
@@ -132,7 +140,7 @@ class Bins:
 
     min_count / max_count: points per subset (paper: 2 and 2 -> 18 points);
     differ: minimum max-norm distance to every held point, Q16 g (default 0.1 g);
-    policy: FIRST or CENTRE; temp_differ (degC), time_differ (64 s units), supply_differ (mV):
+    policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units), supply_differ (mV):
     0, or the spreads a composed model needs (see above).
     """
 
@@ -164,6 +172,9 @@ class Bins:
         self.changes = 0      # held points changed (ready()'s cache key)
         self.ready_at = -1
         self.ready_now = False
+        self._w_a = self._w_b = self._w_c = 0    # _weigh()'s thresholds (0: not yet weighed)
+        self._w_temp = self._w_time = self._w_supply = 1
+        self._w_gain = 1
 
     def clear(self):
         self.changes += 1
@@ -266,7 +277,7 @@ class Bins:
         return hi - lo
 
     def temp_span(self):
-        """Temperature range of the held points (degC; 0 unless temperature is tracked)."""
+        """Temperature range of the held points (Q2 degC; 0 unless temperature is tracked)."""
         return self._span(0)
 
     def time_span(self):
@@ -279,8 +290,11 @@ class Bins:
 
     def _spread(self, s, skip, temp, time, supply):
         # The spread score of subset s with slot `skip` holding (temp, time, supply) instead:
-        # each range per its threshold, times the product of the thresholds (ints).  Below
-        # 2**30 for ranges of 125 degC, 2**20 time units (776 days) and 5 V.
+        # each range per its threshold, times the product of the thresholds over their common
+        # divisor (ints, _weigh(); exact: no order of scores changes).  The device's thresholds
+        # (12 Q2 degC, 675 time units, 100 mV) weigh the ranges 225, 4 and 27: below 2**30 for
+        # ranges of 125 degC (500 in Q2), 2**20 time units (776 days) and 65 V, by far
+        # (tests/device/test_bins.py).
         m = self.max_count
         cond = self.cond
         t_lo = t_hi = temp
@@ -305,10 +319,28 @@ class Bins:
                 v_lo = v
             elif v > v_hi:
                 v_hi = v
+        return (t_hi - t_lo) * self._w_temp + (u_hi - u_lo) * self._w_time + \
+            (v_hi - v_lo) * self._w_supply
+
+    def _weigh(self):
+        # The spread score's weights (_spread) and its quarter threshold for the thresholds as
+        # they are now (they are set after construction: pipeline.track), kept until they change.
         a = self.temp_differ or 1
         b = self.time_differ or 1
         c = self.supply_differ or 1
-        return (t_hi - t_lo) * b * c + (u_hi - u_lo) * a * c + (v_hi - v_lo) * a * b
+        if a == self._w_a and b == self._w_b and c == self._w_c:
+            return
+        wa = b * c
+        wb = a * c
+        wc = a * b
+        g = _gcd(_gcd(wa, wb), wc)
+        self._w_temp = wa // g
+        self._w_time = wb // g
+        self._w_supply = wc // g
+        self._w_gain = ((a * b * c) // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
+        self._w_a = a
+        self._w_b = b
+        self._w_c = c
 
     def _far_from_all(self, x, y, z, temp, time, supply, skip):
         # Max-norm distance >= differ from every held point except slot index `skip`, or far
@@ -350,7 +382,7 @@ class Bins:
         self.cond[j + 2] = supply
 
     def offer(self, x, y, z, temp=0, time=0, supply=0):
-        """Offer a rest mean (Q16 g) seen at temperature `temp` (int degC), time `time` (64 s
+        """Offer a rest mean (Q16 g) seen at temperature `temp` (Q2 degC), time `time` (64 s
         units) and the board's supply (mV; each ignored unless tracked). Returns the subset
         index it was kept in, or -1."""
         self.offered += 1
@@ -378,8 +410,9 @@ class Bins:
         if self.policy != CENTRE:
             return -1
         tracked = self.temp_differ or self.time_differ or self.supply_differ
-        gain = ((self.temp_differ or 1) * (self.time_differ or 1) *
-                (self.supply_differ or 1)) >> 2 or 1  # a quarter threshold (3 degC: 0 -> 1)
+        if tracked:
+            self._weigh()
+        gain = self._w_gain
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
             s = subset_of(c, axis, self.lo_out)
@@ -423,7 +456,7 @@ class Bins:
         return self.xyz[i], self.xyz[i + 1], self.xyz[i + 2]
 
     def condition(self, s, k):
-        """(temperature, time, supply) of slot k of subset s: degC, 64 s units, mV."""
+        """(temperature, time, supply) of slot k of subset s: Q2 degC, 64 s units, mV."""
         j = COND * (s * self.max_count + k)
         return self.cond[j], self.cond[j + 1], self.cond[j + 2]
 
