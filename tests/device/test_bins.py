@@ -102,19 +102,24 @@ def test_a_full_composed_subset_takes_points_that_widen_its_spread():
 
 
 def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
-    """With temperature alone tracked a quarter threshold (3 degC >> 2) is 0 in integers: it is
-    taken as 1, so a point that only keeps the range does not replace a spread slot (before,
-    every such point did, and the placement slots kept the first points ever seen); a better
-    placed one replaces the placement slot (the CENTRE rule)."""
+    """With temperature alone tracked a quarter threshold is 0.75 degC (3 degC in Q2 >> 2; in
+    whole degC it was 0, taken as 1): a point that only keeps the range does not replace a spread
+    slot (before that rule every such point did, and the placement slots kept the first points
+    ever seen); a better placed one replaces the placement slot (the CENTRE rule)."""
     b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER)
+    q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30) == 2 and b.offer(*only_xp(0.8, 0.55, 0.3), 31) == 2
-    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31) == -1   # keeps 30..31, placed worse
-    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30) == 2     # keeps 30..31, placed better
-    assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30 * q) == 2
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), 31 * q) == 2
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q) == -1   # keeps 30..31, placed worse
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 2) == -1   # widens by 0.5 degC: too little
+    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30 * q) == 2     # keeps 30..31, placed better
+    assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31 * q
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 3) == 2   # widens by 0.75 degC: taken
+    assert b.condition(2, 1)[0] == 31 * q + 3
 
 
 def test_composed_bins_are_ready_only_with_the_spread():
