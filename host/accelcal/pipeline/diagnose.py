@@ -133,6 +133,9 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                 named is None or not discovery.plain_preferred(c["heldout_error_mg"],
                                                                best["heldout_error_mg"])):
             named, best = c["effect"], c
+    # a curve's straight part named alone: the curve is judged only on top of it (its own gain
+    # hides behind the straight part's), so a second step is due before the model is complete
+    second = next((cv for ln, cv in curves(pool) if named in pool and ln is pool[named]), None)
     if named:
         host = " --method lsq --points all (it runs on the host only)" \
             if any(e.kind is None for e in parts[named]) else ""
@@ -150,6 +153,8 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                        f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
                        f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
                        f"{spec}+{named}{host}")
+        if second is not None:
+            explanation += " " + second_step_text(spec, named, second, cands)
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
@@ -161,7 +166,9 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
     _, r_all = residuals(spec, theta, p, ref)
     wrist = wrist_floor(p.t, p.v, p.temp, r_all * 1e3)
-    remains = None
+    remains = None if second is None else {
+        "second_step": second.name, "model": f"{spec}+{named}",
+        "text": second_step_text(spec, named, second, cands)}
     if named is None:
         _, r_train = residuals(spec, theta, train, ref)
         remains = what_remains(regs, r * 1e3, (regressors(spec, theta, train, ref), r_train * 1e3),
@@ -195,6 +202,20 @@ def complete_text(err: float, noise: float, wrist: float | None) -> str:
     return (f"Held-out error {err:.2f} mg against {against}; no shape of what remains holds up "
             "in held-out blocks, so there is no lead: the model explains the data to within "
             "what rest on a wrist allows here.")
+
+
+def second_step_text(spec: ModelSpec, named: str, curve, cands: list[dict]) -> str:
+    """What diagnose says when it names a curve's straight part alone: a second step is due, the
+    curve judged on top of it (docs/model-discovery.md "Curves")."""
+    pair = next((c for c in cands if c["effect"] == f"{named}+{curve.name}"), None)
+    seen = ""
+    if pair is not None and pair["heldout_error_mg"] is not None:
+        seen = (f" (here both parts at once left {pair['heldout_error_mg']:.2f} mg held out, "
+                f"better in {pair['blocks_improved']} of {pair['blocks']} blocks: not enough to "
+                "name them in one step)")
+    return (f"A second step is due: {curve.name}, the curve {named} may be the straight part "
+            f"of, is judged only with {named} in the model{seen}; run accelcal diagnose --model "
+            f"{spec}+{named} next.")
 
 
 def curves(pool: dict) -> list[tuple]:
