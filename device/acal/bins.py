@@ -1,54 +1,47 @@
 # Calibration-point selection (Farago 2024, section II-B-1, eq. 10 and figure 6).
 #
-# Each axis is split into [-1.25, -0.75], [-0.25, 0.25], [0.75, 1.25] g, giving nine subsets
-# C_ij (i = x, y, z; j = n, 0, p), subset index 3*i + j.  Each subset holds between min_count
-# and max_count points; a rest mean is kept only if it differs enough from every point already
-# held (max-norm distance >= `differ`, no square root).  Means with a component beyond 1.25 g or a
-# magnitude outside [0.5, 1.5] g are not gravity and are never kept.  A point that lies in several subsets
-# (e.g. (1, 0, 0) is in C_xp, C_y0 and C_z0) goes to the one of them holding fewest points.
-#
+# Each axis is split into [-1.25, -0.75], [-0.25, 0.25], [0.75, 1.25] g, giving nine subsets C_ij
+# (i = x, y, z; j = n, 0, p), subset index 3*i + j.  Each subset holds between min_count and
+# max_count points; a rest mean is kept only if it differs enough from every point already held
+# (max-norm distance >= `differ`, no square root).  Means with a component beyond 1.25 g or a
+# magnitude outside [0.5, 1.5] g are not gravity and are never kept.  A point that lies in several
+# subsets (e.g. (1, 0, 0) is in C_xp, C_y0 and C_z0) goes to the one of them holding fewest points.
 # Two policies once a subset is full:
 #   FIRST  - the paper as printed: a full subset takes nothing more (first come, first kept);
 #   CENTRE - a new point replaces the held point of that subset farthest from the subset's ideal
-#            members (the axis for n/p, the ring's diagonals for 0; see badness) when it is nearer.
-#            The selection keeps improving while rest data flows;
-#            docs/method-and-formats.md "Point selection".
+#            members (the axis for n/p, the ring's diagonals for 0; see badness) when it is nearer:
+#            the selection keeps improving while rest data flows (docs/method-and-formats.md).
 # Points are Q16 g ints; storage is preallocated.
-#
-# Composed models (docs/model-discovery.md "Bins for composed models").  An effect's parameters are
-# only seen in
-# points that differ in temperature (temp_offset, temp_scale) or in time (drift).  With
-# temp_differ (degC) or time_differ (64 s units) set, each slot also holds its point's temperature
-# (int degC) and time (int, 64 s units), and:
-#   - a point near a held one in orientation still differs from it when |dT| >= temp_differ or
-#     |dt| >= time_differ (the same point seen warmer, or a day later, tells the effect apart);
+# Composed models (docs/model-discovery.md "Bins for composed models"): an effect's parameters are
+# only seen in points that differ in temperature (temp_offset, temp_scale), time (drift) or the
+# board's supply (supply_offset, mV).  With temp_differ (Q2 degC, fixed.TEMP_Q), time_differ (64 s
+# units) or supply_differ (mV) set, each slot also holds its point's conditions, and:
+#   - a point near a held one in orientation still differs from it when |dT| >= temp_differ,
+#     |dt| >= time_differ or |dV| >= supply_differ (the same point seen warmer, or a day later);
 #   - a full subset's slots have two roles: the first half keep well-placed points (the CENTRE
 #     rule: the 9 parameters need them), the second half keep spread (a linear effect term gets
 #     the most leverage from extremes).  A new point replaces the spread slot whose replacement
-#     most widens the subset's spread (its temperature range x time_differ + its time range x
-#     temp_differ: each range per its threshold) by at least a quarter threshold, the worst
-#     placed of equals (time only grows: the newest point widens by replacing any but the
-#     oldest); else, by the CENTRE rule, a placement slot; no replacement narrows the spread.
-#   - ready() also needs all held points together to span temp_differ and time_differ.
-# An integer the board supplies (its supply in mV: effects.SUPPLY_OFFSET) is a third condition,
-# tracked with supply_differ (mV) as the other two: a near point differs when |dV| >=
-# supply_differ, the spread counts its range per its threshold, ready() needs the span.
+#     most widens the subset's spread (each condition's range per its threshold, _spread) by at
+#     least a quarter threshold, the worst placed of equals (time only grows: the newest point
+#     widens by replacing any but the oldest); else, by the CENTRE rule, a placement slot; no
+#     replacement narrows the spread.
+#   - ready() also needs the held points together to span each threshold.
 from array import array
 
 from acal import hemisphere
-from acal.fixed import POINT_ONE_G
+from acal.fixed import POINT_ONE_G, TEMP_Q
 try:
     from micropython import const
 except ImportError:
     def const(x):
         return x
 
-COND = const(3)     # conditions per point, flat: temperature (degC), time (64 s), supply (mV)
+COND = const(3)     # conditions per point, flat: temperature (Q2 degC), time (64 s), supply (mV)
 
 
 def int32s(n):
     """n zeroed int32 slots: an array takes 4 bytes a slot where a list takes 8 on a 64-bit
-    port, in one block (points in Q16 g and conditions - degC, 64 s units, mV - all fit)."""
+    port, in one block (points in Q16 g and conditions - Q2 degC, 64 s units, mV - all fit)."""
     return array("i", bytearray(4 * n))
 
 
@@ -59,14 +52,14 @@ def conditions(n_points):
 FIRST = 0
 CENTRE = 1
 # Coverage (the default profile, docs/method-and-formats.md "Profiles"): the n and p subsets take
-# points from
-# COVER_LEVEL (not 0.75 g) out, so that a posture a wrist rarely holds still (the arm hanging: it
-# sways) is still represented by tilted points, which the CENTRE rule replaces by better-placed
-# ones when they come; and the bins are also ready, without nine full subsets, when the held points reach past +-COVER_LEVEL on both sides of every axis, at least
-# COVER_SIDE points each side, and number at least COVER_POINTS (GGIR's rule is the same with
-# +-0.3 g and one point).  A real wrist may never lie face down (no point in C_zn): offsets and
-# scales are still pinned by points on both sides, and misalignment by the tilted ones; the
-# fit's own guard (acal/solve.py) refuses a set that does not pin every parameter.
+# points from COVER_LEVEL (not 0.75 g) out, so that a posture a wrist rarely holds still (the arm
+# hanging: it sways) is still represented by tilted points, which the CENTRE rule replaces by
+# better-placed ones when they come; and the bins are also ready, without nine full subsets, when
+# the held points reach past +-COVER_LEVEL on both sides of every axis, at least COVER_SIDE points
+# each side, and number at least COVER_POINTS (GGIR's rule is the same with +-0.3 g and one point).
+# A real wrist may never lie face down (no point in C_zn): offsets and scales are still pinned by
+# points on both sides, misalignment by the tilted ones; the fit's own guard (acal/solve.py)
+# refuses a set that does not pin every parameter.
 COVER_LEVEL = (3 * 65536) // 10  # 0.3 g, Q16
 COVER_SIDE = 2
 COVER_POINTS = 27
@@ -77,7 +70,7 @@ _LO_OUT = (3 * POINT_ONE_G) // 4  # 0.75 g
 _HI_OUT = (5 * POINT_ONE_G) // 4  # 1.25 g
 _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
-TEMP_DIFFER = 3     # degC: what a temperature effect needs (host diagnose: the same 3 degC)
+TEMP_DIFFER = 3 << TEMP_Q  # 3 degC in Q2: what a temperature effect needs (host diagnose: the same)
 TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
 SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
@@ -112,6 +105,12 @@ def _abs(v):
     return v if v >= 0 else -v
 
 
+def _gcd(x, y):
+    while y:
+        x, y = y, x % y
+    return x
+
+
 def badness(x, y, z, s):
     """How far a point lies from the ideal members of subset s (Q16 g, smaller is better).
 
@@ -128,13 +127,10 @@ def badness(x, y, z, s):
 
 
 class Bins:
-    """The nine subsets of calibration points.
-
-    min_count / max_count: points per subset (paper: 2 and 2 -> 18 points);
-    differ: minimum max-norm distance to every held point, Q16 g (default 0.1 g);
-    policy: FIRST or CENTRE; temp_differ (degC), time_differ (64 s units), supply_differ (mV):
-    0, or the spreads a composed model needs (see above).
-    """
+    """The nine subsets of calibration points.  min_count / max_count: points per subset (paper:
+    2 and 2 -> 18 points); differ: minimum max-norm distance to every held point, Q16 g (default
+    0.1 g); policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units),
+    supply_differ (mV): 0, or the spreads a composed model needs (see above)."""
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  temp_differ=0, time_differ=0, coverage=False, supply_differ=0):
@@ -149,14 +145,12 @@ class Bins:
         self.temp_differ = temp_differ
         self.time_differ = time_differ
         self.supply_differ = supply_differ
-        # False: the spreads are tracked (slot roles, differing points) but ready() does not
-        # wait for them (a base model whose board discovers effects: acal/discover.py)
+        # False: the spreads are tracked but ready() does not wait for them (acal/discover.py)
         self.need_span = True
         self.counts = [0] * N_SUBSETS
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].
         self.xyz = int32s(3 * N_SUBSETS * max_count)
-        # Temperature, time and supply of slot k of subset s at cond[COND * (s * max_count + k)],
-        # + 1 and + 2.
+        # Temperature, time, supply of slot k of subset s at cond[COND * (s * max_count + k) + 0..2]
         self.cond = conditions(N_SUBSETS * max_count)
         self.offered = 0
         self.kept = 0
@@ -164,6 +158,7 @@ class Bins:
         self.changes = 0      # held points changed (ready()'s cache key)
         self.ready_at = -1
         self.ready_now = False
+        self._w_temp = self._w_time = self._w_supply = self._w_gain = 1   # _weigh()'s
 
     def clear(self):
         self.changes += 1
@@ -232,8 +227,8 @@ class Bins:
         return True
 
     def remove(self, x, y, z):
-        """Remove a held point equal to (x, y, z) (Q16 g), if any: the fit found it an outlier
-        (acal/gaussnewton.py); its slot takes new points again.  Returns True if one was."""
+        """Remove a held point equal to (x, y, z) (Q16 g), if any (an outlier to the fit): its
+        slot takes new points again.  Returns True if one was."""
         m = self.max_count
         for s in range(N_SUBSETS):
             n = self.counts[s]
@@ -266,7 +261,7 @@ class Bins:
         return hi - lo
 
     def temp_span(self):
-        """Temperature range of the held points (degC; 0 unless temperature is tracked)."""
+        """Temperature range of the held points (Q2 degC; 0 unless temperature is tracked)."""
         return self._span(0)
 
     def time_span(self):
@@ -278,9 +273,9 @@ class Bins:
         return self._span(2)
 
     def _spread(self, s, skip, temp, time, supply):
-        # The spread score of subset s with slot `skip` holding (temp, time, supply) instead:
-        # each range per its threshold, times the product of the thresholds (ints).  Below
-        # 2**30 for ranges of 125 degC, 2**20 time units (776 days) and 5 V.
+        # The spread score of subset s, slot `skip` holding (temp, time, supply) instead: each
+        # range per its threshold times the thresholds' product over their common divisor (_weigh:
+        # 225, 4, 27), < 2**30 for 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
         m = self.max_count
         cond = self.cond
         t_lo = t_hi = temp
@@ -305,10 +300,19 @@ class Bins:
                 v_lo = v
             elif v > v_hi:
                 v_hi = v
+        return (t_hi - t_lo) * self._w_temp + (u_hi - u_lo) * self._w_time + \
+            (v_hi - v_lo) * self._w_supply
+
+    def _weigh(self):
+        # The spread score's weights and quarter threshold for the thresholds as now set
         a = self.temp_differ or 1
         b = self.time_differ or 1
         c = self.supply_differ or 1
-        return (t_hi - t_lo) * b * c + (u_hi - u_lo) * a * c + (v_hi - v_lo) * a * b
+        g = _gcd(_gcd(b * c, a * c), a * b)
+        self._w_temp = (b * c) // g
+        self._w_time = (a * c) // g
+        self._w_supply = (a * b) // g
+        self._w_gain = ((a * b * c) // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
 
     def _far_from_all(self, x, y, z, temp, time, supply, skip):
         # Max-norm distance >= differ from every held point except slot index `skip`, or far
@@ -350,7 +354,7 @@ class Bins:
         self.cond[j + 2] = supply
 
     def offer(self, x, y, z, temp=0, time=0, supply=0):
-        """Offer a rest mean (Q16 g) seen at temperature `temp` (int degC), time `time` (64 s
+        """Offer a rest mean (Q16 g) seen at temperature `temp` (Q2 degC), time `time` (64 s
         units) and the board's supply (mV; each ignored unless tracked). Returns the subset
         index it was kept in, or -1."""
         self.offered += 1
@@ -378,8 +382,9 @@ class Bins:
         if self.policy != CENTRE:
             return -1
         tracked = self.temp_differ or self.time_differ or self.supply_differ
-        gain = ((self.temp_differ or 1) * (self.time_differ or 1) *
-                (self.supply_differ or 1)) >> 2 or 1  # a quarter threshold (3 degC: 0 -> 1)
+        if tracked:
+            self._weigh()
+        gain = self._w_gain
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)
             s = subset_of(c, axis, self.lo_out)
@@ -423,7 +428,7 @@ class Bins:
         return self.xyz[i], self.xyz[i + 1], self.xyz[i + 2]
 
     def condition(self, s, k):
-        """(temperature, time, supply) of slot k of subset s: degC, 64 s units, mV."""
+        """(temperature, time, supply) of slot k of subset s: Q2 degC, 64 s units, mV."""
         j = COND * (s * self.max_count + k)
         return self.cond[j], self.cond[j + 1], self.cond[j + 2]
 

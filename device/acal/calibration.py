@@ -21,7 +21,7 @@ class Calibration:
     still sensor's sub-mg mean kept, and an int16 at every full scale).
 
     kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
-    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (int degC),
+    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (Q2 degC),
     `time` (64 s units) and `supply` (mV, the board's) current, and the effects are removed with
     dT = temp - ref_temp, dt = time - ref_time and dV = supply - ref_supply, the references the
     fit used (set()); a step at dt >= step_time."""

@@ -17,28 +17,33 @@
 #                                               the zero-g level following the battery)
 # Three parameters per effect (x, y, z), in this order.
 #
-# Formats.  dT: int degC.  dt: int, units of 64 s (DT_UNIT_S).  dV: int mV from the reference.
+# Formats.  dT: Q2 degC (fixed.TEMP_Q: quarter degrees).  dt: int, units of 64 s (DT_UNIT_S).
+#   dV: int mV from the reference.
 #   Fit (Q24 g readings u, model.objective): every parameter in Q24 per its normalised regressor -
 #   c and s per 16 degC, e per 64 degC^2, d per 2048 dt units (131 072 s, 1.52 days), q per g - so
-#   that each is of the size of an offset and takes the offsets' learning rate.
-#     c: (c * dT) >> 4;  e: (e * dT^2) >> 6;  s: (((s * dT) >> 4) * u) >> 24;  d: (d * dt) >> 11;
+#   that each is of the size of an offset and takes the offsets' learning rate (the parameters
+#   keep these per-degC units whatever the temperature's format: dT's two fraction bits enter
+#   the shifts, 2 more per power of dT).
+#     c: (c * dT) >> 6;  e: (e * dT^2) >> 10;  s: (((s * dT) >> 6) * u) >> 24;  d: (d * dt) >> 11;
 #     q: (q * ((u*u) >> 24)) >> 24
+#   With whole degrees fed as dT << 2 every form equals the whole-degree one it replaced.
 #   Apply (per sample, Q(14 - e) g readings at range shift e, fixed.py "apply",
 #   calibration.Calibration): c, e and d in Q14 (param >> 10), s and q in Q18 (param >> 6), each
 #   product shifted e bits further (q's v^2 e bits before it), so that at +-2.048 * 2**e g, |dT| <= 32
-#   degC and |dt| < 2**20 units (776 days; both clamped) and inside BOUNDS every product stays
+#   degC (128 in Q2) and |dt| < 2**20 units (776 days; both clamped) and inside BOUNDS every product stays
 #   below 2**30 at every full scale (tests/device/test_effects.py runs the worst case).
-#   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (x <= 2**20 for
-#   (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
+#   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (dT / 16 is
+#   dT << 10 in Q16 from Q2; x <= 2**20 for (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
 #   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
 #   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
 #   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> (14 + e), k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
 #   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
-#   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region) - or, for the Jacobian rows of
+#   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region: c dT <= 5.4e6 * 128 < 2**30) - or, for the Jacobian rows of
 #   gaussnewton.py, parameters below 2**22 - the wide products go through acal/wide.py, whose
 #   floors equal the plain (a * b) >> s.
 from acal.wide import mul_shift
+from acal.fixed import TEMP_DT_MAX
 from acal.emit import SIGN_SHIFT, viper, ptr8, ptr32
 try:
     from micropython import const
@@ -82,7 +87,7 @@ GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6
 GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
 SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
 DT_UNIT_S = const(64)
-APPLY_DT_MAX = const(32)          # degC either side of the reference
+APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
 FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
 # |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
@@ -171,7 +176,7 @@ def model_kinds(code):
 
 
 def regressor(kind, dT, dt, ts, dV=0):
-    """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (degC), dt (64 s units), with a
+    """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (Q2 degC), dt (64 s units), with a
     step at ts (64 s units, as dt), and the board's integer dV (mV from its reference): SHAPES,
     clamped as the formats above say; each power an exact floor (acal/wide.py)."""
     source, power = SHAPES[kind]
@@ -188,7 +193,7 @@ def regressor(kind, dT, dt, ts, dV=0):
             dT = APPLY_DT_MAX
         elif dT < -APPLY_DT_MAX:
             dT = -APPLY_DT_MAX
-        base = dT << 12                   # dT / 16 in Q16, <= 2**17
+        base = dT << 10                   # dT / 16 in Q16 from Q2 degC, <= 2**17
     else:
         if dt > GENERIC_TIME_MAX:
             dt = GENERIC_TIME_MAX
@@ -218,10 +223,10 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
             dT = -APPLY_DT_MAX
     if kind == TEMP_OFFSET:
         for i in range(3):
-            u[at + i] -= (p[j + i] * dT) >> 4
+            u[at + i] -= (p[j + i] * dT) >> 6
     elif kind == TEMP_SCALE:
         for i in range(3):
-            u[at + i] -= mul_shift((p[j + i] * dT) >> 4, u[at + i], 24)
+            u[at + i] -= mul_shift((p[j + i] * dT) >> 6, u[at + i], 24)
     elif kind == DRIFT:
         if dt > FIT_TIME_MAX:
             dt = FIT_TIME_MAX
@@ -234,7 +239,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
             v = u[at + i]
             u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
     elif kind == TEMP_OFFSET2:
-        sq = (dT * dT) << 10     # <= 2**20: (e dT^2) >> 6 as an exact wide floor
+        sq = (dT * dT) << 6      # <= 2**20: (e dT^2) >> 10 as an exact wide floor
         for i in range(3):
             u[at + i] -= mul_shift(p[j + i], sq, 16)
 
@@ -275,10 +280,10 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
             dT = -APPLY_DT_MAX
     if kind == TEMP_OFFSET:
         for i in range(3):
-            w[i] -= (k[m + i] * dT) >> (4 + e)
+            w[i] -= (k[m + i] * dT) >> (6 + e)
     elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
         for i in range(3):
-            w[i] -= (((k[m + i] * dT) >> 4) * w[i]) >> 18
+            w[i] -= (((k[m + i] * dT) >> 6) * w[i]) >> 18
     elif kind == DRIFT:
         if dt > APPLY_TIME_MAX:
             dt = APPLY_TIME_MAX
@@ -295,9 +300,9 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
                 s = z
             w[i] -= (k[m + i] * ((s * s) >> (10 + e))) >> 14
     elif kind == TEMP_OFFSET2:
-        sq = dT * dT             # <= 1024; |k| <= 2**11 at 2x the bound: the product < 2**22
+        sq = dT * dT             # <= 2**14; |k| <= 2**11 at 2x the bound: the product < 2**26
         for i in range(3):
-            w[i] -= (k[m + i] * sq) >> (6 + e)
+            w[i] -= (k[m + i] * sq) >> (10 + e)
 
 
 # correct_u's integers for the default fit, viper on ports with emitters (acal/emit.py): the
@@ -341,13 +346,13 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
                     v = -1024
                 x = v << 6
             else:
-                if source == 1:              # SOURCE_TEMP
+                if source == 1:              # SOURCE_TEMP (Q2 degC)
                     v = dT
-                    if v > 32:
-                        v = 32
-                    elif v < -32:
-                        v = -32
-                    base = v << 12
+                    if v > 128:
+                        v = 128
+                    elif v < -128:
+                        v = -128
+                    base = v << 10
                 else:                        # SOURCE_TIME
                     v = dt
                     if v > 16384:
@@ -372,15 +377,15 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
             elif v < -262143:
                 v = -262143
             x = v
-        elif kind != 4:                      # TEMP_OFFSET, TEMP_SCALE, TEMP_OFFSET2: dT
+        elif kind != 4:                      # TEMP_OFFSET, TEMP_SCALE, TEMP_OFFSET2: dT (Q2)
             v = dT
-            if v > 32:
-                v = 32
-            elif v < -32:
-                v = -32
+            if v > 128:
+                v = 128
+            elif v < -128:
+                v = -128
             x = v
-            if kind == 5:                    # TEMP_OFFSET2: dT^2 << 10
-                x = (v * v) << 10
+            if kind == 5:                    # TEMP_OFFSET2: dT^2 << 6
+                x = (v * v) << 6
         bh = x >> 15
         bl = x & 0x7FFF
         c = 0
@@ -388,9 +393,9 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
             a = int(p[at + c]) << w >> w
             r = int(u[c]) << w >> w
             if kind == 1:                    # TEMP_OFFSET
-                r -= (a * x) >> 4
-            elif kind == 2:                  # TEMP_SCALE: P24((a dT) >> 4, r)
-                a = (a * x) >> 4
+                r -= (a * x) >> 6
+            elif kind == 2:                  # TEMP_SCALE: P24((a dT) >> 6, r)
+                a = (a * x) >> 6
                 ah = a >> 15
                 al = a & 0x7FFF
                 rh = r >> 15

@@ -25,6 +25,19 @@ SAMPLE_Q = const(10)
 SAMPLE_ONE_G = const(1024)
 SAMPLE_MAX = const(16383)
 
+# --- temperature ------------------------------------------------------------------------------
+# TEMP: Q2 degC (1 LSB = 0.25 degC), the device's temperature condition everywhere past the
+# feeder: the bins' conditions and thresholds, the effects' dT, the apply's temperature, the fit's
+# reference (EFFECT/STORE records).  Whole degrees are too coarse: a curve about 25 degC read at
+# 33 degC has a slope of 16 e per degC, so a half-degree rounding is a real offset error
+# (docs/model-discovery.md "Curves").  The LIS3DH's OUT_ADC3 gives whole degC: the Processor
+# scales it (temp << TEMP_Q); a recording's temperatures are rounded to Q2 on the host
+# (fixedpoint.device_conditions).  Range: |temp| <= 125 degC -> 500 (absolute, with a board's
+# TEMP_REF_C; relative otherwise); dT is clamped to +-TEMP_DT_MAX (effects.py) before any product.
+TEMP_Q = const(2)
+TEMP_ONE = const(4)      # 1 degC
+TEMP_DT_MAX = const(128)  # 32 degC: dT's clamp either side of the reference (effects.py)
+
 # --- segments -----------------------------------------------------------------------------
 # Segment sums: sum of <= SEGMENT_MAX_SAMPLES samples, so |sum| <= 16383 * 65535 < 2**30.
 SEGMENT_MAX_SAMPLES = const(65535)

@@ -3,7 +3,7 @@
 # the rest means that fall in odd blocks (host/accelcal/pipeline/restpoints.py: 2-hour blocks from
 # the start, even train, odd held out) apart from the fit's points,
 # so a candidate effect fitted on the fit points is scored on points it never saw.
-# Formats (fixed.py): points Q16 g; conditions as bins.py: temperature degC, time in 64 s units,
+# Formats (fixed.py): points Q16 g; conditions as bins.py: temperature Q2 degC, time in 64 s units,
 # supply mV.  Storage is preallocated (CAPACITY points, int32 slots), nothing is allocated per
 # point: a point near one of its own block (NEAR) replaces it; when full, a new point replaces
 # the oldest point of the block holding most (of equals, the oldest), so the set follows the

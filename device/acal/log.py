@@ -19,11 +19,16 @@
 #                          rest segments merged into this record since the last one
 #   CAL      <IHBBBII9i     sample index, calibration number, status, iterations, points,
 #                          objective at p0 and at the end (Q40 >> 16, saturated), 9 parameters
-#   EFFECT   <IBbI3i        after a CAL, one per effect of a composed model: sample index (the
-#                          CAL's), effect id (effects.py), reference temperature (degC) and time
+#   EFFECT   <IBhI3i        after a CAL, one per effect of a composed model: sample index (the
+#                          CAL's), effect id (effects.py), reference temperature (Q2 degC,
+#                          fixed.TEMP_Q: the middle of the held points' range is a quarter
+#                          degree even when the sensor reads whole ones) and time
 #                          (64 s units of running time; a step's record: the step's time; a
 #                          supply_offset's: the reference supply in mV), 3 parameters (Q24,
-#                          effects.py fit form)
+#                          effects.py fit form).  Written before Q2 temperatures (22 bytes,
+#                          <IBbI3i, the reference in whole degC): read by its length, the
+#                          reference scaled to Q2 (unpack, CalStore), so old logs and stores
+#                          still load.
 #   COUNTERS <9I            sample index, samples, lost samples, FIFO overruns, bus errors,
 #                          bus retries, rest segments, rest records written, rest records
 #                          skipped to keep the flash budget
@@ -45,6 +50,7 @@
 import struct
 
 from acal.emit import viper, ptr8, ptr32
+from acal.fixed import TEMP_Q
 
 SYNC = 0xA5
 BOOT = 1
@@ -63,10 +69,12 @@ TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMP
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 BOOT_V2 = "<IHHBHBBBBBHBIbHB"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHBB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II", EFFECT: "<IBbI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
+           GAP: "<II", EFFECT: "<IBhI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
+EFFECT_V1 = "<IBbI3i"   # the reference temperature in whole degC (before fixed.TEMP_Q)
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
-_EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 22: a STORE of 4 effects is 141 bytes
+_EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 23: a STORE of 4 effects is 145 bytes
+_EFFECT_V1_SIZE = struct.calcsize(EFFECT_V1)     # 22
 MAX_PAYLOAD = 255
 SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
 OVERHEAD = 7             # sync, type, length, CRC
@@ -217,7 +225,15 @@ def unpack(rtype, payload):
         return struct.unpack(BOOT_V1, payload) + (0, 0)
     if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V2):
         return struct.unpack(BOOT_V2, payload) + (0,)
+    if rtype == EFFECT and len(payload) == _EFFECT_V1_SIZE:
+        return _effect_v1(payload, 0)
     return struct.unpack(FORMATS[rtype], payload)
+
+
+def _effect_v1(payload, at):
+    # an EFFECT payload written before Q2 temperatures: its whole-degC reference in Q2
+    v = struct.unpack_from(EFFECT_V1, payload, at)
+    return v[:2] + (v[2] << TEMP_Q,) + v[3:]
 
 
 class CalStore:
@@ -245,11 +261,18 @@ class CalStore:
         payload = recs[0][2]
         if rtype == CAL and len(payload) == _CAL_SIZE:
             return [unpack(CAL, payload)]
-        if rtype != STORE or len(payload) < _CAL_SIZE or (len(payload) - _CAL_SIZE) % _EFFECT_SIZE:
+        if rtype != STORE or len(payload) < _CAL_SIZE:
+            return None
+        # the effects' size tells the format: 23 bytes each, or 22 written before Q2
+        # temperatures (1 to 4 effects: 23 k and 22 k never coincide)
+        rest = len(payload) - _CAL_SIZE
+        size = _EFFECT_SIZE if rest % _EFFECT_SIZE == 0 else _EFFECT_V1_SIZE
+        if rest % size:
             return None
         out = [struct.unpack_from(FORMATS[CAL], payload, 0)]
-        for at in range(_CAL_SIZE, len(payload), _EFFECT_SIZE):
-            out.append(struct.unpack_from(FORMATS[EFFECT], payload, at))
+        for at in range(_CAL_SIZE, len(payload), size):
+            out.append(struct.unpack_from(FORMATS[EFFECT], payload, at) if size == _EFFECT_SIZE
+                       else _effect_v1(payload, at))
         return out
 
     def load(self):

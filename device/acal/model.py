@@ -243,7 +243,7 @@ def objective_effects(p, u, aux, n, kinds, w, ts=0):
     """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
     they act in), into w (3 n ints; an int32 array for the exact objective); the 9-parameter
-    objective then reads w.  aux: per point dT (degC), dt (64 s units) and dV (mV), flat (COND
+    objective then reads w.  aux: per point dT (Q2 degC), dt (64 s units) and dV (mV), flat (COND
     per point)."""
     points_without_effects(p, u, aux, n, kinds, w, ts)
     return objective(p, w, n)

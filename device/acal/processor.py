@@ -7,13 +7,13 @@ from array import array
 
 from acal import effects, log
 from acal import profile as profiles
-from acal.fixed import N_PARAMS, POINT_ONE_G
+from acal.fixed import N_PARAMS, POINT_ONE_G, TEMP_Q
 from acal.calibration import Calibration
 from acal.model import in_bounds, effects_within
 from acal.status import OK, usable
 from acal.pipeline import Pipeline
 
-VERSION = 2  # 2: profiles (BOOT carries the fit)
+VERSION = 3  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC
 BLOCK = log.SAMPLES_PER_RECORD
 RETRIES = 3
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
@@ -91,7 +91,9 @@ class Processor:
         self.params = [0] * self.calibration.n_params
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
-        self.temp = 0               # relative degC, set by the feeder
+        # whole degC, set by the feeder (the LIS3DH's OUT_ADC3, + the board's TEMP_REF_C), as
+        # REST and SAMPLES records log it; the bins and the apply take it in Q2 (fixed.TEMP_Q)
+        self.temp = 0
         self.supply = 0             # the board's supply, mV, set by the feeder (supply_offset)
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
         self._cap_supply = -1       # the supply the capture last recorded
@@ -182,7 +184,7 @@ class Processor:
         self.batch_start = self.index
         pipe = self.pipe
         if self.tracks:  # the block's conditions, for the bins and for applying the calibration
-            pipe.temp = self.temp
+            pipe.temp = self.temp << TEMP_Q
             pipe.time = self.index // self.time_unit_samples
             pipe.supply = self.supply
             self.calibration.temp = pipe.temp

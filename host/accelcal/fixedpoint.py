@@ -1,6 +1,6 @@
 """Floats in g <-> the device's fixed-point integers.  The formats are defined once, in
 device/acal/fixed.py: samples Q10 g (SAMPLE_ONE_G), rest points Q16 g (POINT_ONE_G), parameters Q24
-(PARAM_ONE).  And the device's conditions (acal.bins.COND: degC, 64 s units, mV) <-> physical
+(PARAM_ONE).  And the device's conditions (acal.bins.COND: Q2 degC, 64 s units, mV) <-> physical
 units, both ways in one place."""
 from __future__ import annotations
 
@@ -43,8 +43,9 @@ def params_to_int(p: np.ndarray) -> list[int]:
 @dataclass(frozen=True)
 class Quantity:
     """One quantity the board reads with each point, a device condition (acal.bins.COND, in
-    QUANTITIES' order).  The device holds it as round(x) or, for a `step` quantity, floor((x -
-    origin) / step) with the group's first time as origin; its name is the device's (ref_NAME,
+    QUANTITIES' order).  The device holds it as round(x * 2**q) (the temperature: Q2 degC,
+    acal.fixed.TEMP_Q) or, for a `step` quantity, floor((x - origin) / step) with the group's
+    first time as origin; its name is the device's (ref_NAME,
     NAME_span, the bins' NAME_differ); `column` is the recording column it is read from, `ref`
     the key a fitted model stores its reference under (None: the column's, column_ref())."""
     name: str
@@ -57,10 +58,17 @@ class Quantity:
     # range its regressor is normalised by (Q24 per that many units)
     kind: int | None = None
     per: int = 1
+    q: int = 0           # fraction bits the device keeps (round(x * 2**q))
+
+    def to_physical(self, v):
+        """A span or value of the device's integers in physical units, 0 based (a step
+        quantity's in its step: seconds for time)."""
+        return v * self.step if self.step != 1 else (v / (1 << self.q) if self.q else v)
 
 
 QUANTITIES = (
-    Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{} degC of temperature", "{}")),
+    Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{:g} degC of temperature", "{:g}"),
+             q=fixed.TEMP_Q),
     Quantity("time", "t", dbins.TIME_DIFFER, "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
     # the board's supply in mV (acal.effects.SUPPLY_OFFSET): a recording column the board reads
     Quantity("supply", "supply_mv", dbins.SUPPLY_DIFFER, None, ("{} mV of supply_mv", "{}"),
@@ -79,7 +87,7 @@ def board_columns(cols: dict) -> dict:
 
 
 def device_conditions(temp, t, t0: float, n: int, **columns) -> np.ndarray:
-    """(n, COND) ints as the device reads them (QUANTITIES): temperature (degC, rounded), time
+    """(n, COND) ints as the device reads them (QUANTITIES): temperature (Q2 degC, rounded), time
     (64 s units from t0) and the board's columns by quantity name (board_columns: the supply,
     mV rounded); zeros where one is missing."""
     given = {"temp": temp, "time": t, **columns}
@@ -88,7 +96,8 @@ def device_conditions(temp, t, t0: float, n: int, **columns) -> np.ndarray:
         x = given.get(q.name)
         if x is None:
             continue
-        out[:, i] = np.floor((np.asarray(x) - t0) / q.step) if q.step != 1 else np.rint(x)
+        out[:, i] = (np.floor((np.asarray(x) - t0) / q.step) if q.step != 1
+                     else np.rint(np.asarray(x, dtype=np.float64) * (1 << q.q)))
     return out
 
 
@@ -96,8 +105,8 @@ def physical(cond, t0: float):
     """The device's integer conditions (..., COND) in physical units, to the device's resolution
     (device_conditions' inverse): Conditions."""
     c = np.asarray(cond, dtype=np.float64)
-    return Conditions(**{q.name: t0 + c[..., i] * float(q.step) if q.step != 1 else c[..., i]
-                         for i, q in enumerate(QUANTITIES)})
+    return Conditions(**{q.name: t0 + c[..., i] * float(q.step) if q.step != 1
+                         else c[..., i] / (1 << q.q) for i, q in enumerate(QUANTITIES)})
 
 
 def span_reason(q: Quantity, span: int) -> str | None:
@@ -105,7 +114,7 @@ def span_reason(q: Quantity, span: int) -> str | None:
     None."""
     if span >= q.differ:
         return None
-    show = hours if q.step != 1 else (lambda v: v)
+    show = hours if q.step != 1 else q.to_physical
     return (f"the held points span {q.show[0].format(show(span))}, the fit needs >= "
             f"{q.show[1].format(show(q.differ))}")
 

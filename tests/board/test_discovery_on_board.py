@@ -129,7 +129,7 @@ def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
         v = rng.normal(size=3)
         v = v / np.linalg.norm(v)
         pipe.time = i * 4         # 64 s units: 256 s apart
-        pipe.temp = 20 + i % 9
+        pipe.temp = (20 + i % 9) * 4   # Q2 degC
         pipe.offer(*(int(c * 65536) for c in v))
     b = pipe.bins
     def times():

@@ -234,11 +234,12 @@ def test_apply_composed_at_8_g_at_the_device_outputs_full_resolution(tmp_path, r
     assert one_g == 2048
     written = np.loadtxt(rec, delimiter=",", skiprows=1)   # the recording as apply reads it
     q, temp = g_to_sample(written[:, 1:4]), written[:, 4]
-    dT = np.rint(temp).astype(np.int64) - 25
+    quarter = 1 << fixed.TEMP_Q     # the device's temperature: Q2 degC
+    dT = np.rint(temp * quarter).astype(np.int64) - 25 * quarter
     want_int = twin.apply_params(p_int, q, spec.kinds, dT, np.zeros(n, np.int64), 8)
     assert (np.rint(a * one_g).astype(np.int64) == want_int).all()
     assert np.abs(a * one_g - want_int).max() < 0.01   # written to 1e-6 g: every step kept
-    want = spec.correct(spec.from_int(p_int), q / 1024, np.rint(temp), np.zeros(n),
+    want = spec.correct(spec.from_int(p_int), q / 1024, np.rint(temp * quarter) / quarter, np.zeros(n),
                         {"T0": 25.0, "t0": 0.0}, {})
     assert np.abs(a - want).max() < 3 / one_g       # K Q14, offsets and effect Q12, output Q11
     r = run_cli("apply", params, rec, "-o", out, "--range", "2", "--force")

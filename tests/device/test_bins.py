@@ -3,6 +3,7 @@ import numpy as np
 
 from acal import bins
 from acal.bins import Bins, subset_of
+from acal.fixed import TEMP_Q
 from accelcal.fixedpoint import g_to_point
 
 G = 65536
@@ -73,11 +74,12 @@ def test_centre_is_closer_to_axes_than_first(rng):
 
 def test_composed_bins_keep_the_same_orientation_seen_warmer_or_later():
     b = Bins(2, 4, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER)
-    assert b.offer(G, 0, 0, 25, 0) >= 0
-    assert b.offer(G, 0, 0, 27, 100) == -1              # 2 degC, 1.8 h: the same point
-    assert b.offer(G, 0, 0, 28, 100) >= 0               # 3 degC warmer: differs
-    assert b.offer(G, 0, 0, 26, 100 + bins.TIME_DIFFER) >= 0  # 12 h after both: differs
-    assert b.total() == 3 and b.temp_span() == 3 and b.time_span() == 100 + bins.TIME_DIFFER
+    q = 1 << TEMP_Q                                     # temperatures in Q2 degC
+    assert b.offer(G, 0, 0, 25 * q, 0) >= 0
+    assert b.offer(G, 0, 0, 27 * q + 3, 100) == -1      # 2.75 degC, 1.8 h: the same point
+    assert b.offer(G, 0, 0, 28 * q, 100) >= 0           # 3 degC warmer: differs
+    assert b.offer(G, 0, 0, 26 * q, 100 + bins.TIME_DIFFER) >= 0  # 12 h after both: differs
+    assert b.total() == 3 and b.temp_span() == 3 * q and b.time_span() == 100 + bins.TIME_DIFFER
     plain = Bins(2, 4, differ=G // 10)                  # the paper's model: conditions ignored
     assert plain.offer(G, 0, 0, 25, 0) >= 0 and plain.offer(G, 0, 0, 40, 10 ** 5) == -1
     assert plain.temp_span() == 0
@@ -100,19 +102,24 @@ def test_a_full_composed_subset_takes_points_that_widen_its_spread():
 
 
 def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
-    """With temperature alone tracked a quarter threshold (3 degC >> 2) is 0 in integers: it is
-    taken as 1, so a point that only keeps the range does not replace a spread slot (before,
-    every such point did, and the placement slots kept the first points ever seen); a better
-    placed one replaces the placement slot (the CENTRE rule)."""
+    """With temperature alone tracked a quarter threshold is 0.75 degC (3 degC in Q2 >> 2; in
+    whole degC it was 0, taken as 1): a point that only keeps the range does not replace a spread
+    slot (before that rule every such point did, and the placement slots kept the first points
+    ever seen); a better placed one replaces the placement slot (the CENTRE rule)."""
     b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER)
+    q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30) == 2 and b.offer(*only_xp(0.8, 0.55, 0.3), 31) == 2
-    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31) == -1   # keeps 30..31, placed worse
-    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30) == 2     # keeps 30..31, placed better
-    assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30 * q) == 2
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), 31 * q) == 2
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q) == -1   # keeps 30..31, placed worse
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 2) == -1   # widens by 0.5 degC: too little
+    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30 * q) == 2     # keeps 30..31, placed better
+    assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31 * q
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 3) == 2   # widens by 0.75 degC: taken
+    assert b.condition(2, 1)[0] == 31 * q + 3
 
 
 def test_composed_bins_are_ready_only_with_the_spread():
@@ -157,8 +164,11 @@ def test_the_board_supply_is_a_third_condition():
 
 
 def test_the_spread_score_stays_small_with_three_conditions():
-    """The CENTRE rule's spread score with all three conditions tracked, at ranges of 125 degC,
-    2**20 time units (776 days) and 65 V: below 2**30 (a 32-bit board's small ints)."""
+    """The CENTRE rule's spread score with all three conditions tracked, at ranges of 125 degC
+    (in Q2), 2**20 time units (776 days) and 65 V: below 2**30 (a 32-bit board's small ints).  The
+    score is each range per its threshold times the thresholds' product over their common
+    divisor: the whole ranges' score, computed here from the thresholds, is reached."""
+    import math
     from accelcal.bridge.ranges import Tracer, traced
     tr = Tracer()
     T = traced(tr)
@@ -166,9 +176,13 @@ def test_the_spread_score_stays_small_with_three_conditions():
              supply_differ=bins.SUPPLY_DIFFER)
     b.cond = [T(0)] * len(b.cond)
     x, z = int(0.8 * G), int(0.4 * G)        # y and z between the bands: C_xp alone
+    q = 1 << TEMP_Q
     for k, (temp, time, mv) in enumerate([(-40, 0, 0), (85, 1 << 20, 65535), (20, 5, 3900),
                                           (30, 1 << 19, 4100), (-40, 1 << 20, 0),
                                           (85, 0, 65535), (-40, 1 << 20, 65535)]):
-        b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), T(temp), T(time), T(mv))
+        b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), T(temp * q), T(time), T(mv))
     assert b.counts[2] == 4             # full: the last three offers score the spread
-    assert tr.ops > 50 and 2 ** 28 < tr.max_abs < 2 ** 30, tr.max_abs
+    a, t, c = bins.TEMP_DIFFER, bins.TIME_DIFFER, bins.SUPPLY_DIFFER
+    g = math.gcd(t * c, a * c, a * t)
+    whole = (125 * q * t * c + (1 << 20) * a * c + 65535 * a * t) // g
+    assert tr.ops > 50 and whole <= tr.max_abs < 2 ** 30, (whole, tr.max_abs)

@@ -20,6 +20,8 @@ sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal import log  # noqa: E402
+from acal.bins import TEMP_DIFFER  # noqa: E402
+from acal.fixed import TEMP_Q  # noqa: E402
 from acal.app import App, Processor  # noqa: E402
 from acal.profile import GRADIENT, PAPER, WEAR  # noqa: E402
 
@@ -83,7 +85,7 @@ def test_the_board_fits_the_effect_in_integers(ran):
     # c at the board's reference (the held points' middle temperature), in g/degC.
     cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
     assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
-    assert held.temp_span() >= 3  # the spread the fit needs, kept
+    assert held.temp_span() >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
 
 
 def test_replay_reproduces_cal_and_effect_records(ran):
@@ -100,7 +102,13 @@ def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
     proc = Processor(lg, RATE, store=store, model="base+temp_offset")
     assert proc.params == app.proc.params and proc.calibrations == app.proc.calibrations
     c, e = last_ok(d)
-    assert proc.calibration.ref_temp == e["ref_temp"]
+    # the reference in Q2 degC: the middle of the held points' whole degrees (the chip's OUT_ADC3,
+    # scaled by the Processor), a quarter degree apart when their range is odd
+    assert proc.calibration.ref_temp == e["ref_temp"] == app.proc.calibration.ref_temp
+    assert app.proc.calibration.temp == app.proc.temp << TEMP_Q
+    temps = [app.proc.pipe.bins.condition(s, k)[0] for s in range(9)
+             for k in range(app.proc.pipe.bins.counts[s])]
+    assert all(t % (1 << TEMP_Q) == 0 for t in temps)   # whole degrees, held in Q2
     assert proc.calibration.ref_time == e["ref_time"] - c["index"] // (64 * RATE)
     # flashed as base: starts uncalibrated, numbering on from the stored calibration
     other = Processor(log.Log(str(tmp_path / "log2.bin")), RATE, store=store)
@@ -113,14 +121,16 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
     cal = app.proc.calibration
     theta = SPEC.from_int(app.proc.params)
     v = rng.uniform(-1.5, 1.5, (300, 3))
-    temps = cal.ref_temp + rng.integers(-15, 16, 300)  # |dT| within the apply's +-32 degC clamp
+    # quarter degrees (Q2 degC), |dT| within the apply's +-32 degC clamp
+    temps = cal.ref_temp + rng.integers(-15 << TEMP_Q, (15 << TEMP_Q) + 1, 300)
     got = []
     for (x, y, z), temp in zip(np.rint(v * 1024).astype(int).tolist(), temps.tolist()):
         cal.temp = temp
         cal.apply(x, y, z)
         got.append((cal.x, cal.y, cal.z))
-    want = SPEC.correct(theta, np.rint(v * 1024) / 1024, temps.astype(float), None,
-                        {"T0": float(cal.ref_temp), "t0": 0.0})
+    q = float(1 << TEMP_Q)
+    want = SPEC.correct(theta, np.rint(v * 1024) / 1024, temps / q, None,
+                        {"T0": cal.ref_temp / q, "t0": 0.0})
     # Q13 out: the parameters' Q14 and the effect's rounding, a step of 0.12 mg
     assert np.abs(np.array(got) / (1 << cal.out_q) - want).max() < 0.0004
 

@@ -11,6 +11,7 @@ from accelcal.pipeline.composed_lsq import fit
 from accelcal.model.effects import CATALOGUE, ModelSpec, device_effects
 from acal.gaussnewton import GaussNewton
 from acal import effects as deff
+from acal.fixed import TEMP_Q
 from acal.optimiser import OK, Optimiser
 
 # The paper profile's gradient fit runs the catalogue's candidates; the device's generic offsets
@@ -38,7 +39,7 @@ def points(name, seed, days=3, degrees=(22, 36)):
     v = v + rng.normal(scale=0.0005, size=v.shape)
     pts = np.rint(v * 65536).astype(int).ravel().tolist()
     aux = [x for Ti, ti, Vi in zip(temp, t, supply)
-           for x in (int(Ti) - T0, int(ti) // 64, int(Vi) - V0)]
+           for x in ((int(Ti) - T0) << TEMP_Q, int(ti) // 64, int(Vi) - V0)]   # Q2 degC
     return e, theta, v, temp, t, pts, aux, supply
 
 

@@ -200,8 +200,8 @@ def _heap_script(tmp_path, name):
     pts = []
     for i in range(420):
         time = 7 * i                       # 64 s units: 2.2 days
-        temp = int(round(28 + 6 * np.sin(2 * np.pi * time * 64 / 86400)))
-        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp - 28)
+        temp = int(round(4 * (28 + 6 * np.sin(2 * np.pi * time * 64 / 86400))))  # Q2 degC
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp / 4 - 28)
         v += rng.normal(scale=0.001, size=3)
         pts += [int(round(x * 65536)) for x in v] + [temp, time]
     f = tmp_path / name

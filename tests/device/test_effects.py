@@ -7,16 +7,18 @@ import numpy as np
 import pytest
 
 from acal import effects as deff
+from acal.fixed import TEMP_Q
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, run_both
 
 DT_UNIT = deff.DT_UNIT_S
+TEMP_ONE = 1 << TEMP_Q   # the device's dT is Q2 degC
 
 
 def inputs(rng, n=400):
     v = rng.uniform(-2.0, 2.0, (n, 3))
-    dT = rng.integers(-20, 21, n)
+    dT = rng.integers(-20 * TEMP_ONE, 20 * TEMP_ONE + 1, n)   # Q2 degC: quarter degrees
     dt = rng.integers(0, 12 * 86400 // DT_UNIT, n)   # inside the generic offsets' clamp
     dV = rng.integers(-deff.SUPPLY_MAX, deff.SUPPLY_MAX + 1, n)   # mV, inside the clamp
     return v, dT, dt, dV
@@ -32,7 +34,7 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
     p = e.to_int(theta)
     v, dT, dt, dV = inputs(rng)
     ref = {"T0": 0.0, "t0": 0.0, "ts": STEP_AT * float(DT_UNIT), "supply_mv0": 0.0}
-    want = e.correct(v, e.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref,
+    want = e.correct(v, e.from_int(p), dT / TEMP_ONE, dt * float(DT_UNIT), ref,
                      {"supply_mv": dV.astype(float)})
     k = [0, 0, 0]
     deff.apply_params(e.kind, p, 0, k, 0)
@@ -46,7 +48,7 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
         deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], int(a), int(b), STEP_AT,
                             int(c_v))
         # Q14 out, Q10 in (the sample's own rounding, 0.5 mg, is the larger part for q v^2).
-        exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([float(a)]),
+        exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([a / TEMP_ONE]),
                           np.array([b * float(DT_UNIT)]), ref,
                           {"supply_mv": np.array([float(c_v)])})[0]
         assert np.abs(np.array(acc) / 2 ** 14 - exact).max() < 3e-4
@@ -58,7 +60,7 @@ def test_apply_path_stays_small_at_the_worst_case(e):
     tr = Tracer()
     T = traced(tr)
     edge = 2097 << e  # the full scale in Q10
-    for kind, sign, temp, far in itertools.product(deff.NAMES, (-1, 1), (-100, 100),
+    for kind, sign, temp, far in itertools.product(deff.NAMES, (-1, 1), (-400, 400),
                                                    (0, 10 ** 7, -(10 ** 7))):
         k = [0, 0, 0]
         deff.apply_params(kind, [sign * deff.BOUNDS[kind]] * 3, 0, k, 0)
@@ -82,7 +84,7 @@ def test_apply_form_at_larger_full_scales_matches_the_float_model(name, rng):
     for e in (1, 2, 3):
         v, dT, dt, dV = inputs(rng, 100)
         s = np.rint(v * (1 << e) * 1024).astype(int)     # across the full scale
-        want = e_.correct(s / 1024.0, e_.from_int(p), dT.astype(float), dt * float(DT_UNIT), ref,
+        want = e_.correct(s / 1024.0, e_.from_int(p), dT / TEMP_ONE, dt * float(DT_UNIT), ref,
                           {"supply_mv": dV.astype(float)})
         for row, a, b, c_v, w in zip(s.tolist(), dT.tolist(), dt.tolist(), dV.tolist(), want):
             acc = [c << (4 - e) for c in row]
@@ -100,7 +102,7 @@ for kind in sorted(effects.NAMES):
     effects.apply_params(kind, p, 0, k, 0)
     for _ in range(100):
         u = [rnd(1 << 25) for _ in range(3)]
-        dT = rnd(40)
+        dT = rnd(160)
         dt = rnd(1 << 15)
         dV = rnd(1500)
         effects.correct_u(kind, p, 0, u, dT, dt, 0, 1000, dV)
@@ -141,7 +143,7 @@ def test_apply_stays_small_in_every_composition_and_order():
             cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
             cal.w = [0, 0, 0]                 # a list: what is stored there stays traced
-            for temp, time, supply in ((-100, -(10 ** 7), -(10 ** 6)), (100, 10 ** 7, 10 ** 6),
+            for temp, time, supply in ((-400, -(10 ** 7), -(10 ** 6)), (400, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
                 cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
                 for x in (-2097 << cal.e, 16383):   # at and past the full scale (clamped)

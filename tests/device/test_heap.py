@@ -116,6 +116,17 @@ for r in (2, 4, 8, 16):
     c = Calibration(range_g=r)
     c.set([20971520, 20971520, 20971520, 2097152, 2097152, 2097152, 4194304, 4194304, 4194304])
     cals.append(c)
+# a composed model of every temperature form (dT in Q2 degC: fixed.TEMP_Q), its effects at their
+# bounds, at the smallest and largest full scale, read at and past dT's clamp
+from acal import effects
+TEMPS = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2, effects.TEMP_SCALE, effects.TEMP_OFFSET4)
+composed = []
+for r in (2, 16):
+    c = Calibration(TEMPS, r)
+    c.set([20971520, 20971520, 20971520, 2097152, 2097152, 2097152, 4194304, 4194304, 4194304] +
+          [effects.BOUNDS[k] for k in TEMPS for _ in range(3)])
+    composed.append(c)
+AT = (-1000, -effects.APPLY_DT_MAX, 3, effects.APPLY_DT_MAX, 1000)   # built before the lock
 full = array("i", [0] * (3 * N))
 for i in range(3 * N):
     full[i] = 16383 if buf[i] > 0 else -16383   # past every full scale: clamped to it
@@ -129,6 +140,10 @@ def work():
         for i in range(3 * N):
             out[i] = full[i]
         cal.apply_samples(out, 0, N)
+    for cal in composed:
+        for temp in AT:
+            cal.temp = temp
+            cal.apply_samples(out, 0, 200, full)
 
 
 micropython.heap_lock()
@@ -145,7 +160,8 @@ except MemoryError:
 def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
     """Where ints past 2^30 allocate (the WebAssembly port, as an RP2040): both profiles' rest
     detectors, and the apply at every full scale (2, 4, 8, 16 g) with readings at and past it
-    and parameters at the bounds' corner."""
+    and parameters at the bounds' corner; and a composed model of the four temperature forms
+    with temperatures (Q2 degC) at and past their clamp."""
     f = tmp_path / "heap32.py"
     f.write_text(PER_SAMPLE_32)
     out = mp32(str(f)).split()
@@ -212,8 +228,8 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     pts = [int(x) for x in np.round(v * 65536).astype(np.int64).ravel()]
     aux = []
     for i in range(72):
-        aux += [int(rng.integers(-40, 41)), int(rng.integers(-300000, 300001)),
-                int(rng.integers(-1500, 1501))]     # degC, 64 s units, mV: past every clamp
+        aux += [int(rng.integers(-160, 161)), int(rng.integers(-300000, 300001)),
+                int(rng.integers(-1500, 1501))]     # Q2 degC, 64 s units, mV: past every clamp
     f = tmp_path / "fit32.py"
     f.write_text(FIT_32 % (pts, aux))
     out = mp32(str(f)).split()
@@ -310,7 +326,7 @@ def test_paper_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     pts = [int(c) for c in g_to_point(v).ravel()]
     aux = []
     for i in range(36):
-        aux += [int(rng.integers(-20, 21)), int(rng.integers(-3000, 3001)), 0]
+        aux += [int(rng.integers(-80, 81)), int(rng.integers(-3000, 3001)), 0]   # Q2 degC: +-20
     f = tmp_path / "paper32.py"
     f.write_text(PAPER_32 % (pts, aux))
     out = mp32(str(f)).split()

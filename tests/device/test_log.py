@@ -5,6 +5,7 @@ import struct
 
 
 from acal import log
+from acal.fixed import TEMP_Q
 
 
 def make_log(n=1000, seed=7):
@@ -148,7 +149,7 @@ def test_calibration_survives_a_cut_at_any_point_of_its_update(tmp_path):
 
 def effect_values(index, kind, seed):
     rnd = random.Random(seed)
-    return (index, kind, rnd.randrange(-30, 30), rnd.randrange(1 << 20),
+    return (index, kind, rnd.randrange(-500, 500), rnd.randrange(1 << 20),   # Q2 degC reference
             *[rnd.randrange(-(1 << 20), 1 << 20) for _ in range(3)])
 
 
@@ -170,7 +171,7 @@ def test_a_composed_calibration_is_never_mixed_with_the_previous_one(tmp_path):
     scratch = log.CalStore(str(tmp_path / "x_a.bin"), str(tmp_path / "x_b.bin"))
     scratch.save(cal_values(3, 3), effs[3])
     new = (tmp_path / "x_a.bin").read_bytes()
-    assert len(new) == 7 + 53 + 4 * 22
+    assert len(new) == 7 + 53 + 4 * 23
     seen = set()
     for cut in range(len(new) + 1):
         for torn in (new[:cut], new[:cut] + old[cut:]):
@@ -180,6 +181,28 @@ def test_a_composed_calibration_is_never_mixed_with_the_previous_one(tmp_path):
             assert whole in ((cal_values(3, 3), effs[3]), (cal_values(2, 2), effs[2])), cut
             seen.add(rec[1])
     assert seen == {2, 3}
+
+
+def test_effects_written_with_whole_degrees_still_load(tmp_path):
+    """An EFFECT record and a STORE written before the temperature went to Q2 degC (22 bytes an
+    effect, the reference an int8 of whole degC) are read by their length, the reference in Q2
+    (the same temperature): old logs and stored calibrations keep loading."""
+    old = [(index, kind, temp, time, *p) for index, kind, temp, time, *p in
+           [effect_values(100, k, k) for k in (1, 2, 3, 4)]]
+    old = [v[:2] + (v[2] // 20,) + v[3:] for v in old]          # whole degC, -25..24
+    payload = struct.pack(log.EFFECT_V1, *old[0])
+    assert len(payload) == 22
+    want = old[0][:2] + (old[0][2] * (1 << TEMP_Q),) + old[0][3:]
+    assert log.unpack(log.EFFECT, payload) == want
+    for k in range(1, 5):
+        a, b = tmp_path / f"a{k}.bin", tmp_path / f"b{k}.bin"
+        body = struct.pack(log.FORMATS[log.CAL], *cal_values(5, 5)) + b"".join(
+            struct.pack(log.EFFECT_V1, *v) for v in old[:k])
+        a.write_bytes(log.encode(log.STORE, body))
+        store = log.CalStore(str(a), str(b))
+        _, rec = store.load()
+        assert rec == cal_values(5, 5)
+        assert store.effects == [v[:2] + (v[2] * (1 << TEMP_Q),) + v[3:] for v in old[:k]]
 
 
 def test_a_board_flashed_with_another_model_numbers_on_from_the_store(tmp_path):

@@ -289,7 +289,7 @@ def test_effects_fit_form_stays_small_at_its_clamps():
             for sgn in itertools.product((-1, 1), repeat=3):
                 p = [T(s * bound) for s in sgn]
                 for u0 in (-w, w, 0):
-                    for dT in (-1000, -32, 0, 32, 1000):
+                    for dT in (-1000, -effects.APPLY_DT_MAX, -3, 0, 5, effects.APPLY_DT_MAX, 1000):
                         for dt in (-(1 << 28), -effects.FIT_TIME_MAX, 0, effects.FIT_TIME_MAX, 1 << 28):
                             u = [T(u0), T(-u0), T(w)]
                             effects.correct_u(kind, p, 0, u, T(dT), T(dt), 0, T(0))

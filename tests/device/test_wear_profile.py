@@ -247,8 +247,8 @@ def test_composed_gauss_newton_reaches_the_float_optimum(name):
     spec = ModelSpec((name,))
     ref = {"T0": float(T0), "t0": 0.0}
     q = np.array(pts, float).reshape(-1, 3) / fixed.POINT_ONE_G
-    # the device's regressors: int degC from T0, 64 s units
-    temp_i, t_i = np.array(aux[0::3]) + T0, np.array(aux[1::3]) * 64.0
+    # the device's regressors: Q2 degC from T0, 64 s units
+    temp_i, t_i = np.array(aux[0::3]) / 4 + T0, np.array(aux[1::3]) * 64.0
 
     def res(th):
         a = spec.correct(th, q, temp_i.astype(float), t_i, ref)

@@ -59,6 +59,13 @@ def test_names_the_hidden_effect_and_adding_it_reaches_the_true_model(recordings
             assert round(100 * c["blocks_improved"] / c["blocks"], 6) == round(c["blocks_improved_pct"], 6)
     named = next(c for c in first["candidates"] if c["effect"] == effect)
     assert named["blocks"] >= 12 and named["evidence"] == "clear"   # days of 2-hour blocks
+    # a curve's straight part named alone: a second step is due, the curve judged on top of it
+    if effect == "temp_offset":
+        assert first["what_remains"]["second_step"] == "temp_offset2"
+        assert first["what_remains"]["model"] == "base+temp_offset"
+        assert "A second step is due" in first["explanation"]
+    else:
+        assert first["what_remains"] is None and "second step" not in first["explanation"]
     second = diagnose(path, f"base+{effect}", "--history", hist)
     truth = true_error(path)
     assert second["heldout_error_mg"] <= 1.5 * truth, (second["heldout_error_mg"], truth)

@@ -273,7 +273,7 @@ def summary(dirpath: str | Path) -> dict:
                     value = seconds(e["ref_time"])
                 c.setdefault("effects", {})[eff.name] = {
                     "unit": eff.report_unit, "params": dict(zip(eff.param_names, vals.tolist())),
-                    "ref_temp": e["ref_temp"], when: value}
+                    "ref_temp": e["ref_temp"] / (1 << fixed.TEMP_Q), when: value}   # degC
     rests = lg.dicts(log.REST)
     out_discoveries = [_discovery(d, CATALOGUE) for d in lg.dicts(log.DISCOVERY)]
     for r in rests:

@@ -8,7 +8,7 @@ Each turns itself into the runner's calls (`calls`, bridge/protocol.py protocol_
 `Group(name, points=... | points_q16=... | samples=..., ...)` makes the type its data names.
 For a composed model each point or sample also has its temperature (degC) and time (s), and the
 recording's further columns by name (cols): the device sees them as its conditions
-(fixedpoint.device_conditions: degC rounded, 64 s units from the group's first time, mV)."""
+(fixedpoint.device_conditions: Q2 degC rounded, 64 s units from the group's first time, mV)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -95,7 +95,7 @@ class DeviceResult:
     step_time: int = 0       # a step's time, 64 s units from ref_time
     ref_supply: int = 0      # mV
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
-    temp_span: int = 0       # of the held points: degC
+    temp_span: int = 0       # of the held points: Q2 degC (acal.fixed.TEMP_Q)
     time_span: int = 0       # 64 s units
     supply_span: int = 0     # mV
     covered: bool = False    # the held points cover every axis (bins.covered())

@@ -257,7 +257,7 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     (9, then 3 per effect), Q10 samples in, calibrated samples out in Q(13 - e) g
     (fixed.apply_out_q(range_g)) (m x 3 int64), the format of the full scale range_g (fixed.py),
     readings clamped to it.  A composed model also takes each
-    sample's dT (int degC from the reference temperature) and dt (64 s units from the reference
+    sample's dT (Q2 degC, fixed.TEMP_Q, from the reference temperature) and dt (64 s units from the reference
     time), as the device's temp - ref_temp and time - ref_time, and dV (mV of the board's supply
     from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
     effect); a step from dt >= step_time on."""
@@ -299,15 +299,15 @@ def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_tim
         if deff.is_generic(kind):
             w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> (14 + e)
         elif kind == deff.TEMP_OFFSET:
-            w -= (ke * dT) >> (4 + e)
+            w -= (ke * dT) >> (6 + e)
         elif kind == deff.TEMP_SCALE:
-            w -= (((ke * dT) >> 4) * w) >> 18
+            w -= (((ke * dT) >> 6) * w) >> 18
         elif kind == deff.DRIFT:
             w -= (ke * dt) >> (11 + e)
         elif kind == deff.NONLINEAR:
             w -= (ke * ((q * q) >> (10 + e))) >> 14
         elif kind == deff.TEMP_OFFSET2:
-            w -= (ke * (dT * dT)) >> (6 + e)
+            w -= (ke * (dT * dT)) >> (10 + e)
         np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
 
 
@@ -322,7 +322,7 @@ def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
     if source == deff.SOURCE_SUPPLY:
         return (np.clip(np.asarray(dV, np.int64), -deff.SUPPLY_MAX, deff.SUPPLY_MAX) << 6) >> 4
     if source == deff.SOURCE_TEMP:
-        base = np.clip(dT, -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX) << 12
+        base = np.clip(dT, -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX) << 10   # Q2 degC / 16 in Q16
     else:
         base = np.clip(dt, -deff.GENERIC_TIME_MAX, deff.GENERIC_TIME_MAX) << 3
     x = base

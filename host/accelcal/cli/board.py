@@ -103,7 +103,7 @@ def _print_summary(s, where):
             where = (f"{e['ref_time_s']} s of running time" if "ref_time_s" in e else
                      f"step at {e['step_time_s']} s of running time" if "step_time_s" in e else
                      f"supply {e['ref_supply_mv']} mV")
-            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']} degC, {where}")
+            print(f"    + {name} ({e['unit']}): {vals}; reference {e['ref_temp']:g} degC, {where}")
     from accelcal.pipeline.results import board_discovery_line
     for d in s.get("discoveries", []):
         print("  " + board_discovery_line(d))

@@ -34,7 +34,7 @@ import numpy as np
 
 from acal import bins as dbins
 from acal import effects as deff
-from acal.fixed import PARAM_NAMES
+from acal.fixed import PARAM_NAMES, TEMP_Q
 from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
@@ -378,8 +378,8 @@ class ModelSpec:
         """ValueError, one line, when the data cannot support the model: a temperature effect
         without temperatures or with too little spread, a drift over too short a span, a column
         effect without its column or with a column that does not vary.  The thresholds are the
-        device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC, 12 h)."""
-        need_temp = dbins.TEMP_DIFFER
+        device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC (12 in Q2), 12 h)."""
+        need_temp = dbins.TEMP_DIFFER / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
         need_h = hours(dbins.TIME_DIFFER)
         cols = cols or {}
         for e in self.parts:

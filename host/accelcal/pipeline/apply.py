@@ -22,14 +22,14 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     """Calibrate samples with the vectorised twin of the device's per-sample code
     (calibration.Calibration, bit-exact with it: tests/bridge/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
-    the device sees them as int degC and 64 s units from t0.  cols: the recording's further
+    the device sees them in Q2 degC (fixed.TEMP_Q) and 64 s units from t0.  cols: the recording's further
     columns by name, for a model whose effects follow one (the board's supply_mv for the
     device's supply_offset; any other on the host)."""
     spec = ModelSpec.parse(model)
     if spec.host_only:
         return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source, cols)
     cal = Calibration(spec.kinds, range_g)
-    ref_temp = int(round(ref["T0"])) if spec.effects else 0
+    ref_temp = int(round(ref["T0"] * (1 << fixed.TEMP_Q))) if spec.effects else 0   # Q2 degC
     try:
         cal.set(p_int, ref_temp, 0)
     except ValueError:

@@ -256,7 +256,7 @@ class Fit:
         return self._params_record(rec, p_int, ref)
 
     def _reference(self, device_ref) -> dict:
-        """The device's integer references (degC, 64 s units, mV) as a model's reference: T0, t0
+        """The device's integer references (Q2 degC, 64 s units, mV) as a model's reference: T0, t0
         and, for an effect of the board's supply, its column's."""
         at = physical(device_ref, self.group.t_first)
         ref = {q.ref: float(getattr(at, q.name)) for q in QUANTITIES if q.ref}

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from acal.fixed import TEMP_Q
+
 from accelcal.errors import InputError
 from accelcal.methods import calibration_error_mg
 from accelcal.model.effects import ModelSpec, column_ref
@@ -34,10 +36,11 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
 
 
 def refs(p: RestPoints, spec: ModelSpec | None = None) -> dict:
-    """The effects' reference: mean temperature rounded to a whole degC (the device's resolution:
-    a saved lsq model applies there exactly), first time, and the mean of each recording column
-    spec's effects follow."""
-    out = {"T0": float(np.round(np.mean(p.temp))) if p.temp is not None else 0.0,
+    """The effects' reference: mean temperature rounded to the device's resolution (Q2 degC,
+    acal.fixed.TEMP_Q: a saved lsq model applies there exactly), first time, and the mean of each
+    recording column spec's effects follow."""
+    one = 1 << TEMP_Q
+    out = {"T0": float(np.round(np.mean(p.temp) * one) / one) if p.temp is not None else 0.0,
            "t0": float(p.t.min())}
     for c in (spec.columns if spec is not None else ()):
         out[column_ref(c)] = float(np.mean(p.cols[c]))

@@ -133,23 +133,13 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                 named is None or not discovery.plain_preferred(c["heldout_error_mg"],
                                                                best["heldout_error_mg"])):
             named, best = c["effect"], c
+    # a curve's straight part named alone: the curve is judged only on top of it (its own gain
+    # hides behind the straight part's), so a second step is due before the model is complete
+    second = next((cv for ln, cv in curves(pool) if named in pool and ln is pool[named]), None)
     if named:
-        host = " --method lsq --points all (it runs on the host only)" \
-            if any(e.kind is None for e in parts[named]) else ""
-        weak = "" if best["evidence"] == "clear" else (
-            " Weak evidence: so few blocks better is a count chance alone gives too often; "
-            "confirm it on a longer recording.")
-        both = "" if len(parts[named]) == 1 or "single_ratio" not in best else (
-            f" Both parts at once: with its straight part the curve leaves "
-            f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
-            f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
-        explanation = (f"{named}: {parts[named][-1].explain(sensor_of(path))}{both} Fitted here: "
-                       + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
-                       + f" {best['param_unit']}. Adding it lowers the held-out error "
-                       f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
-                       f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
-                       f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
-                       f"{spec}+{named}{host}")
+        explanation = named_text(spec, named, parts[named], best, err, floor, path)
+        if second is not None:
+            explanation += " " + second_step_text(spec, named, second, cands)
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
@@ -161,7 +151,9 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
     _, r_all = residuals(spec, theta, p, ref)
     wrist = wrist_floor(p.t, p.v, p.temp, r_all * 1e3)
-    remains = None
+    remains = None if second is None else {
+        "second_step": second.name, "model": f"{spec}+{named}",
+        "text": second_step_text(spec, named, second, cands)}
     if named is None:
         _, r_train = residuals(spec, theta, train, ref)
         remains = what_remains(regs, r * 1e3, (regressors(spec, theta, train, ref), r_train * 1e3),
@@ -195,6 +187,41 @@ def complete_text(err: float, noise: float, wrist: float | None) -> str:
     return (f"Held-out error {err:.2f} mg against {against}; no shape of what remains holds up "
             "in held-out blocks, so there is no lead: the model explains the data to within "
             "what rest on a wrist allows here.")
+
+
+def named_text(spec: ModelSpec, named: str, parts: list, best: dict, err: float, floor: float,
+               path: str) -> str:
+    """What diagnose says when it names an effect (parts: its effects, a curve's two)."""
+    host = " --method lsq --points all (it runs on the host only)" \
+        if any(e.kind is None for e in parts) else ""
+    weak = "" if best["evidence"] == "clear" else (
+        " Weak evidence: so few blocks better is a count chance alone gives too often; "
+        "confirm it on a longer recording.")
+    both = "" if len(parts) == 1 or "single_ratio" not in best else (
+        f" Both parts at once: with its straight part the curve leaves "
+        f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
+        f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
+    return (f"{named}: {parts[-1].explain(sensor_of(path))}{both} Fitted here: "
+            + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
+            + f" {best['param_unit']}. Adding it lowers the held-out error "
+            f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
+            f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
+            f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
+            f"{spec}+{named}{host}")
+
+
+def second_step_text(spec: ModelSpec, named: str, curve, cands: list[dict]) -> str:
+    """What diagnose says when it names a curve's straight part alone: a second step is due, the
+    curve judged on top of it (docs/model-discovery.md "Curves")."""
+    pair = next((c for c in cands if c["effect"] == f"{named}+{curve.name}"), None)
+    seen = ""
+    if pair is not None and pair["heldout_error_mg"] is not None:
+        seen = (f" (here both parts at once left {pair['heldout_error_mg']:.2f} mg held out, "
+                f"better in {pair['blocks_improved']} of {pair['blocks']} blocks: not enough to "
+                "name them in one step)")
+    return (f"A second step is due: {curve.name}, the curve {named} may be the straight part "
+            f"of, is judged only with {named} in the model{seen}; run accelcal diagnose --model "
+            f"{spec}+{named} next.")
 
 
 def curves(pool: dict) -> list[tuple]:

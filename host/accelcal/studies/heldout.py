@@ -9,8 +9,9 @@ error of every report here, mean | |a| - 1 g | over those windows, in mg.
 Rows: raw; the device pipeline with the paper profile; with the wear profile (the default);
 the wear profile after the discovery loop (diagnose on the fit part names an effect, the device
 fits base+EFFECT, up to two steps); float least squares on every rest point of the fit part with
-the loop's model; the same with every point's temperature in whole degC, as the device reads it
-(lsq_degc: what that resolution leaves the model); scikit-digital-health and actipy (offset and scale per axis, and a temperature
+the loop's model; the same with every point's temperature in whole degC, as the LIS3DH's
+OUT_ADC3 gives it (lsq_degc: what that resolution leaves the model; the device's conditions hold
+quarter degrees, acal.fixed.TEMP_Q); scikit-digital-health and actipy (offset and scale per axis, and a temperature
 term where the file has temperature) fitted by their own functions on the fit part (--others);
 the true sensor model; and wear_loop / true.
 
@@ -104,8 +105,9 @@ def others(python: str, fit: Path, win, workdir: Path) -> dict:
 
 
 def lsq_whole_degc(path: Path, model: str, win) -> float:
-    """lsq_all with each rest point's temperature rounded to whole degC, as the device's
-    conditions hold it (fixedpoint.device_conditions): the best the device's points could give."""
+    """lsq_all with each rest point's temperature rounded to whole degC, as the LIS3DH's
+    OUT_ADC3 gives it (a board's app; the device's conditions hold Q2 degC,
+    fixedpoint.device_conditions): what whole degrees leave a model."""
     from dataclasses import replace
     from accelcal.pipeline.composed_lsq import fit_with_reference, prepare, refs
     spec, p = prepare(str(path), model)

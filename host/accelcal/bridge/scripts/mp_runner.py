@@ -12,7 +12,7 @@
 #                          (acal/discover.py); the effects of a composed model (acal.effects
 #                          ids), if any
 #   G name                 start a group (a device): a fresh pipeline
-#   T temp time supply     conditions of what follows: degC, 64 s units, mV (composed models)
+#   T temp time supply     conditions of what follows: Q2 degC, 64 s units, mV (composed models)
 #   P x y z                a rest point, Q16 g, offered to the bins
 #   B n x0 y0 z0 x1 ...    n samples, Q10 g, fed to the rest detector
 #   X                      a gap in the samples: the open segment is dropped
