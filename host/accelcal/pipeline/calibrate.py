@@ -7,10 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
-from acal import bins as dbins
-from acal import effects as deff
+from acal import bins as dbins, effects as deff
 from acal import fixed, hemisphere, optimiser
 from acal import profile as dprofile
+from acal.discover import N_ALL
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.model.effects import ModelSpec, column_ref, model_name
@@ -325,7 +325,6 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
         return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
                 "not end OK)"}
     adopted, closest, before, after, betters, blocks, held, weight, step_time = r.discovery[:9]
-    from acal.discover import N_ALL
     p_int = r.discovery[9:9 + N_ALL]
     fitted_time, placed_loo, placed_insample, gap_n = r.discovery[9 + N_ALL:13 + N_ALL]
     out = {"effect": model_name(adopted), "closest": model_name(closest),
@@ -350,9 +349,8 @@ def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
         if deff.STEP in deff.model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
             if placed_loo >= 0:
-                # an adopted step's time placed among the held-out points of its gap
-                # (acal/discover.py): its fit's time, and the held-out error with it placed,
-                # each gap point at the time the others place (leave-one-out) and in-sample
+                # an adopted step's time placed among the held-out points of its gap (acal/
+                # discover.py): the fit's time, the error placed (leave-one-out, in-sample)
                 out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
                 out["step_gap_points"] = gap_n
                 out["heldout_placed"] = placed_loo
