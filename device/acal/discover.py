@@ -6,20 +6,19 @@
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
 # candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py), the
-# scoring of one candidate, or (an adopted step) the placing of its time among the held-out
-# points of its gap.  Nothing is allocated per candidate or per score: one GaussNewton
+# scoring of one candidate, or (an adopted step) a slice of its time's placing among the
+# held-out points of its gap (stepplace.py).  Nothing is allocated per candidate or per score: one GaussNewton
 # sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
-# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).  A placed step's sums:
-# a gap point's error <= WEIGHT_CAP x ERR_CAP = 2**22, GAP_MAX of them < 2**27, and the step's
-# error (<= ERR_MAX) less and plus such sums stays within +-2**28.
+# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
 from acal import candidates, discovery, effects
 from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
 from acal.heldscore import HeldScore
+from acal.stepplace import StepPlace
 from acal.status import OK
 try:
     from micropython import const
@@ -61,13 +60,7 @@ _SCORE = 3      # candidate i scored
 _DONE = 4
 _BLOCKS = 5     # the held-out blocks counted
 _BETTER = 6     # candidate i's blocks compared with the base model's
-_GAP = 7        # an adopted step: its gap's held-out points gathered and scored either side
-_PLACE = 8      # the step's time placed among them, and each scored leave-one-out
-
-# An adopted step's time placed among the held-out points in its gap (docs/model-discovery.md
-# "Against the true sensor model"): at most GAP_MAX of them are taken, the latest before the
-# fitted time (a gap spans a held-out block or two: 8 points each on a full set).
-GAP_MAX = const(32)
+_PLACE = 7      # an adopted step: its time placed among its gap's held-out points (stepplace)
 
 
 def testable(kind, cond, n):
@@ -92,11 +85,11 @@ class Discover:
     candidate's), params (its parameters, Q24) and step_time (a step's).
 
     An adopted step's time is then placed among the held-out points that fall between the fit
-    points on either side of it (the fit leaves it free there; the shock may lie anywhere in a
-    held-out block): fitted_time is the fit's, step_time the placed one, gap_n the points, and
-    placed_loo the held-out error with each of them scored at a time placed from the others
-    (leave-one-out: the points that place a time must not judge it), placed_insample with all
-    of them at step_time (-1: not placed).  `before` and errs stay the unplaced model's."""
+    points on either side of it (stepplace.py: the fit leaves it free there; the shock may lie
+    anywhere in a held-out block): fitted_time is the fit's, step_time the placed one, gap_n the
+    points, and placed_loo the held-out error with each of them scored at a time placed from the
+    others (leave-one-out), placed_insample with all of them at step_time (-1: not placed).
+    `before` and errs stay the unplaced model's."""
 
     def __init__(self, max_points, held):
         self.held = held
@@ -125,19 +118,9 @@ class Discover:
         self.kind = 0
         self.step_time = 0
         self.fitted_time = 0
-        # the step's gap: its held-out points' times (sorted, dt), their errors with the step
-        # before and after them (Q16 g^2, weighted), the gap's lower end (the last fit point's
-        # time); while placing: the stepped errors' sum, the step's error off the gap, the
-        # lowest split's error (_best)
-        self.gap_time = int32s(GAP_MAX)
-        self.gap_stepped = int32s(GAP_MAX)
-        self.gap_unstepped = int32s(GAP_MAX)
+        self.place = StepPlace()   # an adopted step's time among its gap's held-out points
+        self.gap_lo = 0        # the gap's lower end: the last fit point's time before the step
         self.gap_n = 0
-        self.gap_lo = 0
-        self.gap_loo = 0       # the gap's leave-one-out errors summed so far
-        self.stepped_sum = 0
-        self.outside = 0
-        self.best_cost = 0
         self.placed_loo = -1
         self.placed_insample = -1
 
@@ -178,8 +161,6 @@ class Discover:
             self._count_blocks()
         elif ph == _BETTER:
             self._compare_blocks()
-        elif ph == _GAP:
-            self._gather_gap()
         elif ph == _PLACE:
             self._place()
         return self.phase == _DONE
@@ -318,122 +299,21 @@ class Discover:
                     pipe = self.pipe
                     self.score.begin(self.params, KINDS[i], self.held, pipe.ref_temp,
                                      pipe.ref_time, pipe.ref_supply, self.step_time)
-                    self.pos = 0
-                    self.phase = _GAP
+                    self.place.begin(self.score, self.held, pipe.ref_time, self.gap_lo,
+                                     self.fitted_time, self.errs[i], BLOCK_SCAN)
+                    self.phase = _PLACE
                     return
         self.phase = _DONE
 
-    def _gather_gap(self):
-        # the held-out points in the step's gap (gap_lo < time < fitted time), kept sorted by
-        # time, each scored with the step before and after it: at most BLOCK_SCAN slots and
-        # one point scored a step
-        h = self.held
-        s = self.score
-        cond = h.cond
-        ref = self.pipe.ref_time
-        lo = self.gap_lo
-        hi = self.fitted_time
-        end = self.pos + BLOCK_SCAN
-        if end > h.count:
-            end = h.count
-        j = self.pos
-        while j < end:
-            t = cond[COND * j + 1] - ref
-            j += 1
-            if lo < t < hi:
-                s.ts = t
-                stepped = s.point(j - 1)
-                s.ts = t + 1
-                unstepped = s.point(j - 1)
-                if stepped < 0 or unstepped < 0:   # past the domain: not placed
-                    self.step_time = hi
-                    self.phase = _DONE
-                    return
-                self._insert(t, stepped, unstepped)
-                break
-        self.pos = j
-        if j < h.count:
-            return
-        self.pos = -1
-        self.phase = _PLACE if self.gap_n > 0 else _DONE
-
-    def _insert(self, t, stepped, unstepped):
-        # a gap point by time (of equal times, after); past GAP_MAX the earliest drops
-        tm = self.gap_time
-        st = self.gap_stepped
-        un = self.gap_unstepped
-        n = self.gap_n
-        k = n
-        while k > 0 and tm[k - 1] > t:
-            k -= 1
-        if n == GAP_MAX:
-            if k == 0:
-                return
-            for m in range(1, k):
-                tm[m - 1] = tm[m]
-                st[m - 1] = st[m]
-                un[m - 1] = un[m]
-            k -= 1
-        else:
-            for m in range(n, k, -1):
-                tm[m] = tm[m - 1]
-                st[m] = st[m - 1]
-                un[m] = un[m - 1]
-            self.gap_n = n + 1
-        tm[k] = t
-        st[k] = stepped
-        un[k] = unstepped
-
-    def _best(self, left):
-        # the split of the gap's points (but `left`, -1: none) that leaves them the lowest
-        # error, between distinct times (of equal errors, the later): the number of points
-        # before it; its error in best_cost.  From every point after the split (stepped_sum)
-        # each split moves one point before it.
-        n = self.gap_n
-        tm = self.gap_time
-        st = self.gap_stepped
-        un = self.gap_unstepped
-        cost = self.stepped_sum
-        if left >= 0:
-            cost -= st[left]
-        best = cost
-        at = 0
-        for k in range(1, n + 1):
-            if k - 1 != left:
-                cost += un[k - 1] - st[k - 1]
-            if (k == n or tm[k - 1] < tm[k]) and cost <= best:
-                best = cost
-                at = k
-        self.best_cost = best
-        return at
-
     def _place(self):
-        # first the placed time (in-sample), then gap point pos scored at the split the others
-        # place, one point a step
-        k = self.pos
-        n = self.gap_n
-        if k < 0:
-            st = self.gap_stepped
-            un = self.gap_unstepped
-            ss = 0
-            us = 0
-            for m in range(n):
-                ss += st[m]
-                us += un[m]
-            self.stepped_sum = ss
-            self.outside = self.errs[self.chosen] - us   # the step's error off the gap
-            at = self._best(-1)
-            self.step_time = self.fitted_time if at == n else self.gap_time[at]
-            self.placed_insample = _saturated(self.outside + self.best_cost)
-            self.gap_loo = 0
-            self.pos = 0
+        # a slice of the step's placing; when placed, its time and errors (saturated)
+        pl = self.place
+        if not pl.step():
             return
-        at = self._best(k)
-        self.gap_loo += self.gap_stepped[k] if k >= at else self.gap_unstepped[k]
-        self.pos = k + 1
-        if self.pos < n:
-            return
-        self.placed_loo = _saturated(self.outside + self.gap_loo)
+        self.step_time = pl.step_time
+        self.gap_n = pl.n
+        self.placed_loo = _saturated(pl.placed_loo)      # -1 (not placed) as it stands
+        self.placed_insample = _saturated(pl.placed_insample)
         self.phase = _DONE
 
     def take(self):

@@ -2,7 +2,7 @@
 # discovery's block marking and block comparing (acal/discover.py's _BLOCKS and _BETTER phases)
 # on a full held-out set: 144 points, 8 postures in each of 18 odd 2-hour blocks, a candidate
 # better in a third of them; and (place()) an adopted step's placement among the held-out points
-# of its gap at its largest (_GAP and _PLACE).  Prints "key value" lines (us, and the steps
+# of its gap at its largest (acal/stepplace.py's gathering and placing).  Prints "key value" lines (us, and the steps
 # taken).
 import time
 from acal import discover
@@ -62,42 +62,36 @@ def main():
     print("discover_compare_worst_us", worst)
 
 
-class _Pipe:
-    # what an adopted step's placement reads of the pipeline: its fit's reference conditions
-    ref_temp = 30
-    ref_time = 0
-    ref_supply = 3300
-
-
 def place():
-    """An adopted step's placement (acal/discover.py's _GAP and _PLACE phases) at its largest:
-    every held-out point of a full set in the step's gap, so GAP_MAX are kept (each insertion
-    shifting the sorted gap), then each scored leave-one-out."""
-    from acal import effects
+    """An adopted step's placement (acal/stepplace.py, which discover.py's _PLACE phase drives)
+    at its largest: every held-out point of a full set in the step's gap, so GAP_MAX are kept
+    (each insertion shifting the sorted gap), then each scored leave-one-out."""
+    from acal import effects, stepplace
     h = HeldOut()
     for b in range(18):
         for k in range(8):
             x, y, z = POSTURES[k]
             h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300)
     d = discover.Discover(72, h)
-    d.pipe = _Pipe()
     for k in range(3):
         d.params[k] = 1 << 24      # unit scale (kxx kyy kzz, Q24), no offsets
     d.params[9] = d.params[10] = d.params[11] = 134218   # the step's jumps: 8 mg in Q24 g
-    d.chosen = discover.KINDS.index((effects.STEP,))
-    d.errs[d.chosen] = 100000
-    d.fitted_time = 18 * 225        # after every held-out point
-    d.gap_lo = -1
-    d.step_time = d.fitted_time
-    d.score.begin(d.params, discover.KINDS[d.chosen], h, 30, 0, 3300, d.fitted_time)
-    d.pos = 0
-    d.gap_n = 0
-    d.phase = discover._GAP
-    steps, worst = _phase(d, d._gather_gap)
-    print("discover_gap_points", d.gap_n)
-    print("discover_gap_steps", steps)
-    print("discover_gap_worst_us", worst)
-    steps, worst = _phase(d, d._place)
-    print("discover_place_steps", steps)
-    print("discover_place_worst_us", worst)
-    print("discover_placed_time", d.step_time)
+    fitted_time = 18 * 225          # after every held-out point
+    d.score.begin(d.params, (effects.STEP,), h, 30, 0, 3300, fitted_time)
+    pl = d.place
+    pl.begin(d.score, h, 0, -1, fitted_time, 100000, discover.BLOCK_SCAN)
+    for name in ("gap", "place"):
+        ph = pl.phase
+        steps = worst = 0
+        while pl.phase == ph:
+            t = ticks()
+            pl.step()
+            dt = us(t)
+            steps += 1
+            if dt > worst:
+                worst = dt
+        if name == "gap":
+            print("discover_gap_points", pl.n)
+        print("discover_%s_steps" % name, steps)
+        print("discover_%s_worst_us" % name, worst)
+    print("discover_placed_time", pl.step_time)
