@@ -8,11 +8,13 @@ error of every report here, mean | |a| - 1 g | over those windows, in mg.
 
 Rows: raw; the device pipeline with the paper profile; with the wear profile (the default);
 the wear profile after the discovery loop (diagnose on the fit part names an effect, the device
-fits base+EFFECT, up to two steps); float least squares on every rest point of the fit part with
-the loop's model; the same with every point's temperature in whole degC, as the LIS3DH's
-OUT_ADC3 gives it (lsq_degc: what that resolution leaves the model; the device's conditions hold
-quarter degrees, acal.fixed.TEMP_Q); scikit-digital-health and actipy (offset and scale per axis, and a temperature
-term where the file has temperature) fitted by their own functions on the fit part (--others);
+fits base+EFFECT, up to two steps); float least squares with the loop's model on the points the
+device's bins selected and its fit kept (lsq_bins: what separates the device's fit from its
+choice of points); on every rest point of the fit part (lsq_all); the same with every point's
+temperature in whole degC, as the LIS3DH's OUT_ADC3 gives it (lsq_degc: what that resolution
+leaves the model; the device's conditions hold quarter degrees, acal.fixed.TEMP_Q);
+scikit-digital-health and actipy (offset and scale per axis, and a temperature term where the
+file has temperature) fitted by their own functions on the fit part (--others);
 the true sensor model; and wear_loop / true.
 
     python -m accelcal.studies.heldout [--seeds 1,2,3] [--effects clean,temp_offset,...] [--others PY] [--json]
@@ -77,13 +79,14 @@ def score_mg(model: str, theta, ref: dict | None, win) -> float:
     return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1.0)) * 1e3)
 
 
-def device_fit(path: Path, profile: str, model: str = "base"):
-    """The device pipeline's calibration of a file: (model, theta, reference) or None."""
+def device_fit(path: Path, profile: str, model: str = "base", method: str = "device"):
+    """The device pipeline's calibration of a file: (model, theta, reference) or None (method
+    "lsq": float least squares on the points the device's bins selected and its fit kept)."""
     from accelcal.pipeline.calibrate import calibrate_recording
     from accelcal.bridge.runtime import Config
     spec = ModelSpec.parse(model)
     cfg = Config.for_profile(profile, bool(spec.effects))
-    rec = calibrate_recording(str(path), cfg, "device", "cpython", spec)
+    rec = calibrate_recording(str(path), cfg, method, "cpython", spec)
     if rec["status"] != "calibrated":
         return None, rec.get("reason")
     return (model, list(rec["params"].values()), rec.get("reference")), None
@@ -149,6 +152,8 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     row["wear_loop"] = score_mg(*got, win) if got else row["wear"]
     if why:
         row["wear_loop_reason"] = why
+    got, _ = device_fit(fit, "wear", model, "lsq")
+    row["lsq_bins"] = score_mg(*got, win) if got else None
     lsq = calibrate_model(str(fit), model)
     row["lsq_all"] = score_mg(model, list(lsq["params"].values()), lsq["reference"], win)
     row["lsq_degc"] = lsq_whole_degc(fit, model, win)
@@ -166,7 +171,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     return row
 
 
-COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_all", "lsq_degc", "skdh", "actipy", "true")
+COLUMNS = ("raw", "paper", "wear", "wear_loop", "lsq_bins", "lsq_all", "lsq_degc", "skdh", "actipy", "true")
 
 
 def table(rows: list[dict]) -> str:
