@@ -7,10 +7,11 @@ unix and 32-bit ports, and the rule's products at the saturated errors stay smal
 A hidden shock inside a held-out block: the adopted step's time is placed between the held-out
 points either side of it, allocating nothing either."""
 import numpy as np
+import pytest
 
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
-from acal import effects, log
+from acal import discover, effects, log
 from acal.fixed import PARAM_NAMES
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
@@ -131,18 +132,26 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
 
 
 def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
-    """A store left by a board flashed with base+temp_offset+drift (not a discovery candidate):
-    a board flashed with base and --discover starts afresh, discovering."""
+    """A store left by a board flashed with base+temp_offset+drift+supply_offset (past the
+    discovery's limit of two effects) or base+drift+drift: a board flashed with base and
+    --discover starts afresh, discovering; base+temp_offset+drift (a second round's model) and
+    drift alone (a first round's) are taken."""
     from acal.processor import Processor
     store = log.CalStore(str(tmp_path / "a"), str(tmp_path / "b"))
     cal = (100, 3, 0, 5, 72, 0, 0) + (1 << 24, 1 << 24, 1 << 24, 0, 0, 0, 0, 0, 0)
-    store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
-    p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
-    assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
+    for kinds in ((effects.TEMP_OFFSET, effects.DRIFT, effects.SUPPLY_OFFSET),
+                  (effects.DRIFT, effects.DRIFT)):
+        store.save(cal, [(100, k, 28, 0, 0, 0, 0) for k in kinds])
+        p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
+        assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
     cal = cal[:1] + (4,) + cal[2:]
+    store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
+    p = Processor(log.Log(str(tmp_path / "t.bin")), 10, discover=True, store=store)
+    assert p.kinds == (effects.TEMP_OFFSET, effects.DRIFT) and p.pipe.discovery is None
+    cal = cal[:1] + (5,) + cal[2:]
     store.save(cal, [(100, effects.DRIFT, 28, 0, 0, 0, 0)])   # drift alone: a candidate
     p = Processor(log.Log(str(tmp_path / "m.bin")), 10, discover=True, store=store)
-    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 4
+    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 5
     assert p.params[:9] == list(cal[7:]) and p.calibration.kinds == (effects.DRIFT,)
 
 
@@ -194,7 +203,8 @@ except MemoryError:
 '''
 
 
-def _heap_script(tmp_path, name):
+def _heap_script(tmp_path, name, drift=np.zeros(3), then=""):
+    # drift: a second hidden effect's offsets (g a day); then: script text run after
     rng = np.random.default_rng(9)
     d = simulate.unit_points(rng, 420)
     pts = []
@@ -202,10 +212,10 @@ def _heap_script(tmp_path, name):
         time = 7 * i                       # 64 s units: 2.2 days
         temp = int(round(4 * (28 + 6 * np.sin(2 * np.pi * time * 64 / 86400))))  # Q2 degC
         v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp / 4 - 28)
-        v += rng.normal(scale=0.001, size=3)
+        v += rng.normal(scale=0.001, size=3) + drift * (time * 64 / 86400)
         pts += [int(round(x * 65536)) for x in v] + [temp, time]
     f = tmp_path / name
-    f.write_text(HEAP % " ".join(map(str, pts)))
+    f.write_text(HEAP % " ".join(map(str, pts)) + then)
     return f
 
 
@@ -238,6 +248,57 @@ def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path,
     out = mp32(str(_heap_script(tmp_path, "heap32.py"))).split()
     assert out[0] == "OK", out
     assert out == _cpython_heap_result(tmp_path / "heap32.py")
+
+
+# A second round (issue 29: "it may repeat, up to the model's limit"): after the first
+# adoption, the discovery runs again from the adopted model on the same points, every other
+# single effect added to it (the change-point search too), heap-locked after its begin (which
+# makes the round's effect tuples, once).
+ROUND2 = r'''
+if d.adopted and discover.more(d.kinds[d.chosen]):
+    pipe.adopt()
+    d.begin(pipe)
+    micropython.heap_lock()
+    try:
+        while not d.step():
+            pass
+        micropython.heap_unlock()
+        print("ROUND2", d.round, d.before, d.blocks, d.chosen, int(d.adopted), d.kind,
+              " ".join(str(e) for e in d.errs), " ".join(str(b) for b in d.betters),
+              " ".join(str(v) for v in d.params))
+    except MemoryError:
+        micropython.heap_unlock()
+        print("ALLOCATED")
+'''
+D_TRUE = np.array([0.002, -0.0025, 0.0015])   # a hidden drift beside C_TRUE (g a day)
+
+
+@pytest.mark.parametrize("drift", ["two", "one"])
+def test_a_second_round_adds_the_second_effect_and_allocates_nothing(tmp_path, mp32, drift):
+    """With temp_offset and drift hidden, the first round adopts one and the second (from it)
+    the other, the model then base + both (the model's limit); with temp_offset alone the second
+    round adopts nothing.  Every second-round candidate fit and score under heap_lock on the
+    unix and 32-bit ports, the same integers as CPython."""
+    f = _heap_script(tmp_path, "round2.py", D_TRUE if drift == "two" else np.zeros(3), ROUND2)
+    want = _cpython_heap_result(f)
+    for out in (runtime.run_micropython_script(str(f)).split(), mp32(str(f)).split()):
+        assert out == want
+    assert want[0] == "OK" and "ROUND2" in want, want
+    r = want.index("ROUND2")
+    first = int(want[6])
+    rnd, before, blocks, chosen, adopted, kind = map(int, want[r + 1:r + 7])
+    errs = list(map(int, want[r + 7:r + 7 + discover.N_CANDIDATES]))
+    assert rnd == 2 and before > 0 and blocks >= discover.MIN_BLOCKS, want
+    # tried: every single effect but the adopted one (no curve pair: the limit)
+    tried = [i for i in range(discover.N_CANDIDATES) if errs[i] >= 0]
+    assert discover.PAIR not in tried and first not in [discover.KINDS[i][0] for i in tried]
+    assert len(tried) >= 5, errs
+    if drift == "two":
+        assert {first} | set(effects.model_kinds(kind)) == {effects.TEMP_OFFSET, effects.DRIFT}
+        assert adopted == 1 and effects.model_kinds(kind)[0] == first, want
+        assert 0 <= errs[chosen] < 0.9 * before
+    else:
+        assert first == effects.TEMP_OFFSET and adopted == 0 and kind == 0, want
 
 
 # A hidden shock (effects.STEP: the offsets jump once) inside a held-out 2-hour block: the fit's
