@@ -20,15 +20,16 @@ RATE = 10
 GAP_SAMPLES = 4400            # 440 s between rest postures: 2 days in 384 postures
 
 
-def postures(rng, c, n=384):
+def postures(rng, c, n=384, drift=np.zeros(3)):
     """Per posture: the reading (Q10 g) of a sensor with errors TRUTH and temp_offset c at a
-    daily temperature cycle (22-34 degC), and that temperature: x y z temp, flat."""
+    daily temperature cycle (22-34 degC), and that temperature: x y z temp, flat; drift (g a
+    day): a second hidden effect."""
     out = []
     d = simulate.unit_points(rng, n)
     for i in range(n):
         hours = i * (6 * 10 + 2 * 10 + GAP_SAMPLES) / RATE / 3600
         temp = int(round(28 + 6 * np.sin(2 * np.pi * hours / 24)))
-        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28)
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28) + drift * hours / 24
         out += [int(round(x * 1024)) for x in v] + [temp]
     return out
 
@@ -71,9 +72,9 @@ run(sys.argv[1])
 '''
 
 
-def _stream(tmp_path, name, c):
+def _stream(tmp_path, name, c, n=384, drift=np.zeros(3)):
     f = tmp_path / f"{name}.py"
-    f.write_text(STREAM % (postures(np.random.default_rng(5), c), GAP_SAMPLES))
+    f.write_text(STREAM % (postures(np.random.default_rng(5), c, n, drift), GAP_SAMPLES))
     return f
 
 
@@ -116,6 +117,26 @@ def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_pa
         assert again.kinds == (effects.TEMP_OFFSET,) and again.pipe.discovery is None
         assert again.calibrations == cal["number"] and again.params[:9] == \
             [cal[n] for n in PARAM_NAMES] and again.params[9:] == [eff[-1][f"p{i}"] for i in range(3)]
+
+
+def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
+    """Three days with temp_offset and drift hidden: the board adopts temp_offset, goes on
+    discovering from base+temp_offset and adopts drift on top (a DISCOVERY record whose model
+    code names both), the store keeps base+temp_offset+drift and a board powered up again takes
+    it; MicroPython logs the same bytes."""
+    script = _stream(tmp_path, "two", C_TRUE, 576, D_TRUE)
+    _run_cpython(script, tmp_path / "cpython.bin")
+    runtime.run_micropython_script(str(script), str(tmp_path / "mp.bin"))
+    assert (tmp_path / "cpython.bin").read_bytes() == (tmp_path / "mp.bin").read_bytes()
+    found = [f for f in boardlog.decode(tmp_path / "cpython.bin").dicts(log.DISCOVERY)
+             if f["adopted"]]
+    both = (effects.TEMP_OFFSET, effects.DRIFT)
+    assert [effects.model_kinds(f["adopted"]) for f in found] == [both[:1], both], found
+    assert found[1]["heldout_after"] < 0.9 * found[1]["heldout_before"]
+    from acal.processor import Processor
+    store = log.CalStore(str(tmp_path / "cpython.bin") + ".a", str(tmp_path / "cpython.bin") + ".b")
+    again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
+    assert again.kinds == both and again.pipe.discovery is None
 
 
 def test_processor_adopts_nothing_without_an_effect(tmp_path):
