@@ -37,6 +37,10 @@ N_SINGLE = const(7)          # the single effects, among which candidates.best c
 PAIR = const(7)              # the curve with its straight part
 N_CANDIDATES = const(8)
 N_ALL = const(15)            # N_PARAMS + 6: the largest candidate's parameters
+# The model's limit: one GaussNewton of N_ALL = 9 + 6 parameters holds two 3-parameter effects.
+# A board that has adopted one single effect A tries A + B for every other single effect B
+# (its later discoveries: `round` 2); the curve pair is at the limit already.
+MAX_EFFECTS = const(2)
 MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
 # Held-out blocks needed before a board tries (a day of wear: 6 odd 2-hour blocks).  A board
 # tries again after each calibration, and nobody confirms what it adopts: it adopts an effect
@@ -61,6 +65,21 @@ _DONE = 4
 _BLOCKS = 5     # the held-out blocks counted
 _BETTER = 6     # candidate i's blocks compared with the base model's
 _PLACE = 7      # an adopted step: its time placed among its gap's held-out points (stepplace)
+
+
+def adoptable(kinds):
+    """True when the discovery can adopt the model of these effects: a candidate of its first
+    round, or a single effect with another after it (its second)."""
+    if kinds in KINDS:
+        return True
+    return (len(kinds) == MAX_EFFECTS and kinds[0] != kinds[1]
+            and (kinds[0],) in KINDS[:N_SINGLE] and (kinds[1],) in KINDS[:N_SINGLE])
+
+
+def more(kinds):
+    """True when a model of these effects has room for one more that the discovery tries: a
+    single effect (not the curve pair, at the limit already)."""
+    return len(kinds) < MAX_EFFECTS and (kinds == () or kinds in KINDS[:N_SINGLE])
 
 
 def testable(kind, cond, n):
@@ -94,12 +113,21 @@ class Discover:
     def __init__(self, max_points, held):
         self.held = held
         self.fit = GaussNewton(max_points, KINDS[PAIR], True)   # sized for the largest
+        # a second such fit: take() hands the adopted one to the pipeline and the discovery
+        # goes on (its second round) with this one
+        self.spare = GaussNewton(max_points, KINDS[PAIR], True)
+        self.kinds = KINDS          # the candidates' effect tuples (a second round's: _pairs)
+        self.base = ()              # the effects of the model the candidates add one to
+        self.new_ids = int32s(N_CANDIDATES)   # the effect each candidate adds (0: none)
+        self.start = int32s(N_ALL)            # a second round's start: the base model's fit
+        self.new_at = N_PARAMS      # where the added effect's parameters begin
+        self.round = 0
+        self.pairs = None           # the second round's tuples, made once per base effect
+        self.pairs_base = 0
         self.score = HeldScore(held.capacity)
         from acal.changepoint import ChangePoint   # the step's search: nothing per point
         self.search = ChangePoint()
         self.kind_ids = int32s(N_CANDIDATES)
-        for i in range(N_CANDIDATES):
-            self.kind_ids[i] = effects.model_code(KINDS[i])
         self.errs = int32s(N_CANDIDATES)
         self.betters = int32s(N_CANDIDATES)
         self.fits = int32s(4 * N_CANDIDATES)   # per candidate: iterations, points kept,
@@ -128,6 +156,7 @@ class Discover:
         """Start on a pipeline whose base fit has just ended usable: its gathered points and
         conditions (relative to pipe.ref_*), its fit's parameters."""
         self.pipe = pipe
+        self._candidates(pipe.kinds)
         self.i = 0
         self.pos = 0
         self.chosen = -1
@@ -143,6 +172,28 @@ class Discover:
             self.errs[i] = UNTESTABLE
             self.betters[i] = 0
         self.phase = _BASE
+
+    def _candidates(self, base):
+        # the candidates adding one effect to the pipeline's model: the first round's on the
+        # paper's model, else `base` + each other single effect (not a second step), their
+        # tuples made once per base effect (the one allocation of a second round)
+        self.base = base
+        self.round = 1 + len(base)
+        self.new_at = N_PARAMS + 3 * len(base)
+        if not base:
+            self.kinds = KINDS
+        else:
+            if self.pairs is None or self.pairs_base != base[0]:
+                self.pairs = [None] * N_CANDIDATES
+                for i in range(N_SINGLE):
+                    if KINDS[i][0] != base[0]:
+                        self.pairs[i] = (base[0], KINDS[i][0])
+                self.pairs_base = base[0]
+            self.kinds = self.pairs
+        for i in range(N_CANDIDATES):
+            k = self.kinds[i]
+            self.kind_ids[i] = 0 if k is None else effects.model_code(k)
+            self.new_ids[i] = 0 if k is None else k[len(base)]
 
     def step(self):
         """One slice; True when the choice is made."""
@@ -173,7 +224,9 @@ class Discover:
             if h.count < MIN_HELD:
                 self.phase = _DONE
                 return
-            s.begin(self.pipe.optimiser.p, (), h)
+            pipe = self.pipe
+            s.begin(pipe.optimiser.p, self.base, h, pipe.ref_temp, pipe.ref_time,
+                    pipe.ref_supply, pipe.step_time)
             self.pos = 1
         if not s.part(SCORE_POINTS):
             return
@@ -206,20 +259,21 @@ class Discover:
     def _next(self, i):
         # candidate i begins (the untestable ones skipped), or the choice when none is left
         pipe = self.pipe
-        while i < N_CANDIDATES and not testable(KINDS[i][0], pipe.aux, pipe.n_fit):
+        while i < N_CANDIDATES and (self.new_ids[i] == 0 or
+                                    not testable(self.new_ids[i], pipe.aux, pipe.n_fit)):
             i += 1
         self.i = i
         if i == N_CANDIDATES:
             self._choose()
             return
         fit = self.fit
-        _rekind(fit, KINDS[i])
-        fit.ts = 0
-        if KINDS[i][0] == effects.STEP:
+        _rekind(fit, self.kinds[i])
+        fit.ts = pipe.step_time if effects.STEP in self.base else 0
+        if self.new_ids[i] == effects.STEP:
             self.search.begin(pipe.optimiser)
             self.phase = _SEARCH
             return
-        fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, self._start())
         if i == PAIR and self.errs[0] != UNTESTABLE:   # from the straight part's fit
             for k in range(N_PARAMS, N_PARAMS + 3):
                 fit.p[k] = self.all_params[k]
@@ -232,8 +286,19 @@ class Discover:
             return
         self.fit.ts = self.search.ts
         self.gap_lo = self.search.time_before()   # now: the sort buffer is the base fit's
-        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, pipe.optimiser.p)
+        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, self._start())
         self.phase = _FIT
+
+    def _start(self):
+        # the candidates' start: the base model's fit (the paper's: its 9 parameters, the
+        # effect's at zero; a second round's: its own, the added effect's at zero)
+        p = self.pipe.optimiser.p
+        if not self.base:
+            return p
+        st = self.start
+        for k in range(N_ALL):
+            st[k] = p[k] if k < self.new_at else 0
+        return st
 
     def _fitted(self):
         # candidate i's fit has ended: kept and scored when it is OK
@@ -295,9 +360,9 @@ class Discover:
             self.fitted_time = self.step_time
             if self.adopted:
                 self.kind = self.kind_ids[i]
-                if KINDS[i][0] == effects.STEP:
+                if self.new_ids[i] == effects.STEP:
                     pipe = self.pipe
-                    self.score.begin(self.params, KINDS[i], self.held, pipe.ref_temp,
+                    self.score.begin(self.params, self.kinds[i], self.held, pipe.ref_temp,
                                      pipe.ref_time, pipe.ref_supply, self.step_time)
                     self.place.begin(self.score, self.held, pipe.ref_time, self.gap_lo,
                                      self.fitted_time, self.errs[i], BLOCK_SCAN)
@@ -318,9 +383,12 @@ class Discover:
 
     def take(self):
         """The fit re-kinded to the chosen candidate and holding its parameters and step
-        time (the fit holds the last candidate tried until then); returns it."""
+        time (the fit holds the last candidate tried until then); returns it.  The discovery
+        goes on with its spare fit (the pipeline's model now holds this one)."""
         fit = self.fit
-        _rekind(fit, KINDS[self.chosen])
+        self.fit = self.spare
+        self.spare = fit
+        _rekind(fit, self.kinds[self.chosen])
         for k in range(N_ALL):
             fit.p[k] = self.params[k]
         fit.ts = self.step_time

@@ -121,6 +121,11 @@ class Pipeline:
         # calibration (the Processor sets this; leave_early() ends it): held out from the start,
         # a wearer's bins filled 29 h later (docs/model-discovery.md "Discovery on the board").
         self.early = False
+        # a discovering board's adopted effects, whose spread alone its bins wait for (the
+        # bins track every condition for the next round: adopt()); None: the bins' own rule
+        self.wait = None
+        self.wait_at = -1
+        self.wait_ok = False
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
@@ -169,7 +174,15 @@ class Pipeline:
                         self.excluded += 1
 
     def ready(self):
-        return self.bins.ready()
+        b = self.bins
+        if not b.ready():
+            return False
+        if self.wait is None:
+            return True
+        if self.wait_at != b.changes:   # asked once a block: spans only when the points change
+            self.wait_at = b.changes
+            self.wait_ok = spanned(b, self.wait)
+        return self.wait_ok
 
     def calibrate(self):
         """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
@@ -264,13 +277,18 @@ class Pipeline:
 
     def adopt(self):
         """The discovery's adopted effect becomes the model (its fit, re-kinded, the model's
-        optimiser; this base fit its base fit; the bins then track, and wait for, the spread
-        of that effect only); the parameters are the discovery's.  No further discovery: the
-        held-out blocks' rest means go to the bins again."""
+        optimiser; the paper's fit stays its base fit; the bins then wait for the spread of
+        that model's effects only, and track every condition while the discovery goes on: a
+        second round judges its candidates testable on the fit points' spread, as the first);
+        the parameters are the discovery's.  While the
+        model has room for another effect (discover.more) the discovery goes on after each
+        calibration, from this model; else no further discovery: the held-out blocks' rest
+        means go to the bins again."""
         d = self.discovery
         fit = d.take()
         kinds = fit.kinds
-        self.base_fit = self.optimiser
+        if not self.kinds:
+            self.base_fit = self.optimiser
         self.optimiser = fit
         self.kinds = kinds
         self.base_kinds = ()
@@ -278,12 +296,16 @@ class Pipeline:
         self.step_time = d.step_time
         if effects.STEP in kinds:
             self.search = d.search
+        from acal.discover import more
+        again = more(kinds)
         b = self.bins
-        track(b, kinds)
-        b.need_span = True
+        track(b, kinds, again)   # going on: every condition, for the next round's candidates
+        b.need_span = not again
         b.changes += 1
-        self.held = None
-        self.discovery = None
+        self.wait = kinds if again else None
+        if not again:
+            self.held = None
+            self.discovery = None
 
     def _keep_base(self, why):
         o = self.optimiser
@@ -313,6 +335,19 @@ def track(bins, kinds, every=False):
             bins.time_differ = TIME_DIFFER
         elif source == effects.SOURCE_SUPPLY:
             bins.supply_differ = SUPPLY_DIFFER
+
+
+def spanned(bins, kinds):
+    """True when the bins' points span what each effect's regressor needs (track's thresholds)."""
+    for k in kinds:
+        source = effects.source_of(k)
+        if source == effects.SOURCE_TEMP and bins.temp_span() < TEMP_DIFFER:
+            return False
+        if source == effects.SOURCE_TIME and bins.time_span() < TIME_DIFFER:
+            return False
+        if source == effects.SOURCE_SUPPLY and bins.supply_span() < SUPPLY_DIFFER:
+            return False
+    return True
 
 
 def _mean_above(f1, n1, f2, n2):

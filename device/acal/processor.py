@@ -331,8 +331,8 @@ def _adopted_before(store):
     kinds = tuple(e[1] for e in store.effects)
     if not kinds:
         return None
-    from acal.discover import KINDS   # only a discovering board loads the discovery
-    return kinds if kinds in KINDS else None
+    from acal.discover import adoptable   # only a discovering board loads the discovery
+    return kinds if adoptable(kinds) else None
 
 
 def _sat32(v):

@@ -7,10 +7,11 @@ unix and 32-bit ports, and the rule's products at the saturated errors stay smal
 A hidden shock inside a held-out block: the adopted step's time is placed between the held-out
 points either side of it, allocating nothing either."""
 import numpy as np
+import pytest
 
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
-from acal import effects, log
+from acal import discover, effects, log
 from acal.fixed import PARAM_NAMES
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
@@ -19,15 +20,16 @@ RATE = 10
 GAP_SAMPLES = 4400            # 440 s between rest postures: 2 days in 384 postures
 
 
-def postures(rng, c, n=384):
+def postures(rng, c, n=384, drift=np.zeros(3)):
     """Per posture: the reading (Q10 g) of a sensor with errors TRUTH and temp_offset c at a
-    daily temperature cycle (22-34 degC), and that temperature: x y z temp, flat."""
+    daily temperature cycle (22-34 degC), and that temperature: x y z temp, flat; drift (g a
+    day): a second hidden effect."""
     out = []
     d = simulate.unit_points(rng, n)
     for i in range(n):
         hours = i * (6 * 10 + 2 * 10 + GAP_SAMPLES) / RATE / 3600
         temp = int(round(28 + 6 * np.sin(2 * np.pi * hours / 24)))
-        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28)
+        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28) + drift * hours / 24
         out += [int(round(x * 1024)) for x in v] + [temp]
     return out
 
@@ -70,9 +72,9 @@ run(sys.argv[1])
 '''
 
 
-def _stream(tmp_path, name, c):
+def _stream(tmp_path, name, c, n=384, drift=np.zeros(3)):
     f = tmp_path / f"{name}.py"
-    f.write_text(STREAM % (postures(np.random.default_rng(5), c), GAP_SAMPLES))
+    f.write_text(STREAM % (postures(np.random.default_rng(5), c, n, drift), GAP_SAMPLES))
     return f
 
 
@@ -117,6 +119,26 @@ def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_pa
             [cal[n] for n in PARAM_NAMES] and again.params[9:] == [eff[-1][f"p{i}"] for i in range(3)]
 
 
+def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
+    """Three days with temp_offset and drift hidden: the board adopts temp_offset, goes on
+    discovering from base+temp_offset and adopts drift on top (a DISCOVERY record whose model
+    code names both), the store keeps base+temp_offset+drift and a board powered up again takes
+    it; MicroPython logs the same bytes."""
+    script = _stream(tmp_path, "two", C_TRUE, 576, D_TRUE)
+    _run_cpython(script, tmp_path / "cpython.bin")
+    runtime.run_micropython_script(str(script), str(tmp_path / "mp.bin"))
+    assert (tmp_path / "cpython.bin").read_bytes() == (tmp_path / "mp.bin").read_bytes()
+    found = [f for f in boardlog.decode(tmp_path / "cpython.bin").dicts(log.DISCOVERY)
+             if f["adopted"]]
+    both = (effects.TEMP_OFFSET, effects.DRIFT)
+    assert [effects.model_kinds(f["adopted"]) for f in found] == [both[:1], both], found
+    assert found[1]["heldout_after"] < 0.9 * found[1]["heldout_before"]
+    from acal.processor import Processor
+    store = log.CalStore(str(tmp_path / "cpython.bin") + ".a", str(tmp_path / "cpython.bin") + ".b")
+    again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
+    assert again.kinds == both and again.pipe.discovery is None
+
+
 def test_processor_adopts_nothing_without_an_effect(tmp_path):
     script = _stream(tmp_path, "clean", np.zeros(3))
     _run_cpython(script, tmp_path / "clean.bin")
@@ -131,18 +153,26 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
 
 
 def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
-    """A store left by a board flashed with base+temp_offset+drift (not a discovery candidate):
-    a board flashed with base and --discover starts afresh, discovering."""
+    """A store left by a board flashed with base+temp_offset+drift+supply_offset (past the
+    discovery's limit of two effects) or base+drift+drift: a board flashed with base and
+    --discover starts afresh, discovering; base+temp_offset+drift (a second round's model) and
+    drift alone (a first round's) are taken."""
     from acal.processor import Processor
     store = log.CalStore(str(tmp_path / "a"), str(tmp_path / "b"))
     cal = (100, 3, 0, 5, 72, 0, 0) + (1 << 24, 1 << 24, 1 << 24, 0, 0, 0, 0, 0, 0)
-    store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
-    p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
-    assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
+    for kinds in ((effects.TEMP_OFFSET, effects.DRIFT, effects.SUPPLY_OFFSET),
+                  (effects.DRIFT, effects.DRIFT)):
+        store.save(cal, [(100, k, 28, 0, 0, 0, 0) for k in kinds])
+        p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
+        assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
     cal = cal[:1] + (4,) + cal[2:]
+    store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
+    p = Processor(log.Log(str(tmp_path / "t.bin")), 10, discover=True, store=store)
+    assert p.kinds == (effects.TEMP_OFFSET, effects.DRIFT) and p.pipe.discovery is None
+    cal = cal[:1] + (5,) + cal[2:]
     store.save(cal, [(100, effects.DRIFT, 28, 0, 0, 0, 0)])   # drift alone: a candidate
     p = Processor(log.Log(str(tmp_path / "m.bin")), 10, discover=True, store=store)
-    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 4
+    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 5
     assert p.params[:9] == list(cal[7:]) and p.calibration.kinds == (effects.DRIFT,)
 
 
@@ -194,7 +224,8 @@ except MemoryError:
 '''
 
 
-def _heap_script(tmp_path, name):
+def _heap_script(tmp_path, name, drift=np.zeros(3), then=""):
+    # drift: a second hidden effect's offsets (g a day); then: script text run after
     rng = np.random.default_rng(9)
     d = simulate.unit_points(rng, 420)
     pts = []
@@ -202,10 +233,10 @@ def _heap_script(tmp_path, name):
         time = 7 * i                       # 64 s units: 2.2 days
         temp = int(round(4 * (28 + 6 * np.sin(2 * np.pi * time * 64 / 86400))))  # Q2 degC
         v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * (temp / 4 - 28)
-        v += rng.normal(scale=0.001, size=3)
+        v += rng.normal(scale=0.001, size=3) + drift * (time * 64 / 86400)
         pts += [int(round(x * 65536)) for x in v] + [temp, time]
     f = tmp_path / name
-    f.write_text(HEAP % " ".join(map(str, pts)))
+    f.write_text(HEAP % " ".join(map(str, pts)) + then)
     return f
 
 
@@ -238,6 +269,57 @@ def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path,
     out = mp32(str(_heap_script(tmp_path, "heap32.py"))).split()
     assert out[0] == "OK", out
     assert out == _cpython_heap_result(tmp_path / "heap32.py")
+
+
+# A second round (issue 29: "it may repeat, up to the model's limit"): after the first
+# adoption, the discovery runs again from the adopted model on the same points, every other
+# single effect added to it (the change-point search too), heap-locked after its begin (which
+# makes the round's effect tuples, once).
+ROUND2 = r'''
+if d.adopted and discover.more(d.kinds[d.chosen]):
+    pipe.adopt()
+    d.begin(pipe)
+    micropython.heap_lock()
+    try:
+        while not d.step():
+            pass
+        micropython.heap_unlock()
+        print("ROUND2", d.round, d.before, d.blocks, d.chosen, int(d.adopted), d.kind,
+              " ".join(str(e) for e in d.errs), " ".join(str(b) for b in d.betters),
+              " ".join(str(v) for v in d.params))
+    except MemoryError:
+        micropython.heap_unlock()
+        print("ALLOCATED")
+'''
+D_TRUE = np.array([0.002, -0.0025, 0.0015])   # a hidden drift beside C_TRUE (g a day)
+
+
+@pytest.mark.parametrize("drift", ["two", "one"])
+def test_a_second_round_adds_the_second_effect_and_allocates_nothing(tmp_path, mp32, drift):
+    """With temp_offset and drift hidden, the first round adopts one and the second (from it)
+    the other, the model then base + both (the model's limit); with temp_offset alone the second
+    round adopts nothing.  Every second-round candidate fit and score under heap_lock on the
+    unix and 32-bit ports, the same integers as CPython."""
+    f = _heap_script(tmp_path, "round2.py", D_TRUE if drift == "two" else np.zeros(3), ROUND2)
+    want = _cpython_heap_result(f)
+    for out in (runtime.run_micropython_script(str(f)).split(), mp32(str(f)).split()):
+        assert out == want
+    assert want[0] == "OK" and "ROUND2" in want, want
+    r = want.index("ROUND2")
+    first = int(want[6])
+    rnd, before, blocks, chosen, adopted, kind = map(int, want[r + 1:r + 7])
+    errs = list(map(int, want[r + 7:r + 7 + discover.N_CANDIDATES]))
+    assert rnd == 2 and before > 0 and blocks >= discover.MIN_BLOCKS, want
+    # tried: every single effect but the adopted one (no curve pair: the limit)
+    tried = [i for i in range(discover.N_CANDIDATES) if errs[i] >= 0]
+    assert discover.PAIR not in tried and first not in [discover.KINDS[i][0] for i in tried]
+    assert len(tried) >= 5, errs
+    if drift == "two":
+        assert {first} | set(effects.model_kinds(kind)) == {effects.TEMP_OFFSET, effects.DRIFT}
+        assert adopted == 1 and effects.model_kinds(kind)[0] == first, want
+        assert 0 <= errs[chosen] < 0.9 * before
+    else:
+        assert first == effects.TEMP_OFFSET and adopted == 0 and kind == 0, want
 
 
 # A hidden shock (effects.STEP: the offsets jump once) inside a held-out 2-hour block: the fit's

@@ -240,3 +240,29 @@ def test_the_board_names_what_diagnose_names(recordings, capsys):
     for bad in (["--model", "base+drift"], ["--method", "lsq"], ["--profile", "paper"]):
         code, out, err = run_main(capsys, ["calibrate", recordings["clean31"], "--discover", *bad])
         assert code == 2 and len(err.strip().splitlines()) == 1 and "--discover" in err, err
+
+
+def test_the_board_discovers_two_hidden_effects_in_two_rounds(recordings, capsys):
+    """After an adoption the board's discovery runs again from the adopted model (`rounds`,
+    up to the model's limit of two effects): on the recording with temp_offset and drift
+    hidden it names both (against the simulation's truth), the second round lowering the
+    held-out error again; with one hidden effect or none the second round adopts nothing (or
+    none runs)."""
+    code, out, err = run_main(capsys, ["calibrate", recordings["two"], "--discover", "--json"])
+    d = json.loads(out)["discovery"]
+    truth = json.loads(recordings["two"].with_suffix(".truth.json").read_text())
+    hidden = {e["effect"] for e in truth["effects"]}
+    assert code == 0 and len(d["rounds"]) == 1 and set(d["effects"]) == hidden, d
+    second = d["rounds"][0]
+    assert d["effect"] in hidden and second["effect"] == "+".join(d["effects"]), d
+    assert second["model"] == "base+" + second["effect"] and set(second["params"]) >= {"cx", "dx"}
+    assert second["heldout_before"] == d["heldout_after"]     # from the adopted model
+    assert second["heldout_error_after_mg"] < 0.9 * second["heldout_error_before_mg"]
+    assert len(second["candidates"]) < len(d["candidates"])  # no curve pair, not the first again
+    one = calibrate_api(str(recordings["temp_offset"]), cfg=DISCOVER)["discovery"]
+    assert one["effects"] == ["temp_offset"] and len(one["rounds"]) == 1, one
+    assert one["rounds"][0]["effect"] is None and one["rounds"][0]["model"] == "base+temp_offset"
+    clean = calibrate_api(str(recordings["clean31"]), cfg=DISCOVER)["discovery"]
+    assert clean["effects"] == [] and clean["rounds"] == [], clean
+    code, out, err = run_main(capsys, ["calibrate", recordings["two"], "--discover"])
+    assert "discovery, round 2: the board adopts" in out, out

@@ -102,7 +102,9 @@ class DeviceResult:
     kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
     threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
     noise_level: int | None = None  # and the noise level it came from, Q10 g
-    discovery: list[int] | None = None   # discover: the V record (mp_runner.py)
+    discovery: list[int] | None = None   # discover: the (first) V record (mp_runner.py)
+    # discover: each later round's V record and its W records (after an adoption)
+    rounds: list[tuple[list[int], list]] = field(default_factory=list)
     candidates: list[tuple[int, int, int]] = field(default_factory=list)  # W: kind err betters
     heldout: list[list[int]] = field(default_factory=list)  # H: x y z temp time supply weight
 
@@ -190,9 +192,12 @@ class Collector:
         elif tag == "N":
             cur.threshold, cur.noise_level = v[0], v[1]
         elif tag == "V":
-            cur.discovery = list(v)
+            if cur.discovery is None:
+                cur.discovery = list(v)
+            else:
+                cur.rounds.append((list(v), []))
         elif tag == "W":
-            cur.candidates.append(tuple(v[:3]))
+            (cur.rounds[-1][1] if cur.rounds else cur.candidates).append(tuple(v[:3]))
         elif tag == "H":
             cur.heldout.append(list(v[:7]))
         elif tag == "F":

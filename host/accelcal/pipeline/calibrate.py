@@ -10,15 +10,15 @@ import numpy as np
 from acal import bins as dbins, effects as deff
 from acal import fixed, hemisphere, optimiser
 from acal import profile as dprofile
-from acal.discover import N_ALL
 from accelcal import methods
 from accelcal.bridge import runtime
-from accelcal.model.effects import ModelSpec, column_ref, model_name
+from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.errors import InputError
 from accelcal.files.table import Table
 from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
                                  params_to_float, params_to_int, physical, seconds, span_reason)
 from accelcal.files.params import params_record
+from accelcal.pipeline.discovered import discovery_record
 from accelcal.pipeline.results import CalibrationResult
 
 
@@ -298,65 +298,6 @@ class Fit:
         a = self.spec.correct(self.spec.from_int(p_int), rest, self.rest.temp, self.rest.time, ref,
                               self.rest_columns())
         return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
-
-
-def heldout_mg(err: int, weight: int) -> float | None:
-    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2, each
-    point's weighted by the rest means it stands for, `weight` in all) as mean | |a| - 1 g | in mg,
-    near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
-    return err / weight / (2 * fixed.POINT_ONE_G) * 1e3 if weight and err >= 0 else None
-
-
-def heldout_set(r: runtime.DeviceResult, t_first: float) -> dict:
-    """The board's held-out points (the runner's H records) in physical units, as lists: xyz_g,
-    temp (degC), time (s on the recording's clock), supply (mV) and weight (the rest means each
-    stands for)."""
-    h = np.array(r.heldout, dtype=np.int64).reshape(-1, 7)
-    c = physical(h[:, 3:6], t_first)
-    return {"xyz_g": (h[:, :3] / fixed.POINT_ONE_G).tolist(), "temp": c.temp.tolist(),
-            "time": c.time.tolist(), "supply": c.supply.tolist(), "weight": h[:, 6].tolist()}
-
-
-def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
-    """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
-    adopted (None: none) or the closest candidate, the held-out error before and after (the
-    board's integers and in mg), its blocks, each candidate, and the adopted model's parameters."""
-    if r.discovery is None:
-        return {"effect": None, "closest": None, "reason": "no discovery ran (the base fit did "
-                "not end OK)"}
-    adopted, closest, before, after, betters, blocks, held, weight, step_time = r.discovery[:9]
-    p_int = r.discovery[9:9 + N_ALL]
-    fitted_time, placed_loo, placed_insample, gap_n = r.discovery[9 + N_ALL:13 + N_ALL]
-    out = {"effect": model_name(adopted), "closest": model_name(closest),
-           "heldout_points": held, "heldout_rest_means": weight,
-           "heldout_before": before, "heldout_after": after,
-           "heldout_error_before_mg": heldout_mg(before, weight),
-           "heldout_error_after_mg": heldout_mg(after, weight) if closest else None,
-           "blocks_better": betters, "blocks": blocks,
-           "candidates": [{"effect": model_name(k), "heldout": e, "heldout_error_mg":
-                           heldout_mg(e, weight), "blocks_better": b} for k, e, b in r.candidates],
-           "heldout_set": heldout_set(r, t_first)}
-    from acal.discover import MIN_BLOCKS, MIN_HELD
-    if held < MIN_HELD or blocks < MIN_BLOCKS or before <= 0:
-        out["reason"] = (f"{held} held-out rest points in {blocks} held-out 2-hour blocks "
-                         f"(the board tries from {MIN_HELD} in {MIN_BLOCKS})")
-    if closest:
-        spec = ModelSpec.parse(f"base+{out['closest']}")
-        p_int = p_int[:len(spec.param_names)]
-        out["model"] = str(spec) if adopted else "base"
-        out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
-        out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
-        if deff.STEP in deff.model_kinds(closest):
-            out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
-            if placed_loo >= 0:
-                # an adopted step's time placed among the held-out points of its gap (acal/
-                # discover.py): the fit's time, the error placed (leave-one-out, in-sample)
-                out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
-                out["step_gap_points"] = gap_n
-                out["heldout_placed"] = placed_loo
-                out["heldout_error_placed_mg"] = heldout_mg(placed_loo, weight)
-                out["heldout_error_placed_insample_mg"] = heldout_mg(placed_insample, weight)
-    return out
 
 
 def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_name: str,

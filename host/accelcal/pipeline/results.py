@@ -38,8 +38,12 @@ def discovery_line(d: dict) -> str:
                   f"({d['step_time_fitted_s']:.0f} -> {d['step_time_s']:.0f} s): "
                   f"{d['heldout_error_placed_mg']:.2f} mg held-out, leave-one-out")
     if d["effect"]:
-        return f"discovery: the board adopts {d['effect']} (model {d['model']}): {after}"
-    return f"discovery: no effect adopted; the closest, {d['closest']}: {after}"
+        line = f"discovery: the board adopts {d['effect']} (model {d['model']}): {after}"
+    else:
+        line = f"discovery: no effect adopted; the closest, {d['closest']}: {after}"
+    for k, later in enumerate(d.get("rounds", ()), 2):   # from the model adopted before
+        line += "\n  " + discovery_line(later).replace("discovery:", f"discovery, round {k}:", 1)
+    return line
 
 
 class CalibrationResult(dict):

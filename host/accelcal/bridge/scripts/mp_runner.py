@@ -41,6 +41,9 @@
 #                              placed (leave-one-out, in-sample; -1: not placed) and gap points
 #   H x y z temp time supply weight   discover: each held-out point (acal/heldout.py)
 #   W kind err betters         discover: each candidate (err -1: not testable)
+#                              After an adoption with room for another effect (discover.more)
+#                              the discovery runs again from the adopted model on the same fit
+#                              points: a V and its W records per round (H once, after the first)
 import sys
 from array import array
 
@@ -117,7 +120,10 @@ class Runner:
         if pipe.fit == NEWTON:
             emit("D", [o.n_given] + [o.keep[i] for i in range(o.n_given)])
         d = pipe.discovery
-        if d is not None and status == 0:   # acal.status.OK: a base fit to start from
+        first = True
+        if d is not None:
+            from acal.discover import more   # a discovering runner's module only
+        while d is not None and status == 0:   # acal.status.OK: a base fit to start from
             d.run(pipe)
             i = d.chosen
             emit("V", [d.kind, d.kind_ids[i] if i >= 0 else 0, d.before,
@@ -125,12 +131,17 @@ class Runner:
                        d.held.count, d.held.total_weight(), d.step_time] + list(d.params) +
                  [d.fitted_time, d.placed_loo, d.placed_insample, d.gap_n])
             h = d.held
-            for j in range(h.count):
+            for j in range(h.count if first else 0):
                 c = COND * j
                 emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2], h.cond[c],
                            h.cond[c + 1], h.cond[c + 2], h.weight[j]])
             for j in range(len(d.errs)):
-                emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
+                if d.kind_ids[j]:   # (a second round has no curve pair)
+                    emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
+            first = False
+            if not (d.adopted and more(d.kinds[i])):
+                break
+            pipe.adopt()
         if pipe.rest.auto and pipe.rest.segments:
             emit("N", [pipe.rest.threshold, pipe.rest.gauge.level])
 
