@@ -6,8 +6,8 @@
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
 # candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py), the
-# scoring of one candidate, or (an adopted step) a slice of its time's placing among the
-# held-out points of its gap (stepplace.py).  Nothing is allocated per candidate or per score: one GaussNewton
+# scoring of one candidate, or (the step) a slice of its time's placing among the
+# held-out points of its gap (stepplace.py), before the choice.  Nothing is allocated per candidate or per score: one GaussNewton
 # sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
 # effect tuples are made once, here), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
@@ -64,7 +64,7 @@ _SCORE = 3      # candidate i scored
 _DONE = 4
 _BLOCKS = 5     # the held-out blocks counted
 _BETTER = 6     # candidate i's blocks compared with the base model's
-_PLACE = 7      # an adopted step: its time placed among its gap's held-out points (stepplace)
+_PLACE = 7      # the step: its time placed among its gap's held-out points (stepplace)
 
 
 def adoptable(kinds):
@@ -103,12 +103,13 @@ class Discover:
     (True when the rule names it), kind (its effects.model_code, 0: none; kind_ids: every
     candidate's), params (its parameters, Q24) and step_time (a step's).
 
-    An adopted step's time is then placed among the held-out points that fall between the fit
-    points on either side of it (stepplace.py: the fit leaves it free there; the shock may lie
-    anywhere in a held-out block): fitted_time is the fit's, step_time the placed one, gap_n the
-    points, and placed_loo the held-out error with each of them scored at a time placed from the
-    others (leave-one-out), placed_insample with all of them at step_time (-1: not placed).
-    `before` and errs stay the unplaced model's."""
+    The step's time is placed, before the choice, among the held-out points that fall between
+    the fit points on either side of it (stepplace.py: the fit leaves it free there; the shock
+    may lie anywhere in a held-out block): its errs entry is then placed_loo, the held-out error
+    with each gap point scored at a time placed from the others (leave-one-out: the points that
+    place a time must not judge it), step_unplaced the fit's time's, placed_insample every gap
+    point at the placed time (-1: not placed), gap_n the points; its betters stay the fit's
+    time's.  fitted_time is the chosen step's fit time, step_time the placed one."""
 
     def __init__(self, max_points, held):
         self.held = held
@@ -146,11 +147,12 @@ class Discover:
         self.kind = 0
         self.step_time = 0
         self.fitted_time = 0
-        self.place = StepPlace()   # an adopted step's time among its gap's held-out points
+        self.place = StepPlace()   # the step's time among its gap's held-out points
         self.gap_lo = 0        # the gap's lower end: the last fit point's time before the step
         self.gap_n = 0
         self.placed_loo = -1
         self.placed_insample = -1
+        self.step_unplaced = -1
 
     def begin(self, pipe):
         """Start on a pipeline whose base fit has just ended usable: its gathered points and
@@ -167,6 +169,7 @@ class Discover:
         self.gap_n = 0
         self.placed_loo = -1
         self.placed_insample = -1
+        self.step_unplaced = -1
         self.score.scan = -1
         for i in range(N_CANDIDATES):
             self.errs[i] = UNTESTABLE
@@ -339,8 +342,20 @@ class Discover:
             return
         self.betters[self.i] += better
         self.pos += 1
-        if self.pos == self.held.count:
-            self._next(self.i + 1)
+        if self.pos < self.held.count:
+            return
+        i = self.i
+        if self.new_ids[i] != effects.STEP:
+            self._next(i + 1)
+            return
+        # the step's time placed among the held-out points of its gap before the choice, so
+        # that the step is chosen (or not) on its placed error, as diagnose chooses
+        pipe = self.pipe
+        self.score.begin(self.fit.p, self.fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
+                         pipe.ref_supply, self.ts[i])
+        self.place.begin(self.score, self.held, pipe.ref_time, self.gap_lo, self.ts[i],
+                         self.errs[i], BLOCK_SCAN)
+        self.phase = _PLACE
 
     def _choose(self):
         i = candidates.best(self.kind_ids, self.errs, N_SINGLE)
@@ -356,30 +371,26 @@ class Discover:
         if i >= 0:
             for k in range(N_ALL):
                 self.params[k] = self.all_params[N_ALL * i + k]
-            self.step_time = self.ts[i]
-            self.fitted_time = self.step_time
+            self.fitted_time = self.ts[i]
+            self.step_time = self.place.step_time if self.new_ids[i] == effects.STEP else self.ts[i]
             if self.adopted:
                 self.kind = self.kind_ids[i]
-                if self.new_ids[i] == effects.STEP:
-                    pipe = self.pipe
-                    self.score.begin(self.params, self.kinds[i], self.held, pipe.ref_temp,
-                                     pipe.ref_time, pipe.ref_supply, self.step_time)
-                    self.place.begin(self.score, self.held, pipe.ref_time, self.gap_lo,
-                                     self.fitted_time, self.errs[i], BLOCK_SCAN)
-                    self.phase = _PLACE
-                    return
         self.phase = _DONE
 
     def _place(self):
-        # a slice of the step's placing; when placed, its time and errors (saturated)
+        # a slice of the step's placing; when placed, its time and errors (saturated), and the
+        # step's held-out error becomes its placed one, leave-one-out (errs_unplaced: the fit's)
         pl = self.place
         if not pl.step():
             return
-        self.step_time = pl.step_time
+        i = self.i
         self.gap_n = pl.n
         self.placed_loo = _saturated(pl.placed_loo)      # -1 (not placed) as it stands
         self.placed_insample = _saturated(pl.placed_insample)
-        self.phase = _DONE
+        self.step_unplaced = self.errs[i]
+        if self.placed_loo >= 0:
+            self.errs[i] = self.placed_loo
+        self._next(i + 1)
 
     def take(self):
         """The fit re-kinded to the chosen candidate and holding its parameters and step

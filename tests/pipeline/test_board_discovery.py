@@ -42,8 +42,8 @@ def study_rows(folder, cases) -> list:
     """Per case (name, seed, hidden effects), simulated two at a time and deleted after use (3
     days at 10 Hz are 94 MB each): (name_seed, diagnose's effect, the board's, its closest,
     blocks better, blocks, held-out error before, after, the true model's on the same points),
-    printed as they come.  An adopted step's error after is its placed time's, leave-one-out
-    (acal/discover.py): the honest figure for a time the held-out points placed."""
+    printed as they come.  A step's error is its placed time's, leave-one-out
+    (acal/stepplace.py): the honest figure for a time the held-out points placed."""
     rows = []
     for k in range(0, len(cases), 2):
         pair = {f"{n}_{s}": (s, eff) for n, s, eff in cases[k:k + 2]}
@@ -52,7 +52,6 @@ def study_rows(folder, cases) -> list:
             host = diagnose(str(path))["missing_effect"]
             named, d = board_names(path)
             after = d["heldout_error_after_mg"] if named else d["heldout_error_before_mg"]
-            after = d.get("heldout_error_placed_mg", after) if named else after
             rows.append((key, host, named, d.get("closest"), d.get("blocks_better"), d.get("blocks"),
                          d.get("heldout_error_before_mg"), after, true_board_heldout_mg(path, d)))
             print(*rows[-1], d.get("step_time_fitted_s"), d.get("step_time_s"), flush=True)

@@ -406,3 +406,8 @@ def test_diagnose_places_a_step_among_the_held_out_points_of_its_gap():
         spec.correct(theta, test.v, np.zeros(len(test.t)), test.t, {"ts": ts_fitted}, {}),
         axis=1) - 1)) * 1e3)
     assert placed["heldout_error_placed_insample_mg"] <= placed["heldout_error_placed_mg"] < unplaced
+    # in-sample is the model scored directly at the placed time (every held-out point)
+    direct = float(np.mean(np.abs(np.linalg.norm(spec.correct(
+        theta, test.v, np.zeros(len(test.t)), test.t, {"ts": placed["step_time_placed_s"]}, {}),
+        axis=1) - 1)) * 1e3)
+    assert placed["heldout_error_placed_insample_mg"] == pytest.approx(direct, rel=1e-9)

@@ -268,7 +268,11 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
                f"{e.report_unit} ({e.param_names[0][0]})" for e in new)}
     if "ts" in cref and "ts" not in ref:
         out["step_time_s"] = cref["ts"]
-        out.update(place_step(cspec, th, train, test, cref))
+        placed = place_step(cspec, th, train, test, cref)
+        if placed:   # chosen on its placed error, leave-one-out, as the board chooses
+            out.update(placed, heldout_error_unplaced_mg=ec,
+                       heldout_error_mg=placed["heldout_error_placed_mg"],
+                       improvement_pct=100 * (err - placed["heldout_error_placed_mg"]) / err)
     return out
 
 
@@ -279,8 +283,9 @@ def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
     later), halfway between its neighbours, as change_point places a time; as the board does
     (acal/discover.py, docs/model-discovery.md "Against the true sensor model").  Its held-out
     error leave-one-out (each gap point at the time the other gap points place) and in-sample;
-    {} when no held-out point lies in the gap.  The naming rule is not shown these: the points
-    that place the time would judge it."""
+    {} when no held-out point lies in the gap.  The step is chosen and named on the
+    leave-one-out error (the points that place the time must not judge it); its blocks stay the
+    fit's time's."""
     ts = cref["ts"]
     before, after = train.t[train.t < ts], train.t[train.t >= ts]
     if not len(before) or not len(after):
@@ -306,7 +311,8 @@ def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
 
     k = best(-1)
     edges = np.r_[lo, t, hi]
-    outside = np.abs(residuals(cspec, theta, test, cref)[1]).sum() - unstepped.sum()
+    fitted = np.abs(residuals(cspec, theta, test, cref)[1])   # the fit's time halves the gap
+    outside = fitted.sum() - fitted[idx].sum()
     insample = outside + unstepped[:k].sum() + stepped[k:].sum()
     loo = outside + sum(unstepped[j] if j < best(j) else stepped[j] for j in range(n))
     return {"step_time_placed_s": float(0.5 * (edges[k] + edges[k + 1])),

@@ -55,7 +55,7 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
     # one round's V record and its W records, from the model `base`
     adopted, closest, before, after, betters, blocks, held, weight, step_time = v[:9]
     p_int = v[9:9 + N_ALL]
-    fitted_time, placed_loo, placed_insample, gap_n = v[9 + N_ALL:13 + N_ALL]
+    fitted_time, unplaced, placed_insample, gap_n = v[9 + N_ALL:13 + N_ALL]
     out = {"effect": model_name(adopted), "closest": model_name(closest),
            "heldout_points": held, "heldout_rest_means": weight,
            "heldout_before": before, "heldout_after": after,
@@ -75,13 +75,13 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
         out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
         if deff.STEP in deff.model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
-            if placed_loo >= 0:
-                # an adopted step's time placed among the held-out points of its gap (acal/
-                # discover.py): the fit's time, the error placed (leave-one-out, in-sample)
+            if placed_insample >= 0:
+                # the step's time placed in its gap (acal/stepplace.py): its error (after) the
+                # placed one's, leave-one-out; the fit's time's and in-sample beside it
                 out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
                 out["step_gap_points"] = gap_n
-                out["heldout_placed"] = placed_loo
-                out["heldout_error_placed_mg"] = heldout_mg(placed_loo, weight)
+                out["heldout_unplaced"] = unplaced
+                out["heldout_error_unplaced_mg"] = heldout_mg(unplaced, weight)
                 out["heldout_error_placed_insample_mg"] = heldout_mg(placed_insample, weight)
     return out
 

@@ -33,10 +33,10 @@ def discovery_line(d: dict) -> str:
         return "discovery: no candidate testable on these points"
     after = (f"{d['heldout_error_before_mg']:.2f} -> {d['heldout_error_after_mg']:.2f} mg "
              f"held-out, better in {d['blocks_better']} of {d['blocks']} held-out blocks")
-    if "heldout_error_placed_mg" in d:
-        after += (f"; its time placed among {d['step_gap_points']} held-out points "
-                  f"({d['step_time_fitted_s']:.0f} -> {d['step_time_s']:.0f} s): "
-                  f"{d['heldout_error_placed_mg']:.2f} mg held-out, leave-one-out")
+    if "heldout_error_unplaced_mg" in d:
+        after += (f"; the step's time placed among {d['step_gap_points']} held-out points "
+                  f"({d['step_time_fitted_s']:.0f} -> {d['step_time_s']:.0f} s; its error "
+                  f"leave-one-out, {d['heldout_error_unplaced_mg']:.2f} mg at the fit's time)")
     if d["effect"]:
         line = f"discovery: the board adopts {d['effect']} (model {d['model']}): {after}"
     else:

@@ -34,11 +34,11 @@
 #   N threshold level          the rest threshold in force at the end and the noise level it
 #                              came from (Q10 g; AUTO only)
 #   V adopted closest before after betters blocks held weight step_time p0 .. p14 fitted_time
-#     placed_loo placed_insample gap_n   discover: the DISCOVERY record's fields (acal/log.py),
+#     step_unplaced placed_insample gap_n   discover: the DISCOVERY record's fields (acal/log.py),
 #                              the held-out points and the rest means they stand for (their
 #                              weights' sum), a step's time (placed), the closest candidate's 15
-#                              parameters, and an adopted step's fitted time, held-out error
-#                              placed (leave-one-out, in-sample; -1: not placed) and gap points
+#                              parameters, and the step's fitted time, held-out error at it
+#                              and placed in-sample (-1: not placed; after: leave-one-out), gap points
 #   H x y z temp time supply weight   discover: each held-out point (acal/heldout.py)
 #   W kind err betters         discover: each candidate (err -1: not testable)
 #                              After an adoption with room for another effect (discover.more)
@@ -129,7 +129,7 @@ class Runner:
             emit("V", [d.kind, d.kind_ids[i] if i >= 0 else 0, d.before,
                        d.errs[i] if i >= 0 else 0, d.betters[i] if i >= 0 else 0, d.blocks,
                        d.held.count, d.held.total_weight(), d.step_time] + list(d.params) +
-                 [d.fitted_time, d.placed_loo, d.placed_insample, d.gap_n])
+                 [d.fitted_time, d.step_unplaced, d.placed_insample, d.gap_n])
             h = d.held
             for j in range(h.count if first else 0):
                 c = COND * j
