@@ -176,14 +176,9 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
     assert p.params[:9] == list(cal[7:]) and p.calibration.kinds == (effects.DRIFT,)
 
 
-HEAP = r'''
-import micropython
-from acal.pipeline import Pipeline
-from acal import profile, candidates, discover
-from acal.bins import int32s
-
-# x y z (Q16 g) temp time, per rest mean (a string: a list literal this long exhausts the
-# 32-bit port's pystack)
+# The points fed to a discovering pipeline, calibrated, its discovery begun: x y z (Q16 g) temp
+# time per rest mean (a string: a list literal this long exhausts the 32-bit port's pystack)
+FEED = r'''
 PTS = [int(v) for v in "%s".split()]
 pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
 for i in range(len(PTS) // 5):
@@ -193,7 +188,16 @@ for i in range(len(PTS) // 5):
 status = pipe.calibrate()
 d = pipe.discovery
 d.begin(pipe)
-# the rule at its largest errors: every candidate saturated, one just below
+'''
+
+
+HEAP = r'''
+import micropython
+from acal.pipeline import Pipeline
+from acal import profile, candidates, discover
+from acal.bins import int32s
+
+''' + FEED + r'''# the rule at its largest errors: every candidate saturated, one just below
 errs = int32s(discover.N_CANDIDATES)
 betters = int32s(discover.N_CANDIDATES)
 out = int32s(4)
@@ -336,16 +340,7 @@ from acal.pipeline import Pipeline
 from acal import profile
 from acal.bins import COND
 
-PTS = [int(v) for v in "%s".split()]
-SHOCK = %d
-pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
-for i in range(len(PTS) // 5):
-    pipe.temp = PTS[5 * i + 3]
-    pipe.time = PTS[5 * i + 4]
-    pipe.offer(PTS[5 * i], PTS[5 * i + 1], PTS[5 * i + 2])
-status = pipe.calibrate()
-d = pipe.discovery
-d.begin(pipe)
+''' + FEED + r'''SHOCK = %d
 
 
 def work(d):
