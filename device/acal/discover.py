@@ -6,10 +6,11 @@
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
 # candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py), the
-# scoring of one candidate, or (the step) a slice of its time's placing among the
-# held-out points of its gap (stepplace.py), before the choice.  Nothing is allocated per candidate or per score: one GaussNewton
-# sized for the largest candidate (9 + 3 parameters) is re-kinded for each (the candidates'
-# effect tuples are made once, here), and the results go to preallocated int32 arrays.
+# scoring of one candidate, or (the step) a slice of its time's placing among the held-out
+# points of its gap (stepplace.py), before the choice.  Nothing is allocated per candidate or
+# per score: one GaussNewton sized for the largest candidate (9 + 6 parameters) is re-kinded for
+# each (the candidates' effect tuples are made once: here, and per base effect for a second
+# round), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
 # lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
