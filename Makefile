@@ -21,7 +21,7 @@ STAMP_RP2040JS := $(RP2040JS)/.installed
 
 setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py host/accelcal/files/_csvfast.c
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[dev]'

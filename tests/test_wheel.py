@@ -21,7 +21,7 @@ def installed(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wheel")
     src = tmp / "src"
     src.mkdir()
-    for name in ("pyproject.toml", "README.md", "package.json"):
+    for name in ("pyproject.toml", "setup.py", "README.md", "package.json"):
         shutil.copy(ROOT / name, src / name)
     for folder in ("host", "device", "boards"):
         shutil.copytree(ROOT / folder, src / folder,
