@@ -152,3 +152,17 @@ def test_calibrate_record_is_the_same_with_and_without_the_fast_path(tmp_path, m
         assert r.returncode == 0, r.stderr
         records.append(json.loads(r.stdout))
     assert records[0] == records[1] and records[0]["params_int"]
+
+
+@needs_fast
+def test_room_for_the_rows_guessed_short():
+    """Room for a piece's rows is guessed from its first 4 kB (csvpieces.plain); long lines
+    there and short ones after: the guess is short, the rows are counted and all parsed."""
+    long_rows = [f"{i}.{i:012d},0.000000000001,-0.5,0.25,30.125" for i in range(60)]
+    short_rows = [f"{i},1,2,3,4" for i in range(60, 5000)]
+    piece = "\n".join(["t,x,y,z,temp"] + long_rows + short_rows).encode()
+    lines = piece[:4096].count(b"\n")
+    assert len(piece) * (lines + 1) // 3700 + 64 < 5000      # the guess, short
+    fast, arrow = both(piece, 1)
+    assert same(fast, arrow) and len(fast[0][0]) == 5000
+    assert csvpieces.plain(memoryview(piece), 5, 1) is not None

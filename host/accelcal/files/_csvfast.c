@@ -29,8 +29,12 @@ static const double POW10[MAX_FRACTION + 1] = {
 
 #define IS_DIGIT(ch) ((unsigned char)((ch) - '0') < 10)
 
+#define NOT_PLAIN (-2)
+#define NO_ROOM (-1)         /* parse() returns it as is */
+
 /* Rows of text[0:n], which ends in '\n' (so every scan below stops at or before it: no bounds
- * checks within a line), into out[c][row0 + ...]; the number of rows, or -1: not plain. */
+ * checks within a line), into out[c][row0 + ...]; the number of rows, NOT_PLAIN, or NO_ROOM when
+ * the columns have room for fewer rows. */
 static Py_ssize_t
 plain_rows(const char *text, Py_ssize_t n, int ncols, double **out, Py_ssize_t row0,
            Py_ssize_t capacity)
@@ -39,7 +43,7 @@ plain_rows(const char *text, Py_ssize_t n, int ncols, double **out, Py_ssize_t r
     Py_ssize_t row = row0;
     while (p < end) {
         if (row >= capacity)
-            return -1;
+            return NO_ROOM;
         for (int c = 0; c < ncols; c++) {
             int negative = (*p == '-');
             p += negative;
@@ -96,17 +100,16 @@ csvfast_lines(PyObject *self, PyObject *arg)
         return NULL;
     Py_ssize_t count = 0;
     Py_BEGIN_ALLOW_THREADS
-    const char *p = text.buf, *end = p + text.len;
-    while (p < end && (p = memchr(p, '\n', (size_t)(end - p))) != NULL) {
-        count++;
-        p++;
-    }
+    /* a plain loop the compiler vectorises: memchr per line costs a call every ~37 bytes */
+    const unsigned char *p = text.buf;
+    for (Py_ssize_t i = 0; i < text.len; i++)
+        count += p[i] == '\n';
     Py_END_ALLOW_THREADS
     PyBuffer_Release(&text);
     return PyLong_FromSsize_t(count);
 }
 
-/* parse(text, skip_header, columns) -> rows or None. */
+/* parse(text, skip_header, columns) -> rows, None (not plain) or -1 (no room for them all). */
 static PyObject *
 csvfast_parse(PyObject *self, PyObject *args)
 {
@@ -144,7 +147,7 @@ csvfast_parse(PyObject *self, PyObject *args)
             capacity = v->len / 8;
     }
 
-    Py_ssize_t rows = -1;
+    Py_ssize_t rows = NOT_PLAIN;
     int no_memory = 0;
     Py_BEGIN_ALLOW_THREADS
     const char *p = text.buf, *end = p + text.len;
@@ -160,7 +163,7 @@ csvfast_parse(PyObject *self, PyObject *args)
         const char *body_end = nl ? nl + 1 : p;
         rows = plain_rows(p, body_end - p, (int)ncols, out, 0, capacity);
         if (rows >= 0 && body_end < end && end[-1] == '\r')
-            rows = -1;          /* a lone '\r' ends it: not a line end taken here */
+            rows = NOT_PLAIN;   /* a lone '\r' ends it: not a line end taken here */
         else if (rows >= 0 && body_end < end) {
             Py_ssize_t tail = end - body_end;
             char *copy = malloc((size_t)tail + 1);
@@ -170,7 +173,7 @@ csvfast_parse(PyObject *self, PyObject *args)
                 memcpy(copy, body_end, (size_t)tail);
                 copy[tail] = '\n';
                 Py_ssize_t more = plain_rows(copy, tail + 1, (int)ncols, out, rows, capacity);
-                rows = more < 0 ? -1 : rows + more;
+                rows = more < 0 ? more : rows + more;
                 free(copy);
             }
         }
@@ -178,7 +181,7 @@ csvfast_parse(PyObject *self, PyObject *args)
     Py_END_ALLOW_THREADS
     if (no_memory)
         PyErr_NoMemory();
-    else if (rows < 0)
+    else if (rows == NOT_PLAIN)
         result = Py_NewRef(Py_None);
     else
         result = PyLong_FromSsize_t(rows);
@@ -195,9 +198,10 @@ static PyMethodDef csvfast_methods[] = {
     {"lines", csvfast_lines, METH_O,
      "lines(text) -> the number of '\\n' in the buffer (the GIL released)."},
     {"parse", csvfast_parse, METH_VARARGS,
-     "parse(text, skip_header, columns) -> rows, or None when the text is not plain CSV.\n\n"
-     "columns: one writable float64 buffer per column, each with room for every row (lines(text)\n"
-     "+ 1 is enough); row i of column c goes to columns[c][i].  skip_header: skip the first line.\n"
+     "parse(text, skip_header, columns) -> rows, or None when the text is not plain CSV, or -1\n"
+     "when the columns have room for fewer rows than it has (lines(text) + 1 is always enough).\n\n"
+     "columns: one writable float64 buffer per column; row i of column c goes to columns[c][i].\n"
+     "skip_header: skip the first line.\n"
      "Values are correctly rounded (Clinger's exact path) or the text is not taken."},
     {NULL, NULL, 0, NULL}};
 

@@ -97,9 +97,18 @@ def fast_path() -> bool:
 def plain(buf, columns: int, skip: int):
     """The piece's columns parsed by the C fast path (_csvfast.c: plain numbers only, correctly
     rounded as Arrow's), or None when the piece is anything else (Arrow's then)."""
-    cols = [np.empty(_csvfast.lines(buf) + 1) for _ in range(columns)]
-    rows = _csvfast.parse(buf, skip, cols)
-    return None if rows is None else [c[:rows] for c in cols]
+    # Room for the rows guessed from the first 4 kB's lines (counting them all first read the
+    # piece twice: ~15 % of the parse), counted exactly when short.  One block for all columns:
+    # 4.5 MB for a 4 MB piece, which numpy asks the kernel to back with huge pages (>= 4 MB),
+    # a fifth of the page-fault time of five separate arrays.
+    lines = bytes(buf[:4096]).count(b"\n")
+    room = len(buf) * (lines + 1) // 3700 + 64 if lines > 8 else _csvfast.lines(buf) + 1
+    for _ in range(2):
+        block = np.empty((columns, room))
+        rows = _csvfast.parse(buf, skip, list(block))
+        if rows != -1:
+            return None if rows is None else list(block[:, :rows])
+        room = _csvfast.lines(buf) + 1
 
 
 def parse(buf: bytes, names: list[str], skip: int, pa, pacsv, limits=None, fast=False):
