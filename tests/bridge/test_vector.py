@@ -263,7 +263,7 @@ def test_streaming_scan_memory_does_not_grow_with_the_file(tmp_path, monkeypatch
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline import scan as scan_module
     from accelcal.pipeline.scan import scan
-    monkeypatch.setattr(scan_module, "prefetched", lambda chunks: chunks)
+    monkeypatch.setattr(scan_module, "prefetched", lambda chunks, **how: chunks)
     rng = np.random.default_rng(3)
     peaks = []
     for n in (1_000_000, 3_000_000):
@@ -301,3 +301,22 @@ def test_read_ahead_holds_at_most_its_depth():
         assert len(produced) - len(got) <= 2 + 2, (len(produced), len(got))
         got.append(ch)
     assert got == list(range(20))
+
+
+def test_planar_of_a_readers_axes_is_samples_planar_to_the_bit():
+    """twin.planar_of converts (n, 3) float32 (actfast's) or float64 arrays in their own dtype
+    and three columns as they are: the same Q10 samples as samples_planar of float64 columns,
+    rounding ties, the clip at +-16 g and signed zeros included."""
+    rng = np.random.default_rng(11)
+    n = 20_000
+    g = np.concatenate([rng.normal(0, 3, n), rng.uniform(-40, 40, n),
+                        (rng.integers(-20000, 20000, n) + 0.5) / 1024,     # exact ties
+                        np.array([-0.0, 0.0, 16.0, -16.0, 15.9995, -16.0005, 256.0, -256.0])])
+    g = g[: len(g) // 3 * 3].reshape(-1, 3)
+    for xyz in (g, g.astype(np.float32)):
+        want = twin.samples_planar(*(xyz[:, i].astype(np.float64) for i in range(3)))
+        got = twin.planar_of(xyz)
+        assert got.dtype == np.int32 and got.flags.c_contiguous
+        assert np.array_equal(got, want)
+        assert np.array_equal(twin.planar_of(tuple(xyz[:, i].astype(np.float64) for i in range(3))),
+                              want)

@@ -251,6 +251,21 @@ def samples_planar(x, y, z) -> np.ndarray:
     return out
 
 
+def planar_of(axes) -> np.ndarray:
+    """samples_planar of a reader's axes (recordings.Chunk.axes): three (n,) columns, or an
+    (n, 3) array of floats in g, float32 or float64, converted in its own dtype without a
+    float64 copy first.  The same samples to the bit: the scale is a power of two (exact in
+    either dtype, as are rint and the clip to +-16 g), so a float32 value gives what its float64
+    copy gives."""
+    if isinstance(axes, tuple):
+        return samples_planar(*axes)
+    v = np.empty((3, len(axes)), axes.dtype)        # planar in memory: C order, not axes.T's
+    np.multiply(axes.T, axes.dtype.type(fixed.SAMPLE_ONE_G), out=v)
+    np.rint(v, out=v)
+    np.clip(v, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX, out=v)
+    return v.astype(np.int32)
+
+
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
                  step_time: int = 0, dV=None) -> np.ndarray:
     """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters

@@ -19,7 +19,6 @@ nothing that matters.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
@@ -38,15 +37,32 @@ GT3X_EXTRA = ("install the optional ActiGraph reader: pip install 'accelcal[gt3x
 STANDARD_RANGES_G = (2, 4, 8, 16)
 
 
-@dataclass
 class Chunk:
-    """Consecutive samples: t (n,) s; xyz (n, 3) g; temp (n,) degC or None; first: the stream
-    index of the first sample; cols: the recording's further columns by name, (n,) each."""
-    t: np.ndarray
-    xyz: np.ndarray
-    temp: np.ndarray | None
-    first: int
-    cols: dict = field(default_factory=dict)
+    """Consecutive samples: t (n,) s; xyz (n, 3) g float64; temp (n,) degC or None; first: the
+    stream index of the first sample; cols: the recording's further columns by name, (n,) each.
+
+    axes: x, y, z as the reader has them (three (n,) columns, or an (n, 3) array of the reader's
+    dtype: float32 from actfast), from which xyz is made the first time it is asked for: the
+    scan converts the axes to the device's samples directly (accelcal.bridge.twin.planar_of),
+    and most chunks never need the float64 copy.  planar: those samples, when a read-ahead
+    thread has made them already (pipeline/scan.py), else None."""
+
+    __slots__ = ("t", "axes", "temp", "first", "cols", "planar", "_xyz")
+
+    def __init__(self, t: np.ndarray, xyz: np.ndarray | None, temp: np.ndarray | None, first: int,
+                 cols: dict | None = None, axes=None):
+        self.t, self.temp, self.first = t, temp, first
+        self.cols = {} if cols is None else cols
+        self.axes = xyz if axes is None else axes
+        self._xyz = xyz if xyz is not None and xyz.dtype == np.float64 else None
+        self.planar = None
+
+    @property
+    def xyz(self) -> np.ndarray:
+        if self._xyz is None:
+            a = self.axes
+            self._xyz = np.column_stack(a) if isinstance(a, tuple) else a.astype(np.float64)
+        return self._xyz
 
 
 def gap_limit(rate_hz: int) -> float:
@@ -116,13 +132,15 @@ class CsvRecording(Recording):
         # the rows' columns, each parsed and finite (csvpieces.parse); checked: within the
         # limits check_values and COLUMN_MAX set (csvpieces.parse), so only time across pieces
         # is left; else the value checks find and name the row
-        xyz = np.column_stack(cols[1:4])
+        axes = tuple(cols[1:4])
         extra = dict(zip(self.columns, cols[len(self.header) - len(self.columns):]))
         if checked:
             if self._last_t is not None and cols[0][0] < self._last_t:
-                check_values(self.path, cols[0][:1], xyz[:1], None, first, self._last_t)
+                check_values(self.path, cols[0][:1], np.column_stack([a[:1] for a in axes]), None,
+                             first, self._last_t)
             self._last_t = float(cols[0][-1])
-            return Chunk(cols[0], xyz, cols[4] if self.has_temp else None, first, extra)
+            return Chunk(cols[0], None, cols[4] if self.has_temp else None, first, extra, axes)
+        xyz = np.column_stack(axes)
         check_values(self.path, cols[0], xyz, cols[4] if self.has_temp else None, first,
                      self._last_t)
         for name, v in extra.items():
@@ -171,12 +189,14 @@ def _columns(data: dict):
 def held_index(tl: np.ndarray, t: np.ndarray) -> np.ndarray:
     """For each time in t, the index of the last reading at tl at or before it (0 before the
     first): np.searchsorted(tl, t, "right") - 1, clipped at 0.  Both in order (as a file's
-    clock runs): counted in one pass over t, a binary search per reading rather than per
-    sample (a quarter of a .cwa's read time)."""
-    if len(t) and len(tl) and (np.diff(t) >= 0).all() and (np.diff(tl) >= 0).all():
+    clock runs): each reading's index repeated over the samples it holds for, a binary search
+    per reading rather than per sample (a quarter of a .cwa's read time) and one pass over t."""
+    n = len(t)
+    if n and len(tl) and (np.diff(t) >= 0).all() and (np.diff(tl) >= 0).all():
         starts = np.searchsorted(t, tl, side="left")   # the first sample at or after each reading
-        count = np.cumsum(np.bincount(starts, minlength=len(t) + 1)[:len(t)])
-        return np.clip(count - 1, 0, None)
+        held = np.diff(np.r_[starts, n])                # samples each reading holds for
+        held[0] += starts[0]                            # and the first, those before it
+        return np.repeat(np.arange(len(tl)), held)
     return np.clip(np.searchsorted(tl, t, side="right") - 1, 0, None)
 
 
@@ -266,8 +286,8 @@ class ActigraphyRecording(Recording):
         n = len(self.t)
         for a in range(0, n, size):
             b = min(n, a + size)
-            yield Chunk(self.t[a:b], self.xyz[a:b].astype(np.float64),
-                        None if self.temp is None else self.temp[a:b], a)
+            yield Chunk(self.t[a:b], None, None if self.temp is None else self.temp[a:b], a,
+                        axes=self.xyz[a:b])
 
 
 class CwaRecording(Recording):
@@ -323,7 +343,7 @@ class CwaRecording(Recording):
             t, xyz, temp = cols
             if self.has_temp and temp is None:   # a piece without a reading: hold the last
                 temp = np.full(len(t), held[0])
-            yield Chunk(t, xyz.astype(np.float64), temp if self.has_temp else None, first)
+            yield Chunk(t, None, temp if self.has_temp else None, first, axes=xyz)
             if self.has_temp:
                 held[0] = float(temp[-1])
             first += len(t)
