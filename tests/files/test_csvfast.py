@@ -166,3 +166,21 @@ def test_room_for_the_rows_guessed_short():
     fast, arrow = both(piece, 1)
     assert same(fast, arrow) and len(fast[0][0]) == 5000
     assert csvpieces.plain(memoryview(piece), 5, 1) is not None
+
+
+@needs_fast
+def test_the_modules_answers():
+    """_csvfast.parse: rows, None for text that is not plain, -1 for columns with too little
+    room (then nothing is said about the text); lines counts '\\n'."""
+    fast = csvpieces._csvfast
+    text = b"1,2\n3,-4.5\r\n6,7"
+    assert fast.lines(text) == 2 and fast.lines(b"") == 0
+    cols = [np.zeros(3), np.zeros(3)]
+    assert fast.parse(text, False, cols) == 3 and cols[1].tolist() == [2, -4.5, 7]
+    assert fast.parse(text, False, [np.zeros(2), np.zeros(2)]) == -1
+    assert fast.parse(b"1,2\n3,x\n", False, [np.zeros(3), np.zeros(3)]) is None
+    assert fast.parse(b"1,2\n3,x\n", False, [np.zeros(1), np.zeros(1)]) == -1
+    with pytest.raises(TypeError):
+        fast.parse(text, False, [np.zeros(3, np.float32), np.zeros(3)])
+    with pytest.raises(ValueError):     # not contiguous
+        fast.parse(text, False, [np.zeros(3), np.zeros(3)[::2]])

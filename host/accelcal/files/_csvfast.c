@@ -27,8 +27,6 @@ static const double POW10[MAX_FRACTION + 1] = {
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
-#define IS_DIGIT(ch) ((unsigned char)((ch) - '0') < 10)
-
 #define NOT_PLAIN (-2)
 #define NO_ROOM (-1)         /* parse() returns it as is */
 
@@ -39,7 +37,7 @@ static Py_ssize_t
 plain_rows(const char *text, Py_ssize_t n, int ncols, double **out, Py_ssize_t row0,
            Py_ssize_t capacity)
 {
-    const char *p = text, *end = text + n;
+    const unsigned char *p = (const unsigned char *)text, *end = p + n;
     Py_ssize_t row = row0;
     while (p < end) {
         if (row >= capacity)
@@ -47,35 +45,40 @@ plain_rows(const char *text, Py_ssize_t n, int ncols, double **out, Py_ssize_t r
         for (int c = 0; c < ncols; c++) {
             int negative = (*p == '-');
             p += negative;
-            const char *first = p;
+            const unsigned char *first = p;
             uint64_t m = 0;
-            while (IS_DIGIT(*p))
-                m = m * 10 + (uint64_t)(*p++ - '0');
+            unsigned d;
+            while ((d = (unsigned)*p - '0') < 10) {
+                m = m * 10 + d;
+                p++;
+            }
             Py_ssize_t whole = p - first;
             Py_ssize_t fraction = 0;
             if (*p == '.') {
-                const char *point = ++p;
-                while (IS_DIGIT(*p))
-                    m = m * 10 + (uint64_t)(*p++ - '0');
+                const unsigned char *point = ++p;
+                while ((d = (unsigned)*p - '0') < 10) {
+                    m = m * 10 + d;
+                    p++;
+                }
                 fraction = p - point;
                 if (fraction == 0)                  /* "1." */
-                    return -1;
+                    return NOT_PLAIN;
             }
             if (whole == 0 || whole + fraction > MAX_DIGITS || fraction > MAX_FRACTION ||
                 m >= EXACT_LIMIT)
-                return -1;
+                return NOT_PLAIN;
             double v = (double)m / POW10[fraction];
             out[c][row] = negative ? -v : v;
             if (c + 1 < ncols) {
                 if (*p != ',')
-                    return -1;
+                    return NOT_PLAIN;
                 p++;
             }
         }
         if (*p == '\r')
             p++;
         if (*p != '\n')
-            return -1;
+            return NOT_PLAIN;
         p++;
         row++;
     }
