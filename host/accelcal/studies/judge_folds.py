@@ -1,0 +1,117 @@
+"""How `diagnose`'s judge would name one candidate if it judged the fit the device makes, and in
+both folds of its split (issue 30 part 2: curve seed 4; docs/model-discovery.md "Curves").
+
+A wrist (accelcal.simulate.wearer, as the held-out study makes it: FIT_DAYS at 10 Hz with one
+hidden effect or none) gives its rest points; they are cut into diagnose's 2-hour blocks.  For
+each fold (train on the even blocks and score the odd ones, diagnose's own; and the reverse) the
+model and the model with the candidate are fitted by float least squares on
+
+    all   every training rest point (what diagnose fits today), or
+    bins  the points the device's bins (wear profile, the candidate model's conditions) select
+          from the training rest points and its fit keeps (what the device will fit),
+
+and scored on the other fold's rest points: the held-out error (mg), how many blocks improve,
+and whether acal.discovery.names would name the candidate.  "both" pools the two folds (every
+rest point scored once, the blocks of both).  A study, not the loop: diagnose is unchanged.
+
+    python -m accelcal.studies.judge_folds CASE SEED MODEL CANDIDATE
+    e.g. python -m accelcal.studies.judge_folds temp_offset2 4 base+temp_offset temp_offset2
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from acal import discovery, fixed
+from acal.bins import COND
+from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.pipeline.restpoints import BLOCK_S, RestPoints
+
+
+def bins_selection(spec: ModelSpec, pts: RestPoints) -> RestPoints:
+    """The rest points the device's bins (wear profile, spec's conditions) keep from pts."""
+    from accelcal.bridge import runtime
+    from accelcal.bridge.groups import PointsGroup
+    from accelcal.pipeline.calibrate import _device_spec
+    _, cfg = _device_spec(spec, "lsq", runtime.Config.for_profile("wear", True))
+    g = PointsGroup("train", points=pts.v, temp=pts.temp, t=pts.t)
+    r = runtime.run([g], cfg, "cpython")[0]
+    sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 3 + COND)
+    if r.kept is not None:
+        sel = sel[np.asarray(r.kept, bool)]
+    return RestPoints(sel[:, :3] / fixed.POINT_ONE_G, sel[:, 4] * 64.0 + g.t_first,
+                      sel[:, 3] / (1 << fixed.TEMP_Q), np.zeros(len(sel)), "bins")
+
+
+def judge(path: str, model: str, cand: str) -> list[dict]:
+    """One row per fit (all, bins) and fold (even, odd: the blocks trained on; both)."""
+    from accelcal.pipeline.composed_lsq import fit_with_reference, prepare, refs
+    from accelcal.pipeline.diagnose import residuals
+    spec, p = prepare(path, model)
+    cspec = spec.with_effect(CATALOGUE[cand])
+    block = ((p.t - p.t.min()) // BLOCK_S).astype(int)
+    rows = []
+    for how in ("all", "bins"):
+        pooled = []
+        for parity, fold in ((0, "even"), (1, "odd")):
+            tr = block % 2 == parity
+            train, test, tb = p.take(tr), p.take(~tr), block[~tr]
+            pts = train if how == "all" else bins_selection(cspec, train)
+            th0, ref0 = fit_with_reference(spec, pts, refs(pts, spec))
+            _, r0 = residuals(spec, th0, test, ref0)
+            th, ref = fit_with_reference(cspec, pts, refs(pts, cspec), rest_theta=th0)
+            _, rc = residuals(cspec, th, test, ref)
+            gain = np.abs(r0) - np.abs(rc)
+            blocks = np.unique(tb)
+            better = sum(bool(gain[tb == b].mean() > 0) for b in blocks)
+            pooled.append((np.abs(r0), np.abs(rc), better, len(blocks)))
+            rows.append(row(how, fold, len(pts), np.abs(r0), np.abs(rc), better, len(blocks)))
+        rows.append(row(how, "both", None, np.concatenate([x[0] for x in pooled]),
+                        np.concatenate([x[1] for x in pooled]), sum(x[2] for x in pooled),
+                        sum(x[3] for x in pooled)))
+    return rows
+
+
+def row(how, fold, points, r0, rc, better, blocks) -> dict:
+    before, after = float(r0.mean() * 1e3), float(rc.mean() * 1e3)
+    return {"fit": how, "train": fold, "points": points, "before_mg": before, "after_mg": after,
+            "improvement_pct": 100 * (before - after) / before, "blocks_improved": better,
+            "blocks": blocks, "named": bool(discovery.names(before, after, better, blocks))}
+
+
+def main(argv=None) -> int:
+    from accelcal.simulate import wearer
+    from accelcal.studies.heldout import FIT_DAYS, RATE
+    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.judge_folds", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("case", help="clean or a catalogue effect hidden in the wrist")
+    ap.add_argument("seed", type=int)
+    ap.add_argument("model", help="the model diagnosed, e.g. base+temp_offset")
+    ap.add_argument("candidate", help="the effect judged, e.g. temp_offset2")
+    a = ap.parse_args(argv)
+    for e in (a.case, a.candidate):
+        if e != "clean" and e not in CATALOGUE:
+            ap.error(f"unknown effect {e}")
+    try:
+        ModelSpec.parse(a.model)
+    except ValueError as why:
+        ap.error(str(why))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"{a.case}_{a.seed}.csv"
+        wearer.simulate_wrist(path, FIT_DAYS, RATE, a.seed,
+                              effects=[] if a.case == "clean" else [a.case])
+        rows = judge(str(path), a.model, a.candidate)
+    for r in rows:
+        print(f"{a.case} seed {a.seed}: {a.model} +{a.candidate}, fit on {r['fit']:<4} train "
+              f"{r['train']:<4} {r['before_mg']:.3f} -> {r['after_mg']:.3f} mg "
+              f"({r['improvement_pct']:+.1f} %), {r['blocks_improved']}/{r['blocks']} blocks"
+              f"{', named' if r['named'] else ''}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
