@@ -324,17 +324,18 @@ class Pipeline:
 def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
     all three conditions, for a discovering board's candidates)."""
-    bins.temp_differ = TEMP_DIFFER if every else 0
-    bins.time_differ = TIME_DIFFER if every else 0
-    bins.supply_differ = SUPPLY_DIFFER if every else 0
+    temp = TEMP_DIFFER if every else 0
+    time = TIME_DIFFER if every else 0
+    supply = SUPPLY_DIFFER if every else 0
     for k in kinds:
         source = effects.source_of(k)
         if source == effects.SOURCE_TEMP:
-            bins.temp_differ = TEMP_DIFFER
+            temp = TEMP_DIFFER
         elif source == effects.SOURCE_TIME:
-            bins.time_differ = TIME_DIFFER
+            time = TIME_DIFFER
         elif source == effects.SOURCE_SUPPLY:
-            bins.supply_differ = SUPPLY_DIFFER
+            supply = SUPPLY_DIFFER
+    bins.set_differ(temp, time, supply)   # and the spread weights with them
 
 
 def spanned(bins, kinds):
