@@ -73,6 +73,7 @@ DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
 TEMP_DIFFER = 3 << TEMP_Q  # 3 degC in Q2: what a temperature effect needs (host diagnose: the same)
 TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
 SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
+DIFFERS = (TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER)   # per condition, in COND's order
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
 # not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
 # after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.
@@ -242,8 +243,8 @@ class Bins:
                     return True
         return False
 
-    def _span(self, c):
-        # Range of condition c (0 temperature, 1 time, 2 supply) over every held point.
+    def span(self, c):
+        """Range of condition c (0 temperature, 1 time, 2 supply) over every held point."""
         lo = hi = 0
         first = True
         m = self.max_count
@@ -259,15 +260,15 @@ class Bins:
 
     def temp_span(self):
         """Temperature range of the held points (Q2 degC; 0 unless temperature is tracked)."""
-        return self._span(0)
+        return self.span(0)
 
     def time_span(self):
         """Time range of the held points (64 s units; 0 unless time is tracked)."""
-        return self._span(1)
+        return self.span(1)
 
     def supply_span(self):
         """Supply range of the held points (mV; 0 unless the supply is tracked)."""
-        return self._span(2)
+        return self.span(2)
 
     def _spread(self, s, skip, temp, time, supply):
         # The spread score of subset s, slot `skip` holding (temp, time, supply) instead: each
@@ -302,8 +303,7 @@ class Bins:
             (v_hi - v_lo) * self._w_supply
 
     def set_differ(self, temp_differ, time_differ, supply_differ):
-        """Set temp_differ, time_differ and supply_differ (set them only so) and with them the
-        spread score's weights and quarter threshold, here and not per offered mean."""
+        """Set the three thresholds (only so): the spread weights follow here, not per offer."""
         self.temp_differ = temp_differ
         self.time_differ = time_differ
         self.supply_differ = supply_differ
