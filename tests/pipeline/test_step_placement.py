@@ -150,3 +150,27 @@ def test_host_and_board_place_a_step_alike(seed, where, n_gap, monkeypatch):
     assert abs(same["heldout_error_placed_mg"] / 1e3 * n - pl.placed_loo / Q16) <= tol
     assert abs(same["heldout_error_placed_insample_mg"] / 1e3 * n
                - pl.placed_insample / Q16) <= tol
+
+
+@pytest.mark.parametrize("shock", [HI - 30, LO + 10])
+def test_past_gap_max_the_board_places_among_its_latest_gap_points_only(shock):
+    """More gap points than stepplace.GAP_MAX (40 here): the board keeps the latest 32 and
+    leaves the earliest ones unstepped, where the host weighs them all.  A shock among the
+    latest: the same split.  A shock before them (a limit of the board's memory, 12 bytes a gap
+    point, not met in the slow study's gaps of 6-10 points): the host splits at the truth, the
+    board at its earliest kept point, the nearest it can."""
+    n_gap = 40
+    xyz, t = scene(5, shock, n_gap)
+    p_int = SPEC.to_int(np.r_[TRUTH, J_TRUE])
+    pl = board(xyz, t, p_int)
+    out = host(xyz, t, SPEC.from_int(p_int))
+    gap = np.sort(t[(t > LO) & (t < HI)])
+    k_board = int((gap < pl.step_time).sum())
+    k_host = int((gap < out["step_time_placed_s"] / 64).sum())
+    truth = int((gap < shock).sum())
+    assert pl.n == GAP_MAX and out["step_gap_points"] == n_gap
+    if truth >= n_gap - GAP_MAX:
+        assert k_board == k_host == truth, (k_board, k_host, truth)
+    else:
+        earliest_kept = gap[n_gap - GAP_MAX]     # (a dropped point may share its time)
+        assert k_host == truth and pl.step_time == earliest_kept, (k_board, k_host, truth)
