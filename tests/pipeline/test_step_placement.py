@@ -62,9 +62,9 @@ def scene(seed, shock, n_gap):
     return np.rint(v * Q16).astype(np.int64), t
 
 
-def board(xyz, t, p_int):
-    """The board's placement (StepPlace on a HeldOut holding these points, weight 1 each, the
-    model scored at the fitted time HI, as discover.py drives it)."""
+def board(xyz, t, p_int, weight=None):
+    """The board's placement (StepPlace on a HeldOut holding these points, weight 1 each unless
+    given, the model scored at the fitted time HI, as discover.py drives it)."""
     from array import array
     h = HeldOut()
     for i in range(len(t)):
@@ -72,7 +72,7 @@ def board(xyz, t, p_int):
             h.xyz[3 * i + c] = int(xyz[i, c])
         h.cond[COND * i + 1] = int(t[i])
         h.block[i] = block_of(int(t[i]))
-        h.weight[i] = 1
+        h.weight[i] = 1 if weight is None else int(weight[i])
     h.count = len(t)
     p = array("i", p_int)
     kinds = (effects.STEP,)
@@ -174,3 +174,23 @@ def test_past_gap_max_the_board_places_among_its_latest_gap_points_only(shock):
     else:
         earliest_kept = gap[n_gap - GAP_MAX]     # (a dropped point may share its time)
         assert k_host == truth and pl.step_time == earliest_kept, (k_board, k_host, truth)
+
+
+def test_a_weighted_point_places_and_scores_as_its_rest_means(monkeypatch):
+    """A board's held-out point stands for up to heldout.WEIGHT_CAP rest means of one posture
+    (its weight); the host holds each.  Given a point of weight w on the board and w copies of it
+    on the host: the same split and the same in-sample error (to the fixed point, a tolerance a
+    rest mean).  Leave-one-out they differ by design: the board leaves the whole point out, the
+    host one copy while its w - 1 twins still place the time, so it is not compared."""
+    monkeypatch.setattr(diagnose, "residuals", squared)
+    for seed in (7, 8):
+        xyz, t = scene(seed, (LO + HI) // 2 + 13, 14)
+        w = np.random.default_rng(seed).integers(1, 5, len(t))
+        p_int = SPEC.to_int(np.r_[TRUTH, J_TRUE])
+        pl = board(xyz, t, p_int, w)
+        out = host(np.repeat(xyz, w, axis=0), np.repeat(t, w), SPEC.from_int(p_int))
+        gap = np.sort(t[(t > LO) & (t < HI)])
+        assert int((gap < pl.step_time).sum()) == int((gap < out["step_time_placed_s"] / 64).sum())
+        n = int(w.sum())
+        assert abs(out["heldout_error_placed_insample_mg"] / 1e3 * n
+                   - pl.placed_insample / Q16) <= n * TOL_PER_POINT
