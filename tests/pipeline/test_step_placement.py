@@ -8,9 +8,9 @@ reads the same values in g), times in 64 s units (the host's seconds are 64 time
 model's parameters as the board's Q24 integers (the host's floats are those integers / 2**24).
 A shock at a known time: inside the gap, just after its lower end (every gap point stepped),
 at its upper end (none stepped), and no shock at all (with the step in the model, and with a zero
-step: every split ties, and both take the later).  Each of three seeds draws 5-30 gap points
+step: every split ties, and both take the later).  Three seeds draw 12, 30 and 6 gap points
 (stepplace.GAP_MAX = 32 keeps them all), some at equal times (a split falls between distinct
-times only).
+times only), and 20 held-out points either side of the gap (some at a fit point's time).
 
 What they are expected to differ in, by design: the placed time's convention (the board's is the
 first stepped gap point's time, as its change-point search places the fitted time; the host's
@@ -46,7 +46,7 @@ TOL_PER_POINT = 2.0 ** -16 + 8 * 2.0 ** -22    # g^2: see above
 
 
 def scene(seed, shock, n_gap):
-    """Held-out points (Q16 g, times): n_gap inside the gap (a few sharing a time), 40 outside
+    """Held-out points (Q16 g, times): n_gap inside the gap (a few sharing a time), 20 outside
     it on either side; the readings of a sensor with errors TRUTH and the step J_TRUE from time
     `shock` (None: no step)."""
     rng = np.random.default_rng(seed)
