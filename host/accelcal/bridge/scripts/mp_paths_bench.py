@@ -4,8 +4,7 @@
 # folder; on the chip, main('/', 1) is appended.
 # Prints "key value" lines: import time, per-sample apply (base, the largest composed model),
 # the log's append per record, the Processor (all the app does after acquisition) per sample,
-# Bins.offer per call on full composed bins, and the heap free after the app starts with the
-# largest model.
+# and the heap free after the app starts with the largest model.
 import gc
 import os
 import sys
@@ -15,7 +14,6 @@ LARGEST = "base+temp_offset+temp_scale+drift+nonlinear"   # the largest model th
 N_APPLY = 1000
 N_RECORDS = 200
 N_FEED = 41 * 50
-N_OFFER = 200
 
 
 # CircuitPython has no ticks_us: monotonic_ns, whose read allocates a long (nothing here counts bytes)
@@ -111,41 +109,6 @@ def processor_us(log, Processor, repeat):
     return best
 
 
-def bins_offer_us(repeat):
-    """Bins.offer on full bins of the wear profile's size (8 a subset, 72 points) with all
-    three conditions tracked, as a discovering board's: N_OFFER rest means after N_OFFER that
-    filled them, near the axes at spread conditions (an LCG, as processor_us)."""
-    from array import array
-    from acal import bins
-    b = bins.Bins(2, 8, policy=bins.CENTRE, coverage=True, temp_differ=bins.TEMP_DIFFER,
-                  time_differ=bins.TIME_DIFFER, supply_differ=bins.SUPPLY_DIFFER)
-    pts = array("i", bytearray(4 * 6 * 2 * N_OFFER))
-    s = 12345
-    for i in range(2 * N_OFFER):
-        for c in range(6):
-            s = (s * 1103515245 + 12345) & 0x7FFFFFFF
-            pts[6 * i + c] = s >> 8
-        r = pts[6 * i]
-        for c in range(3):      # one axis near +-1 g, the others within +-0.15 g
-            pts[6 * i + c] = (pts[6 * i + c] % 20000) - 10000
-        ax = r % 3
-        pts[6 * i + ax] = (1 if r & 8 else -1) * (55000 + (r >> 4) % 20000)
-        pts[6 * i + 3] = 80 + pts[6 * i + 3] % 80      # 20-40 degC, Q2
-        pts[6 * i + 4] = 7 * i                          # 64 s units
-        pts[6 * i + 5] = 3900 + pts[6 * i + 5] % 300    # mV
-    for i in range(N_OFFER):
-        j = 6 * i
-        b.offer(pts[j], pts[j + 1], pts[j + 2], pts[j + 3], pts[j + 4], pts[j + 5])
-    best = 1 << 40
-    for _ in range(repeat):
-        t0 = ticks()
-        for i in range(N_OFFER, 2 * N_OFFER):
-            j = 6 * i
-            b.offer(pts[j], pts[j + 1], pts[j + 2], pts[j + 3], pts[j + 4], pts[j + 5])
-        best = min(best, us(t0))
-    return best
-
-
 def main(work, repeat):
     gc.collect()
     t0 = ticks()
@@ -169,8 +132,6 @@ def main(work, repeat):
     lg.close()
     remove(("bench_log.bin",))
     print("processor_us_per_1000", processor_us(log, app.Processor, repeat) * 1000 // N_FEED)
-    print("bins_offer_us_per_1000", bins_offer_us(repeat) * 1000 // N_OFFER)
-    gc.collect()
     remove(("bench_log.bin", "log.bin", "cal_a.bin", "cal_b.bin"))
     cal = None
     lg = None
