@@ -15,7 +15,7 @@
 # Composed models (docs/model-discovery.md "Bins for composed models"): an effect's parameters are
 # only seen in points that differ in temperature (temp_offset, temp_scale), time (drift) or the
 # board's supply (supply_offset, mV).  With temp_differ (Q2 degC, fixed.TEMP_Q), time_differ (64 s
-# units) or supply_differ (mV) set, each slot also holds its point's conditions, and:
+# units) or supply_differ (mV) set (set_differ), each slot also holds its point's conditions, and:
 #   - a point near a held one in orientation still differs from it when |dT| >= temp_differ,
 #     |dt| >= time_differ or |dV| >= supply_differ (the same point seen warmer, or a day later);
 #   - a full subset's slots have two roles: the first half keep well-placed points (the CENTRE
@@ -73,6 +73,7 @@ DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
 TEMP_DIFFER = 3 << TEMP_Q  # 3 degC in Q2: what a temperature effect needs (host diagnose: the same)
 TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
 SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
+DIFFERS = (TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER)   # per condition, in COND's order
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
 # not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
 # after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.
@@ -142,9 +143,7 @@ class Bins:
         self.max_count = max_count
         self.differ = differ
         self.policy = policy
-        self.temp_differ = temp_differ
-        self.time_differ = time_differ
-        self.supply_differ = supply_differ
+        self.set_differ(temp_differ, time_differ, supply_differ)
         # False: the spreads are tracked but ready() does not wait for them (acal/discover.py)
         self.need_span = True
         self.counts = [0] * N_SUBSETS
@@ -158,7 +157,6 @@ class Bins:
         self.changes = 0      # held points changed (ready()'s cache key)
         self.ready_at = -1
         self.ready_now = False
-        self._w_temp = self._w_time = self._w_supply = self._w_gain = 1   # _weigh()'s
 
     def clear(self):
         self.changes += 1
@@ -245,8 +243,8 @@ class Bins:
                     return True
         return False
 
-    def _span(self, c):
-        # Range of condition c (0 temperature, 1 time, 2 supply) over every held point.
+    def span(self, c):
+        """Range of condition c (0 temperature, 1 time, 2 supply) over every held point."""
         lo = hi = 0
         first = True
         m = self.max_count
@@ -262,20 +260,21 @@ class Bins:
 
     def temp_span(self):
         """Temperature range of the held points (Q2 degC; 0 unless temperature is tracked)."""
-        return self._span(0)
+        return self.span(0)
 
     def time_span(self):
         """Time range of the held points (64 s units; 0 unless time is tracked)."""
-        return self._span(1)
+        return self.span(1)
 
     def supply_span(self):
         """Supply range of the held points (mV; 0 unless the supply is tracked)."""
-        return self._span(2)
+        return self.span(2)
 
     def _spread(self, s, skip, temp, time, supply):
         # The spread score of subset s, slot `skip` holding (temp, time, supply) instead: each
-        # range per its threshold times the thresholds' product over their common divisor (_weigh:
-        # 225, 4, 27), < 2**30 for 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
+        # range per its threshold times the thresholds' product over their common divisor
+        # (set_differ's weights: 225, 4, 27), < 2**30 for 125 degC, 2**20 time units, 65 V
+        # (tests/device/test_bins.py).
         m = self.max_count
         cond = self.cond
         t_lo = t_hi = temp
@@ -303,11 +302,14 @@ class Bins:
         return (t_hi - t_lo) * self._w_temp + (u_hi - u_lo) * self._w_time + \
             (v_hi - v_lo) * self._w_supply
 
-    def _weigh(self):
-        # The spread score's weights and quarter threshold for the thresholds as now set
-        a = self.temp_differ or 1
-        b = self.time_differ or 1
-        c = self.supply_differ or 1
+    def set_differ(self, temp_differ, time_differ, supply_differ):
+        """Set the three thresholds (only so): the spread weights follow here, not per offer."""
+        self.temp_differ = temp_differ
+        self.time_differ = time_differ
+        self.supply_differ = supply_differ
+        a = temp_differ or 1
+        b = time_differ or 1
+        c = supply_differ or 1
         g = _gcd(_gcd(b * c, a * c), a * b)
         self._w_temp = (b * c) // g
         self._w_time = (a * c) // g
@@ -382,8 +384,6 @@ class Bins:
         if self.policy != CENTRE:
             return -1
         tracked = self.temp_differ or self.time_differ or self.supply_differ
-        if tracked:
-            self._weigh()
         gain = self._w_gain
         for axis in range(3):
             c = x if axis == 0 else (y if axis == 1 else z)

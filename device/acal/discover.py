@@ -15,7 +15,7 @@
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
 # lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
 from acal import candidates, discovery, effects
-from acal.bins import COND, SUPPLY_DIFFER, TEMP_DIFFER, TIME_DIFFER, int32s
+from acal.bins import COND, DIFFERS, int32s
 from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
 from acal.heldscore import HeldScore
@@ -86,15 +86,10 @@ def more(kinds):
 def testable(kind, cond, n):
     """True when n fit points' conditions (flat, COND apiece) span what the candidate's
     regressor needs (bins.py's thresholds, which `diagnose` asks too; a reading's effect needs
-    none).  Two returns, not a pair: a tuple would be an allocation."""
-    source = effects.source_of(kind)
-    if source == effects.SOURCE_TEMP:
-        return _range(cond, n, 0) >= TEMP_DIFFER
-    if source == effects.SOURCE_TIME:
-        return _range(cond, n, 1) >= TIME_DIFFER
-    if source == effects.SOURCE_SUPPLY:
-        return _range(cond, n, 2) >= SUPPLY_DIFFER
-    return True
+    none): pipeline.spanned's question of the bins' points, through the same
+    effects.condition_of and bins.DIFFERS, here of a flat array (the bins' slots are not)."""
+    c = effects.condition_of(kind)
+    return c < 0 or _range(cond, n, c) >= DIFFERS[c]
 
 
 class Discover:

@@ -108,6 +108,19 @@ def is_generic(kind):
     return kind in SHAPES
 
 
+def condition_of(kind):
+    """The condition an effect's regressor reads, as bins.COND orders a point's conditions
+    (0 temperature, 1 time: a step's too, 2 supply; -1 none, NONLINEAR): with bins.DIFFERS,
+    the threshold question that pipeline.spanned asks of the bins' points and discover.testable
+    of the fit points."""
+    source = source_of(kind)
+    if source == SOURCE_TEMP:
+        return 0
+    if source == SOURCE_TIME:
+        return 1
+    return 2 if source == SOURCE_SUPPLY else -1
+
+
 def source_of(kind):
     """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
     SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""

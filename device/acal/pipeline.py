@@ -1,8 +1,8 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, N_SUBSETS, SUPPLY_DIFFER, TEMP_DIFFER,
-                       TIME_DIFFER, conditions, gravity, int32s)
+from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, SUPPLY_DIFFER,
+                       TEMP_DIFFER, TIME_DIFFER, conditions, gravity, int32s)
 from acal.heldout import held_out
 from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.fixed import N_PARAMS
@@ -324,28 +324,27 @@ class Pipeline:
 def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
     all three conditions, for a discovering board's candidates)."""
-    bins.temp_differ = TEMP_DIFFER if every else 0
-    bins.time_differ = TIME_DIFFER if every else 0
-    bins.supply_differ = SUPPLY_DIFFER if every else 0
+    temp = TEMP_DIFFER if every else 0
+    time = TIME_DIFFER if every else 0
+    supply = SUPPLY_DIFFER if every else 0
     for k in kinds:
         source = effects.source_of(k)
         if source == effects.SOURCE_TEMP:
-            bins.temp_differ = TEMP_DIFFER
+            temp = TEMP_DIFFER
         elif source == effects.SOURCE_TIME:
-            bins.time_differ = TIME_DIFFER
+            time = TIME_DIFFER
         elif source == effects.SOURCE_SUPPLY:
-            bins.supply_differ = SUPPLY_DIFFER
+            supply = SUPPLY_DIFFER
+    bins.set_differ(temp, time, supply)   # and the spread weights with them
 
 
 def spanned(bins, kinds):
-    """True when the bins' points span what each effect's regressor needs (track's thresholds)."""
+    """True when the bins' points span what each effect's regressor needs (track's thresholds;
+    discover.testable asks the same of the fit points, through the same effects.condition_of
+    and DIFFERS: only the points' storage differs)."""
     for k in kinds:
-        source = effects.source_of(k)
-        if source == effects.SOURCE_TEMP and bins.temp_span() < TEMP_DIFFER:
-            return False
-        if source == effects.SOURCE_TIME and bins.time_span() < TIME_DIFFER:
-            return False
-        if source == effects.SOURCE_SUPPLY and bins.supply_span() < SUPPLY_DIFFER:
+        c = effects.condition_of(k)
+        if c >= 0 and bins.span(c) < DIFFERS[c]:
             return False
     return True
 

@@ -2,7 +2,9 @@
 # (issue 29; docs/model-discovery.md "Against the true sensor model").  A shock that falls in a
 # held-out block lies between two fit points, and the fit cannot tell where: only the held-out
 # points in between can place it.  acal/discover.py owns one StepPlace and drives it a slice
-# per step: begin(), then step() until it returns True.  Nothing is allocated per step.
+# per step: begin(), then step() until it returns True.  Nothing is allocated per step.  The
+# host's diagnose.place_step is the same rule in floats (its error | |a| - 1 |, its time halfway
+# between the split's neighbours): tests/pipeline/test_step_placement.py ties the two.
 # Formats: errors heldscore's (Q16 g^2, weighted); times the pipeline's (64 s units, relative
 # to its ref_time).  Ranges: a gap point's error <= WEIGHT_CAP x ERR_CAP = 2**22, GAP_MAX of
 # them < 2**27, and the step's error (<= discover.ERR_MAX < 2**23) less and plus such sums

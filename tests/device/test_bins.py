@@ -186,3 +186,29 @@ def test_the_spread_score_stays_small_with_three_conditions():
     g = math.gcd(t * c, a * c, a * t)
     whole = (125 * q * t * c + (1 << 20) * a * c + 65535 * a * t) // g
     assert tr.ops > 50 and whole <= tr.max_abs < 2 ** 30, (whole, tr.max_abs)
+
+
+def test_the_bins_and_the_fit_points_answer_the_span_question_alike(rng):
+    """pipeline.spanned (the bins' held points) and discover.testable (the same points gathered
+    flat for the fit) ask one question through effects.condition_of and bins.DIFFERS: for every
+    effect kind, on points whose ranges straddle each threshold, they answer alike, and as the
+    threshold of the condition the effect's regressor reads says (by name, independently)."""
+    from acal import discover, effects
+    from acal.pipeline import spanned
+    reads = {"temp": 0, "time": 1, "drift": 1, "step": 1, "supply": 2}
+    for trial in range(40):
+        b = Bins(2, 4, differ=G // 10, temp_differ=1, time_differ=1, supply_differ=1)
+        lo = [int(v) for v in rng.integers(0, 5000, 3)]
+        width = [int(d + rng.integers(-2, 3)) for d in bins.DIFFERS]
+        for k, (x, y, z) in enumerate([(G, 0, 0), (-G, 0, 0), (0, G, 0), (0, -G, 0), (0, 0, G)]):
+            cond = [lo[c] + (width[c] if k == 1 else 0 if k == 0 else rng.integers(0, width[c] + 1))
+                    for c in range(3)]
+            assert b.offer(x, y, z, *(int(v) for v in cond)) >= 0
+        flat = bins.conditions(b.total())
+        n = b.gather(bins.int32s(3 * b.total()), flat)
+        for kind, name in effects.NAMES.items():
+            want = next((c for key, c in reads.items() if key in name), -1)
+            if name == "nonlinear":
+                want = -1
+            expect = want < 0 or width[want] >= bins.DIFFERS[want]
+            assert spanned(b, (kind,)) == discover.testable(kind, flat, n) == expect, (name, width)

@@ -285,7 +285,7 @@ def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
     error leave-one-out (each gap point at the time the other gap points place) and in-sample;
     {} when no held-out point lies in the gap.  The step is chosen and named on the
     leave-one-out error (the points that place the time must not judge it); its blocks stay the
-    fit's time's."""
+    fit's time's.  tests/pipeline/test_step_placement.py ties it to the board's."""
     ts = cref["ts"]
     before, after = train.t[train.t < ts], train.t[train.t >= ts]
     if not len(before) or not len(after):

@@ -1,9 +1,9 @@
 """`accelcal bench --runtime rp2040`: every device figure on the emulated RP2040 (MicroPython's
 RPI_PICO firmware on rp2040js, the package as armv6m .mpy: bridge/rp2040.py) beside the unix
 port's, measured in the same run.  The scripts are the unix port's (bridge/scripts/mp_bench.py,
-mp_fit_bench.py, mp_paths_bench.py), sent to the chip as text with their main() call; they time
-with time.ticks_us(), which on the chip follows the emulated clock: emulated µs, cycles = µs ×
-125 (125 MHz).  The emulator models no XIP cache misses nor flash erase/program time (the boot
+mp_fit_bench.py, mp_paths_bench.py, mp_bins_bench.py), sent to the chip as text with their main()
+call; they time with time.ticks_us(), which on the chip follows the emulated clock: emulated µs,
+cycles = µs × 125 (125 MHz).  The emulator models no XIP cache misses nor flash erase/program time (the boot
 ROM's flash routines are done by the runner at no cost), so these are lower bounds for a Pico.
 
 The paths and fits scripts run on CircuitPython too (bench_circuitpython.py: its clock where
@@ -42,20 +42,24 @@ def _unix_paths() -> dict:
             rp2040.mpy_cross(src, pkg / (src.stem + ".mpy"), "x64")
         work = Path(tmp) / "work"
         work.mkdir()
-        return _kv(runtime.run_micropython_script(mp_script("mp_paths_bench.py"), str(work),
-                                                  device_path=str(pkg.parent)))
+        return {**_kv(runtime.run_micropython_script(mp_script("mp_paths_bench.py"), str(work),
+                                                     device_path=str(pkg.parent))),
+                **_kv(runtime.run_micropython_script(mp_script("mp_bins_bench.py"), "20",
+                                                     device_path=str(pkg.parent)))}
 
 
 def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     """mp_paths_bench.py and mp_fit_bench.py on the chip running fw, keys prefixed e (prefix:
     code run first)."""
     paths = _kv(_on_chip("mp_paths_bench.py", "main('/', 1)", fw, prefix))
+    paths.update(_kv(_on_chip("mp_bins_bench.py", "main(1)", fw, prefix)))
     res = {
         e + "import_app_ms": paths["import_app_us"] / 1000,
         e + "apply_base_us_per_sample": paths["apply_base_us_per_1000"] / 1000,
         e + "apply_largest_us_per_sample": paths["apply_largest_us_per_1000"] / 1000,
         e + "log_rest_ms_per_record": paths["log_rest_us_per_1000"] / 1e6,
         e + "processor_us_per_sample": paths["processor_us_per_1000"] / 1000,
+        e + "bins_offer_us_per_call": paths["bins_offer_us_per_1000"] / 1000,
         e + "heap_total_bytes": paths["heap_total"],
         e + "heap_free_before_app_bytes": paths["heap_free_before_app"],
         e + "heap_free_app_largest_bytes": paths["heap_free_app_largest"],
@@ -103,6 +107,7 @@ def unix_figures() -> dict:
         "unix_apply_largest_us_per_sample": unix_paths["apply_largest_us_per_1000"] / 1000,
         "unix_log_rest_ms_per_record": unix_paths["log_rest_us_per_1000"] / 1e6,
         "unix_processor_us_per_sample": unix_paths["processor_us_per_1000"] / 1000,
+        "unix_bins_offer_us_per_call": unix_paths["bins_offer_us_per_1000"] / 1000,
     }
 
 
@@ -132,6 +137,8 @@ def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, s
          "log_rest_ms_per_record", "ms"),
         ("app after acquisition, per sample", m.get("unix_processor_us_per_sample"),
          "processor_us_per_sample", "us"),
+        ("bins offer, full composed bins (72 points, 3 conditions), per call",
+         m.get("unix_bins_offer_us_per_call"), "bins_offer_us_per_call", "us"),
         ("paper optimiser N=18 M=50", m.get("optimiser_ms_micropython"), "optimiser_ms", "ms"),
     ]
     for name in FIT_CASES:
