@@ -337,3 +337,24 @@ def test_csv_value_checks_name_the_row_in_any_piece(tmp_path, monkeypatch):
     bad = list(lines)
     bad[30_000] = "300.00,0.01,-0.5,0.99,30.5," + "9" * (1 << 20)
     _refused(f, bad, r"v.csv: a line longer than 1 MB")
+
+
+def test_csv_cut_short_while_read_is_refused_not_a_crash(tmp_path, monkeypatch):
+    """The CSV reader maps the file: a page past its end would kill the process (SIGBUS), so a
+    file that got shorter since it was opened is refused before the next piece is cut (the
+    pieces already cut lie below the new end here, so the test cannot crash)."""
+    from accelcal.files import csvpieces
+    monkeypatch.setattr(csvpieces, "PIECE", 1 << 16)
+    f = tmp_path / "growing.csv"
+    n = 100_000
+    rows = "\n".join(f"{i / 100:.2f},0.001,-0.002,1.003" for i in range(n))
+    f.write_text("t,x,y,z\n" + rows + "\n")
+    size = f.stat().st_size
+    assert size > 2 * csvpieces.BLOCK
+    chunks = open_recording(f).chunks()
+    next(chunks)                     # the first piece (1 MB) and two of 64 kB are cut by now
+    with open(f, "r+b") as fh:
+        fh.truncate(csvpieces.BLOCK + 8 * (1 << 16))
+    with pytest.raises(InputError, match="got shorter while it was read"):
+        for _ in chunks:
+            pass

@@ -77,6 +77,7 @@ def cut(path: str, mm, first: int, size: int):
     start, want = 0, first
     while start < n:
         stop = min(n, start + want)
+        _still_there(path, stop)
         end = mm.rfind(b"\n", start, stop) + 1
         if end == 0:           # no line end in a whole piece (Arrow: "straddling")
             raise InputError(f"{path}: {LONG_LINE}")
@@ -87,6 +88,17 @@ def cut(path: str, mm, first: int, size: int):
             _short_lines(path, mm, start, n)
             yield view[start:n]
             return
+
+
+def _still_there(path: str, upto: int) -> None:
+    """InputError when the file is now shorter than upto bytes: a mapped page past a file's end
+    kills the process (SIGBUS) when touched, so each piece is checked before it is cut and
+    parsed.  It narrows the window to one piece's parse; it cannot close it (a file cut short
+    while that piece is parsed still kills the process)."""
+    size = os.stat(path).st_size
+    if size < upto:
+        raise InputError(f"{path}: the file got shorter while it was read ({size} bytes now, "
+                         f"{upto} before): read a copy, or wait until it is written")
 
 
 def _short_lines(path: str, mm, start: int, end: int) -> None:
