@@ -23,6 +23,38 @@ FIT_CASES = ("paper_base", "wear_base", "wear_temp_offset", "wear_four_effects")
 CHIP_SAMPLES = 2000   # the rest detectors' stream on the chip: 24 kB of its 245 kB heap
 
 
+# The discovery's two rounds on the chip (mp_discover_bench.py's rounds()): a pipeline fed
+# 2.2 days of simulated rest means (a posture every 7.5 min at a daily temperature cycle) of a
+# sensor with the paper's errors, a temp_offset and a drift (tests/device/test_discover.py's
+# second-round case), so that the first round adopts one and the second the other.
+ROUNDS_TRUTH = (1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04)
+ROUNDS_TEMP_OFFSET = (0.0009, -0.0007, 0.0006)    # g/degC
+ROUNDS_DRIFT = (0.002, -0.0025, 0.0015)           # g a day
+ROUNDS_POINTS = 420
+ROUNDS_SEED = 9
+
+
+def discovery_points() -> str:
+    """The rest means rounds() is fed, as a line of code defining PTS (x y z (Q16 g) temp (Q2
+    degC) time (64 s units) apiece): a string split on the chip, as a list literal this long
+    would not compile in its heap."""
+    import numpy as np
+
+    from accelcal import simulate
+    rng = np.random.default_rng(ROUNDS_SEED)
+    d = simulate.unit_points(rng, ROUNDS_POINTS)
+    truth = np.array(ROUNDS_TRUTH)
+    c, drift = np.array(ROUNDS_TEMP_OFFSET), np.array(ROUNDS_DRIFT)
+    pts = []
+    for i in range(ROUNDS_POINTS):
+        time = 7 * i
+        temp = int(round(4 * (28 + 6 * np.sin(2 * np.pi * time * 64 / 86400))))
+        v = simulate.uncorrect(truth, d[i][None, :])[0] + c * (temp / 4 - 28)
+        v += rng.normal(scale=0.001, size=3) + drift * (time * 64 / 86400)
+        pts += [int(round(x * 65536)) for x in v] + [temp, time]
+    return 'PTS = [int(v) for v in "%s".split()]\n' % " ".join(map(str, pts))
+
+
 def _kv(out: str) -> dict:
     return {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.strip())}
 
