@@ -106,11 +106,36 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
         res[e + f"fit_{name}_status"] = int(status)
         if int(used) >= 0:
             res[e + f"fit_{name}_bytes"] = int(used)
-    disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()", fw, prefix))
-    # the board's discovery: its block steps, and an adopted step's placement at its largest
-    for phase in ("mark", "compare", "gap", "place"):
+    disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()\nplace(True)", fw, prefix))
+    # the board's discovery: its block steps, and an adopted step's placement at its largest,
+    # its steps also under heap_lock (their calls' frames on the C stack, not the heap)
+    for phase in ("mark", "compare", "gap", "place", "gap_locked", "place_locked"):
         res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
         res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
+    res.update(discovery_rounds(fw, e, prefix))
+    return res
+
+
+def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
+    """mp_discover_bench.py's rounds() on the chip, its steps as they run and under heap_lock
+    (one boot each): keys e + discover_round{1,2}[_locked]_{phase}_steps, _worst_step_ms (the
+    longest step that stays in the phase) and _end_step_ms (the longest that ends it and begins
+    what follows) per phase run, _heap_free_{before,begun,least,after}_bytes, _allocated_bytes,
+    _adopted_kind."""
+    res = {}
+    for call in ("rounds(PTS)", "rounds(PTS, True)"):
+        out = _kv(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()))
+        for k, v in out.items():
+            if not k.startswith("discover_round"):
+                continue
+            if k.endswith("_end_worst_us"):
+                res[e + k[:-len("_end_worst_us")] + "_end_step_ms"] = v / 1000
+            elif k.endswith("_worst_us"):
+                res[e + k[:-len("_worst_us")] + "_worst_step_ms"] = v / 1000
+            elif "_heap_free_" in k:
+                res[e + k + "_bytes"] = v
+            else:
+                res[e + k] = v
     return res
 
 

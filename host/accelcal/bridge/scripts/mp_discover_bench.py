@@ -124,7 +124,10 @@ def rounds(pts, lock=False):
     the discovery run again from it (round 2), each step timed; per round and phase the steps
     and the longest, and the free heap before begin(), after begin() and after the round, the
     least between steps, and the bytes the round allocated (gc.disable() over it: begin()'s
-    effect tuples).  lock: each step under heap_lock (keys with _locked)."""
+    effect tuples).  A step that ends its phase also begins what follows (the next candidate's
+    fit, its search, its score): those are timed apart (_end_worst_us, the longest of them;
+    _worst_us the longest of the others).  lock: each step under heap_lock (keys with
+    _locked)."""
     import micropython
     from acal import discover, profile
     from acal.pipeline import Pipeline
@@ -138,9 +141,10 @@ def rounds(pts, lock=False):
     d = pipe.discovery
     steps = [0] * len(PHASES)
     worst = [0] * len(PHASES)
+    end_worst = [0] * len(PHASES)
     for rnd in (1, 2):
         for k in range(len(PHASES)):
-            steps[k] = worst[k] = 0
+            steps[k] = worst[k] = end_worst[k] = 0
         gc.collect()
         gc.disable()
         free_before = gc.mem_free()
@@ -158,7 +162,10 @@ def rounds(pts, lock=False):
             if lock:
                 micropython.heap_unlock()
             steps[ph] += 1
-            if dt > worst[ph]:
+            if d.phase != ph:
+                if dt > end_worst[ph]:
+                    end_worst[ph] = dt
+            elif dt > worst[ph]:
                 worst[ph] = dt
             free = gc.mem_free()
             if free < least:
@@ -178,6 +185,7 @@ def rounds(pts, lock=False):
             if steps[k]:
                 print(r + PHASES[k] + "_steps", steps[k])
                 print(r + PHASES[k] + "_worst_us", worst[k])
+                print(r + PHASES[k] + "_end_worst_us", end_worst[k])
         if not (d.adopted and discover.more(d.kinds[d.chosen])):
             print("discover_no_second_round%s" % tag, 1)
             return
