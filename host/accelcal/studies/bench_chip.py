@@ -109,11 +109,15 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()\nplace(True)", fw, prefix))
     # the board's discovery: its block steps, and an adopted step's placement at its largest,
     # its steps also under heap_lock (their calls' frames on the C stack, not the heap)
+    # (a firmware without heap_lock prints no _locked keys)
     for phase in ("mark", "compare", "gap", "place", "gap_locked", "place_locked"):
-        res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
-        res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
-    res.update(discovery_rounds(fw, e, prefix))
+        if f"discover_{phase}_steps" in disc:
+            res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
+            res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
     return res
+
+
+ROUND_PHASES = ("base", "fit", "search", "score", "blocks", "better", "place")   # rounds()'s
 
 
 def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
@@ -150,6 +154,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         e + "rest_wear_us_per_sample": chip["rest_wear_us"] / n_samples,
         e + "rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"] and chip["rest_wear_heap_locked_ok"]),
         **paths_and_fits(rp2040.MICROPYTHON, e),
+        **discovery_rounds(rp2040.MICROPYTHON, e),
     }
     res.update(unix_figures())
     return res
@@ -254,6 +259,28 @@ def format_chip(m: dict) -> str:
              f"{m[ROMFS + 'heap_free_app_largest_bytes']:,} bytes")
     if "romfs" in m:
         line("MicroPython ROMFS", m["romfs"])
+    if MP + "discover_gap_locked_worst_step_ms" in m:
+        line("discovery, step placement's longest step: gathering / placing",
+             f"{m[MP + 'discover_gap_worst_step_ms']:.3g} / {m[MP + 'discover_place_worst_step_ms']:.3g} ms, "
+             f"heap locked {m[MP + 'discover_gap_locked_worst_step_ms']:.3g} / "
+             f"{m[MP + 'discover_place_locked_worst_step_ms']:.3g} ms")
+    for rnd in (1, 2):
+        r = MP + f"discover_round{rnd}_"
+        if r + "base_steps" not in m:
+            continue
+        phases = [ph for ph in ROUND_PHASES if r + ph + "_steps" in m]
+        line(f"discovery round {rnd}, longest step per phase (ms): in it / ending it",
+             ", ".join(f"{ph} {m[r + ph + '_worst_step_ms']:.3g}/{m[r + ph + '_end_step_ms']:.3g}"
+                       for ph in phases))
+        lk = MP + f"discover_round{rnd}_locked_"
+        if lk + "base_steps" in m:
+            line("  the same, each step under heap_lock",
+                 ", ".join(f"{ph} {m[lk + ph + '_worst_step_ms']:.3g}/{m[lk + ph + '_end_step_ms']:.3g}"
+                           for ph in phases if lk + ph + "_steps" in m))
+        line("  heap free before / after begin() / least / after; allocated",
+             f"{m[r + 'heap_free_before_bytes']:,} / {m[r + 'heap_free_begun_bytes']:,} / "
+             f"{m[r + 'heap_free_least_bytes']:,} / {m[r + 'heap_free_after_bytes']:,}; "
+             f"{m[r + 'allocated_bytes']} bytes")
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:

@@ -79,6 +79,8 @@ def place(lock=False):
     under heap_lock (its calls' frames on the C stack; keys with _locked)."""
     import micropython
     from acal import effects, stepplace
+    if lock and not hasattr(micropython, "heap_lock"):
+        return
     tag = "_locked" if lock else ""
     h = HeldOut()
     for b in range(18):
