@@ -128,18 +128,24 @@ def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     _adopted_kind."""
     res = {}
     for call in ("rounds(PTS)", "rounds(PTS, True)"):
-        out = _kv(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()))
-        for k, v in out.items():
-            if not k.startswith("discover_round"):
-                continue
-            if k.endswith("_end_worst_us"):
-                res[e + k[:-len("_end_worst_us")] + "_end_step_ms"] = v / 1000
-            elif k.endswith("_worst_us"):
-                res[e + k[:-len("_worst_us")] + "_worst_step_ms"] = v / 1000
-            elif "_heap_free_" in k:
-                res[e + k + "_bytes"] = v
-            else:
-                res[e + k] = v
+        res.update(round_keys(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()), e))
+    return res
+
+
+def round_keys(out: str, e: str) -> dict:
+    """rounds()'s printed lines as the bench's keys (prefix e): µs to ms, bytes named so."""
+    res = {}
+    for k, v in _kv(out).items():
+        if not k.startswith("discover_round"):
+            continue
+        if k.endswith("_end_worst_us"):
+            res[e + k[:-len("_end_worst_us")] + "_end_step_ms"] = v / 1000
+        elif k.endswith("_worst_us"):
+            res[e + k[:-len("_worst_us")] + "_worst_step_ms"] = v / 1000
+        elif "_heap_free_" in k:
+            res[e + k + "_bytes"] = v
+        else:
+            res[e + k] = v
     return res
 
 
