@@ -305,6 +305,9 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
                "fit_wear_four_effects_bytes_mp32": "0", "long_ints_per_wear_fit_32bit": "0",
                "bytes_per_sample": "0", "rp2040_core_share_100hz_register_pct": "far below 100 %",
                "log_days_per_mb": ">= 14", "log_worst_case_days_per_mb": ">= 14"}
+    for k in m:   # every discovery step on the chip: the placement's locked too, both rounds'
+        if k.startswith("rp2040_emulated_discover_") and k.endswith(("_worst_step_ms", "_end_step_ms")):
+            targets.setdefault(k, "<= 2 ms")
     for k, v in m.items():
         t = targets.get(k, "")
         val = f"{v:.3f}" if isinstance(v, float) else str(v)

@@ -23,6 +23,38 @@ FIT_CASES = ("paper_base", "wear_base", "wear_temp_offset", "wear_four_effects")
 CHIP_SAMPLES = 2000   # the rest detectors' stream on the chip: 24 kB of its 245 kB heap
 
 
+# The discovery's two rounds on the chip (mp_discover_bench.py's rounds()): a pipeline fed
+# 2.2 days of simulated rest means (a posture every 7.5 min at a daily temperature cycle) of a
+# sensor with the paper's errors, a temp_offset and a drift (tests/device/test_discover.py's
+# second-round case), so that the first round adopts one and the second the other.
+ROUNDS_TRUTH = (1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04)
+ROUNDS_TEMP_OFFSET = (0.0009, -0.0007, 0.0006)    # g/degC
+ROUNDS_DRIFT = (0.002, -0.0025, 0.0015)           # g a day
+ROUNDS_POINTS = 420
+ROUNDS_SEED = 9
+
+
+def discovery_points() -> str:
+    """The rest means rounds() is fed, as a line of code defining PTS (x y z (Q16 g) temp (Q2
+    degC) time (64 s units) apiece): a string split on the chip, as a list literal this long
+    would not compile in its heap."""
+    import numpy as np
+
+    from accelcal import simulate
+    rng = np.random.default_rng(ROUNDS_SEED)
+    d = simulate.unit_points(rng, ROUNDS_POINTS)
+    truth = np.array(ROUNDS_TRUTH)
+    c, drift = np.array(ROUNDS_TEMP_OFFSET), np.array(ROUNDS_DRIFT)
+    pts = []
+    for i in range(ROUNDS_POINTS):
+        time = 7 * i
+        temp = int(round(4 * (28 + 6 * np.sin(2 * np.pi * time * 64 / 86400))))
+        v = simulate.uncorrect(truth, d[i][None, :])[0] + c * (temp / 4 - 28)
+        v += rng.normal(scale=0.001, size=3) + drift * (time * 64 / 86400)
+        pts += [int(round(x * 65536)) for x in v] + [temp, time]
+    return 'PTS = [int(v) for v in "%s".split()]\n' % " ".join(map(str, pts))
+
+
 def _kv(out: str) -> dict:
     return {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.strip())}
 
@@ -74,11 +106,46 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
         res[e + f"fit_{name}_status"] = int(status)
         if int(used) >= 0:
             res[e + f"fit_{name}_bytes"] = int(used)
-    disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()", fw, prefix))
-    # the board's discovery: its block steps, and an adopted step's placement at its largest
-    for phase in ("mark", "compare", "gap", "place"):
-        res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
-        res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
+    disc = _kv(_on_chip("mp_discover_bench.py", "main()\nplace()\nplace(True)", fw, prefix))
+    # the board's discovery: its block steps, and an adopted step's placement at its largest,
+    # its steps also under heap_lock (their calls' frames on the C stack, not the heap)
+    # (a firmware without heap_lock prints no _locked keys)
+    for phase in ("mark", "compare", "gap", "place", "gap_locked", "place_locked"):
+        if f"discover_{phase}_steps" in disc:
+            res[e + f"discover_{phase}_steps"] = disc[f"discover_{phase}_steps"]
+            res[e + f"discover_{phase}_worst_step_ms"] = disc[f"discover_{phase}_worst_us"] / 1000
+    return res
+
+
+ROUND_PHASES = ("base", "fit", "search", "score", "blocks", "better", "place")   # rounds()'s
+
+
+def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
+    """mp_discover_bench.py's rounds() on the chip, its steps as they run and under heap_lock
+    (one boot each): keys e + discover_round{1,2}[_locked]_{phase}_steps, _worst_step_ms (the
+    longest step that stays in the phase) and _end_step_ms (the longest that ends it and begins
+    what follows) per phase run, _heap_free_{before,begun,least,after}_bytes, _allocated_bytes,
+    _adopted_kind."""
+    res = {}
+    for call in ("rounds(PTS)", "rounds(PTS, True)"):
+        res.update(round_keys(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()), e))
+    return res
+
+
+def round_keys(out: str, e: str) -> dict:
+    """rounds()'s printed lines as the bench's keys (prefix e): µs to ms, bytes named so."""
+    res = {}
+    for k, v in _kv(out).items():
+        if not k.startswith("discover_round"):
+            continue
+        if k.endswith("_end_worst_us"):
+            res[e + k[:-len("_end_worst_us")] + "_end_step_ms"] = v / 1000
+        elif k.endswith("_worst_us"):
+            res[e + k[:-len("_worst_us")] + "_worst_step_ms"] = v / 1000
+        elif "_heap_free_" in k:
+            res[e + k + "_bytes"] = v
+        else:
+            res[e + k] = v
     return res
 
 
@@ -93,6 +160,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         e + "rest_wear_us_per_sample": chip["rest_wear_us"] / n_samples,
         e + "rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"] and chip["rest_wear_heap_locked_ok"]),
         **paths_and_fits(rp2040.MICROPYTHON, e),
+        **discovery_rounds(rp2040.MICROPYTHON, e),
     }
     res.update(unix_figures())
     return res
@@ -197,6 +265,28 @@ def format_chip(m: dict) -> str:
              f"{m[ROMFS + 'heap_free_app_largest_bytes']:,} bytes")
     if "romfs" in m:
         line("MicroPython ROMFS", m["romfs"])
+    if MP + "discover_gap_locked_worst_step_ms" in m:
+        line("discovery, step placement's longest step: gathering / placing",
+             f"{m[MP + 'discover_gap_worst_step_ms']:.3g} / {m[MP + 'discover_place_worst_step_ms']:.3g} ms, "
+             f"heap locked {m[MP + 'discover_gap_locked_worst_step_ms']:.3g} / "
+             f"{m[MP + 'discover_place_locked_worst_step_ms']:.3g} ms")
+    for rnd in (1, 2):
+        r = MP + f"discover_round{rnd}_"
+        if r + "base_steps" not in m:
+            continue
+        phases = [ph for ph in ROUND_PHASES if r + ph + "_steps" in m]
+        line(f"discovery round {rnd}, longest step per phase (ms): in it / ending it",
+             ", ".join(f"{ph} {m[r + ph + '_worst_step_ms']:.3g}/{m[r + ph + '_end_step_ms']:.3g}"
+                       for ph in phases))
+        lk = MP + f"discover_round{rnd}_locked_"
+        if lk + "base_steps" in m:
+            line("  the same, each step under heap_lock",
+                 ", ".join(f"{ph} {m[lk + ph + '_worst_step_ms']:.3g}/{m[lk + ph + '_end_step_ms']:.3g}"
+                           for ph in phases if lk + ph + "_steps" in m))
+        line("  heap free before / after begin() / least / after; allocated",
+             f"{m[r + 'heap_free_before_bytes']:,} / {m[r + 'heap_free_begun_bytes']:,} / "
+             f"{m[r + 'heap_free_least_bytes']:,} / {m[r + 'heap_free_after_bytes']:,}; "
+             f"{m[r + 'allocated_bytes']} bytes")
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:

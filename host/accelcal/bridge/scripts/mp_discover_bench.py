@@ -2,8 +2,18 @@
 # discovery's block marking and block comparing (acal/discover.py's _BLOCKS and _BETTER phases)
 # on a full held-out set: 144 points, 8 postures in each of 18 odd 2-hour blocks, a candidate
 # better in a third of them; and (place()) an adopted step's placement among the held-out points
-# of its gap at its largest (acal/stepplace.py's gathering and placing).  Prints "key value" lines (us, and the steps
-# taken).
+# of its gap at its largest (acal/stepplace.py's gathering and placing), place(True) the same
+# with the heap locked around each step; and (rounds()) a whole discovery, its first round and
+# its second from the adopted effect, on a pipeline fed simulated rest means: each phase's
+# longest step and the heap.  Prints "key value" lines (us, bytes, and the steps taken).
+#
+# Why the lock matters: MicroPython takes a call's frame (locals and stack) from the heap when
+# it is larger than 11 words (py/objfun.c fun_bc_call, VM_MAX_STATE_ON_STACK) and frees it on
+# return; under heap_lock the frame goes on the C stack.  The heap's allocator scans for a run of
+# free blocks from the lowest free one (py/gc.c gc_alloc), so each such call costs more the more
+# small holes lie before a run long enough: a step's time then moves with what the heap held,
+# while gc.mem_alloc() is the same after it.
+import gc
 import time
 from acal import discover
 from acal.heldout import HeldOut
@@ -62,11 +72,16 @@ def main():
     print("discover_compare_worst_us", worst)
 
 
-def place():
+def place(lock=False):
     """An adopted step's placement (acal/stepplace.py, which discover.py's _PLACE phase drives)
     at its largest: every held-out point of a full set in the step's gap, so GAP_MAX are kept
-    (each insertion shifting the sorted gap), then each scored leave-one-out."""
+    (each insertion shifting the sorted gap), then each scored leave-one-out.  lock: each step
+    under heap_lock (its calls' frames on the C stack; keys with _locked)."""
+    import micropython
     from acal import effects, stepplace
+    if lock and not hasattr(micropython, "heap_lock"):
+        return
+    tag = "_locked" if lock else ""
     h = HeldOut()
     for b in range(18):
         for k in range(8):
@@ -84,14 +99,96 @@ def place():
         ph = pl.phase
         steps = worst = 0
         while pl.phase == ph:
+            if lock:
+                micropython.heap_lock()
             t = ticks()
             pl.step()
             dt = us(t)
+            if lock:
+                micropython.heap_unlock()
             steps += 1
             if dt > worst:
                 worst = dt
         if name == "gap":
-            print("discover_gap_points", pl.n)
-        print("discover_%s_steps" % name, steps)
-        print("discover_%s_worst_us" % name, worst)
-    print("discover_placed_time", pl.step_time)
+            print("discover_gap%s_points" % tag, pl.n)
+        print("discover_%s%s_steps" % (name, tag), steps)
+        print("discover_%s%s_worst_us" % (name, tag), worst)
+    print("discover_placed%s_time" % tag, pl.step_time)
+    print("discover_place%s_heap_free" % tag, gc.mem_free())
+
+
+PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place")   # discover's
+
+
+def rounds(pts, lock=False):
+    """A discovering pipeline fed the rest means pts (x y z (Q16 g) temp (Q2 degC) time (64 s
+    units) apiece, flat), calibrated, its discovery run (round 1), the adopted effect taken and
+    the discovery run again from it (round 2), each step timed; per round and phase the steps
+    and the longest, and the free heap before begin(), after begin() and after the round, the
+    least between steps, and the bytes the round allocated (gc.disable() over it: begin()'s
+    effect tuples).  A step that ends its phase also begins what follows (the next candidate's
+    fit, its search, its score): those are timed apart (_end_worst_us, the longest of them;
+    _worst_us the longest of the others).  lock: each step under heap_lock (keys with
+    _locked)."""
+    import micropython
+    from acal import discover, profile
+    from acal.pipeline import Pipeline
+    tag = "_locked" if lock else ""
+    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+    for i in range(len(pts) // 5):
+        pipe.temp = pts[5 * i + 3]
+        pipe.time = pts[5 * i + 4]
+        pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
+    print("discover_calibrate_status", pipe.calibrate())
+    d = pipe.discovery
+    steps = [0] * len(PHASES)
+    worst = [0] * len(PHASES)
+    end_worst = [0] * len(PHASES)
+    for rnd in (1, 2):
+        for k in range(len(PHASES)):
+            steps[k] = worst[k] = end_worst[k] = 0
+        gc.collect()
+        gc.disable()
+        free_before = gc.mem_free()
+        alloc_before = gc.mem_alloc()
+        d.begin(pipe)
+        free_begun = least = gc.mem_free()
+        done = False
+        while not done:
+            ph = d.phase
+            if lock:
+                micropython.heap_lock()
+            t = ticks()
+            done = d.step()
+            dt = us(t)
+            if lock:
+                micropython.heap_unlock()
+            steps[ph] += 1
+            if d.phase != ph:
+                if dt > end_worst[ph]:
+                    end_worst[ph] = dt
+            elif dt > worst[ph]:
+                worst[ph] = dt
+            free = gc.mem_free()
+            if free < least:
+                least = free
+        free_after = gc.mem_free()
+        allocated = gc.mem_alloc() - alloc_before
+        r = "discover_round%d%s_" % (rnd, tag)
+        print(r + "round", d.round)
+        print(r + "adopted_kind", d.kind)
+        print(r + "heap_free_before", free_before)
+        print(r + "heap_free_begun", free_begun)
+        print(r + "heap_free_least", least)
+        print(r + "heap_free_after", free_after)
+        print(r + "allocated_bytes", allocated)
+        gc.enable()
+        for k in range(len(PHASES)):
+            if steps[k]:
+                print(r + PHASES[k] + "_steps", steps[k])
+                print(r + PHASES[k] + "_worst_us", worst[k])
+                print(r + PHASES[k] + "_end_worst_us", end_worst[k])
+        if not (d.adopted and discover.more(d.kinds[d.chosen])):
+            print("discover_no_second_round%s" % tag, 1)
+            return
+        pipe.adopt()

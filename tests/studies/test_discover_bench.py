@@ -1,0 +1,70 @@
+"""`accelcal bench --runtime rp2040`'s discovery figures (bridge/scripts/mp_discover_bench.py,
+studies/bench_chip.py), here on the unix port, where its script runs unchanged: rounds() on the
+second-round stream adopts temp_offset and then the drift beside it, as the device code does on
+CPython; its steps allocate nothing (the least free heap between steps is the heap after
+begin()), the second round's begin() only its effect tuples; under heap_lock the same rounds,
+steps and placements; and bench_chip turns the lines into its keys."""
+from accelcal.bridge import runtime
+from accelcal.locations import script
+from accelcal.studies import bench_chip
+from acal import discover, effects, profile
+from acal.pipeline import Pipeline
+
+
+def _run(tmp_path, call):
+    f = tmp_path / "discover_bench.py"
+    f.write_text(bench_chip.discovery_points() + open(script("mp_discover_bench.py")).read()
+                 + "\n" + call + "\n")
+    return runtime.run_micropython_script(str(f))
+
+
+def _cpython_kinds():
+    # the same feed and rounds on CPython: the kinds adopted per round
+    ns = {}
+    exec(bench_chip.discovery_points(), ns)
+    pts = ns["PTS"]
+    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+    for i in range(len(pts) // 5):
+        pipe.temp = pts[5 * i + 3]
+        pipe.time = pts[5 * i + 4]
+        pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
+    pipe.calibrate()
+    d = pipe.discovery
+    kinds = []
+    for _ in range(2):
+        d.run(pipe)
+        kinds.append(d.kind)
+        if not (d.adopted and discover.more(d.kinds[d.chosen])):
+            break
+        pipe.adopt()
+    return kinds
+
+
+def test_the_discovery_bench_runs_both_rounds_allocating_only_at_begin(tmp_path):
+    out = _run(tmp_path, "rounds(PTS)\nrounds(PTS, True)\nplace()\nplace(True)")
+    kv = bench_chip._kv(out)
+    first = effects.model_code((effects.TEMP_OFFSET,))
+    second = effects.model_code((effects.TEMP_OFFSET, effects.DRIFT))
+    assert _cpython_kinds() == [first, second]
+    for tag in ("", "_locked"):
+        r1, r2 = f"discover_round1{tag}_", f"discover_round2{tag}_"
+        assert (kv[r1 + "adopted_kind"], kv[r2 + "adopted_kind"]) == (first, second)
+        assert kv[r1 + "round"] == 1 and kv[r2 + "round"] == 2
+        for r in (r1, r2):
+            assert kv[r + "heap_free_least"] == kv[r + "heap_free_after"] == kv[r + "heap_free_begun"]
+        assert kv[r1 + "allocated_bytes"] == 0
+        assert 0 < kv[r2 + "allocated_bytes"] == kv[r2 + "heap_free_before"] - kv[r2 + "heap_free_begun"]
+        # the step's search and placement ran in both rounds (the step is a candidate in each)
+        for r in (r1, r2):
+            assert kv[r + "search_steps"] > 0 and kv[r + "place_steps"] > 0
+    for k in kv:   # locked or not, the same steps
+        if k.startswith("discover_round") and k.endswith("_steps") and "_locked" not in k:
+            rnd = k[:len("discover_round1")]
+            assert kv[k] == kv[rnd + "_locked" + k[len(rnd):]], k
+    assert kv["discover_placed_time"] == kv["discover_placed_locked_time"]
+    assert kv["discover_gap_steps"] == kv["discover_gap_locked_steps"] == 144
+    keys = bench_chip.round_keys(out, "e_")
+    assert keys["e_discover_round2_fit_worst_step_ms"] == kv["discover_round2_fit_worst_us"] / 1000
+    assert keys["e_discover_round2_fit_end_step_ms"] == kv["discover_round2_fit_end_worst_us"] / 1000
+    assert keys["e_discover_round1_heap_free_least_bytes"] == kv["discover_round1_heap_free_least"]
+    assert keys["e_discover_round2_allocated_bytes"] == kv["discover_round2_allocated_bytes"]
