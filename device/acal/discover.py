@@ -5,12 +5,12 @@
 # choice made as `diagnose` makes it (candidates.py, discovery.py's rule).
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
-# candidate's fit (gaussnewton.py's), a step's change-point search (changepoint.py), the
-# scoring of one candidate, or (the step) a slice of its time's placing among the held-out
-# points of its gap (stepplace.py), before the choice.  Nothing is allocated per candidate or
-# per score: one GaussNewton sized for the largest candidate (9 + 6 parameters) is re-kinded for
-# each (the candidates' effect tuples are made once: here, and per base effect for a second
-# round), and the results go to preallocated int32 arrays.
+# candidate's fit (gaussnewton.py's), its testability or begin, a step's change-point search
+# (changepoint.py), the scoring of one candidate, or (the step) a slice of its time's placing
+# among the held-out points of its gap (stepplace.py), before the choice.  Nothing is allocated
+# per candidate or per score: one GaussNewton sized for the largest candidate (9 + 6
+# parameters) is re-kinded for each (the candidates' effect tuples are made once: here, and per
+# base effect for a second round), and the results go to preallocated int32 arrays.
 # Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
 # products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
 # lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
@@ -66,6 +66,8 @@ _DONE = 4
 _BLOCKS = 5     # the held-out blocks counted
 _BETTER = 6     # candidate i's blocks compared with the base model's
 _PLACE = 7      # the step: its time placed among its gap's held-out points (stepplace)
+_NEXT = 8       # candidate i's testability (a pass over the fit points' conditions) a step
+_BEGIN = 9      # candidate i's fit begun (a step of its own: 1.3 ms on an RP2040, as testable)
 
 
 def adoptable(kinds):
@@ -213,6 +215,10 @@ class Discover:
             self._compare_blocks()
         elif ph == _PLACE:
             self._place()
+        elif ph == _NEXT:
+            self._try()
+        elif ph == _BEGIN:
+            self._begin_fit()
         return self.phase == _DONE
 
     def _score_base(self):
@@ -255,15 +261,22 @@ class Discover:
             return
         self._next(0)
 
-    def _next(self, i):
-        # candidate i begins (the untestable ones skipped), or the choice when none is left
+    def _next(self, i):   # candidate i next, in steps of its own (_try, _begin_fit)
+        self.i = i
+        self.phase = _NEXT
+
+    def _try(self):
+        # one candidate's testability a step (the absent skipped), or the choice when none is left
         pipe = self.pipe
-        while i < N_CANDIDATES and (self.new_ids[i] == 0 or
-                                    not testable(self.new_ids[i], pipe.aux, pipe.n_fit)):
+        i = self.i
+        while i < N_CANDIDATES and self.new_ids[i] == 0:
             i += 1
         self.i = i
         if i == N_CANDIDATES:
             self._choose()
+            return
+        if not testable(self.new_ids[i], pipe.aux, pipe.n_fit):
+            self.i = i + 1
             return
         fit = self.fit
         _rekind(fit, self.kinds[i])
@@ -272,21 +285,23 @@ class Discover:
             self.search.begin(pipe.optimiser)
             self.phase = _SEARCH
             return
-        fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, self._start())
-        if i == PAIR and self.errs[0] != UNTESTABLE:   # from the straight part's fit
+        self.phase = _BEGIN
+
+    def _begin_fit(self):
+        pipe = self.pipe
+        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, self._start())
+        if self.i == PAIR and self.errs[0] != UNTESTABLE:   # from the straight part's fit
             for k in range(N_PARAMS, N_PARAMS + 3):
-                fit.p[k] = self.all_params[k]
+                self.fit.p[k] = self.all_params[k]
         self.phase = _FIT
 
     def _searched(self):
-        pipe = self.pipe
         if not self.search.found:
             self._next(self.i + 1)
             return
         self.fit.ts = self.search.ts
         self.gap_lo = self.search.time_before()   # now: the sort buffer is the base fit's
-        self.fit.begin(pipe.points, pipe.n_fit, pipe.iterations, pipe.aux, self._start())
-        self.phase = _FIT
+        self.phase = _BEGIN
 
     def _start(self):
         # the candidates' start: the base model's fit (the paper's: its 9 parameters, the

@@ -117,7 +117,8 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     return res
 
 
-ROUND_PHASES = ("base", "fit", "search", "score", "blocks", "better", "place")   # rounds()'s
+ROUND_PHASES = ("base", "fit", "search", "score", "blocks", "better", "place", "next",
+                "begin")   # rounds()'s
 
 
 def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:

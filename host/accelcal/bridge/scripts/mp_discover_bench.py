@@ -117,7 +117,8 @@ def place(lock=False):
     print("discover_place%s_heap_free" % tag, gc.mem_free())
 
 
-PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place")   # discover's
+PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place", "next",
+          "begin")   # discover's
 
 
 def rounds(pts, lock=False):
@@ -127,7 +128,7 @@ def rounds(pts, lock=False):
     and the longest, and the free heap before begin(), after begin() and after the round, the
     least between steps, and the bytes the round allocated (gc.disable() over it: begin()'s
     effect tuples).  A step that ends its phase also begins what follows (the next candidate's
-    fit, its search, its score): those are timed apart (_end_worst_us, the longest of them;
+    testability, its fit's begin, its search, its score): those are timed apart (_end_worst_us, the longest of them;
     _worst_us the longest of the others).  lock: each step under heap_lock (keys with
     _locked)."""
     import micropython
