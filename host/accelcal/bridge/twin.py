@@ -138,16 +138,6 @@ class NoiseGaugeTwin:
             self.count += len(v)
             self.seen += len(v)
 
-    def _update(self) -> None:
-        need = (self.count + drest.NOISE_QUANTILE - 1) // drest.NOISE_QUANTILE
-        q = int(np.searchsorted(np.cumsum(self.hist), need)) if need else 0
-        self.level = q
-        self.threshold = int(np.clip(drest.NOISE_MUL * q + drest.NOISE_ADD, drest.THRESHOLD_MIN,
-                                     drest.THRESHOLD_MAX))
-        if self.count >= drest.NOISE_HALVE:
-            self.hist >>= 1
-            self.count = int(self.hist.sum())
-
 
 def segment_stats(p: np.ndarray, length: int, threshold: int, axis: int, first: int,
                   extra: np.ndarray | None = None, gauge: NoiseGaugeTwin | None = None) -> Segments:

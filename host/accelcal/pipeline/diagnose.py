@@ -136,10 +136,11 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     # a curve's straight part named alone: the curve is judged only on top of it (its own gain
     # hides behind the straight part's), so a second step is due before the model is complete
     second = next((cv for ln, cv in curves(pool) if named in pool and ln is pool[named]), None)
+    second_text = second_step_text(spec, named, second, cands) if second is not None else None
     if named:
         explanation = named_text(spec, named, parts[named], best, err, floor, path)
-        if second is not None:
-            explanation += " " + second_step_text(spec, named, second, cands)
+        if second_text is not None:
+            explanation += " " + second_text
     elif best:
         explanation = (f"No catalogue effect explains what remains: the best, {best['effect']}, lowers "
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
@@ -152,8 +153,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     _, r_all = residuals(spec, theta, p, ref)
     wrist = wrist_floor(p.t, p.v, p.temp, r_all * 1e3)
     remains = None if second is None else {
-        "second_step": second.name, "model": f"{spec}+{named}",
-        "text": second_step_text(spec, named, second, cands)}
+        "second_step": second.name, "model": f"{spec}+{named}", "text": second_text}
     if named is None:
         _, r_train = residuals(spec, theta, train, ref)
         remains = what_remains(regs, r * 1e3, (regressors(spec, theta, train, ref), r_train * 1e3),

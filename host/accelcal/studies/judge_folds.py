@@ -28,6 +28,7 @@ import numpy as np
 
 from acal import discovery, fixed
 from acal.bins import COND
+from accelcal.fixedpoint import physical
 from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.restpoints import BLOCK_S, RestPoints
 
@@ -43,8 +44,8 @@ def bins_selection(spec: ModelSpec, pts: RestPoints) -> RestPoints:
     sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 3 + COND)
     if r.kept is not None:
         sel = sel[np.asarray(r.kept, bool)]
-    return RestPoints(sel[:, :3] / fixed.POINT_ONE_G, sel[:, 4] * 64.0 + g.t_first,
-                      sel[:, 3] / (1 << fixed.TEMP_Q), np.zeros(len(sel)), "bins")
+    c = physical(sel[:, 3:], g.t_first)     # the bins' conditions as the host reads them
+    return RestPoints(sel[:, :3] / fixed.POINT_ONE_G, c.time, c.temp, np.zeros(len(sel)), "bins")
 
 
 def judge(path: str, model: str, cand: str) -> list[dict]:
