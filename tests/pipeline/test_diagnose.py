@@ -67,6 +67,9 @@ def test_names_the_hidden_effect_and_adding_it_reaches_the_true_model(recordings
     else:
         assert first["what_remains"] is None and "second step" not in first["explanation"]
     second = diagnose(path, f"base+{effect}", "--history", hist)
+    if effect == "temp_offset":   # the curve judged again as the device fits it: not named
+        curve = next(c for c in second["candidates"] if c["effect"] == "temp_offset2")
+        assert not curve["device_folds"]["named"], curve["device_folds"]
     truth = true_error(path)
     assert second["heldout_error_mg"] <= 1.5 * truth, (second["heldout_error_mg"], truth)
     assert first["heldout_error_mg"] > second["heldout_error_mg"]

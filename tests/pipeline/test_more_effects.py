@@ -15,12 +15,15 @@ from conftest import run_cli, run_main, simulate_wrists, true_heldout_error
 
 DAYS, RATE = 3, 10
 CASES = {"step": (31, "step"), "curve31": (31, "temp_offset2"), "curve5": (5, "temp_offset2")}
+# seed 4: the curve's cold ends (the first hour, three showers) all fall in held-out blocks
+CHORD = {"curve4": (4, "temp_offset2")}
 
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
     return simulate_wrists(tmp_path_factory.mktemp("more_effects"),
-                           {name: (seed, (effect,)) for name, (seed, effect) in CASES.items()},
+                           {name: (seed, (effect,))
+                            for name, (seed, effect) in {**CASES, **CHORD}.items()},
                            DAYS, RATE)
 
 
@@ -316,6 +319,26 @@ def test_a_clear_curve_is_named_with_its_straight_part_in_one_step(recordings):
     assert "--model base+temp_offset+temp_offset2" in out["explanation"]
     first = diagnose(recordings["curve31"], "base")
     assert first["missing_effect"] == "temp_offset", first["explanation"]
+
+
+def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(recordings):
+    """On seed 4 the fit on every training point finds the curve no better than its straight part
+    (the rare cold points are all held out); the device's bins keep them, so the device would fit
+    base+temp_offset as the curve's chord.  diagnose judges the curve again as the device fits it,
+    in both folds of its split (pipeline/foldjudge.py), and names it: the effect the simulation
+    hid."""
+    from acal import discovery
+    out = diagnose(recordings["curve4"], "base+temp_offset")
+    assert out["missing_effect"] == "temp_offset2", out["explanation"]
+    c = next(x for x in out["candidates"] if x["effect"] == "temp_offset2")
+    assert not discovery.names(out["heldout_error_mg"], c["heldout_error_mg"],
+                               c["blocks_improved"], c["blocks"])   # the every-point judge alone
+    judged = c["device_folds"]
+    assert judged["named"] and judged["clear"] and c["evidence"] == "clear"
+    assert judged["blocks"] > c["blocks"] == out["heldout_blocks"]   # both halves held out in turn
+    assert judged["after_mg"] < judged["before_mg"]
+    assert "as the device fits it" in out["explanation"]
+    assert "--model base+temp_offset+temp_offset2" in out["explanation"]
 
 
 def test_what_remains_names_the_shape_and_where():

@@ -7,7 +7,7 @@ import numpy as np
 from accelcal.model.effects import ModelSpec
 from accelcal.pipeline.restpoints import RestPoints
 from accelcal.simulate.scenarios import unit_points
-from accelcal.studies.judge_folds import bins_selection
+from accelcal.pipeline.foldjudge import bins_selection
 
 
 def test_the_bins_keep_input_points_and_over_hold_a_rare_cold_spell():

@@ -133,6 +133,8 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                 named is None or not discovery.plain_preferred(c["heldout_error_mg"],
                                                                best["heldout_error_mg"])):
             named, best = c["effect"], c
+    if named is None:   # a curve on its straight part, judged again as the device fits it
+        named, best = curve_as_device(spec, pool, cands, halves, best)
     # a curve's straight part named alone: the curve is judged only on top of it (its own gain
     # hides behind the straight part's), so a second step is due before the model is complete
     second = next((cv for ln, cv in curves(pool) if named in pool and ln is pool[named]), None)
@@ -201,13 +203,23 @@ def named_text(spec: ModelSpec, named: str, parts: list, best: dict, err: float,
         f" Both parts at once: with its straight part the curve leaves "
         f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
         f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
+    gain = (f"Adding it lowers the held-out error from {err:.2f} to "
+            f"{best['heldout_error_mg']:.2f} mg, better in {best['blocks_improved']} of "
+            f"{best['blocks']} held-out blocks (noise floor {floor:.2f} mg)")
+    judged = best.get("device_folds")
+    if judged:   # named by curve_as_device
+        gain = (f"Fitted as the device fits it (on what its bins keep) with each half of the split "
+                f"held out in turn, adding it lowers the held-out error from "
+                f"{judged['before_mg']:.2f} to {judged['after_mg']:.2f} mg, better in "
+                f"{judged['blocks_improved']} of {judged['blocks']} blocks (fitted on every "
+                f"training point and scored on the held-out half alone: {err:.2f} to "
+                f"{best['heldout_error_mg']:.2f} mg, {best['blocks_improved']} of "
+                f"{best['blocks']}; the device's bins keep the rare temperature extremes, where "
+                f"a straight line is the curve's chord; noise floor {floor:.2f} mg)")
     return (f"{named}: {parts[-1].explain(sensor_of(path))}{both} Fitted here: "
             + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
-            + f" {best['param_unit']}. Adding it lowers the held-out error "
-            f"from {err:.2f} to {best['heldout_error_mg']:.2f} mg, better in "
-            f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
-            f"(noise floor {floor:.2f} mg).{weak} Next: accelcal calibrate --model "
-            f"{spec}+{named}{host}")
+            + f" {best['param_unit']}. {gain}.{weak} Next: "
+            f"accelcal calibrate --model {spec}+{named}{host}")
 
 
 def second_step_text(spec: ModelSpec, named: str, curve, cands: list[dict]) -> str:
@@ -222,6 +234,25 @@ def second_step_text(spec: ModelSpec, named: str, curve, cands: list[dict]) -> s
     return (f"A second step is due: {curve.name}, the curve {named} may be the straight part "
             f"of, is judged only with {named} in the model{seen}; run accelcal diagnose --model "
             f"{spec}+{named} next.")
+
+
+def curve_as_device(spec: ModelSpec, pool: dict, cands: list[dict], halves, best):
+    """A curve whose straight part is in the model, not named by the fit on every training
+    point: judged again as the device fits it, on its bins' selection, in both folds
+    (pipeline/foldjudge.py: the bins keep the temperature extremes, so the model without the
+    curve is fitted as its chord).  Its verdict goes in the candidate ("device_folds"); returns
+    (the name, the candidate) when that judge names it, else (None, best)."""
+    from accelcal.pipeline.foldjudge import device_folds
+    for c in cands:
+        e = pool.get(c["effect"])
+        if e is None or c["heldout_error_mg"] is None or not any(
+                (a, e) in curves({a.name: a, e.name: e}) for a in spec.parts):
+            continue
+        c["device_folds"] = judged = device_folds(spec, spec.with_effect(e), halves)
+        if judged["named"]:
+            c["evidence"] = "clear" if judged["clear"] else "weak"
+            return c["effect"], c
+    return None, best
 
 
 def curves(pool: dict) -> list[tuple]:

@@ -96,8 +96,10 @@ SPLITS = [(BLOCK_S, 0, 0), (BLOCK_S, 0, 1), (BLOCK_S, BLOCK_S // 2, 0), (BLOCK_S
 
 
 class Halves(tuple):
-    """(train, held out, each held-out point's block) and `how`: the blocks in words."""
+    """(train, held out, each held-out point's block), `train_block` (each training point's
+    block) and `how`: the blocks in words."""
     how: str
+    train_block: np.ndarray
 
 
 def split(p: RestPoints) -> Halves:
@@ -112,6 +114,7 @@ def split(p: RestPoints) -> Halves:
                 ("held-out", coverage_reason(p.v[~train], 9, "a fit on the held-out half"))) if why]
         if not bad:
             out = Halves((p.take(train), p.take(~train), block[~train]))
+            out.train_block = block[train]
             first, other = ("even", "odd") if parity == 0 else ("odd", "even")
             shift = f" from {offset / 3600:g} h" if offset else ""
             out.how = f"{length / 3600:g}-hour blocks{shift}: {first} train, {other} held out"

@@ -200,6 +200,12 @@ class DiagnoseResult(dict):
                              f"{c['blocks_improved']:2d} of {c['blocks']:2d} blocks "
                              f"({c['blocks_improved_pct']:3.0f} %"
                              + (", weak evidence)" if c["evidence"] == "weak" else ")"))
+            if c.get("device_folds"):   # diagnose.curve_as_device
+                j = c["device_folds"]
+                lines.append(f"   {'':<{ew}} as the device fits it, each half held out in turn: "
+                             f"{j['before_mg']:.2f} -> {j['after_mg']:.2f} mg "
+                             f"{j['improvement_pct']:+6.1f} %  better in {j['blocks_improved']} "
+                             f"of {j['blocks']} blocks" + (" (named)" if j["named"] else ""))
         lines.append(f"missing effect: {self['missing_effect'] or 'none'}")
         lines.append(self["explanation"])
         lines += [f"plot: {f}" for f in self.get("plots", [])]

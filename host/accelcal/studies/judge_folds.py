@@ -12,7 +12,8 @@ model and the model with the candidate are fitted by float least squares on
 
 and scored on the other fold's rest points: the held-out error (mg), how many blocks improve,
 and whether acal.discovery.names would name the candidate.  "both" pools the two folds (every
-rest point scored once, the blocks of both).  A study, not the loop: diagnose is unchanged.
+rest point scored once, the blocks of both).  diagnose judges a curve on its straight part so
+("bins", both folds: pipeline/foldjudge.py) when its fit on every point does not name it.
 
     python -m accelcal.studies.judge_folds CASE SEED MODEL CANDIDATE
     e.g. python -m accelcal.studies.judge_folds temp_offset2 4 base+temp_offset temp_offset2
@@ -26,32 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import discovery, fixed
-from acal.bins import COND
-from accelcal.fixedpoint import physical
+from acal import discovery
 from accelcal.model.effects import CATALOGUE, ModelSpec
-from accelcal.pipeline.restpoints import BLOCK_S, RestPoints
-
-
-def bins_selection(spec: ModelSpec, pts: RestPoints) -> RestPoints:
-    """The rest points the device's bins (wear profile, spec's conditions) keep from pts."""
-    from accelcal.bridge import runtime
-    from accelcal.bridge.groups import PointsGroup
-    from accelcal.pipeline.calibrate import _device_spec
-    _, cfg = _device_spec(spec, "lsq", runtime.Config.for_profile("wear", True))
-    g = PointsGroup("train", points=pts.v, temp=pts.temp, t=pts.t)
-    r = runtime.run([g], cfg, "cpython")[0]
-    sel = np.array(r.selected_int, dtype=np.int64).reshape(-1, 3 + COND)
-    if r.kept is not None:
-        sel = sel[np.asarray(r.kept, bool)]
-    c = physical(sel[:, 3:], g.t_first)     # the bins' conditions as the host reads them
-    return RestPoints(sel[:, :3] / fixed.POINT_ONE_G, c.time, c.temp, np.zeros(len(sel)), "bins")
+from accelcal.pipeline.foldjudge import bins_selection, fold_gain
+from accelcal.pipeline.restpoints import BLOCK_S
 
 
 def judge(path: str, model: str, cand: str) -> list[dict]:
     """One row per fit (all, bins) and fold (even, odd: the blocks trained on; both)."""
-    from accelcal.pipeline.composed_lsq import fit_with_reference, prepare, refs
-    from accelcal.pipeline.diagnose import residuals
+    from accelcal.pipeline.composed_lsq import prepare
     spec, p = prepare(path, model)
     cspec = spec.with_effect(CATALOGUE[cand])
     block = ((p.t - p.t.min()) // BLOCK_S).astype(int)
@@ -60,17 +44,11 @@ def judge(path: str, model: str, cand: str) -> list[dict]:
         pooled = []
         for parity, fold in ((0, "even"), (1, "odd")):
             tr = block % 2 == parity
-            train, test, tb = p.take(tr), p.take(~tr), block[~tr]
-            pts = train if how == "all" else bins_selection(cspec, train)
-            th0, ref0 = fit_with_reference(spec, pts, refs(pts, spec))
-            _, r0 = residuals(spec, th0, test, ref0)
-            th, ref = fit_with_reference(cspec, pts, refs(pts, cspec), rest_theta=th0)
-            _, rc = residuals(cspec, th, test, ref)
-            gain = np.abs(r0) - np.abs(rc)
-            blocks = np.unique(tb)
-            better = sum(bool(gain[tb == b].mean() > 0) for b in blocks)
-            pooled.append((np.abs(r0), np.abs(rc), better, len(blocks)))
-            rows.append(row(how, fold, len(pts), np.abs(r0), np.abs(rc), better, len(blocks)))
+            r0, rc, better = fold_gain(spec, cspec, p.take(tr), p.take(~tr), block[~tr], how)
+            nb = len(np.unique(block[~tr]))
+            pooled.append((r0, rc, better, nb))
+            points = int(tr.sum()) if how == "all" else len(bins_selection(cspec, p.take(tr)))
+            rows.append(row(how, fold, points, r0, rc, better, nb))
         rows.append(row(how, "both", None, np.concatenate([x[0] for x in pooled]),
                         np.concatenate([x[1] for x in pooled]), sum(x[2] for x in pooled),
                         sum(x[3] for x in pooled)))
