@@ -24,7 +24,8 @@ streaming reader cut it, so the first chunk, on which scan estimates the rate, i
 Arrow parses each piece as one block (its columns come to numpy without a copy); the reader's
 value checks (files/checks.py) are made in the same threads as two reductions per column, and
 only a piece that fails them is looked at value by value, on the main thread, to name the row.
-Memory: WORKERS + 1 buffers of text and the columns of the pieces in flight, a few MB."""
+Memory: WORKERS + 1 buffers of PIECE bytes of text (12 MB) and the columns of the pieces in
+flight (~5 MB each)."""
 from __future__ import annotations
 
 import os
