@@ -3,6 +3,7 @@ scikit-digital-health's test data, MIT licence beside them) read onto our record
 against the values scikit-digital-health's own reader gives for the same files (*_data.npz) and
 against the raw bytes of the CWA blocks."""
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -340,9 +341,8 @@ def test_csv_value_checks_name_the_row_in_any_piece(tmp_path, monkeypatch):
 
 
 def test_csv_cut_short_while_read_is_refused_not_a_crash(tmp_path, monkeypatch):
-    """The CSV reader maps the file: a page past its end would kill the process (SIGBUS), so a
-    file that got shorter since it was opened is refused before the next piece is cut (the
-    pieces already cut lie below the new end here, so the test cannot crash)."""
+    """A CSV file that got shorter since it was opened (pieces already read) is refused at the
+    next piece's read, a short read (files/csvpieces.py `_read`), with the sizes."""
     from accelcal.files import csvpieces
     monkeypatch.setattr(csvpieces, "PIECE", 1 << 16)
     f = tmp_path / "growing.csv"
@@ -355,6 +355,51 @@ def test_csv_cut_short_while_read_is_refused_not_a_crash(tmp_path, monkeypatch):
     next(chunks)                     # the first piece (1 MB) and two of 64 kB are cut by now
     with open(f, "r+b") as fh:
         fh.truncate(csvpieces.BLOCK + 8 * (1 << 16))
-    with pytest.raises(InputError, match="got shorter while it was read"):
+    with pytest.raises(InputError, match=r"got shorter while it was read \(1572864 bytes now, "):
         for _ in chunks:
             pass
+
+
+# Run in its own process: the file is cut short, to below the piece, by the parsing thread just
+# before it parses its second piece (the first of 64 kB); the read-ahead then meets the new end.
+CUT_WHILE_PARSED = """
+import sys
+from accelcal.cli import main
+from accelcal.files import csvpieces
+csvpieces.PIECE = 1 << 16
+parse, calls = csvpieces.parse, []
+def cut_then_parse(buf, *rest):
+    calls.append(len(buf))
+    if len(calls) == 2:
+        with open(sys.argv[1], "r+b") as fh:
+            fh.truncate(csvpieces.BLOCK // 2)
+    return parse(buf, *rest)
+csvpieces.parse = cut_then_parse
+sys.exit(main(["calibrate", sys.argv[1]]))
+"""
+
+
+@pytest.mark.parametrize("fast", ["1", "0"])
+def test_csv_cut_short_while_a_piece_is_parsed_exits_2_not_killed(tmp_path, fast):
+    """A CSV cut short while one of its pieces is being parsed: read into a buffer (not mapped,
+    where touching the piece's pages, gone with the file's end, killed the process by SIGBUS),
+    the parse ends and the next read is short: exit 2 and one line, in a real process, through
+    the C fast path and through Arrow (ACCELCAL_CSV_FAST=0)."""
+    import os
+    import subprocess
+    import sys
+
+    from accelcal.files import csvpieces
+    f = tmp_path / "cut.csv"
+    n = 100_000      # ~2.7 MB: a first 1 MB piece, then ~27 of 64 kB
+    f.write_text("t,x,y,z\n" + "\n".join(f"{i / 100:.2f},0.001,-0.002,1.003" for i in range(n))
+                 + "\n")
+    assert f.stat().st_size > csvpieces.BLOCK + 8 * (1 << 16)
+    r = subprocess.run([sys.executable, "-c", CUT_WHILE_PARSED, str(f)], capture_output=True,
+                       text=True, env={**os.environ, "ACCELCAL_CSV_FAST": fast}, timeout=120)
+    assert f.stat().st_size == csvpieces.BLOCK // 2          # it was cut while read
+    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])   # -7 would be SIGBUS
+    assert r.stdout == "" and "Traceback" not in r.stderr
+    assert re.fullmatch(rf"accelcal: error: {re.escape(str(f))}: the file got shorter while it "
+                        rf"was read \({csvpieces.BLOCK // 2} bytes now, \d+ before\): read a copy, "
+                        r"or wait until it is written\n", r.stderr), r.stderr

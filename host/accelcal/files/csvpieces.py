@@ -1,7 +1,9 @@
 """A recording CSV parsed in pieces on both cores (CsvRecording.chunks): the file is cut at line
 ends into pieces of PIECE bytes, each parsed in a worker thread, WORKERS pieces at once, checked
-by numpy there and handed on in the file's order.  The file is memory-mapped and the pieces are
-views into it, parsed in place.
+by numpy there and handed on in the file's order.  Each piece is read into one of WORKERS + 1
+buffers made once and reused (not mapped: a mapped page past the file's end kills the process
+when touched, so a file cut short while a piece was parsed did; read, it is a short read and a
+one-line refusal), and parsed there in place.
 Arrow's streaming reader parses one block after another on one core: on the 14-day 100 Hz file
 (4.5 GB) the parse alone was most of the command's time.
 
@@ -22,10 +24,10 @@ streaming reader cut it, so the first chunk, on which scan estimates the rate, i
 Arrow parses each piece as one block (its columns come to numpy without a copy); the reader's
 value checks (files/checks.py) are made in the same threads as two reductions per column, and
 only a piece that fails them is looked at value by value, on the main thread, to name the row.
-Memory: at most WORKERS + 1 pieces of text and their columns in flight, a few MB."""
+Memory: WORKERS + 1 buffers of PIECE bytes of text (12 MB) and the columns of the pieces in
+flight (~5 MB each)."""
 from __future__ import annotations
 
-import mmap
 import os
 import re
 from concurrent.futures import ThreadPoolExecutor
@@ -67,45 +69,51 @@ def arrow():
     return pa, pacsv
 
 
-def cut(path: str, mm, first: int, size: int):
-    """The file's bytes (mm: the file memory-mapped) in pieces ending at a line end (the last
-    may not), as views into the mapping (no copy): the first piece within `first` bytes, then
-    within `size` bytes each.  No line longer than BLOCK (Arrow's streaming reader refused one;
-    the pieces are parsed as one block each)."""
-    n = len(mm)
-    view = memoryview(mm)
-    start, want = 0, first
+def cut(path: str, fh, n: int, first: int, size: int, buffers: list):
+    """The file's first n bytes (fh: the file opened unbuffered) in pieces ending at a line end
+    (the last may not), each read into the next of `buffers` in turn and given as a view of it:
+    the first piece within `first` bytes, then within `size` bytes each.  A buffer is read into
+    again len(buffers) pieces later: the caller is done with a piece by then.  No line longer
+    than BLOCK (Arrow's streaming reader refused one; the pieces are parsed as one block each)."""
+    start, want, k = 0, first, 0
     while start < n:
         stop = min(n, start + want)
-        _still_there(path, stop)
-        end = mm.rfind(b"\n", start, stop) + 1
+        buf = buffers[k % len(buffers)]
+        _read(path, fh, buf, start, stop)
+        end = buf.rfind(b"\n", 0, stop - start) + 1
         if end == 0:           # no line end in a whole piece (Arrow: "straddling")
             raise InputError(f"{path}: {LONG_LINE}")
-        _short_lines(path, mm, start, end)
-        yield view[start:end]
-        start, want = end, size
+        _short_lines(path, buf, 0, end)
+        yield memoryview(buf)[:end]
+        start, want, k = start + end, size, k + 1
         if stop == n and start < n:     # the last line, without its line end
-            _short_lines(path, mm, start, n)
-            yield view[start:n]
+            buf = buffers[k % len(buffers)]
+            _read(path, fh, buf, start, n)
+            _short_lines(path, buf, 0, n - start)
+            yield memoryview(buf)[:n - start]
             return
 
 
-def _still_there(path: str, upto: int) -> None:
-    """InputError when the file is now shorter than upto bytes: a mapped page past a file's end
-    kills the process (SIGBUS) when touched, so each piece is checked before it is cut and
-    parsed.  It narrows the window to one piece's parse; it cannot close it (a file cut short
-    while that piece is parsed still kills the process)."""
-    size = os.stat(path).st_size
-    if size < upto:
-        raise InputError(f"{path}: the file got shorter while it was read ({size} bytes now, "
-                         f"{upto} before): read a copy, or wait until it is written")
+def _read(path: str, fh, buf: bytearray, start: int, stop: int) -> None:
+    """buf[:stop - start] = the file's bytes start:stop; InputError when the file now ends
+    before stop (cut short since it was opened, or while it is read): a short read."""
+    view = memoryview(buf)[:stop - start]
+    fh.seek(start)
+    got = 0
+    while got < len(view):
+        more = fh.readinto(view[got:])
+        if not more:
+            size = min(os.fstat(fh.fileno()).st_size, start + got)
+            raise InputError(f"{path}: the file got shorter while it was read ({size} bytes now, "
+                             f"{stop} before): read a copy, or wait until it is written")
+        got += more
 
 
-def _short_lines(path: str, mm, start: int, end: int) -> None:
-    """InputError when a line of mm[start:end] (its last may be cut short) is longer than BLOCK:
+def _short_lines(path: str, buf, start: int, end: int) -> None:
+    """InputError when a line of buf[start:end] (its last may be cut short) is longer than BLOCK:
     from each line's start, the last line end within BLOCK bytes, in hops of about BLOCK."""
     while end - start > BLOCK:
-        nl = mm.rfind(b"\n", start, start + BLOCK)
+        nl = buf.rfind(b"\n", start, start + BLOCK)
         if nl < 0:
             raise InputError(f"{path}: {LONG_LINE}")
         start = nl + 1
@@ -202,47 +210,27 @@ def parsed(path: str, names: list[str], limits=None):
     InputError for the first bad row, by its line number."""
     pa, pacsv = arrow()     # once, here: it tells pyarrow that pandas is not there
     fast = fast_path()
-    with open(path, "rb") as fh:
-        # mapped, not read: the pieces are views that Arrow parses in place (reading them
-        # copied each byte of a 4.5 GB file two or three times); the mapping closes when the
-        # last view is gone
-        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if os.fstat(fh.fileno()).st_size \
-            else b""
-    with ThreadPoolExecutor(WORKERS) as pool:
-        pending = []       # (the piece's parse, where it ends in the file)
+    with open(path, "rb", buffering=0) as fh, ThreadPoolExecutor(WORKERS) as pool:
+        n = os.fstat(fh.fileno()).st_size
+        # read, not mapped (module doc); one buffer per piece in flight (WORKERS parsed, one
+        # read), made once: their pages are touched once, not each piece's
+        buffers = [bytearray(max(BLOCK, PIECE)) for _ in range(WORKERS + 1)] if n else []
+        pending = []       # the pieces' parses, in the file's order
         first = 0
-        end = 0
-        let_go = [0]       # the file's pages before this are let go
-        pieces = cut(path, mm, BLOCK, PIECE)
+        pieces = cut(path, fh, n, BLOCK, PIECE, buffers)
         try:
             for k, buf in enumerate(pieces):
-                end += len(buf)
-                pending.append((pool.submit(parse, buf, names, 1 if k == 0 else 0,
-                                            pa, pacsv, limits, fast), end))
+                pending.append(pool.submit(parse, buf, names, 1 if k == 0 else 0,
+                                           pa, pacsv, limits, fast))
                 if len(pending) <= WORKERS:
                     continue
-                first = yield from _handed(path, names, _parsed_piece(mm, let_go, *pending.pop(0)),
-                                            first)
+                # done with its buffer before cut reads into it again (WORKERS + 1 pieces on)
+                first = yield from _handed(path, names, pending.pop(0).result(), first)
             while pending:
-                first = yield from _handed(path, names, _parsed_piece(mm, let_go, *pending.pop(0)),
-                                            first)
+                first = yield from _handed(path, names, pending.pop(0).result(), first)
         finally:
-            for f, _ in pending:
+            for f in pending:
                 f.cancel()
-
-
-def _parsed_piece(mm, let_go: list, job, end: int):
-    """The piece's parse, its pages then let go: a mapped page read stays in the process's
-    resident memory until unmapped (the whole 4.5 GB file by the end), though the kernel may drop
-    it; told so, it leaves the process (the file's pages stay in the page cache).  Read again
-    from the file if touched again (a neighbouring piece's line): nothing is lost."""
-    got = job.result()
-    if isinstance(mm, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
-        upto = end - end % mmap.PAGESIZE
-        if upto > let_go[0]:
-            mm.madvise(mmap.MADV_DONTNEED, let_go[0], upto - let_go[0])
-            let_go[0] = upto
-    return got
 
 
 def _handed(path, names, got, first):
