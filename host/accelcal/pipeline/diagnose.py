@@ -248,7 +248,12 @@ def curve_as_device(spec: ModelSpec, pool: dict, cands: list[dict], halves, best
         if e is None or c["heldout_error_mg"] is None or not any(
                 (a, e) in curves({a.name: a, e.name: e}) for a in spec.parts):
             continue
-        c["device_folds"] = judged = device_folds(spec, spec.with_effect(e), halves)
+        try:
+            judged = device_folds(spec, spec.with_effect(e), halves)
+        except (InputError, np.linalg.LinAlgError) as why:   # too few points kept to fit it
+            c["device_folds_untestable"] = str(why)
+            continue
+        c["device_folds"] = judged
         if judged["named"]:
             c["evidence"] = "clear" if judged["clear"] else "weak"
             return c["effect"], c
