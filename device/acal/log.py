@@ -37,13 +37,17 @@
 #   GAP      <II            raw capture: sample index, samples lost there
 #   SUPPLY   <IH            raw capture of a model that follows the board's supply: the sample
 #                          index from which the supply (mV) holds, written when it changes
-#   DISCOVERY <IBBIIBB3i    after a board's own model discovery (acal/discover.py): sample
+#   DISCOVERY <IBBIIBBB3i   after a board's own model discovery (acal/discover.py): sample
 #                          index, the effects adopted (effects.model_code: an id, or two ids in
 #                          4 bits each; 0: none), the closest candidate (the one chosen; 0: none
 #                          testable), the held-out error before and with it (heldscore's Q16 g^2
 #                          sums, weighted), the held-out blocks it is better in and of how
-#                          many, its first effect's 3 parameters (Q24; all of them in the
-#                          EFFECT records after)
+#                          many, the effect its round added (its id; 0: none testable; the
+#                          curve pair's: temp_offset) and that effect's 3 parameters (Q24; all
+#                          of the model's in the EFFECT records after).  Written before version
+#                          4 (28 bytes, <IBBIIBB3i: no effect, the parameters those of the
+#                          closest's first effect, which a second round's are not): read by its
+#                          length, the effect the closest's first (unpack).
 #   STORE    CAL + k*EFFECT the calibration store's one record (CalStore): a CAL payload, then one
 #                          EFFECT payload per effect of a composed model, under one CRC, so a
 #                          cut anywhere leaves the whole calibration or none of it
@@ -69,8 +73,9 @@ TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMP
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 BOOT_V2 = "<IHHBHBBBBBHBIbHB"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHBB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
-           GAP: "<II", EFFECT: "<IBhI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBB3i"}
+           GAP: "<II", EFFECT: "<IBhI3i", SUPPLY: "<IH", DISCOVERY: "<IBBIIBBB3i"}
 EFFECT_V1 = "<IBbI3i"   # the reference temperature in whole degC (before fixed.TEMP_Q)
+DISCOVERY_V1 = "<IBBIIBB3i"   # before version 4: no effect field
 SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 23: a STORE of 4 effects is 145 bytes
@@ -227,6 +232,9 @@ def unpack(rtype, payload):
         return struct.unpack(BOOT_V2, payload) + (0,)
     if rtype == EFFECT and len(payload) == _EFFECT_V1_SIZE:
         return _effect_v1(payload, 0)
+    if rtype == DISCOVERY and len(payload) == struct.calcsize(DISCOVERY_V1):
+        v = struct.unpack(DISCOVERY_V1, payload)   # its parameters: the closest's first effect's,
+        return v[:7] + (v[2] & 0xF,) + v[7:]       # model_code's low 4 bits (effects.KIND_BITS)
     return struct.unpack(FORMATS[rtype], payload)
 
 

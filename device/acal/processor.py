@@ -13,7 +13,8 @@ from acal.model import in_bounds, effects_within
 from acal.status import OK, usable
 from acal.pipeline import Pipeline
 
-VERSION = 3  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC
+VERSION = 4  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC;
+#   4: DISCOVERY carries the effect its parameters are of
 BLOCK = log.SAMPLES_PER_RECORD
 RETRIES = 3
 # A rest mean is logged when the bins keep it, when it differs by more than this (max-norm,
@@ -307,10 +308,12 @@ class Processor:
         pipe = self.pipe
         d = pipe.discovery
         i = d.chosen
+        # the effect this round added and its parameters (a second round's follow the first's)
+        a = d.new_at
         self.log.write(log.DISCOVERY, self.index, d.kind, d.kind_ids[i] if i >= 0 else 0,
                        d.before, d.errs[i] if i >= 0 else 0, d.betters[i] if i >= 0 else 0,
-                       d.blocks, d.params[N_PARAMS], d.params[N_PARAMS + 1],
-                       d.params[N_PARAMS + 2])
+                       d.blocks, d.new_ids[i] if i >= 0 else 0, d.params[a], d.params[a + 1],
+                       d.params[a + 2])
         if not d.adopted:
             return
         f = d.fits

@@ -17,7 +17,9 @@ except ImportError:  # CPython
         return x
 
 # At most GAP_MAX gap points are taken, the latest before the fitted time (a gap spans a
-# held-out block or two: 8 points each on a full set).
+# held-out block or two: 8 points each on a full set).  The dropped ones stay unstepped (their
+# errors in `outside`); the latest dropped time is kept so that no split falls between a dropped
+# point and a kept one of the same time (the calibration would step the dropped one).
 GAP_MAX = const(32)
 
 _GATHER = 0     # the gap's held-out points gathered and scored either side of the step
@@ -39,6 +41,7 @@ class StepPlace:
         self.n = 0
         self.lo = 0            # the gap's lower end (the last fit point's time)
         self.hi = 0            # its upper end (the fitted step time)
+        self.dropped = 0       # the latest dropped gap point's time (lo: none dropped)
         self.err = 0           # the step's held-out error, every point at the fitted time
         self.score = None
         self.held = None
@@ -71,6 +74,7 @@ class StepPlace:
         self.held = held
         self.ref_time = ref_time
         self.lo = lo
+        self.dropped = lo
         self.hi = hi
         self.err = err
         self.step_time = hi
@@ -129,7 +133,11 @@ class StepPlace:
             k -= 1
         if n == GAP_MAX:
             if k == 0:
+                if t > self.dropped:
+                    self.dropped = t
                 return
+            if tm[0] > self.dropped:
+                self.dropped = tm[0]
             for m in range(1, k):
                 tm[m - 1] = tm[m]
                 st[m - 1] = st[m]
@@ -149,7 +157,8 @@ class StepPlace:
         # the split of the gap's points (but `left`, -1: none) that leaves them the lowest
         # error, between distinct times (of equal errors, the later): the number of points
         # before it; its error in best_cost.  From every point after the split (stepped_sum)
-        # each split moves one point before it.
+        # each split moves one point before it.  Before them all only when no dropped point
+        # shares the first one's time (the dropped points stay before every split).
         n = self.n
         tm = self.time
         st = self.stepped
@@ -159,12 +168,14 @@ class StepPlace:
             cost -= st[left]
         best = cost
         at = 0
+        open_ = tm[0] > self.dropped   # a split before them all is between distinct times
         for k in range(1, n + 1):
             if k - 1 != left:
                 cost += un[k - 1] - st[k - 1]
-            if (k == n or tm[k - 1] < tm[k]) and cost <= best:
+            if (k == n or tm[k - 1] < tm[k]) and (cost <= best or not open_):
                 best = cost
                 at = k
+                open_ = True
         self.best_cost = best
         return at
 

@@ -145,6 +145,6 @@ def test_mip_package_lists_every_device_module_and_installs(tmp_path):
         mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "package.json"))
         out = mpremote(b.port, "exec", "import acal.app, acal.lis3dh_cp\nprint(acal.app.VERSION)")
     from acal.app import VERSION
-    assert out.strip() == str(VERSION) == "3"
+    assert out.strip() == str(VERSION) == "4"
     assert sorted(p.name for p in (tmp_path / "flash" / "lib" / "acal").iterdir()) == \
         sorted(p.name for p in (ROOT / "device" / "acal").glob("*.py"))

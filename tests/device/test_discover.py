@@ -133,6 +133,18 @@ def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
     both = (effects.TEMP_OFFSET, effects.DRIFT)
     assert [effects.model_kinds(f["adopted"]) for f in found] == [both[:1], both], found
     assert found[1]["heldout_after"] < 0.9 * found[1]["heldout_before"]
+    # each DISCOVERY record carries the effect its round adopted and that effect's parameters:
+    # the first round's temp_offset, the second's drift, as in the EFFECT records after it
+    eff = boardlog.decode(tmp_path / "cpython.bin").dicts(log.EFFECT)
+    for f, kind in zip(found, both):
+        after = [e for e in eff if e["index"] == f["index"] and e["effect"] == kind]
+        assert f["effect"] == kind and len(after) == 1, (f, eff)
+        assert [f[f"p{i}"] for i in range(3)] == [after[0][f"p{i}"] for i in range(3)], (f, after)
+    p = np.array([found[1][f"p{i}"] for i in range(3)])      # drift (effects.py): the hidden signs
+    assert np.all(np.sign(p) == np.sign(D_TRUE)), p
+    from accelcal.model.effects import CATALOGUE   # and `pull`/`report` tell them so
+    told = boardlog._discovery(found[1], CATALOGUE)
+    assert told["adopted"] == "temp_offset+drift" and told["params_effect"] == "drift", told
     from acal.processor import Processor
     store = log.CalStore(str(tmp_path / "cpython.bin") + ".a", str(tmp_path / "cpython.bin") + ".b")
     again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)

@@ -4,7 +4,7 @@ import random
 import struct
 
 
-from acal import log
+from acal import effects, log
 from acal.fixed import TEMP_Q
 
 
@@ -203,6 +203,19 @@ def test_effects_written_with_whole_degrees_still_load(tmp_path):
         _, rec = store.load()
         assert rec == cal_values(5, 5)
         assert store.effects == [v[:2] + (v[2] * (1 << TEMP_Q),) + v[3:] for v in old[:k]]
+
+
+def test_discovery_records_written_before_version_4_still_load():
+    """A DISCOVERY record written before it carried its effect (28 bytes): read by its length,
+    the effect its parameters are of being the closest candidate's first (what such a board
+    wrote); one of today's carries it."""
+    closest = effects.model_code((effects.TEMP_OFFSET, effects.DRIFT))
+    old = (900, closest, closest, 5000, 2000, 5, 6, 11, -12, 13)
+    payload = struct.pack(log.DISCOVERY_V1, *old)
+    assert len(payload) == 28
+    assert log.unpack(log.DISCOVERY, payload) == old[:7] + (effects.TEMP_OFFSET,) + old[7:]
+    new = old[:7] + (effects.DRIFT,) + old[7:]
+    assert log.unpack(log.DISCOVERY, struct.pack(log.FORMATS[log.DISCOVERY], *new)) == new
 
 
 def test_a_board_flashed_with_another_model_numbers_on_from_the_store(tmp_path):

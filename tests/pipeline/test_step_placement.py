@@ -62,10 +62,8 @@ def scene(seed, shock, n_gap):
     return np.rint(v * Q16).astype(np.int64), t
 
 
-def board(xyz, t, p_int, weight=None):
-    """The board's placement (StepPlace on a HeldOut holding these points, weight 1 each unless
-    given, the model scored at the fitted time HI, as discover.py drives it)."""
-    from array import array
+def held(xyz, t, weight=None):
+    """A HeldOut holding these points, weight 1 each unless given."""
     h = HeldOut()
     for i in range(len(t)):
         for c in range(3):
@@ -74,6 +72,20 @@ def board(xyz, t, p_int, weight=None):
         h.block[i] = block_of(int(t[i]))
         h.weight[i] = 1 if weight is None else int(weight[i])
     h.count = len(t)
+    return h
+
+
+def scored_at(xyz, t, p_int, ts):
+    """The step model's held-out error with its step at ts, every point scored (HeldScore)."""
+    from array import array
+    return HeldScore().score(array("i", p_int), (effects.STEP,), held(xyz, t), 0, 0, 0, ts)
+
+
+def board(xyz, t, p_int, weight=None):
+    """The board's placement (StepPlace on a HeldOut holding these points, weight 1 each unless
+    given, the model scored at the fitted time HI, as discover.py drives it)."""
+    from array import array
+    h = held(xyz, t, weight)
     p = array("i", p_int)
     kinds = (effects.STEP,)
     s = HeldScore()
@@ -158,7 +170,9 @@ def test_past_gap_max_the_board_places_among_its_latest_gap_points_only(shock):
     leaves the earliest ones unstepped, where the host weighs them all.  A shock among the
     latest: the same split.  A shock before them (a limit of the board's memory, 12 bytes a gap
     point, not met in the slow study's gaps of 6-10 points): the host splits at the truth, the
-    board at its earliest kept point, the nearest it can."""
+    board at the earliest kept time after every dropped one, the nearest it can (here a
+    dropped point shares the earliest kept time, 1030: that kept point stays unstepped with
+    it).  Either way its in-sample error is the step model's with the step at the placed time."""
     n_gap = 40
     xyz, t = scene(5, shock, n_gap)
     p_int = SPEC.to_int(np.r_[TRUTH, J_TRUE])
@@ -172,8 +186,9 @@ def test_past_gap_max_the_board_places_among_its_latest_gap_points_only(shock):
     if truth >= n_gap - GAP_MAX:
         assert k_board == k_host == truth, (k_board, k_host, truth)
     else:
-        earliest_kept = gap[n_gap - GAP_MAX]     # (a dropped point may share its time)
-        assert k_host == truth and pl.step_time == earliest_kept, (k_board, k_host, truth)
+        after_dropped = gap[gap > gap[n_gap - GAP_MAX - 1]][0]
+        assert k_host == truth and pl.step_time == after_dropped, (k_board, k_host, truth)
+    assert pl.placed_insample == scored_at(xyz, t, p_int, pl.step_time)
 
 
 def test_a_weighted_point_places_and_scores_as_its_rest_means(monkeypatch):
@@ -194,3 +209,26 @@ def test_a_weighted_point_places_and_scores_as_its_rest_means(monkeypatch):
         n = int(w.sum())
         assert abs(out["heldout_error_placed_insample_mg"] / 1e3 * n
                    - pl.placed_insample / Q16) <= n * TOL_PER_POINT
+
+
+@pytest.mark.parametrize("seed", [5, 6, 7])
+def test_past_gap_max_a_dropped_point_at_the_earliest_kept_time_stays_with_it(seed):
+    """More gap points than GAP_MAX, the latest dropped one at the same 64 s time as the earliest
+    kept one (made so), a shock before them all: the board may not place the time there (a
+    split falls between distinct times: its calibration would step the dropped point it scored
+    unstepped).  Its in-sample error is the step model's held-out error with the step at the
+    placed time (HeldScore over every point, independent of the placement's sums)."""
+    n_gap = 40
+    xyz, t = scene(seed, LO + 10, n_gap)
+    order = np.argsort(np.where((t > LO) & (t < HI), t, HI + 1000), kind="stable")[:n_gap]
+    first_kept = order[n_gap - GAP_MAX]
+    t[order[n_gap - GAP_MAX - 1]] = t[first_kept]    # the latest dropped: the same time
+    gap = np.sort(t[(t > LO) & (t < HI)])
+    assert gap[n_gap - GAP_MAX - 1] == gap[n_gap - GAP_MAX] < gap[n_gap - GAP_MAX + 1]
+    p_int = SPEC.to_int(np.r_[TRUTH, J_TRUE])
+    pl = board(xyz, t, p_int)
+    assert pl.n == GAP_MAX
+    # not at the earliest kept time, which the dropped point shares (the host, holding every
+    # point, splits before them all; the board cannot: see test_past_gap_max_...)
+    assert pl.step_time > gap[n_gap - GAP_MAX], (pl.step_time, gap[n_gap - GAP_MAX])
+    assert pl.placed_insample == scored_at(xyz, t, p_int, pl.step_time)

@@ -33,7 +33,7 @@ FIELDS = {
     log.EFFECT: ("index", "effect", "ref_temp", "ref_time", "p0", "p1", "p2"),
     log.SUPPLY: ("index", "supply_mv"),
     log.DISCOVERY: ("index", "adopted", "closest", "heldout_before", "heldout_after",
-                    "blocks_better", "blocks", "p0", "p1", "p2"),
+                    "blocks_better", "blocks", "effect", "p0", "p1", "p2"),
 }
 
 
@@ -128,7 +128,7 @@ def malformed(rtype: int, payload: bytes) -> str | None:
     elif rtype == log.DISCOVERY:
         checks = [(all(k in deff.NAMES for k in deff.model_kinds(v[1])), "adopted"),
                   (all(k in deff.NAMES for k in deff.model_kinds(v[2])), "closest"),
-                  (v[5] <= v[6], "blocks")]
+                  (v[5] <= v[6], "blocks"), ((v[7] in deff.NAMES) == (v[2] != 0), "effect")]
     else:
         checks = []
     for ok, field_name in checks:
@@ -308,9 +308,10 @@ def _discovery(d: dict, catalogue) -> dict:
     before, after = d["heldout_before"], d["heldout_after"]
     out["change_pct"] = (round(100.0 * (after - before) / before, 1)
                          if before and out["closest"] else None)
-    if out["closest"]:    # the record holds its first effect's parameters
-        eff = catalogue[out["closest"].split("+")[0]]
+    if out["closest"]:    # the record holds the parameters of the effect its round added
+        eff = catalogue[deff.NAMES[d["effect"]]]
         vals = eff.from_int([d["p0"], d["p1"], d["p2"]]) * eff.scale
+        out["params_effect"] = eff.name
         out["unit"] = eff.report_unit
         out["params"] = dict(zip(eff.param_names, vals.tolist()))
     return out

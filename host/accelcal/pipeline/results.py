@@ -300,6 +300,8 @@ def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
     change = f"held-out error {d['change_pct']:+.0f} %" if d["change_pct"] is not None else ""
     blocks = f"better in {d['blocks_better']} of {d['blocks']} held-out blocks"
     vals = " ".join(f"{n}={v:+.4g}" for n, v in d.get("params", {}).items())
+    if "+" in (d["adopted"] or ""):    # a model of two effects: the parameters are one's
+        vals = f"{d['params_effect']} {vals}"
     if d["adopted"]:
         return (f"discovery at {when}: ADOPTED {d['adopted']} ({change}, {blocks}): "
                 f"{vals} {d.get('unit', '')}".rstrip())

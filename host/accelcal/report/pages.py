@@ -183,6 +183,8 @@ def board_page(folder: str, summ: dict, pngs: dict[str, bytes], rate_hz: int | N
         for d in found:
             h = "–" if not rate_hz else f"{d['index'] / rate_hz / 3600:.2f}"
             pars = ", ".join(f"{n} {v:+.4g}" for n, v in d.get("params", {}).items())
+            if pars and "+" in (d["closest"] or ""):   # the parameters of one of its effects
+                pars = f"{d['params_effect']}: {pars}"
             drows.append([h, _e(d["adopted"] or "–"), _e(d["closest"] or "–"),
                           str(d["heldout_before"]), str(d["heldout_after"]),
                           "–" if d["change_pct"] is None else f"{d['change_pct']:+.0f} %",
