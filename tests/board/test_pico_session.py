@@ -40,7 +40,10 @@ def session(tmp_path, app_args, seconds):
 
 
 def test_mpremote_deploys_acquires_and_pulls_on_the_emulated_pico(tmp_path, emulator):
-    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=3, rounds=1)
+    # The stimulus runs on the emulated clock from power-up, and deploy takes a few seconds of it
+    # (measured 5.0 s on 26 November, less before): with 10 s poses the move could cut the first
+    # 5 s segment by two samples.  30 s poses hold a whole still segment wherever the app starts.
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=3, rounds=1, rest_s=30.0)
     info, pulled, out = session(tmp_path, ["--fifo", "--capture-kb", 200, "--profile", "paper"], 12)
     assert info["board"] == "pico" and info["platform"] == "rp2" and info["format"] == "mpy"
     c = pulled["counters"]
