@@ -338,6 +338,12 @@ def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(
     assert judged["blocks"] > c["blocks"] == out["heldout_blocks"]   # both halves held out in turn
     assert judged["after_mg"] < judged["before_mg"]
     assert "as the device fits it" in out["explanation"]
+    from accelcal.pipeline.results import DiagnoseResult
+    from accelcal.report.pages import diagnose_page
+    shown = "as the device fits it, each half held out in turn"
+    assert f"{shown}: {judged['before_mg']:.2f} -> {judged['after_mg']:.2f} mg" in \
+        DiagnoseResult(out).report()
+    assert shown in diagnose_page(DiagnoseResult(out), {}, None)
     assert "--model base+temp_offset+temp_offset2" in out["explanation"]
 
 

@@ -106,6 +106,11 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
         rows.append([_e("+" + c["effect"]), _num(c["heldout_error_mg"]),
                      _num(c["improvement_pct"], ".1f"), share,
                      _e(ptxt if params else c.get("untestable", ""))])
+        j = c.get("device_folds")
+        if j:   # the curve judged again as the device fits it (pipeline/foldjudge.py)
+            rows.append([_e(f"+{c['effect']} as the device fits it, each half held out in turn"),
+                         _num(j["after_mg"]), _num(j["improvement_pct"], ".1f"),
+                         f"{j['blocks_improved']} of {j['blocks']}", "named" if j["named"] else ""])
     body.append("<h2>Candidates</h2>" + _table(
         ["effect added", "held-out error (mg)", "improvement (%)", "held-out blocks improved",
          "fitted parameters"], rows))
