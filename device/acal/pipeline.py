@@ -1,8 +1,8 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, SUPPLY_DIFFER,
-                       TEMP_DIFFER, TIME_DIFFER, conditions, gravity, int32s)
+from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
+                       gravity, int32s)
 from acal.heldout import held_out
 from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.fixed import N_PARAMS
@@ -323,19 +323,20 @@ class Pipeline:
 
 def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
-    all three conditions, for a discovering board's candidates)."""
-    temp = TEMP_DIFFER if every else 0
-    time = TIME_DIFFER if every else 0
-    supply = SUPPLY_DIFFER if every else 0
+    all three conditions, for a discovering board's candidates), and the spread weights with
+    them (bins.set_differ)."""
+    bins.set_differ(_needed(kinds, 0, every), _needed(kinds, 1, every), _needed(kinds, 2, every))
+
+
+def _needed(kinds, c, every):
+    # condition c's threshold (DIFFERS) when tracked: every, or an effect of kinds reads it
+    # (effects.condition_of, as spanned and discover.testable ask); else 0
+    if every:
+        return DIFFERS[c]
     for k in kinds:
-        source = effects.source_of(k)
-        if source == effects.SOURCE_TEMP:
-            temp = TEMP_DIFFER
-        elif source == effects.SOURCE_TIME:
-            time = TIME_DIFFER
-        elif source == effects.SOURCE_SUPPLY:
-            supply = SUPPLY_DIFFER
-    bins.set_differ(temp, time, supply)   # and the spread weights with them
+        if effects.condition_of(k) == c:
+            return DIFFERS[c]
+    return 0
 
 
 def spanned(bins, kinds):

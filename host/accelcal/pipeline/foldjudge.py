@@ -47,7 +47,7 @@ def fold_gain(spec: ModelSpec, cspec: ModelSpec, train: RestPoints, test: RestPo
               test_block: np.ndarray, points: str = "bins"):
     """One fold: spec and cspec (spec with the candidate) fitted on train (points "bins": the
     device bins' selection for cspec; "all": every point), scored on test.  Returns |r| of each
-    on the test points and how many of test's blocks improve."""
+    on the test points, how many of test's blocks improve and how many points were fitted."""
     pts = bins_selection(cspec, train) if points == "bins" else train
     th0, ref0 = fit_with_reference(spec, pts, refs(pts, spec))
     _, r0 = residuals(spec, th0, test, ref0)
@@ -55,7 +55,7 @@ def fold_gain(spec: ModelSpec, cspec: ModelSpec, train: RestPoints, test: RestPo
     _, rc = residuals(cspec, th, test, ref)
     gain = np.abs(r0) - np.abs(rc)
     better = sum(bool(gain[test_block == b].mean() > 0) for b in np.unique(test_block))
-    return np.abs(r0), np.abs(rc), better
+    return np.abs(r0), np.abs(rc), better, len(pts)
 
 
 def device_folds(spec: ModelSpec, cspec: ModelSpec, halves: Halves) -> dict:

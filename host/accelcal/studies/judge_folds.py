@@ -29,7 +29,7 @@ import numpy as np
 
 from acal import discovery
 from accelcal.model.effects import CATALOGUE, ModelSpec
-from accelcal.pipeline.foldjudge import bins_selection, fold_gain
+from accelcal.pipeline.foldjudge import fold_gain
 from accelcal.pipeline.restpoints import BLOCK_S
 
 
@@ -44,10 +44,10 @@ def judge(path: str, model: str, cand: str) -> list[dict]:
         pooled = []
         for parity, fold in ((0, "even"), (1, "odd")):
             tr = block % 2 == parity
-            r0, rc, better = fold_gain(spec, cspec, p.take(tr), p.take(~tr), block[~tr], how)
+            r0, rc, better, points = fold_gain(spec, cspec, p.take(tr), p.take(~tr), block[~tr],
+                                               how)
             nb = len(np.unique(block[~tr]))
             pooled.append((r0, rc, better, nb))
-            points = int(tr.sum()) if how == "all" else len(bins_selection(cspec, p.take(tr)))
             rows.append(row(how, fold, points, r0, rc, better, nb))
         rows.append(row(how, "both", None, np.concatenate([x[0] for x in pooled]),
                         np.concatenate([x[1] for x in pooled]), sum(x[2] for x in pooled),
