@@ -1,0 +1,79 @@
+"""Held out on a real wrist recording (issue 30): the rest points of 21 hours of a GENEActiv
+wrist watch (sleeppy's demo.bin, tests/data/real/sleeppy/), split by time, in halves and in
+compare's 2-hour blocks.  Both halves cover the sphere; the device's fit reaches the optimum of
+its own points (float lsq on the same points); and the issue's criterion, the default
+calibration's held-out error at or below float lsq on every training rest point, is checked on
+each split: met trained on the second half, not met (by 0.013 and 0.14 mg) on the other two,
+where the test is marked as an expected failure that fails the suite once it passes."""
+import numpy as np
+import pytest
+
+from accelcal import methods
+from accelcal.bridge import runtime
+from accelcal.methods import coverage_reason
+from accelcal.pipeline import compare
+from accelcal.pipeline.restpoints import rest_points, split, usable
+from conftest import ROOT
+
+POINTS = ROOT / "tests" / "data" / "real" / "sleeppy" / "demo_restpoints.csv"
+CFG = runtime.Config.for_profile("wear", False)
+
+
+@pytest.fixture(scope="module")
+def points():
+    return usable(rest_points(str(POINTS)))
+
+
+def halves(p, which):
+    """(training, held out): the rest points cut at the middle of their time span, or compare's
+    2-hour blocks."""
+    if which == "blocks":
+        train, test, _ = split(p)
+        return train, test
+    first = p.t < p.t.min() + (p.t.max() - p.t.min()) / 2
+    return (p.take(first), p.take(~first)) if which == "first" else (p.take(~first), p.take(first))
+
+
+@pytest.fixture(scope="module")
+def fits(points):
+    """Per split: held-out error (mg) of the device's fit, of lsq on the device's points and of
+    lsq on every training rest point."""
+    out = {}
+    for which in ("blocks", "first", "second"):
+        train, test = halves(points, which)
+        device, selected, why = compare.device_fit(train.v, CFG)
+        assert why is None, why
+        out[which] = {name: methods.calibration_error_mg(params, test.v) for name, params in (
+            ("device", device), ("lsq_selected", methods.METHODS["lsq"](np.asarray(selected))),
+            ("lsq_all", methods.METHODS["lsq"](train.v)))}
+        out[which]["before"] = methods.calibration_error_mg(None, test.v)
+    return out
+
+
+def test_a_day_of_wrist_wear_long_enough_that_both_time_halves_cover(points):
+    assert (points.t.max() - points.t.min()) / 3600 > 20
+    for which in ("first", "second"):
+        train, test = halves(points, which)
+        assert len(train) and len(test)
+        assert train.t.max() < test.t.min() or test.t.max() < train.t.min()   # by time
+        assert coverage_reason(train.v, 9, "train") is None
+        assert coverage_reason(test.v, 9, "held out") is None
+    assert split(points).how == "2-hour blocks: even train, odd held out"   # the standing split
+
+
+@pytest.mark.parametrize("which", ["blocks", "first", "second"])
+def test_the_device_fit_reaches_the_optimum_of_its_points_on_real_wear(fits, which):
+    f = fits[which]
+    assert f["device"] < f["before"] * 0.7
+    assert abs(f["device"] - f["lsq_selected"]) <= 0.01 * f["lsq_selected"]
+
+
+@pytest.mark.parametrize("which", [
+    pytest.param("blocks", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured 26 Nov 2026: lsq on every training point 2.49 mg, the default 2.62 mg "
+        "(docs/real-recordings.md 'Held out on real files')"))),
+    pytest.param("first", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured 26 Nov 2026: lsq on every training point 4.421 mg, the default 4.434 mg"))),
+    "second"])
+def test_the_default_calibration_held_out_at_or_below_lsq_on_every_training_point(fits, which):
+    assert fits[which]["device"] <= fits[which]["lsq_all"]
