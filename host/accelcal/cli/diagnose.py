@@ -55,7 +55,7 @@ def cmd_compare(args) -> int:
     quiet = args.json or not sys.stderr.isatty()
     out = compare(args.input, methods=args.methods, model=args.model, train=args.train,
                   cfg=pipeline_config(args, args.model != "base"), runtime_name=args.runtime,
-                  plots=args.plots, say=(lambda m: None) if quiet else say)
+                  plots=args.plots, split=args.split, say=(lambda m: None) if quiet else say)
     if args.json:
         print(out.to_json())
     else:
@@ -71,6 +71,7 @@ def say(message: str) -> None:
 
 def add_parsers(sub) -> None:
     from accelcal.methods import METHODS
+    from accelcal.pipeline.restpoints import SPLIT_RULES
     p = sub.add_parser("diagnose", help="where the model fails, and which effect is missing",
                        description="Fits the model on even 2-hour blocks of the rest points and "
                                    "measures on the odd ones: held-out calibration error beside the "
@@ -111,7 +112,8 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("compare", help="every calibration method on the same data, one table",
                        description="Rest points (the device's detector) split into training and "
                                    "held-out parts (recordings: 2-hour blocks, even/odd; points "
-                                   "files without t: alternate points).  The device's bins and "
+                                   "files without t: alternate points; --split: the halves of "
+                                   "the time span).  The device's bins and "
                                    "optimiser run on the training part; every float method is "
                                    "fitted on the points the bins selected (--train all: on every "
                                    "training point).  All are scored on the held-out part: mean "
@@ -128,6 +130,11 @@ def add_parsers(sub) -> None:
                         "as Farago Table 3; thinned when the bins do not fill), the training points "
                         "thinned to at most 10 per direction (Gietzelt 2.4), or all of them (de "
                         "then costs O(points) per generation: minutes on days of data)")
+    p.add_argument("--split", choices=SPLIT_RULES, default="blocks",
+                   help="how the rest points are split: blocks (default: alternate 2-hour blocks, "
+                        "even train, odd held out; points files without t: alternate points), "
+                        "first-half (cut at the middle of their time span: the first half trains, "
+                        "the second is held out) or second-half (the reverse)")
     p.add_argument("--runtime", choices=RUNTIMES, default="cpython",
                    help="interpreter for the device method")
     p.add_argument("--plots", metavar="DIR",

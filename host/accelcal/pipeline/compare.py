@@ -1,8 +1,10 @@
 """`accelcal compare`: every calibration method on the same data, scored the same way.
 
 Rest points come from the device's own rest detector (as `diagnose`); they are split into a
-training part and a held-out part (recordings: 2-hour blocks, even train, odd held out, as
-`diagnose`; points files without a time column: alternate points).  The device's bins and
+training part and a held-out part (recordings and timed points files: 2-hour blocks, even
+train, odd held out, as `diagnose`; points files without a time column: alternate points; or,
+with split="first-half" or "second-half", the two halves of the rest points' time span, one
+training: pipeline/restpoints.py).  The device's bins and
 integer optimiser run on the training part in stream order; by default every float method is
 fitted on the very points those bins selected (Farago 2024: "we used our method to collect and
 select the calibration points for each of the compared calibration algorithms"), or with
@@ -27,7 +29,8 @@ from acal import fixed, optimiser
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.pipeline.results import CompareResult
-from accelcal.pipeline.restpoints import RestPoints, check_coverage, rest_points, split, usable
+from accelcal.pipeline.restpoints import (SPLIT_RULES, RestPoints, check_coverage, rest_points,
+                                          split, usable)
 from accelcal.errors import InputError
 from accelcal.fixedpoint import params_to_float
 from accelcal.files.table import read_table
@@ -55,17 +58,22 @@ class Split:
     how: str
 
 
-def split_points(path: str, cfg: runtime.Config | None = None) -> Split:
-    """The rest points (by cfg's rest test; None: the paper's) split into train and held out."""
+def split_points(path: str, cfg: runtime.Config | None = None, rule: str = "blocks") -> Split:
+    """The rest points (by cfg's rest test; None: the paper's) split into train and held out by
+    rule (restpoints.SPLIT_RULES; "blocks" on a points file without t: alternate points)."""
     seconds, thr, axis = (5, 123, 0) if cfg is None else (cfg.seconds, cfg.threshold_int, cfg.axis)
     if is_recording(path):
         p, timed = usable(rest_points(path, seconds, thr, axis)), True
     else:
         table = read_table(path)
         p, timed = usable(rest_points(table)), "t" in table.columns
+    if not timed and rule != "blocks":
+        raise InputError(f"{path}: --split {rule} cuts the rest points by time and this points "
+                         "file has no t column (without one it is split into alternate points, "
+                         "--split blocks)")
     check_coverage(p)
     if timed:
-        halves = split(p)   # both halves pass the coverage rule every fit shares
+        halves = split(p, rule)   # both halves pass the coverage rule every fit shares
         train, test, _ = halves
         how = halves.how
     else:
@@ -157,10 +165,11 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
 
 def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str = "selected",
                   runtime_name: str = "cpython", say=lambda m: None,
-                  spec=None) -> tuple[CompareResult, Split]:
-    """The comparison (JSON-ready) and the split it was made on."""
+                  spec=None, rule: str = "blocks") -> tuple[CompareResult, Split]:
+    """The comparison (JSON-ready) and the split (by rule, restpoints.SPLIT_RULES) it was made
+    on."""
     say(f"{path}: rest detection (the device's detector, {cfg.profile} profile)")
-    sp = split_points(path, cfg)
+    sp = split_points(path, cfg, rule)
     before = methods.calibration_error_mg(None, sp.test.v)
     _, selected, dev_why = device_fit(sp.train.v, cfg, runtime_name)
     if train == "selected" and dev_why is None:
@@ -266,16 +275,19 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
 def compare(path: str, *, methods: str | list[str] | None = None, model: str = "base",
             cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
             runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
-            say=lambda m: None) -> CompareResult:
+            split: str = "blocks", say=lambda m: None) -> CompareResult:
     """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
     same training points and scored on the same held-out ones; with a composed model two more
     rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
-    curve (Gietzelt figure 3).  effects: a file of declared effects (registered).
-    say(message): progress."""
+    curve (Gietzelt figure 3).  effects: a file of declared effects (registered).  split: how
+    the rest points are split (restpoints.SPLIT_RULES: "blocks", the default, or "first-half" /
+    "second-half", the half of their time span that trains).  say(message): progress."""
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
     register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
+    if split not in SPLIT_RULES:
+        raise InputError(f"unknown split {split!r}; choose from {', '.join(SPLIT_RULES)}")
     try:
         spec = ModelSpec.parse(model)
     except ValueError as e:
@@ -284,7 +296,7 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
         cfg = runtime.Config.for_profile(profile, bool(spec.effects))
     if plots:
         check_output_dir(plots, [path], "--plots")
-    out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec)
+    out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec, split)
     if plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, runtime_name)

@@ -10,7 +10,13 @@ postures held across a block edge are the only shared context.  Each half must p
 coverage rule every fit here shares (coverage_reason: the float methods' own check, and what
 compare and diagnose ask of the points they hand the device): a wrist that turns over in only a
 few hours can leave the even blocks one-sided, so other blocks are tried in a fixed order
-(SPLITS) and the first whose halves both cover is used, or the reason none does is given."""
+(SPLITS) and the first whose halves both cover is used, or the reason none does is given.
+
+Or, asked for (`compare --split first-half|second-half`, issue 30's criterion on real data), the
+rest points cut at the middle of their time span: one half trains, the other is held out.  That
+is the harder test: the held-out half lies outside the training half's time, and may lie outside
+its temperatures and postures (a day trains, a night is scored).  Both halves must pass the same
+coverage rule; there is no fallback, since the cut is what is asked for."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -102,7 +108,46 @@ class Halves(tuple):
     train_block: np.ndarray
 
 
-def split(p: RestPoints) -> Halves:
+# How rest points may be split (module doc): alternate time blocks (the standing split), or the
+# two halves of their time span, the first or the second training.
+SPLIT_RULES = ("blocks", "first-half", "second-half")
+
+
+def split(p: RestPoints, rule: str = "blocks") -> Halves:
+    """The rest points into training and held-out halves by rule (SPLIT_RULES, module doc), both
+    halves passing the coverage rule; InputError saying why when they cannot."""
+    if rule == "blocks":
+        return block_split(p)
+    if rule in ("first-half", "second-half"):
+        return time_halves(p, first_trains=rule == "first-half")
+    raise InputError(f"unknown split {rule!r}; choose from {', '.join(SPLIT_RULES)}")
+
+
+def time_halves(p: RestPoints, first_trains: bool) -> Halves:
+    """The rest points cut at the middle of their time span (a point on it goes to the second
+    half): the first half trains and the second is held out, or the reverse.  Each point's
+    block is its half (0 first, 1 second).  InputError naming the half that does not cover."""
+    t0, span = p.t.min(), p.t.max() - p.t.min()
+    second = p.t >= t0 + span / 2
+    train = ~second if first_trains else second
+    names = ("first", "second") if first_trains else ("second", "first")
+    hours = {"first": f"0-{span / 7200:.1f} h", "second": f"{span / 7200:.1f}-{span / 3600:.1f} h"}
+    for role, sel, which in (("training", train, names[0]), ("held-out", ~train, names[1])):
+        why = coverage_reason(p.v[sel], 9, f"the {role} half ({which} half by time, "
+                                           f"{hours[which]} of the rest points' span)")
+        if why:
+            raise InputError(f"{p.source}: split {names[0]}-half: {why}.  A held-out score by "
+                             "time halves needs a recording in which the device turns over in "
+                             "each half (split blocks interleaves 2-hour blocks)")
+    block = second.astype(int)
+    out = Halves((p.take(train), p.take(~train), block[~train]))
+    out.train_block = block[train]
+    out.how = (f"time halves, cut at {span / 7200:.1f} h of the rest points' {span / 3600:.1f}-h "
+               f"span: the {names[0]} half trains, the {names[1]} is held out")
+    return out
+
+
+def block_split(p: RestPoints) -> Halves:
     """The rest points into training and held-out halves by time blocks (module doc): the first
     of SPLITS whose halves both pass the coverage rule; InputError saying why when none does."""
     first_why = None
