@@ -57,7 +57,7 @@ def option_cases(good):
         (["deploy", "--port", "/dev/null"], ["--rate", "--capture-kb", "--recal-hours"]),
         (["board", "virtual", "--flash", d / "flash"], ["--days", "--rate", "--bus-faults",
                                                          "--speed", "--seed"]),
-        (["compare", rec], ["--train"]),
+        (["compare", rec], ["--train", "--split"]),
     ]
     for prefix, options in groups:
         for opt in options:
@@ -174,7 +174,47 @@ def bad_files(tmp_path_factory):
         cases.append((["calibrate", p], "points " + name))
         cases.append((["calibrate", p, "--method", "lsq"], "points lsq " + name))
         cases.append((["calibrate", p, "--by", "device"], "points by " + name))
+    for argv, what, _ in time_split_cases(d):
+        cases.append((argv, what))
     return cases
+
+
+def time_split_cases(d):
+    """(argv, what it is, what the line must say) for compare's split by time halves
+    (restpoints.time_halves): a points file without t, and points files whose first half by time
+    lies on one hemisphere, trained on and held out."""
+    rng = np.random.default_rng(11)
+    v = rng.normal(size=(400, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    untimed = d / "split_untimed.csv"
+    untimed.write_text("x,y,z\n" + "".join(f"{a:.6f},{b:.6f},{c:.6f}\n" for a, b, c in v))
+    v[:200, 2] = np.abs(v[:200, 2]) + 0.05   # the first 200 minutes: face up only
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    onesided = d / "split_first_one_sided.csv"
+    onesided.write_text("x,y,z,t\n" + "".join(f"{a:.6f},{b:.6f},{c:.6f},{60 * i}\n"
+                                               for i, (a, b, c) in enumerate(v)))
+    return [(["compare", untimed, "--split", "first-half"], "time split untimed",
+             "--split first-half cuts the rest points by time and this points file has no t"),
+            (["compare", untimed, "--split", "second-half", "--json"], "time split untimed json",
+             "--split second-half cuts the rest points by time and this points file has no t"),
+            (["compare", onesided, "--split", "first-half"], "first half one-sided, training",
+             "the training half (first half by time, 0-3.3 h of the rest points' span): the 200 "
+             "points cover one hemisphere only"),
+            (["compare", onesided, "--split", "second-half"], "first half one-sided, held out",
+             "the held-out half (first half by time, 0-3.3 h of the rest points' span): the 200 "
+             "points cover one hemisphere only")]
+
+
+def test_a_time_split_that_cannot_be_made_says_why_in_one_line(tmp_path, capsys):
+    """No t, or a half by time that does not cover the sphere: one line naming the option or
+    the half and why, exit 2.  The same files split as by default are not refused: alternate
+    points, and 2-hour blocks that each mix one-sided hours with covering ones."""
+    for argv, what, says in time_split_cases(tmp_path):
+        code, out, err = run_main(capsys, argv)
+        assert code == 2 and err.count("\n") == 1 and says in err and not out, (what, err)
+        code, out, err = run_main(capsys, [argv[0], argv[1], "--methods", "lsq", "--json"])
+        assert code == 0 and json.loads(out)["split"].startswith(
+            ("alternate points", "2-hour blocks")), (what, err)
 
 
 def board_log(records):

@@ -136,9 +136,8 @@ def time_halves(p: RestPoints, first_trains: bool) -> Halves:
         why = coverage_reason(p.v[sel], 9, f"the {role} half ({which} half by time, "
                                            f"{hours[which]} of the rest points' span)")
         if why:
-            raise InputError(f"{p.source}: split {names[0]}-half: {why}.  A held-out score by "
-                             "time halves needs a recording in which the device turns over in "
-                             "each half (split blocks interleaves 2-hour blocks)")
+            raise InputError(f"{p.source}: split {names[0]}-half: {why}; the device must turn "
+                             "over in each half by time (split blocks interleaves 2-hour blocks)")
     block = second.astype(int)
     out = Halves((p.take(train), p.take(~train), block[~train]))
     out.train_block = block[train]
