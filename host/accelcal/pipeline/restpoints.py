@@ -103,7 +103,7 @@ SPLITS = [(BLOCK_S, 0, 0), (BLOCK_S, 0, 1), (BLOCK_S, BLOCK_S // 2, 0), (BLOCK_S
 
 class Halves(tuple):
     """(train, held out, each held-out point's block), `train_block` (each training point's
-    block) and `how`: the blocks in words."""
+    block) and `how`: the split in words (its blocks, or which time half trains)."""
     how: str
     train_block: np.ndarray
 
