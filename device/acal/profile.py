@@ -9,7 +9,7 @@
 #          from the sensor's noise measured on the device (rest.NoiseGauge), 8 points per subset
 #          (72), a Gauss-Newton fit run to the optimum of its points, integer outlier rejection
 #          (gaussnewton.py), and readiness from coverage (bins.py) rather than nine full
-#          subsets.
+#          subsets; a composed model 14 per subset (126).
 # Composed models (effects.py) keep their spread rules (bins.py) in both.
 from acal.rest import ALL_AXES, AUTO, DEFAULT_THRESHOLD
 
@@ -23,12 +23,20 @@ NEWTON = 1     # fit: Gauss-Newton with outlier rejection (gaussnewton.py)
 
 COMPOSED_MAX_COUNT = 4  # paper profile, composed model: 4 per subset (36), spread in T and t
 WEAR_MAX_COUNT = 8
+WEAR_COMPOSED_MAX_COUNT = 14
 # Why 8 per subset (72 points): the outlier test needs enough points that one bad one is a
 # minority in its neighbourhood (18 cannot outvote a point); RAM is ~5 kB of list slots at 72
 # points; a Gauss-Newton step costs 10 residuals per point, ~0.2 s on an RP2040 at 72 points,
 # sliced (docs/method-and-formats.md "Sliced fit").  More points than the bins' 0.1 g spacing lets
 # a band hold
 # would sit unused.
+# Why 14 for a composed model (126 points, the most under gaussnewton.MAX_POINTS = 128, the
+# bound its sums are proven for): each effect's points are spread in their condition as well,
+# and on the held-out wrist benchmark 72 of them left the fit of a single seed up to 1.34x the
+# true model's error where least squares on every rest point was within 1.2x (temperature
+# gain and curve on seed 4, drift); 126 bring every effect's seeds 1-6 within 1.25x but one
+# (docs/model-discovery.md "Points for a composed model").  Cost on an RP2040: ~7.5 kB more
+# heap for the four-effect App, a longer fit (more slices of the same size).
 
 
 def settings(profile, composed=False):
@@ -39,7 +47,8 @@ def settings(profile, composed=False):
                 "max_count": COMPOSED_MAX_COUNT if composed else 2, "fit": GRADIENT}
     if profile == WEAR:
         return {"axis": ALL_AXES, "threshold": AUTO, "min_count": 2,
-                "max_count": WEAR_MAX_COUNT, "fit": NEWTON}
+                "max_count": WEAR_COMPOSED_MAX_COUNT if composed else WEAR_MAX_COUNT,
+                "fit": NEWTON}
     raise ValueError("profile must be PAPER or WEAR")
 
 

@@ -351,25 +351,27 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
 
 
 def test_default_fit_stays_small_on_hostile_points(rng):
-    """The whole default fit, traced: 72 points with outliers at the clamp, points past it,
-    a composed model of all four effects with dT and dt past their clamps."""
+    """The whole default fit, traced: as many points as it takes (gaussnewton.MAX_POINTS, 128:
+    the wear profile's composed bins hold 126, its base bins 72) with outliers at the clamp,
+    points past it, a composed model of all four effects with dT and dt past their clamps."""
     from acal import effects
+    from acal.gaussnewton import MAX_POINTS as n
     from accelcal import simulate
-    d = rng.normal(size=(72, 3))
+    d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
     v = simulate.uncorrect(np.array([1.2, 0.8, 1.1, 0.1, -0.1, 0.1, 0.2, -0.2, 0.2]), d)
     v[:6] = [[16, -16, 16], [2.1, 2.1, 2.1], [0, 0, 0], [-3, 0, 0], [0.5, 0.5, 0.5], [1, 1, 1]]
     pts = [int(c) for c in np.round(v * 65536).astype(np.int64).ravel()]
-    aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=216)]   # dT dt dV (COND)
-    aux[0::3] = [int(x) for x in rng.integers(-200, 200, size=72)]
+    aux = [int(x) for x in rng.integers(-(1 << 20), 1 << 20, size=3 * n)]   # dT dt dV (COND)
+    aux[0::3] = [int(x) for x in rng.integers(-200, 200, size=n)]
     specific = tuple(k for k in effects.NAMES if k not in effects.SHAPES)
     generic = (effects.STEP, effects.TIME_OFFSET4, effects.TEMP_OFFSET4, effects.SUPPLY_OFFSET)
     for k, a in (((), None), (specific, aux), (generic, aux)):
         tr = Tracer()
         T = traced(tr)
-        gn = traced_gauss_newton(T, 72, k)   # its int32 arrays as traced lists
+        gn = traced_gauss_newton(T, n, k)   # its int32 arrays as traced lists
         with viper_casts():
-            gn.run(Int32s(T(c) for c in pts), 72, 20, None if a is None else Int32s(T(c) for c in a))
+            gn.run(Int32s(T(c) for c in pts), n, 20, None if a is None else Int32s(T(c) for c in a))
         assert tr.ops > 10000 and tr.big == 0, (k, tr.big, np.log2(tr.max_abs))
 
 

@@ -4,6 +4,7 @@ bins' spread slots keep each subset's temperature extremes, so a rare cold spell
 beyond its share of the rest points: the chord that makes a straight line misfit a curve."""
 import numpy as np
 
+from acal import profile
 from accelcal.model.effects import ModelSpec
 from accelcal.pipeline.restpoints import RestPoints
 from accelcal.simulate.scenarios import unit_points
@@ -19,7 +20,8 @@ def test_the_bins_keep_input_points_and_over_hold_a_rare_cold_spell():
     temp[cold] = rng.uniform(25.0, 28.0, cold.sum())
     t = np.arange(n) * 60.0
     sel = bins_selection(ModelSpec.parse("base+temp_offset"), RestPoints(v, t, temp, np.zeros(n), "x"))
-    assert 27 <= len(sel) <= 9 * 8   # the wear profile's bins: 8 points a subset at most
+    most = profile.settings(profile.WEAR, True)["max_count"]   # the wear profile's composed bins
+    assert 27 <= len(sel) <= 9 * most
     # every kept point is an input point (Q16 g), at its own temperature (Q2 degC)
     d = np.abs(sel.v[:, None, :] - v[None, :, :]).max(axis=2)
     j = d.argmin(axis=1)

@@ -79,13 +79,15 @@ def score_mg(model: str, theta, ref: dict | None, win) -> float:
     return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1.0)) * 1e3)
 
 
-def device_fit(path: Path, profile: str, model: str = "base", method: str = "device"):
+def device_fit(path: Path, profile: str, model: str = "base", method: str = "device",
+               max_count: int | None = None):
     """The device pipeline's calibration of a file: (model, theta, reference) or None (method
-    "lsq": float least squares on the points the device's bins selected and its fit kept)."""
+    "lsq": float least squares on the points the device's bins selected and its fit kept);
+    max_count: points per subset other than the profile's."""
     from accelcal.pipeline.calibrate import calibrate_recording
     from accelcal.bridge.runtime import Config
     spec = ModelSpec.parse(model)
-    cfg = Config.for_profile(profile, bool(spec.effects))
+    cfg = Config.for_profile(profile, bool(spec.effects), max_count=max_count)
     rec = calibrate_recording(str(path), cfg, method, "cpython", spec)
     if rec["status"] != "calibrated":
         return None, rec.get("reason")
@@ -118,6 +120,17 @@ def lsq_whole_degc(path: Path, model: str, win) -> float:
         p = replace(p, temp=np.rint(p.temp))
     theta, ref = fit_with_reference(spec, p, refs(p, spec))
     return score_mg(model, list(theta), ref, win)
+
+
+def true_score_mg(truth: dict, win) -> float:
+    """The true sensor model's score (the simulator's truth: base and its effects)."""
+    theta = [truth["params"][n] for n in fixed.PARAM_NAMES]
+    true_model, ref = "base", None
+    for e in truth["effects"]:
+        theta += list(e["params"].values())
+        true_model += "+" + e["effect"]
+        ref = e["reference"]
+    return score_mg(true_model, theta, ref, win)
 
 
 def run_case(case: tuple[str, int], workdir: str, others_python: str | None = None) -> dict:
@@ -157,13 +170,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     lsq = calibrate_model(str(fit), model)
     row["lsq_all"] = score_mg(model, list(lsq["params"].values()), lsq["reference"], win)
     row["lsq_degc"] = lsq_whole_degc(fit, model, win)
-    theta = [truth["params"][n] for n in fixed.PARAM_NAMES]
-    true_model, ref = "base", None
-    for e in truth["effects"]:
-        theta += list(e["params"].values())
-        true_model += "+" + e["effect"]
-        ref = e["reference"]
-    row["true"] = score_mg(true_model, theta, ref, win)
+    row["true"] = true_score_mg(truth, win)
     if others_python:
         row.update(others(others_python, fit, win, d))
     for f in (fit, test, fit.with_suffix(".truth.json"), whole.with_suffix(".truth.json")):
