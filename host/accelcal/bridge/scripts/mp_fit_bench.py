@@ -83,7 +83,7 @@ def case(name, prof, kinds):
     slices = 0
     for run in range(RUNS):
         _seed[0] = 4321
-        s = settings(prof)
+        s = settings(prof, bool(kinds))   # a composed model: its own bins (126 points, wear)
         pipe = Pipeline(100, kinds=kinds, **s)
         for i in range(4000):
             pipe.temp = 20 + (i % 17)
