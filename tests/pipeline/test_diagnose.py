@@ -159,7 +159,7 @@ def test_device_fits_the_composed_model_in_integers(recordings, effect, profile)
     """The device pipeline itself (bins spread in temperature and time, integer optimiser) fits
     base+EFFECT: better than its own base fit, and in the range of the float fit on all points
     (the paper profile sees 36 points, lsq all of them: docs/model-discovery.md "Bins for composed models"; the
-    wear profile up to 72, fitted to their optimum: within 1.5x of lsq on all points)."""
+    wear profile up to 126, fitted to their optimum: within 1.5x of lsq on all points)."""
     path = recordings["two" if "+" in effect else effect]
     base = calibrate(path, "base", "--profile", profile)
     dev = calibrate(path, f"base+{effect}", "--profile", profile)

@@ -140,7 +140,7 @@ def add_parsers(sub) -> None:
                         "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
                         "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "
-                        "(>= 12 h): wear profile 8 per subset, the base fit first and kept if the "
+                        "(>= 12 h): wear profile 14 per subset, the base fit first and kept if the "
                         "composed one fails or is worse; paper profile 4 per subset, 200 iterations")
     add_effects_arg(p)
     from accelcal.methods import METHODS
