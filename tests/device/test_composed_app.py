@@ -23,7 +23,7 @@ from acal import log  # noqa: E402
 from acal.bins import TEMP_DIFFER  # noqa: E402
 from acal.fixed import TEMP_Q  # noqa: E402
 from acal.app import App, Processor  # noqa: E402
-from acal.profile import GRADIENT, PAPER, WEAR  # noqa: E402
+from acal.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
 
 RATE = 25
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
@@ -78,8 +78,9 @@ def test_the_board_fits_the_effect_in_integers(ran):
     held = app.proc.pipe.bins
     if app.proc.pipe.fit == GRADIENT:  # 4 points per subset, 200 gradient steps
         assert c["points"] == 36 and c["iterations"] == 200 and held.total() == 36
-    else:  # 8 per subset less the outliers, Gauss-Newton to convergence
-        assert 36 <= c["points"] <= 72 and c["iterations"] <= 20 and held.total() >= 36
+    else:  # the composed bins (14 per subset) less the outliers, Gauss-Newton to convergence
+        assert held.max_count == WEAR_COMPOSED_MAX_COUNT
+        assert 36 <= c["points"] <= 9 * held.max_count and c["iterations"] <= 20 and held.total() >= 36
     k = np.array([c[n] for n in ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")]) / 2 ** 24
     assert np.abs(k - TRUTH).max() < 0.01
     # c at the board's reference (the held points' middle temperature), in g/degC.
