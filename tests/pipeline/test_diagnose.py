@@ -223,6 +223,16 @@ def test_few_blocks_are_weak_evidence_and_explanations_fit_the_device():
         assert "Typical for the LIS3DH" in CATALOGUE[name].explain("LIS3DH")
 
 
+def test_too_few_blocks_to_tell_is_said_by_the_sign_test():
+    """A split whose least share the rule names (70 %) would still be weak evidence says a
+    longer recording would tell: 5 blocks (4 of 5: 6 in 32 by chance) and 14 (10 of 14) do, 16
+    (12 of 16: 1 in 26) and 18 do not."""
+    from accelcal.pipeline.explain import few_blocks
+    assert [bool(few_blocks(b)) for b in (3, 5, 14, 16, 18, 36)] == [True, True, True, False, False,
+                                                                     False]
+    assert "4 of 5 better would be weak evidence" in few_blocks(5)
+
+
 DISCOVER = Config.for_profile("wear", discover=True)
 
 

@@ -99,3 +99,19 @@ def test_compare_split_by_time_halves_gives_these_figures(fits, capsys, which):
         got["device"], got[f"lsq_{train}"] = rows["device"], rows["lsq"]
         got["before"] = rec["rows"][0]["error_before_mg"]
     assert got == pytest.approx(fits[which], rel=1e-9)
+
+
+def test_diagnose_on_the_real_day_says_what_its_points_cannot_tell():
+    """diagnose on the real day's rest points: no noise floor claimed (a points file has no
+    samples: not 0 mg), the best candidate's 5 held-out blocks said to be too few, and the error
+    put against the wrist floor as a ratio, not called explained (2.49 mg, 2.1x the 1.18 mg
+    floor, measured 26 Nov 2026)."""
+    from accelcal.pipeline.diagnose import diagnose
+    out = diagnose(str(POINTS))
+    assert out["missing_effect"] is None and out["noise_floor_measured"] is False
+    assert "noise floor not measured" in out.report()
+    text = out["explanation"]
+    ratio = out["heldout_error_mg"] / out["wrist_floor_mg"]
+    assert ratio > 1.25 and f"is {ratio:.1f}x a wrist floor" in text
+    assert "a longer recording (more 2-hour blocks) would tell" in text
+    assert "explains the data" not in text and "noise floor of 0.00" not in text

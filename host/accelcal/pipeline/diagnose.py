@@ -31,8 +31,9 @@ from acal import discovery
 
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
-from accelcal.files.recordings import sensor_of
 from accelcal.model.effects import CATALOGUE, ModelSpec
+from accelcal.pipeline.explain import (complete_text, few_blocks, named_text, noise_text,
+                                      second_step_text)
 from accelcal.pipeline.composed_lsq import (check_model, fit, fit_with_reference, prepare, refs,
                                             residuals)
 from accelcal.pipeline.history import append_history, check_history, read_history
@@ -52,9 +53,6 @@ MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
 STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
 
 
-# held-out error / wrist floor up to which a model with no lead is called complete (the floor's
-# pairs see fewer postures than the held-out points; complete models measured 1.0-1.8x it)
-COMPLETE_WITHIN = 1.25
 
 
 def diagnose(path: str, model: str = "base", plots: str | None = None, *,
@@ -101,6 +99,9 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     _, r = residuals(spec, theta, test, ref)
     err = float(np.mean(np.abs(r)) * 1e3)
     floor = float(np.mean(np.sqrt(2 / np.pi) * test.noise) * 1e3)
+    # a points file carries no samples, so no noise: its floor is not measured, not zero
+    measured = bool(np.any(test.noise > 0))
+    said = floor if measured else None
     regs = regressors(spec, theta, test, ref)
     where = where_it_fails(regs, r)
     # a column effect is a candidate where the file has its column (not listed elsewhere)
@@ -140,7 +141,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
     second = next((cv for ln, cv in curves(pool) if named in pool and ln is pool[named]), None)
     second_text = second_step_text(spec, named, second, cands) if second is not None else None
     if named:
-        explanation = named_text(spec, named, parts[named], best, err, floor, path)
+        explanation = named_text(spec, named, parts[named], best, err, said, path)
         if second_text is not None:
             explanation += " " + second_text
     elif best:
@@ -148,8 +149,9 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                        f"the held-out error by {best['improvement_pct']:.1f} % in "
                        f"{best['blocks_improved']} of {best['blocks']} held-out blocks "
                        f"({best['blocks_improved_pct']:.0f} %; naming needs >= "
-                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %). Error "
-                       f"{err:.2f} mg against a noise floor of {floor:.2f} mg.")
+                       f"{MIN_IMPROVEMENT_PCT:g} % in >= {100 * MIN_BLOCK_SHARE:.0f} %"
+                       f"{few_blocks(best['blocks'])}). Error {err:.2f} mg against "
+                       f"{noise_text(said)}.")
     else:
         explanation = "Every catalogue effect is in the model or cannot be tested on this file."
     _, r_all = residuals(spec, theta, p, ref)
@@ -161,10 +163,10 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         remains = what_remains(regs, r * 1e3, (regressors(spec, theta, train, ref), r_train * 1e3),
                                test_block)
         explanation += " " + (remains["text"] if remains else
-                              complete_text(err, floor, wrist["floor_mg"]))
+                              complete_text(err, said, wrist["floor_mg"]))
     out = DiagnoseResult(model=str(spec), input=path, split=halves.how,
                          rest_points={"train": len(train), "heldout": len(test)},
-                         heldout_error_mg=err, noise_floor_mg=floor,
+                         heldout_error_mg=err, noise_floor_mg=floor, noise_floor_measured=measured,
                          wrist_floor_mg=wrist["floor_mg"], wrist_floor_pairs=wrist["pairs"],
                          heldout_blocks=len(np.unique(test_block)), missing_effect=named,
                          candidates=cands, explanation=explanation, where_it_fails=where,
@@ -174,66 +176,6 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         out["plots"] = make_plots(Path(plots), spec, theta, test, ref, r, cands, err, floor,
                                   train)
     return out
-
-
-def complete_text(err: float, noise: float, wrist: float | None) -> str:
-    """What diagnose says when no effect is named and nothing that remains holds up."""
-    against = (f"a wrist floor of {wrist:.2f} mg (what rest on a wrist carries beyond the "
-               f"sensor's noise, {noise:.2f} mg)" if wrist is not None else
-               f"a noise floor of {noise:.2f} mg (too few pairs of nearby postures to estimate "
-               "the wrist floor)")
-    if wrist is not None and err <= COMPLETE_WITHIN * wrist:
-        return (f"The model is complete: it explains the data to within what rest on a wrist "
-                f"allows (held-out error {err:.2f} mg against {against}); nothing that remains "
-                "holds up in held-out blocks.")
-    return (f"Held-out error {err:.2f} mg against {against}; no shape of what remains holds up "
-            "in held-out blocks, so there is no lead: the model explains the data to within "
-            "what rest on a wrist allows here.")
-
-
-def named_text(spec: ModelSpec, named: str, parts: list, best: dict, err: float, floor: float,
-               path: str) -> str:
-    """What diagnose says when it names an effect (parts: its effects, a curve's two)."""
-    host = " --method lsq --points all (it runs on the host only)" \
-        if any(e.kind is None for e in parts) else ""
-    weak = "" if best["evidence"] == "clear" else (
-        " Weak evidence: so few blocks better is a count chance alone gives too often; "
-        "confirm it on a longer recording.")
-    both = "" if len(parts) == 1 or "single_ratio" not in best else (
-        f" Both parts at once: with its straight part the curve leaves "
-        f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
-        f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
-    gain = (f"Adding it lowers the held-out error from {err:.2f} to "
-            f"{best['heldout_error_mg']:.2f} mg, better in {best['blocks_improved']} of "
-            f"{best['blocks']} held-out blocks (noise floor {floor:.2f} mg)")
-    judged = best.get("device_folds")
-    if judged:   # named by curve_as_device
-        gain = (f"Fitted as the device fits it (on what its bins keep) with each half of the split "
-                f"held out in turn, adding it lowers the held-out error from "
-                f"{judged['before_mg']:.2f} to {judged['after_mg']:.2f} mg, better in "
-                f"{judged['blocks_improved']} of {judged['blocks']} blocks (fitted on every "
-                f"training point and scored on the held-out half alone: {err:.2f} to "
-                f"{best['heldout_error_mg']:.2f} mg, {best['blocks_improved']} of "
-                f"{best['blocks']}; the device's bins keep the rare temperature extremes, where "
-                f"a straight line is the curve's chord; noise floor {floor:.2f} mg)")
-    return (f"{named}: {parts[-1].explain(sensor_of(path))}{both} Fitted here: "
-            + ", ".join(f"{k} {v:+g}" for k, v in best["params"].items())
-            + f" {best['param_unit']}. {gain}.{weak} Next: "
-            f"accelcal calibrate --model {spec}+{named}{host}")
-
-
-def second_step_text(spec: ModelSpec, named: str, curve, cands: list[dict]) -> str:
-    """What diagnose says when it names a curve's straight part alone: a second step is due, the
-    curve judged on top of it (docs/model-discovery.md "Curves")."""
-    pair = next((c for c in cands if c["effect"] == f"{named}+{curve.name}"), None)
-    seen = ""
-    if pair is not None and pair["heldout_error_mg"] is not None:
-        seen = (f" (here both parts at once left {pair['heldout_error_mg']:.2f} mg held out, "
-                f"better in {pair['blocks_improved']} of {pair['blocks']} blocks: not enough to "
-                "name them in one step)")
-    return (f"A second step is due: {curve.name}, the curve {named} may be the straight part "
-            f"of, is judged only with {named} in the model{seen}; run accelcal diagnose --model "
-            f"{spec}+{named} next.")
 
 
 def curve_as_device(spec: ModelSpec, pool: dict, cands: list[dict], halves, best):

@@ -180,7 +180,8 @@ class DiagnoseResult(dict):
         lines = [f"{self['input']}: model {self['model']}, {rp['train']} training / "
                  f"{rp['heldout']} held-out rest points ({self['split']})",
                  f"held-out calibration error {self['heldout_error_mg']:.2f} mg, noise floor "
-                 f"{self['noise_floor_mg']:.2f} mg, wrist floor "
+                 + (f"{self['noise_floor_mg']:.2f} mg" if self.get("noise_floor_measured", True)
+                    else "not measured (no samples)") + ", wrist floor "
                  + (f"{self['wrist_floor_mg']:.2f} mg ({self['wrist_floor_pairs']} pairs)"
                     if self.get("wrist_floor_mg") is not None else "not estimated (too few pairs)")
                  + f", {self.get('heldout_blocks')} held-out blocks",
