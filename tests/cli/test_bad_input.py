@@ -271,6 +271,26 @@ def test_bad_options_end_in_one_line(good, capsys):
     assert n >= 400
 
 
+def test_more_points_per_subset_than_the_fits_take_is_one_line(good, capsys):
+    """9 subsets of 15 are past the 128 points both fits are proven for (they raised a
+    ValueError from the device code, a traceback, before): refused where the option enters; 14,
+    the composed wear bins' count, runs."""
+    from acal.bins import N_SUBSETS
+    from acal.gaussnewton import MAX_POINTS
+    from acal.objective import MAX_POINTS as PAPER_MAX_POINTS
+    from accelcal.cli.options import MAX_PER_SUBSET
+    assert N_SUBSETS * MAX_PER_SUBSET <= min(MAX_POINTS, PAPER_MAX_POINTS) < N_SUBSETS * (MAX_PER_SUBSET + 1)
+    _, pts, _, _ = good
+    for profile in ("wear", "paper"):
+        code, _, err = run_main(capsys, ["calibrate", pts, "--profile", profile, "--max-count", "15"])
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "[1, 14]" in err, err
+        code, _, err = run_main(capsys, ["calibrate", pts, "--profile", profile, "--max-count", "14"])
+        # taken: the wear fit calibrates; the paper's gradient, its rates set for 18 points, may
+        # diverge on 126 and says so in one line
+        assert "[1, 14]" not in err and "Traceback" not in err, err
+        assert code == 0 if profile == "wear" else len(err.strip().splitlines()) <= 1, (code, err)
+
+
 def test_bad_files_end_in_one_line(bad_files, capsys):
     for argv, what in bad_files:
         code, out, err = run_main(capsys, argv)

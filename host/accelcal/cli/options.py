@@ -18,6 +18,11 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
+# points per subset the fits take: 9 subsets of at most 14 under their 128 points
+# (acal.gaussnewton.MAX_POINTS, acal.objective.MAX_POINTS)
+MAX_PER_SUBSET = 14
+
+
 def int_in(lo, hi):
     """An int option within [lo, hi] (every numeric option has an upper bound)."""
     def parse(s):
@@ -94,7 +99,8 @@ def add_pipeline_args(p):
                              "--profile sets every default below; an option given overrides it.")
     g.add_argument("--profile", choices=["wear", "paper"], default="wear",
                    help="wear (default): rest on all axes against a threshold from the sensor's "
-                        "measured noise, 8 points per subset, a Gauss-Newton fit to the optimum "
+                        "measured noise, 8 points per subset (14 for a composed model), a "
+                        "Gauss-Newton fit to the optimum "
                         "with outlier rejection, ready on coverage; paper: Farago 2024 to the "
                         "letter (x axis, 0.12 g, 2 points per subset, 50 gradient steps)")
     g.add_argument("--seconds", type=int_in(1, 3600), default=5, help="rest segment length, s (default 5)")
@@ -103,10 +109,12 @@ def add_pipeline_args(p):
                         "default: wear auto, paper 0.12")
     g.add_argument("--axis", choices=["x", "y", "z", "all"], default=None,
                    help="axis for the rest test, or all; default: wear all, paper x")
-    g.add_argument("--min-count", type=int_in(1, 64), default=None,
+    g.add_argument("--min-count", type=int_in(1, MAX_PER_SUBSET), default=None,
                    help="points per subset to calibrate (default 2)")
-    g.add_argument("--max-count", type=int_in(1, 64), default=None,
-                   help="points kept per subset (default: wear 8; paper 2, 4 for a composed model)")
+    g.add_argument("--max-count", type=int_in(1, MAX_PER_SUBSET), default=None,
+                   help="points kept per subset (default: wear 8, 14 for a composed model; paper "
+                        f"2, 4 for a composed model); at most {MAX_PER_SUBSET}: both fits take at "
+                        "most 128 points, the count their integer sums are proven for")
     g.add_argument("--differ", type=float_in(0, 2), default=0.1,
                    help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
     g.add_argument("--select", choices=["centre", "first"], default="centre",
