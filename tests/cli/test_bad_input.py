@@ -278,8 +278,13 @@ def test_more_points_per_subset_than_the_fits_take_is_one_line(good, capsys):
     from acal.bins import N_SUBSETS
     from acal.gaussnewton import MAX_POINTS
     from acal.objective import MAX_POINTS as PAPER_MAX_POINTS
+    import accelcal
+    from accelcal.bridge import protocol
     from accelcal.cli.options import MAX_PER_SUBSET
+    assert MAX_PER_SUBSET == protocol.MAX_PER_SUBSET   # the parser's copy of the bound
     assert N_SUBSETS * MAX_PER_SUBSET <= min(MAX_POINTS, PAPER_MAX_POINTS) < N_SUBSETS * (MAX_PER_SUBSET + 1)
+    with pytest.raises(accelcal.InputError, match="max_count 15"):   # the same from Python
+        accelcal.calibrate(str(good[1]), max_count=15)
     _, pts, _, _ = good
     for profile in ("wear", "paper"):
         code, _, err = run_main(capsys, ["calibrate", pts, "--profile", profile, "--max-count", "15"])

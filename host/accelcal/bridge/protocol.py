@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from acal import bins as dbins
-from acal import fixed, optimiser, rest
+from acal import fixed, gaussnewton, objective, optimiser, rest
 from acal import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
 from accelcal.errors import InputError
@@ -18,6 +18,10 @@ from accelcal.errors import InputError
 from accelcal.bridge.groups import (Group, PointsGroup, RestMeans, SamplesGroup,  # noqa: F401
                                     condition_changes)
 from accelcal.fixedpoint import device_conditions  # noqa: F401
+
+# points per subset the fits take: the nine subsets under the 128 points both fits' integer
+# sums are proven for (acal.gaussnewton.MAX_POINTS, acal.objective.MAX_POINTS): 14
+MAX_PER_SUBSET = min(gaussnewton.MAX_POINTS, objective.MAX_POINTS) // dbins.N_SUBSETS
 
 BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
 

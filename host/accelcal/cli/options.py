@@ -18,8 +18,8 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
-# points per subset the fits take: 9 subsets of at most 14 under their 128 points
-# (acal.gaussnewton.MAX_POINTS, acal.objective.MAX_POINTS)
+# points per subset the fits take (bridge.protocol.MAX_PER_SUBSET, derived there from the
+# device's bounds; written here so that building the parser imports neither numpy nor acal)
 MAX_PER_SUBSET = 14
 
 
