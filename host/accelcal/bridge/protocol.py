@@ -48,6 +48,14 @@ class Config:
     profile: str = "paper"
     discover: bool = False       # the board's own model discovery after the fit (NEWTON, base)
 
+    def __post_init__(self):
+        # the fits' capacity, checked where every caller's settings meet (the CLI, the Python
+        # API, a board log's BOOT): past it the device code raises a ValueError
+        if not 1 <= self.min_count or self.max_count > MAX_PER_SUBSET:
+            raise InputError(f"min_count {self.min_count}, max_count {self.max_count}: need 1 <= "
+                             f"min_count <= max_count <= {MAX_PER_SUBSET} (nine subsets under the "
+                             "128 points the fits' integer sums are proven for)")
+
     @classmethod
     def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
         """A profile's settings (acal.profile.settings), then any overrides (None: not given).

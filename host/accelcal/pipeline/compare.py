@@ -29,7 +29,7 @@ from acal import fixed, optimiser
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.pipeline.results import CompareResult
-from accelcal.pipeline.restpoints import (SPLIT_RULES, RestPoints, check_coverage, rest_points,
+from accelcal.pipeline.restpoints import (RestPoints, check_coverage, check_rule, rest_points,
                                           split, usable)
 from accelcal.errors import InputError
 from accelcal.fixedpoint import params_to_float
@@ -286,8 +286,7 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
     from accelcal.model.effects import ModelSpec
     register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
-    if split not in SPLIT_RULES:
-        raise InputError(f"unknown split {split!r}; choose from {', '.join(SPLIT_RULES)}")
+    check_rule(split)   # before the file is read
     try:
         spec = ModelSpec.parse(model)
     except ValueError as e:

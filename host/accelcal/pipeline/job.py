@@ -6,7 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from accelcal.bridge import runtime
-from accelcal.bridge.protocol import MAX_PER_SUBSET
 from accelcal.errors import InputError
 from accelcal.pipeline.results import CalibrationResult
 
@@ -53,10 +52,8 @@ class Job:
         if spec.effects and self.method not in ("device", "lsq"):
             raise InputError(f"model {spec}: composed models are fitted by --method device (the "
                              "device's integer optimiser) or lsq (float; --points bins|all)")
-        if not 1 <= self.cfg.min_count <= self.cfg.max_count <= MAX_PER_SUBSET:
-            raise InputError(f"min_count {self.cfg.min_count}, max_count {self.cfg.max_count}: "
-                             f"need 1 <= min_count <= max_count <= {MAX_PER_SUBSET} (nine "
-                             "subsets under the 128 points the fits' integer sums are proven for)")
+        if self.cfg.min_count > self.cfg.max_count:   # the bound itself: runtime.Config
+            raise InputError(f"min_count {self.cfg.min_count} > max_count {self.cfg.max_count}")
         if self.points != "bins" and self.method == "device":
             raise InputError("--points applies to the float methods (--method lsq, ...); the "
                              "device method fits the points its bins select")

@@ -113,14 +113,19 @@ class Halves(tuple):
 SPLIT_RULES = ("blocks", "first-half", "second-half")
 
 
+def check_rule(rule: str) -> None:
+    """InputError unless rule is one of SPLIT_RULES (callers check it before reading a file)."""
+    if rule not in SPLIT_RULES:
+        raise InputError(f"unknown split {rule!r}; choose from {', '.join(SPLIT_RULES)}")
+
+
 def split(p: RestPoints, rule: str = "blocks") -> Halves:
     """The rest points into training and held-out halves by rule (SPLIT_RULES, module doc), both
     halves passing the coverage rule; InputError saying why when they cannot."""
+    check_rule(rule)
     if rule == "blocks":
         return block_split(p)
-    if rule in ("first-half", "second-half"):
-        return time_halves(p, first_trains=rule == "first-half")
-    raise InputError(f"unknown split {rule!r}; choose from {', '.join(SPLIT_RULES)}")
+    return time_halves(p, first_trains=rule == "first-half")
 
 
 def time_halves(p: RestPoints, first_trains: bool) -> Halves:
