@@ -9,7 +9,7 @@ from acal.fixed import N_PARAMS
 from acal.gaussnewton import GaussNewton
 from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
-from acal.profile import GRADIENT, NEWTON
+from acal.profile import GRADIENT, NEWTON, adopted_max_count
 from acal import effects
 
 
@@ -48,7 +48,8 @@ class Pipeline:
     held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
     condition a candidate needs (but are ready without their spread) and the fit's points carry
     them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
-    runs (begin, step); adopt() then makes its chosen effect the model."""
+    runs (begin, step); adopt() then makes its chosen effect the model, its bins and fits
+    grown to a composed model's points per subset (profile.adopted_max_count)."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
@@ -69,6 +70,8 @@ class Pipeline:
         track(self.bins, self.kinds, discover)
         self.held = None
         self.discovery = None
+        # points per subset once the discovery adopts an effect (adopt(): a composed model's)
+        self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
         if discover:
             from acal.heldout import HeldOut   # a discovering board's modules only
             from acal.discover import Discover
@@ -290,7 +293,9 @@ class Pipeline:
         the parameters are the discovery's.  While the
         model has room for another effect (discover.more) the discovery goes on after each
         calibration, from this model; else no further discovery: the held-out blocks' rest
-        means go to the bins again."""
+        means go to the bins again.  The bins, the fit points and every fit that takes them
+        grow to adopted_count points per subset (a composed model's: the next calibration fits
+        on up to 126), every held point and its conditions kept (acal/grow.py)."""
         d = self.discovery
         fit = d.take()
         kinds = fit.kinds
@@ -313,6 +318,23 @@ class Pipeline:
         if not again:
             self.held = None
             self.discovery = None
+        if self.adopted_count > b.max_count:
+            self._grow(self.adopted_count)
+
+    def _grow(self, count):
+        # room for count points per subset, once (acal/grow.py): the fits first (the discovery's
+        # spare is the model's optimiser: grown once), then the fit points, then the bins
+        from acal.grow import extend, grow_bins, grow_fit   # a discovering board's module only
+        n = N_SUBSETS * count
+        grow_fit(self.optimiser, n)
+        grow_fit(self.base_fit, n)
+        if self.discovery is not None:
+            grow_fit(self.discovery.fit, n)
+            grow_fit(self.discovery.spare, n)
+        more = n - N_SUBSETS * self.bins.max_count
+        extend(self.points, 3 * more)   # the last fit's points kept: a second round runs on them
+        extend(self.aux, COND * more)
+        grow_bins(self.bins, count)
 
     def _keep_base(self, why):
         o = self.optimiser

@@ -37,6 +37,8 @@ WEAR_COMPOSED_MAX_COUNT = 14
 # gain and curve on seed 4, drift); 126 bring every effect's seeds 1-6 within 1.25x but one
 # (docs/model-discovery.md "Points for a composed model").  Cost on an RP2040: ~7.5 kB more
 # heap for the four-effect App, a longer fit (more slices of the same size).
+# A board that discovers its effect (acal/discover.py) starts with the base model's 8 and takes
+# the composed model's 14 when it adopts one (adopted_max_count, Pipeline.adopt).
 
 
 def settings(profile, composed=False):
@@ -58,3 +60,14 @@ def parse(name):
         if NAMES[i] == name:
             return i
     raise ValueError("a profile is paper or wear: " + name)
+
+
+def adopted_max_count(fit, max_count):
+    """Points per subset a discovering board's bins take once it adopts an effect
+    (Pipeline.adopt): with the wear profile's fit (NEWTON) the composed model's,
+    WEAR_COMPOSED_MAX_COUNT, as a board booted with that model holds, or max_count when that is
+    more; the paper profile's fit (GRADIENT, which never discovers) keeps max_count.  From the
+    fit and the count alone, which a BOOT record holds, so that a replay adopts as the board did."""
+    if fit == NEWTON and max_count < WEAR_COMPOSED_MAX_COUNT:
+        return WEAR_COMPOSED_MAX_COUNT
+    return max_count
