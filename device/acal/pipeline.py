@@ -322,19 +322,21 @@ class Pipeline:
             self._grow(self.adopted_count)
 
     def _grow(self, count):
-        # room for count points per subset, once (acal/grow.py): the fits first (the discovery's
-        # spare is the model's optimiser: grown once), then the fit points, then the bins
+        # room for count points per subset, once (acal/grow.py): the fits (the discovery's
+        # spare is the model's optimiser: grown once), the fit points, the bins, every slot
+        # added copied from one zeroed array
         from acal.grow import extend, grow_bins, grow_fit   # a discovering board's module only
         n = N_SUBSETS * count
-        grow_fit(self.optimiser, n)
-        grow_fit(self.base_fit, n)
-        if self.discovery is not None:
-            grow_fit(self.discovery.fit, n)
-            grow_fit(self.discovery.spare, n)
         more = n - N_SUBSETS * self.bins.max_count
-        extend(self.points, 3 * more)   # the last fit's points kept: a second round runs on them
-        extend(self.aux, COND * more)
-        grow_bins(self.bins, count)
+        zeros = int32s(3 * more)
+        grow_fit(self.optimiser, n, zeros)
+        grow_fit(self.base_fit, n, zeros)
+        if self.discovery is not None:
+            grow_fit(self.discovery.fit, n, zeros)
+            grow_fit(self.discovery.spare, n, zeros)
+        extend(self.points, 3 * more, zeros)   # the last fit's points kept: a next round's
+        extend(self.aux, COND * more, zeros)
+        grow_bins(self.bins, count, zeros)
 
     def _keep_base(self, why):
         o = self.optimiser

@@ -126,7 +126,8 @@ def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     (one boot each): keys e + discover_round{1,2}[_locked]_{phase}_steps, _worst_step_ms (the
     longest step that stays in the phase) and _end_step_ms (the longest that ends it and begins
     what follows) per phase run, _heap_free_{before,begun,least,after}_bytes, _allocated_bytes,
-    _adopted_kind."""
+    _adopted_kind; after round 1, adopt()'s heap: _adopt_heap_free_{before,taken,after}_bytes,
+    _adopt_max_count."""
     res = {}
     for call in ("rounds(PTS)", "rounds(PTS, True)"):
         res.update(round_keys(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()), e))
@@ -288,6 +289,11 @@ def format_chip(m: dict) -> str:
              f"{m[r + 'heap_free_before_bytes']:,} / {m[r + 'heap_free_begun_bytes']:,} / "
              f"{m[r + 'heap_free_least_bytes']:,} / {m[r + 'heap_free_after_bytes']:,}; "
              f"{m[r + 'allocated_bytes']} bytes")
+        if r + "adopt_heap_free_before_bytes" in m:
+            line("  then adopt(): heap free before / right after / collected; points a subset",
+                 f"{m[r + 'adopt_heap_free_before_bytes']:,} / "
+                 f"{m[r + 'adopt_heap_free_taken_bytes']:,} / "
+                 f"{m[r + 'adopt_heap_free_after_bytes']:,} bytes; {m[r + 'adopt_max_count']}")
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:

@@ -192,4 +192,21 @@ def rounds(pts, lock=False):
         if not (d.adopted and discover.more(d.kinds[d.chosen])):
             print("discover_no_second_round%s" % tag, 1)
             return
-        pipe.adopt()
+        adopt(pipe, r)
+
+
+def adopt(pipe, r):
+    """pipe.adopt() and what it costs the heap: the free heap before it (collected), right after
+    it (what it took, the garbage of its extends' memoryviews and zeroed array included, unless
+    it had to collect) and after a collection (what it keeps: its calibration's start, and the
+    bins, fit points and fits grown to a composed model's points), the points per subset after
+    it."""
+    gc.collect()
+    free_before = gc.mem_free()
+    pipe.adopt()
+    free_taken = gc.mem_free()
+    gc.collect()
+    print(r + "adopt_heap_free_before", free_before)
+    print(r + "adopt_heap_free_taken", free_taken)
+    print(r + "adopt_heap_free_after", gc.mem_free())
+    print(r + "adopt_max_count", pipe.bins.max_count)
