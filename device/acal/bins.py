@@ -131,10 +131,11 @@ class Bins:
     """The nine subsets of calibration points.  min_count / max_count: points per subset (paper:
     2 and 2 -> 18 points); differ: minimum max-norm distance to every held point, Q16 g (default
     0.1 g); policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units),
-    supply_differ (mV): 0, or the spreads a composed model needs (see above)."""
+    supply_differ (mV): 0, or the spreads a composed model needs (see above); room: slots a
+    subset has, when more than max_count (a discovering board's: acal/grow.py)."""
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
-                 temp_differ=0, time_differ=0, coverage=False, supply_differ=0):
+                 temp_differ=0, time_differ=0, coverage=False, supply_differ=0, room=0):
         if not 1 <= min_count <= max_count:
             raise ValueError("need 1 <= min_count <= max_count")
         self.coverage = coverage
@@ -144,13 +145,13 @@ class Bins:
         self.differ = differ
         self.policy = policy
         self.set_differ(temp_differ, time_differ, supply_differ)
-        # False: the spreads are tracked but ready() does not wait for them (acal/discover.py)
-        self.need_span = True
+        self.need_span = True   # False: ready() does not wait for the spreads (acal/discover.py)
         self.counts = [0] * N_SUBSETS
+        n = N_SUBSETS * (room if room > max_count else max_count)
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].
-        self.xyz = int32s(3 * N_SUBSETS * max_count)
+        self.xyz = int32s(3 * n)
         # Temperature, time, supply of slot k of subset s at cond[COND * (s * max_count + k) + 0..2]
-        self.cond = conditions(N_SUBSETS * max_count)
+        self.cond = conditions(n)
         self.offered = 0
         self.kept = 0
         self.replaced = 0
@@ -317,8 +318,7 @@ class Bins:
         self._w_gain = ((a * b * c) // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
 
     def _far_from_all(self, x, y, z, temp, time, supply, skip):
-        # Max-norm distance >= differ from every held point except slot index `skip`, or far
-        # enough in temperature, time or supply.
+        # max-norm distance >= differ from every held point but slot `skip`, or far in a condition
         d = self.differ
         dT = self.temp_differ
         dt = self.time_differ

@@ -48,8 +48,9 @@ class Pipeline:
     held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
     condition a candidate needs (but are ready without their spread) and the fit's points carry
     them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
-    runs (begin, step); adopt() then makes its chosen effect the model, its bins and fits
-    grown to a composed model's points per subset (profile.adopted_max_count)."""
+    runs (begin, step); adopt() then makes its chosen effect the model, its bins grown to a
+    composed model's points per subset (profile.adopted_max_count), for which the bins, the fit
+    points and the fits have room from the start."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
@@ -65,28 +66,32 @@ class Pipeline:
         for k in self.kinds:
             if k != effects.STEP:
                 base_kinds.append(k)
-        self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON)
+        # points per subset once the discovery adopts an effect (a composed model's), for which
+        # a discovering pipeline has room from the start (adopt(), acal/grow.py)
+        self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
+        capacity = N_SUBSETS * self.adopted_count   # points the fits take
+        self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON,
+                         room=self.adopted_count)
         # the spread each effect's regressor needs in the held points (discovery: all of them)
         track(self.bins, self.kinds, discover)
         self.held = None
         self.discovery = None
-        # points per subset once the discovery adopts an effect (adopt(): a composed model's)
-        self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
         if discover:
             from acal.heldout import HeldOut   # a discovering board's modules only
             from acal.discover import Discover
+            import acal.grow   # noqa: F401  loaded now, so that adopt() allocates no code
             self.bins.need_span = False
             self.held = HeldOut()
-            self.discovery = Discover(N_SUBSETS * max_count, self.held)
+            self.discovery = Discover(capacity, self.held)
         self.base_fit = None
         self.search = None
         self.step_time = 0
         # the base fit: the paper's model, or for a model with a step the model without it
         self.base_kinds = tuple(base_kinds) if len(base_kinds) < len(self.kinds) else ()
         if fit == NEWTON:
-            self.optimiser = GaussNewton(N_SUBSETS * max_count, self.kinds, True)
+            self.optimiser = GaussNewton(capacity, self.kinds, True)
             if self.kinds:  # the base fit of the same points: kept when the composed one fails
-                self.base_fit = GaussNewton(N_SUBSETS * max_count, self.base_kinds, True)
+                self.base_fit = GaussNewton(capacity, self.base_kinds, True)
                 self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
             if len(base_kinds) < len(self.kinds):
                 from acal.changepoint import ChangePoint   # a step's models only
@@ -97,15 +102,15 @@ class Pipeline:
             # the paper's gradient descent, imported here: a wear-profile board never loads it
             # (nor acal/objective.py), whose code would sit in its RAM
             from acal import optimiser
-            self.optimiser = optimiser.Optimiser(N_SUBSETS * max_count, alphas, self.kinds)
+            self.optimiser = optimiser.Optimiser(capacity, alphas, self.kinds)
             if iterations is None:
                 iterations = (optimiser.COMPOSED_ITERATIONS if self.kinds
                               else optimiser.DEFAULT_ITERATIONS)
         if iterations is None:
             iterations = gaussnewton.DEFAULT_ITERATIONS
         self.iterations = iterations
-        self.points = int32s(3 * N_SUBSETS * max_count)
-        self.aux = conditions(N_SUBSETS * max_count)  # dT, dt, dV per point (composed models)
+        self.points = int32s(3 * capacity)
+        self.aux = conditions(capacity)  # dT, dt, dV per point (composed models)
         self.temp = 0
         self.time = 0
         self.supply = 0
@@ -293,9 +298,9 @@ class Pipeline:
         the parameters are the discovery's.  While the
         model has room for another effect (discover.more) the discovery goes on after each
         calibration, from this model; else no further discovery: the held-out blocks' rest
-        means go to the bins again.  The bins, the fit points and every fit that takes them
-        grow to adopted_count points per subset (a composed model's: the next calibration fits
-        on up to 126), every held point and its conditions kept (acal/grow.py)."""
+        means go to the bins again.  The bins grow to adopted_count points per subset (a composed
+        model's: the next calibration fits on up to 126), every held point and its conditions
+        kept, in the room they have (acal/grow.py: nothing allocated)."""
         d = self.discovery
         fit = d.take()
         kinds = fit.kinds
@@ -318,25 +323,8 @@ class Pipeline:
         if not again:
             self.held = None
             self.discovery = None
-        if self.adopted_count > b.max_count:
-            self._grow(self.adopted_count)
-
-    def _grow(self, count):
-        # room for count points per subset, once (acal/grow.py): the fits (the discovery's
-        # spare is the model's optimiser: grown once), the fit points, the bins, every slot
-        # added copied from one zeroed array
-        from acal.grow import extend, grow_bins, grow_fit   # a discovering board's module only
-        n = N_SUBSETS * count
-        more = n - N_SUBSETS * self.bins.max_count
-        zeros = int32s(3 * more)
-        grow_fit(self.optimiser, n, zeros)
-        grow_fit(self.base_fit, n, zeros)
-        if self.discovery is not None:
-            grow_fit(self.discovery.fit, n, zeros)
-            grow_fit(self.discovery.spare, n, zeros)
-        extend(self.points, 3 * more, zeros)   # the last fit's points kept: a next round's
-        extend(self.aux, COND * more, zeros)
-        grow_bins(self.bins, count, zeros)
+        from acal.grow import grow_bins   # a discovering board's module only
+        grow_bins(b, self.adopted_count)
 
     def _keep_base(self, why):
         o = self.optimiser

@@ -1,6 +1,7 @@
 """A discovering board's adoption gives its bins a composed model's points (device/acal/grow.py,
 Pipeline.adopt; docs/model-discovery.md "Points for a composed model"): the wear bins go from 8 to
-14 points per subset, every held point and its conditions kept in its subset and slot; fed the
+14 points per subset in the room they have from the start (the fit points and fits take 126
+from the start too), every held point and its conditions kept in its subset and slot; fed the
 same rest means from then on, the grown pipeline holds the same points and fits the same
 parameters, bit for bit, as a pipeline booted fresh with the adopted model (its bins and fits
 126 points from the start) that holds the same points at the adoption; more than 72 points are
@@ -14,8 +15,7 @@ from accelcal import simulate
 from accelcal.bridge import runtime
 from acal import effects, profile
 from acal.bins import Bins
-from acal.gaussnewton import GaussNewton
-from acal.grow import grow_bins, grow_fit
+from acal.grow import grow_bins
 from acal.pipeline import Pipeline
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
@@ -182,18 +182,19 @@ def test_adopted_bins_take_a_composed_models_points_as_a_fresh_pipeline(tmp_path
 
 
 def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
-    """Bins of 8 a subset, full, with a temperature and time spread tracked, grown to 14: each
-    held point and its conditions in its subset and slot; then offered the same points as fresh
-    bins of 14 seeded alike, they keep and replace the same, past 8 a subset."""
+    """Bins of 8 a subset with room for 14, full, with a temperature and time spread tracked,
+    grown to 14: each held point and its conditions in its subset and slot; then offered the
+    same points as fresh bins of 14 seeded alike, they keep and replace the same, past 8 a
+    subset.  Bins without the room refuse to grow."""
     rng = np.random.default_rng(3)
-    b = Bins(2, 8, temp_differ=12, time_differ=675, coverage=True)
     pts = simulate.unit_points(rng, 400)
+    temps = np.random.default_rng(4).integers(80, 140, 400)
 
     def offer(bins, i):
         x, y, z = (int(round(c * 65536)) for c in pts[i])
-        bins.offer(x, y, z, int(rng_t[i]), 50 * i, 3300)
+        bins.offer(x, y, z, int(temps[i]), 50 * i, 3300)
 
-    rng_t = np.random.default_rng(4).integers(80, 140, 400)
+    b = Bins(2, 8, temp_differ=12, time_differ=675, coverage=True, room=14)
     for i in range(200):
         offer(b, i)
     held = {(s, k): (b.point(s, k), b.condition(s, k)) for s in range(9) for k in range(b.counts[s])}
@@ -215,27 +216,23 @@ def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
     assert b.counts == fresh.counts and max(b.counts) > 8
     assert [b.point(s, k) + b.condition(s, k) for s in range(9) for k in range(b.counts[s])] == \
         [fresh.point(s, k) + fresh.condition(s, k) for s in range(9) for k in range(b.counts[s])]
-
-
-def test_a_grown_fit_fits_as_one_made_that_size():
-    """A 72-point GaussNewton grown to 126 fits 126 points to the same integers as a
-    GaussNewton(126), a composed model's too."""
-    rng = np.random.default_rng(6)
-    d = simulate.unit_points(rng, 126)
-    pts, aux = [], []
-    for i in range(126):
-        dT = int(rng.integers(-24, 25))
-        v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + C_TRUE * dT / 4
-        pts += [int(round(c * 65536)) for c in v + rng.normal(scale=0.001, size=3)]
-        aux += [dT, 0, 0]
-    kinds = (effects.TEMP_OFFSET,)
-    grown = GaussNewton(72, kinds, True)
     with pytest.raises(ValueError):
-        grown.run(pts, 126, aux=aux)
-    grow_fit(grown, 126)
-    made = GaussNewton(126, kinds, True)
-    assert grown.run(pts, 126, aux=aux) == made.run(pts, 126, aux=aux) == 0
-    assert list(grown.p) == list(made.p) and grown.n == made.n > 72
+        grow_bins(Bins(2, 8), 14)
+
+
+def test_a_discovering_pipeline_has_the_room_from_the_start():
+    """Made with discover=True, a wear-profile pipeline's bins take 8 points a subset (what its
+    BOOT record says) in room for 14, and its fit points and fits (the model's, the
+    discovery's two) take 126: nothing is allocated when it adopts."""
+    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+    assert pipe.bins.max_count == 8 and pipe.adopted_count == 14
+    assert len(pipe.bins.xyz) == len(pipe.bins.cond) == 3 * 126
+    assert len(pipe.points) == len(pipe.aux) == 3 * 126
+    d = pipe.discovery
+    assert pipe.optimiser.max_points == d.fit.max_points == d.spare.max_points == 126
+    plain = Pipeline(10, **profile.settings(profile.WEAR))   # not discovering: as it was
+    assert plain.adopted_count == 8 and len(plain.bins.xyz) == len(plain.points) == 3 * 72
+    assert plain.optimiser.max_points == 72
 
 
 def test_the_paper_profiles_fit_keeps_its_counts():
