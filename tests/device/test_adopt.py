@@ -6,14 +6,15 @@ same rest means from then on, the grown pipeline holds the same points and fits 
 parameters, bit for bit, as a pipeline booted fresh with the adopted model (its bins and fits
 126 points from the start) that holds the same points at the adoption; more than 72 points are
 then held and fitted.  The real MicroPython (unix and 32-bit ports) prints the same, the points
-fed after the adoption under heap_lock (nothing allocated per point).  The paper profile's fit
-keeps its counts."""
+fed after the adoption under heap_lock (nothing allocated per point).  A Processor (the board's,
+and the replay's) calibrates on 126 after its adoption, MicroPython logging the same bytes.  The
+paper profile's fit keeps its counts."""
 import numpy as np
 import pytest
 
 from accelcal import simulate
-from accelcal.bridge import runtime
-from acal import effects, profile
+from accelcal.bridge import boardlog, runtime
+from acal import effects, log, profile
 from acal.bins import Bins
 from acal.grow import grow_bins
 from acal.pipeline import Pipeline
@@ -179,6 +180,64 @@ def test_adopted_bins_take_a_composed_models_points_as_a_fresh_pipeline(tmp_path
     assert grown == new and grown[0] == "0" and int(grown[1]) == total, want
     if rounds == 1:
         assert int(v["ROUND2"][1]) >= 0, want     # candidates fitted on the grown points
+
+
+# A Processor (the app's, as a board runs it and `replay` re-runs a capture) started with `base`
+# and discover=True, given the same rest means: its first calibration (the held-out points then
+# leave the bins), its second with the discovery, which adopts, then the rest means after it and
+# a third calibration.
+PROCESSOR = r'''
+import sys
+from acal import log
+from acal.processor import Processor
+
+PTS = [int(v) for v in "%s".split()]
+MORE = [int(v) for v in "%s".split()]
+
+
+def feed(p, pts):
+    for i in range(len(pts) // 5):
+        p.pipe.temp = pts[5 * i + 3]
+        p.pipe.time = pts[5 * i + 4]
+        p.pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
+
+
+lg = log.Log(sys.argv[1])
+p = Processor(lg, 10, discover=True)
+count = p.pipe.bins.max_count
+feed(p, PTS)
+p.calibrate()
+p.calibrate()
+adopted = p.pipe.bins.max_count
+feed(p, MORE)
+p.calibrate()
+lg.close()
+print(count, adopted, len(p.kinds), max(p.pipe.bins.counts))
+'''
+
+
+def test_a_processor_calibrates_on_more_than_72_points_after_adopting(tmp_path):
+    """The Processor's adoption (Processor._discovered -> Pipeline.adopt) grows its bins: 8 a
+    subset before, 14 after, its calibration after the adoption on more than 72 points; the
+    real MicroPython logs the same bytes."""
+    f = tmp_path / "processor.py"
+    f.write_text(PROCESSOR % (rest_means(9, 0, 420, np.zeros(3)), rest_means(10, 420, 300,
+                                                                           np.zeros(3))))
+    import sys
+    argv = sys.argv
+    sys.argv = [str(f), str(tmp_path / "cpython.bin")]
+    try:
+        out = _cpython(f).split()
+    finally:
+        sys.argv = argv
+    assert runtime.run_micropython_script(str(f), str(tmp_path / "mp.bin")).split() == out
+    assert (tmp_path / "cpython.bin").read_bytes() == (tmp_path / "mp.bin").read_bytes()
+    assert out[:3] == ["8", "14", "1"] and int(out[3]) > 8, out
+    d = boardlog.decode(tmp_path / "cpython.bin")
+    found = d.dicts(log.DISCOVERY)     # the second calibration's, then the third's (round 2)
+    assert found[0]["adopted"] == effects.model_code((effects.TEMP_OFFSET,)), found
+    cals = d.dicts(log.CAL)            # the first two, the adopted one, the third
+    assert max(c["points"] for c in cals[:-1]) <= 72 < cals[-1]["points"], cals
 
 
 def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
