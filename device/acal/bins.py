@@ -1,30 +1,27 @@
 # Calibration-point selection (Farago 2024, section II-B-1, eq. 10 and figure 6).
 #
-# Each axis is split into [-1.25, -0.75], [-0.25, 0.25], [0.75, 1.25] g, giving nine subsets C_ij
-# (i = x, y, z; j = n, 0, p), subset index 3*i + j.  Each subset holds between min_count and
-# max_count points; a rest mean is kept only if it differs enough from every point already held
-# (max-norm distance >= `differ`, no square root).  Means with a component beyond 1.25 g or a
-# magnitude outside [0.5, 1.5] g are not gravity and are never kept.  A point that lies in several
-# subsets (e.g. (1, 0, 0) is in C_xp, C_y0 and C_z0) goes to the one of them holding fewest points.
-# Two policies once a subset is full:
-#   FIRST  - the paper as printed: a full subset takes nothing more (first come, first kept);
-#   CENTRE - a new point replaces the held point of that subset farthest from the subset's ideal
-#            members (the axis for n/p, the ring's diagonals for 0; see badness) when it is nearer:
-#            the selection keeps improving while rest data flows (docs/method-and-formats.md).
-# Points are Q16 g ints; storage is preallocated.
+# Each axis is split into [-1.25, -0.75], [-0.25, 0.25], [0.75, 1.25] g: nine subsets C_ij (i = x,
+# y, z; j = n, 0, p), index 3*i + j, each holding min_count..max_count points (Q16 g ints,
+# preallocated).  A rest mean is kept only if it differs enough from every held point (max-norm
+# distance >= `differ`) and is gravity (no component beyond 1.25 g, magnitude in [0.5, 1.5] g).
+# A point in several subsets (e.g. (1, 0, 0): C_xp, C_y0, C_z0) goes to the one holding fewest.
+# Two policies once a subset is full: FIRST, the paper as printed (a full subset takes nothing
+# more); CENTRE, a new point replaces the held point farthest from the subset's ideal members
+# (the axis for n/p, the ring's diagonals for 0; badness) when it is nearer: the selection keeps
+# improving while rest data flows (docs/method-and-formats.md).
 # Composed models (docs/model-discovery.md "Bins for composed models"): an effect's parameters are
 # only seen in points that differ in temperature (temp_offset, temp_scale), time (drift) or the
 # board's supply (supply_offset, mV).  With temp_differ (Q2 degC, fixed.TEMP_Q), time_differ (64 s
 # units) or supply_differ (mV) set (set_differ), each slot also holds its point's conditions, and:
 #   - a point near a held one in orientation still differs from it when |dT| >= temp_differ,
 #     |dt| >= time_differ or |dV| >= supply_differ (the same point seen warmer, or a day later);
-#   - a full subset's slots have two roles: the first half keep well-placed points (the CENTRE
-#     rule: the 9 parameters need them), the second half keep spread (a linear effect term gets
-#     the most leverage from extremes).  A new point replaces the spread slot whose replacement
-#     most widens the subset's spread (each condition's range per its threshold, _spread) by at
-#     least a quarter threshold, the worst placed of equals (time only grows: the newest point
-#     widens by replacing any but the oldest); else, by the CENTRE rule, a placement slot; no
-#     replacement narrows the spread.
+#   - a full subset's slots have two roles: the first half keep well-placed points (CENTRE:
+#     the 9 parameters need them), the second half keep spread (an effect's term gets most
+#     leverage from extremes): a new point replaces the spread slot whose replacement most widens
+#     the subset's spread (each condition's range per its threshold, _spread) by a quarter
+#     threshold or more, of equals the newest (time only grows: keeping the early points keeps
+#     a step's or a drift's leverage), then the worst placed; else, by CENTRE, a placement slot.
+#     No replacement narrows the spread.
 #   - ready() also needs the held points together to span each threshold.
 from array import array
 
@@ -397,6 +394,7 @@ class Bins:
             widest = -1
             widest_spread = now + gain - 1
             widest_bad = -1
+            widest_time = 0
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
@@ -406,11 +404,13 @@ class Bins:
                 i = 3 * (s * m + k)
                 b = badness(self.xyz[i], self.xyz[i + 1], self.xyz[i + 2], s)
                 if tracked and k >= (m >> 1):
-                    # A spread slot: the widest replacement, and of equals the worst placed.
-                    if spread > widest_spread or (widest >= 0 and spread == widest_spread
-                                                  and b > widest_bad):
+                    # A spread slot: the widest; of equals the newest, then the worst placed
+                    t = self.cond[COND * (s * m + k) + 1]
+                    if spread > widest_spread or (widest >= 0 and spread == widest_spread and (
+                            t > widest_time or (t == widest_time and b > widest_bad))):
                         widest_spread = spread
                         widest_bad = b
+                        widest_time = t
                         widest = k
                 elif b > worst_bad:  # a placement slot: CENTRE
                     worst_bad = b

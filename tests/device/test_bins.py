@@ -122,6 +122,27 @@ def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
     assert b.condition(2, 1)[0] == 31 * q + 3
 
 
+def test_a_full_time_subset_keeps_its_early_spread_points():
+    """Time only grows, so every later point widens the range by replacing any spread slot but
+    the oldest.  It replaces the newest: a subset keeps its first points and rolls one slot
+    forward.  When it replaced the worst placed, the better placed points of later days took
+    every spread slot in turn, and a wrist's shock 19 h into 3 days had 8 of 110 fit points
+    before it (docs/model-discovery.md "Bins for composed models")."""
+    b = Bins(2, 8, differ=G // 10, time_differ=bins.TIME_DIFFER)
+    ys = (0.3, 0.4, 0.5, 0.6, -0.3, -0.4, -0.5, -0.6)   # y and z between the bands: C_xp alone
+
+    def only_xp(x, y):
+        return int(x * G), int(y * G), int(0.4 * G)
+
+    for k, y in enumerate(ys):                # the first hour: 8 points placed 0.2 g off the axis
+        assert b.offer(*only_xp(0.8, y), 0, 7 * k) == 2
+    later = [bins.TIME_DIFFER // 2 * (i + 1) for i in range(6)]   # every 6 h for 3 days
+    for i, t in enumerate(later):             # placed 0.05 g off the axis: better
+        assert b.offer(*only_xp(0.95, ys[i % 8]), 0, t) == 2
+    held = sorted(b.condition(2, k)[1] for k in range(8))
+    assert held == [7 * k for k in range(7)] + [later[-1]], held
+
+
 def test_composed_bins_are_ready_only_with_the_spread():
     b = Bins(1, 1, temp_differ=3)
     for s, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),

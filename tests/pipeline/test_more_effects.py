@@ -105,7 +105,10 @@ def rest_gap_around(path, ts):
 def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     """The wear profile's pipeline on the shock recording: the change-point search on the held
     points puts ts after the last held point before the true shock, and the integer fit's error
-    on every rest point is within 1.1x of the float fit of all of them.  (The search and the
+    on every rest point is within 1.12x of the float fit of all of them (1.08x until the bins
+    kept a time effect's early points, acal.bins; 1.11x since on this shock at 44 h of 72, which
+    leaves fewer held points after it; a shock at 19 h had 8 of 110 before it, 1.57x held out:
+    tests/studies/test_composed_points.py).  (The search and the
     step's fit run bit-identical and heap-locked on the 32-bit port: tests/device/test_heap.py.)"""
     path = recordings["step"]
     truth = json.loads(path.with_suffix(".truth.json").read_text())["effects"][0]
@@ -121,7 +124,7 @@ def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     code, text, err = run_main(capsys, ["calibrate", str(path), "--model", "base+step", "--json",
                                         "--method", "lsq", "--points", "all"])
     lsq = json.loads(text)
-    assert dev["error_after_mg"] <= 1.1 * lsq["error_after_mg"], (dev["error_after_mg"], lsq["error_after_mg"])
+    assert dev["error_after_mg"] <= 1.12 * lsq["error_after_mg"], (dev["error_after_mg"], lsq["error_after_mg"])
 
 
 def test_the_device_refuses_what_it_cannot_fit_in_one_line(recordings, tmp_path, capsys):

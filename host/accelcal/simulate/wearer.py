@@ -342,17 +342,20 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
 
 def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
                    effects=(), stimulus: str | Path | None = None, range_g: int = 2,
-                   progress=None) -> dict:
+                   progress=None, events_within_days: float | None = None) -> dict:
     """Write a recording CSV (t,x,y,z,temp, then any column a hidden effect follows: battery
     voltage) and its truth beside it (NAME.truth.json); with stimulus, also the stimulus file
     for the virtual board.  effects: catalogue names (accelcal.model.effects), drawn with
-    realistic magnitudes.  Returns the truth."""
+    realistic magnitudes; a step's shock falls in the middle half of the recording, or of its
+    first events_within_days (a held-out study's fit days: a shock in the scored days is one no
+    fit of the days before can know).  Returns the truth."""
     from accelcal.model.effects import CATALOGUE, TrueEffect
     rng = np.random.default_rng(seed)
     sensor = Sensor.lis3dh(rng, rate_hz)
     # Effects draw from their own stream: the same seed gives the same day with or without them.
     erng = np.random.default_rng([seed, 1])
-    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng), CATALOGUE[n].draw_reference(erng, days * 86400))
+    span_s = (days if events_within_days is None else min(days, events_within_days)) * 86400
+    sensor.effects = [TrueEffect(n, CATALOGUE[n].draw(erng), CATALOGUE[n].draw_reference(erng, span_s))
                       for n in effects]
     columns = tuple(dict.fromkeys(CATALOGUE[n].column for n in effects
                                   if CATALOGUE[n].needs == "col"))
