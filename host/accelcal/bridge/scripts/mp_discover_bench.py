@@ -197,10 +197,9 @@ def rounds(pts, lock=False):
 
 def adopt(pipe, r):
     """pipe.adopt() and what it costs the heap: the free heap before it (collected), right after
-    it (what it took, the garbage of its extends' memoryviews and zeroed array included, unless
-    it had to collect) and after a collection (what it keeps: its calibration's start, and the
-    bins, fit points and fits grown to a composed model's points), the points per subset after
-    it."""
+    it (what it took, unless it had to collect) and after a collection (what it keeps: its
+    calibration's start; the bins grow to a composed model's points in the room they have from
+    boot, acal/grow.py), the points per subset after it."""
     gc.collect()
     free_before = gc.mem_free()
     pipe.adopt()
