@@ -309,9 +309,9 @@ class Bins:
         b = time_differ or 1
         c = supply_differ or 1
         g = _gcd(_gcd(b * c, a * c), a * b)
-        self._w_temp = (b * c) // g
-        self._w_time = (a * c) // g
-        self._w_supply = (a * b) // g
+        self._w_temp = (b * c) // g if temp_differ else 0     # untracked: held values count
+        self._w_time = (a * c) // g if time_differ else 0     # no more (an adoption that ends
+        self._w_supply = (a * b) // g if supply_differ else 0  # the discovery stops tracking)
         self._w_gain = ((a * b * c) // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
 
     def _far_from_all(self, x, y, z, temp, time, supply, skip):

@@ -143,6 +143,25 @@ def test_a_full_time_subset_keeps_its_early_spread_points():
     assert held == [7 * k for k in range(7)] + [later[-1]], held
 
 
+def test_a_condition_no_longer_tracked_does_not_freeze_the_points_that_hold_it():
+    """An adoption that ends a board's discovery stops tracking the conditions its model does
+    not read (pipeline.track); the held points keep their old values and new ones store 0.  Those
+    values weigh nothing in the spread any more: a better placed point replaces the placement
+    slot holding a stale time.  When they still counted, that slot could not be replaced (its
+    time range would "narrow") and the point was refused."""
+    b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER)
+    q = 1 << TEMP_Q
+
+    def only_xp(x, y, z):  # y and z between the bands: C_xp alone
+        return int(x * G), int(y * G), int(z * G)
+
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30 * q, 2 * bins.TIME_DIFFER) == 2   # placement
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), 34 * q, 0) == 2                     # spread
+    b.set_differ(bins.TEMP_DIFFER, 0, 0)         # time no longer tracked
+    assert b.offer(*only_xp(0.95, 0.45, 0.35), 30 * q, 5 * bins.TIME_DIFFER) == 2
+    assert b.point(2, 0)[0] == int(0.95 * G) and b.condition(2, 0) == (30 * q, 0, 0)
+
+
 def test_composed_bins_are_ready_only_with_the_spread():
     b = Bins(1, 1, temp_differ=3)
     for s, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),
