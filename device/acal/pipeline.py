@@ -237,17 +237,21 @@ class Pipeline:
         taken or replaced points while the fit ran on its own copy).  A composed model whose
         fit failed or ended worse than the base fit keeps the base fit's parameters (effects
         zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
-        if self.stage == 5:
-            self._centre()
-            return False
-        if self.stage == 6:
-            self._begin()
-            return False
-        if self.stage == 0:
+        st = self.stage   # the optimisers' own slices first: they are nearly all of them
+        if st == 1:
+            if not self.optimiser.step():
+                return False
+            self._ended()
+            return True
+        if st == 0:
             if self.base_fit.step():
                 self.stage = 2   # the model's own fit begins in a slice of its own
             return False
-        if self.stage == 2:
+        if st == 5:
+            self._centre()
+        elif st == 6:
+            self._begin()
+        elif st == 2:
             b = self.base_fit
             if self.search is not None:
                 if b.status != OK:   # nothing to search the step on
@@ -257,13 +261,11 @@ class Pipeline:
                 self.stage = 3
                 return False
             self._begin_model(b.status == OK)
-            return False
-        if self.stage == 4:
+        elif st == 4:
             self.stage = 1
             self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
                                  self.start if self.from_base else None)
-            return False
-        if self.stage == 3:
+        elif st == 3:
             if not self.search.step():
                 return False
             if not self.search.found:   # no split pins a step: the model without it stays
@@ -271,9 +273,11 @@ class Pipeline:
                 return True
             self.step_time = self.search.ts
             self._begin_model(True)
-            return False
-        if not self.optimiser.step():
-            return False
+        return False
+
+    def _ended(self):
+        # the model's own fit has ended: the base fit's parameters kept if it did better, the
+        # points it rejected out of the bins
         o = self.optimiser
         b = self.base_fit
         if b is not None and b.status == OK:
@@ -286,7 +290,6 @@ class Pipeline:
             for i in range(o.n_given):
                 if not o.keep[i]:
                     self.bins.remove(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2])
-        return True
 
     def _begin_model(self, from_base):
         # the model's own fit, from the base fit's parameters (the step's at zero); it loads its
