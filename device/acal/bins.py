@@ -26,6 +26,7 @@
 from array import array
 
 from acal import hemisphere
+from acal.emit import copy_ints
 from acal.fixed import POINT_ONE_G, TEMP_Q
 try:
     from micropython import const
@@ -433,18 +434,15 @@ class Bins:
         return self.cond[j], self.cond[j + 1], self.cond[j + 2]
 
     def gather(self, out, cond=None):
-        """Copy the held points into the flat int list `out` (x y z per point) and, if given,
-        their temperature, time and supply into `cond` (COND per point); return the count."""
+        """Copy the held points into the flat int32 array `out` (x y z per point) and, if given,
+        their temperature, time and supply into `cond` (COND per point); return the count.  (A
+        host may pass lists: emit.copy_ints is viper only on a board.)"""
         n = 0
-        for s in range(N_SUBSETS):
-            for k in range(self.counts[s]):
-                slot = s * self.max_count + k
-                i = 3 * slot
-                out[3 * n] = self.xyz[i]
-                out[3 * n + 1] = self.xyz[i + 1]
-                out[3 * n + 2] = self.xyz[i + 2]
-                if cond is not None:
-                    for c in range(COND):
-                        cond[COND * n + c] = self.cond[COND * slot + c]
-                n += 1
+        m = self.max_count
+        for s in range(N_SUBSETS):   # a subset's points lie in consecutive slots
+            k = self.counts[s]
+            copy_ints(self.xyz, 3 * s * m, out, 3 * n, 3 * k)
+            if cond is not None:
+                copy_ints(self.cond, COND * s * m, cond, COND * n, COND * k)
+            n += k
         return n

@@ -28,7 +28,7 @@
 from array import array
 
 from acal.fixed import N_PARAMS
-from acal.bins import COND, conditions, int32s
+from acal.bins import COND, conditions, const, int32s
 from acal import model
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.model import FIT_W_MAX
@@ -57,13 +57,14 @@ REJECT_MUL = 6
 REJECT_MIN = (8 << model.GN_R_Q) // 1000
 REJECT_ROUNDS = 3
 
-_ACCUM = 0   # residuals and Jacobian rows at p, point by point
-_SOLVE = 1   # the damped normal equations, scaled (solve.Solver.begin)
-_ELIM = 2    # ... and solved, a few rows a step -> a trial step
-_TRIAL = 3   # the objective at the trial parameters, point by point
-_SORT = 4    # |r| sorted, point by point, for the median
-_REJECT = 5  # the points above the limit dropped
-_DONE = 6
+# the phases (const: compiled in by MicroPython, no look-up a slice)
+_ACCUM = const(0)   # residuals and Jacobian rows at p, point by point
+_SOLVE = const(1)   # the damped normal equations, scaled (solve.Solver.begin)
+_ELIM = const(2)    # ... and solved, a few rows a step -> a trial step
+_TRIAL = const(3)   # the objective at the trial parameters, point by point
+_SORT = const(4)    # |r| sorted, point by point, for the median
+_REJECT = const(5)  # the points above the limit dropped
+_DONE = const(6)
 
 
 class GaussNewton:

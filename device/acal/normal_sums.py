@@ -23,13 +23,13 @@ QD_EFFECT = 16
 
 
 @viper
-def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
-    # One point's scaled row d~ (row) and residual r~ = rh 2**B_SPLIT + rl into A (sums, the
-    # lower triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
+def accumulate(a: ptr32, d: ptr32, n: int, high, low, rh: int, rl: int, w: int):
+    # One point's scaled row d~ (d) and residual r~ = rh 2**B_SPLIT + rl into A (a, the lower
+    # triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
     # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
-    # (above; tests/device/test_ranges.py traces them).
-    d = ptr32(row)
-    a = ptr32(sums)
+    # (above; tests/device/test_ranges.py traces them).  A and d~ are the first arguments, typed:
+    # viper keeps a function's first three locals in registers (on an RP2040 this loop then
+    # takes 192 us for 21 parameters, 236 us with them later), and A's index runs along its row.
     b = ptr32(high)
     bl = ptr32(low)
     k = 0
@@ -39,8 +39,9 @@ def accumulate(row, sums, high, low, n: int, rh: int, rl: int, w: int):
             at = k * n
             j = 0
             while j <= k:
-                a[at + j] = (int(a[at + j]) << w >> w) + dk * (int(d[j]) << w >> w)
+                a[at] = (int(a[at]) << w >> w) + dk * (int(d[j]) << w >> w)
                 j += 1
+                at += 1
             v = (int(bl[k]) << w >> w) + dk * rl
             b[k] = (int(b[k]) << w >> w) + dk * rh + (v >> 9)
             bl[k] = v & 511
@@ -128,7 +129,7 @@ def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
                 if s:
                     d[k] = ((int(d[k]) << w >> w) + (1 << (s - 1))) >> s
                 k += 1
-        accumulate(row, sums, high, low, n, rs >> 9, rs & 511, w)
+        accumulate(sums, row, n, high, low, rs >> 9, rs & 511, w)
         i += 1
         if grows:
             break

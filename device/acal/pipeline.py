@@ -11,6 +11,7 @@ from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.profile import GRADIENT, NEWTON, adopted_max_count
 from acal import effects
+from acal.emit import SIGN_SHIFT, viper, ptr32
 
 
 class Pipeline:
@@ -122,8 +123,9 @@ class Pipeline:
         self.worn = True
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
-        self.stage = 0     # of a fit: 0 the base fit (composed, NEWTON), 2 its end, 3 a step's
-        # search, 4 the model's own loading its points, 1 the model's own
+        self.stage = 0     # of a fit: 5 its points' conditions centred, 6 its optimiser begun,
+        # 0 the base fit (composed, NEWTON), 2 its end, 3 a step's search, 4 the model's own
+        # loading its points, 1 the model's own
         self.from_base = False   # the model's own fit starts from the base fit's parameters
         self.n_fit = 0     # points gathered for the fit
         # A discovering app's bins also take the held-out blocks' rest means until its first
@@ -202,31 +204,40 @@ class Pipeline:
         return self.optimiser.status
 
     def begin_fit(self):
-        """Gather the held points (a composed model: with their dT, dt, dV from the middle of
-        their ranges) and start the optimiser on them (a composed model with the wear
-        profile's fit: the base fit of the same points first)."""
-        self.stage = 1
+        """Gather the held points (the fit's own copy: the bins go on taking points while it
+        runs); the rest of the fit's start runs in fit_step's slices (docs/method-and-formats.md
+        "Sliced fit"): a composed model's points' dT, dt, dV centred on the middle of their
+        ranges (stage 5), then the optimiser started on them (stage 6; a composed model with
+        the wear profile's fit: the base fit of the same points first)."""
         self.step_time = 0
         if not self.kinds and self.held is None:
             self.n_fit = self.bins.gather(self.points)
-            self.optimiser.begin(self.points, self.n_fit, self.iterations)
-            return
-        aux = self.aux
-        n = self.bins.gather(self.points, aux)
-        self.n_fit = n
-        # one at a time: a tuple of the three would be the fit's only allocation
-        self.ref_temp = reference(aux, n, self.kinds, 0)
-        self.ref_time = reference(aux, n, self.kinds, 1)
-        self.ref_supply = reference(aux, n, self.kinds, 2)
-        for i in range(n):
-            aux[COND * i] -= self.ref_temp
-            aux[COND * i + 1] -= self.ref_time
-            aux[COND * i + 2] -= self.ref_supply
-        if self.base_fit is not None:
-            self.stage = 0
-            self.base_fit.begin(self.points, n, self.iterations, aux)
+            self.stage = 6
         else:
-            self.optimiser.begin(self.points, n, self.iterations, aux)
+            self.n_fit = self.bins.gather(self.points, self.aux)
+            self.stage = 5
+
+    def _centre(self):
+        # the references, one at a time (a tuple of the three would be the fit's only
+        # allocation), and each point's conditions relative to them
+        aux = self.aux
+        n = self.n_fit
+        self.ref_temp = centre(aux, n, 0, 0)
+        self.ref_time = centre(aux, n, 1, 1 if effects.time_from_first(self.kinds) else 0)
+        self.ref_supply = centre(aux, n, 2, 0)
+        self.stage = 6
+
+    def _begin(self):
+        # the optimiser (or the base fit) started on the gathered points
+        if not self.kinds and self.held is None:
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations)
+        elif self.base_fit is not None:
+            self.stage = 0
+            self.base_fit.begin(self.points, self.n_fit, self.iterations, self.aux)
+        else:
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux)
 
     def fit_step(self):
         """One slice of the fit; True when it has ended (the status is the optimiser's).  The
@@ -234,11 +245,21 @@ class Pipeline:
         taken or replaced points while the fit ran on its own copy).  A composed model whose
         fit failed or ended worse than the base fit keeps the base fit's parameters (effects
         zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
-        if self.stage == 0:
+        st = self.stage   # the optimisers' own slices first: they are nearly all of them
+        if st == 1:
+            if not self.optimiser.step():
+                return False
+            self._ended()
+            return True
+        if st == 0:
             if self.base_fit.step():
                 self.stage = 2   # the model's own fit begins in a slice of its own
             return False
-        if self.stage == 2:
+        if st == 5:
+            self._centre()
+        elif st == 6:
+            self._begin()
+        elif st == 2:
             b = self.base_fit
             if self.search is not None:
                 if b.status != OK:   # nothing to search the step on
@@ -248,13 +269,11 @@ class Pipeline:
                 self.stage = 3
                 return False
             self._begin_model(b.status == OK)
-            return False
-        if self.stage == 4:
+        elif st == 4:
             self.stage = 1
             self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
                                  self.start if self.from_base else None)
-            return False
-        if self.stage == 3:
+        elif st == 3:
             if not self.search.step():
                 return False
             if not self.search.found:   # no split pins a step: the model without it stays
@@ -262,9 +281,11 @@ class Pipeline:
                 return True
             self.step_time = self.search.ts
             self._begin_model(True)
-            return False
-        if not self.optimiser.step():
-            return False
+        return False
+
+    def _ended(self):
+        # the model's own fit has ended: the base fit's parameters kept if it did better, the
+        # points it rejected out of the bins
         o = self.optimiser
         b = self.base_fit
         if b is not None and b.status == OK:
@@ -277,7 +298,6 @@ class Pipeline:
             for i in range(o.n_given):
                 if not o.keep[i]:
                     self.bins.remove(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2])
-        return True
 
     def _begin_model(self, from_base):
         # the model's own fit, from the base fit's parameters (the step's at zero); it loads its
@@ -388,21 +408,44 @@ def references(cond, n, kinds):
 
 def reference(cond, n, kinds, c):
     """references()' condition c (0 temperature, 1 time, 2 supply)."""
-    return _middle(cond, c, n, c == 1 and effects.time_from_first(kinds))
+    return middle(cond, n, c, 1 if c == 1 and effects.time_from_first(kinds) else 0)
 
 
-def _middle(cond, c, n, lowest=False):
-    # the middle (or the lowest) of condition c over n points
+@viper
+def middle(cond, n: int, c: int, lowest: int) -> int:
+    # the middle (floor; lowest: the lowest) of condition c over n points' conditions (an int32
+    # array, COND per point; a host may pass a list), 0 for none; viper on ports with emitters
     if n == 0:
         return 0
-    lo = hi = cond[c]
-    for i in range(1, n):
-        v = cond[COND * i + c]
+    p = ptr32(cond)
+    w = int(SIGN_SHIFT)
+    lo = int(p[c]) << w >> w
+    hi = lo
+    i = 1
+    while i < n:
+        v = int(p[3 * i + c]) << w >> w
         if v < lo:
             lo = v
         elif v > hi:
             hi = v
-    return lo if lowest else (lo + hi) >> 1
+        i += 1
+    if lowest:
+        return lo
+    return (lo + hi) >> 1
+
+
+@viper
+def centre(cond, n: int, c: int, lowest: int) -> int:
+    # Condition c of n points (as middle's) made relative to their middle (references()); returns
+    # it: the fit's centring (Pipeline stage 5), viper on ports with emitters
+    ref = int(middle(cond, n, c, lowest))
+    p = ptr32(cond)
+    w = int(SIGN_SHIFT)
+    i = 0
+    while i < n:
+        p[3 * i + c] = (int(p[3 * i + c]) << w >> w) - ref
+        i += 1
+    return ref
 
 
 def copy_params(src, src_kinds, dst, dst_kinds):
