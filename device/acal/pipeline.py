@@ -11,7 +11,7 @@ from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.profile import GRADIENT, NEWTON, adopted_max_count
 from acal import effects
-from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.reference import centre
 
 
 class Pipeline:
@@ -396,56 +396,6 @@ def _mean_above(f1, n1, f2, n2):
     while (f1 >> s) >= (1 << 22) or (f2 >> s) >= (1 << 22):
         s += 1
     return (f1 >> s) * n2 > (f2 >> s) * n1
-
-
-def references(cond, n, kinds):
-    """A composed fit's reference temperature, time and supply over n points' conditions (flat:
-    temp, time, supply per point, bins.COND): the middle of each range (floor), so that dT, dt
-    and dV are centred and the effect terms do not trade with the offsets; for a model with a
-    power of time above 1, the earliest time (effects.time_from_first)."""
-    return reference(cond, n, kinds, 0), reference(cond, n, kinds, 1), reference(cond, n, kinds, 2)
-
-
-def reference(cond, n, kinds, c):
-    """references()' condition c (0 temperature, 1 time, 2 supply)."""
-    return middle(cond, n, c, 1 if c == 1 and effects.time_from_first(kinds) else 0)
-
-
-@viper
-def middle(cond, n: int, c: int, lowest: int) -> int:
-    # the middle (floor; lowest: the lowest) of condition c over n points' conditions (an int32
-    # array, COND per point; a host may pass a list), 0 for none; viper on ports with emitters
-    if n == 0:
-        return 0
-    p = ptr32(cond)
-    w = int(SIGN_SHIFT)
-    lo = int(p[c]) << w >> w
-    hi = lo
-    i = 1
-    while i < n:
-        v = int(p[3 * i + c]) << w >> w
-        if v < lo:
-            lo = v
-        elif v > hi:
-            hi = v
-        i += 1
-    if lowest:
-        return lo
-    return (lo + hi) >> 1
-
-
-@viper
-def centre(cond, n: int, c: int, lowest: int) -> int:
-    # Condition c of n points (as middle's) made relative to their middle (references()); returns
-    # it: the fit's centring (Pipeline stage 5), viper on ports with emitters
-    ref = int(middle(cond, n, c, lowest))
-    p = ptr32(cond)
-    w = int(SIGN_SHIFT)
-    i = 0
-    while i < n:
-        p[3 * i + c] = (int(p[3 * i + c]) << w >> w) - ref
-        i += 1
-    return ref
 
 
 def copy_params(src, src_kinds, dst, dst_kinds):

@@ -243,8 +243,8 @@ class Fit:
                 pts = RestPoints(v, seen.time, seen.temp, np.zeros(len(v)), "points", cols)
                 if spec.host_only:   # the host's references, as diagnose takes them
                     ref = refs(pts, spec)
-                else:   # the device's references (acal.pipeline.references)
-                    from acal.pipeline import references
+                else:   # the device's references (acal.reference.references)
+                    from acal.reference import references
                     c = cond[ok]
                     ref = self._reference(references([int(x) for x in c.ravel()], len(c),
                                                      spec.kinds))
