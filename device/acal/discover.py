@@ -54,7 +54,7 @@ ERR_MAX = const(8388607)     # 2**23 - 1: 100 x ERR_MAX < 2**30 (a mean of 1.8 g
 # Per step, so that no step outlasts the fit's own (emulated RP2040: the base fit's longest
 # slice 1.1 ms; 8 points scored took 5.7 ms, 4 slots compared 4.0 ms; docs/model-discovery.md
 # "Discovery on the board"):
-SCORE_POINTS = const(2)      # held-out points scored
+SCORE_POINTS = const(1)      # held-out points scored (2 took 2.23-2.42 ms as run, 1 1.29)
 BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slot's block (a
 # whole pass of CAPACITY took 2.35 and 2.45 ms)
 
