@@ -28,10 +28,15 @@
 from array import array
 
 from acal.fixed import N_PARAMS
-from acal.bins import COND, conditions, const, int32s
+from acal.bins import COND, conditions, int32s
 from acal import model
 from acal.emit import SIGN_SHIFT, viper, ptr32
 from acal.model import FIT_W_MAX
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
 from acal.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.solve import Solver
 from acal.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,

@@ -11,7 +11,7 @@ from acal import gaussnewton
 from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.profile import GRADIENT, NEWTON, adopted_max_count
 from acal import effects
-from acal.reference import centre
+from acal.reference import centre, lowest
 
 
 class Pipeline:
@@ -222,9 +222,10 @@ class Pipeline:
         # allocation), and each point's conditions relative to them
         aux = self.aux
         n = self.n_fit
-        self.ref_temp = centre(aux, n, 0, 0)
-        self.ref_time = centre(aux, n, 1, 1 if effects.time_from_first(self.kinds) else 0)
-        self.ref_supply = centre(aux, n, 2, 0)
+        kinds = self.kinds
+        self.ref_temp = centre(aux, n, 0, lowest(kinds, 0))
+        self.ref_time = centre(aux, n, 1, lowest(kinds, 1))
+        self.ref_supply = centre(aux, n, 2, lowest(kinds, 2))
         self.stage = 6
 
     def _begin(self):

@@ -17,7 +17,13 @@ def references(cond, n, kinds):
 
 def reference(cond, n, kinds, c):
     """references()' condition c (0 temperature, 1 time, 2 supply)."""
-    return middle(cond, n, c, 1 if c == 1 and effects.time_from_first(kinds) else 0)
+    return middle(cond, n, c, lowest(kinds, c))
+
+
+def lowest(kinds, c):
+    """1 when condition c's reference is its lowest value, not its middle: time, for a model
+    with a power of time above 1 (effects.time_from_first); else 0."""
+    return 1 if c == 1 and effects.time_from_first(kinds) else 0
 
 
 @viper
