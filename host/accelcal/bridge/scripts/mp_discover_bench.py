@@ -124,8 +124,8 @@ PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place",
 # free heap before and after it, less what its timing allocates (clock_bytes); between steps it
 # collects when the free heap falls below LOW_FREE.  On CircuitPython the timing itself makes
 # garbage: time.monotonic_ns() returns a long int (past 2**30 ns 1.07 s after boot), an object
-# on the heap, and ticks() divides it into another: 128 B a step, which filled the ~17 kB free
-# there within the first round's base phase.  MicroPython's ticks_us is a small int (0 B).
+# on the heap, and ticks() divides it into another: 128 B a step, more than the heap holds over
+# a round.  MicroPython's ticks_us is a small int (0 B).
 LOW_FREE = 4096
 
 
