@@ -53,6 +53,10 @@ def test_the_discovery_bench_runs_both_rounds_allocating_only_at_begin(tmp_path)
         for r in (r1, r2):
             assert kv[r + "heap_free_least"] == kv[r + "heap_free_after"] == kv[r + "heap_free_begun"]
         assert kv[r1 + "allocated_bytes"] == 0
+        # the unix port's ticks_us is a small int: the timing allocates nothing, and nothing
+        # fills the heap to the point of a collection
+        for r in (r1, r2):
+            assert kv[r + "clock_bytes"] == 0 and kv[r + "collections"] == 0
         assert 0 < kv[r2 + "allocated_bytes"] == kv[r2 + "heap_free_before"] - kv[r2 + "heap_free_begun"]
         # the step's search and placement ran in both rounds (the step is a candidate in each)
         for r in (r1, r2):
@@ -68,3 +72,28 @@ def test_the_discovery_bench_runs_both_rounds_allocating_only_at_begin(tmp_path)
     assert keys["e_discover_round2_fit_end_step_ms"] == kv["discover_round2_fit_end_worst_us"] / 1000
     assert keys["e_discover_round1_heap_free_least_bytes"] == kv["discover_round1_heap_free_least"]
     assert keys["e_discover_round2_allocated_bytes"] == kv["discover_round2_allocated_bytes"]
+
+
+def _steps(kv, r):
+    return sum(v for k, v in kv.items() if k.startswith(r) and k.endswith("_steps"))
+
+
+def test_the_rounds_count_what_steps_allocate_across_collections(tmp_path):
+    """Collecting before every step (LOW_FREE above any heap), as rounds() does on CircuitPython
+    when its clock's garbage fills the heap: the same bytes counted; and with each step made to
+    allocate a 100-byte array (dropped at the next, so collected), at least those bytes."""
+    every = "LOW_FREE = 1 << 40\n"
+    control = ("from acal import discover\nKEPT = [None]\n_step = discover.Discover.step\n"
+               "def _allocating(self):\n    KEPT[0] = bytearray(100)\n    return _step(self)\n"
+               "discover.Discover.step = _allocating\n")
+    plain = bench_chip._kv(_run(tmp_path, "rounds(PTS)"))
+    collected = bench_chip._kv(_run(tmp_path, every + "rounds(PTS)"))
+    allocating = bench_chip._kv(_run(tmp_path, every + control + "rounds(PTS)"))
+    for rnd in (1, 2):
+        r = f"discover_round{rnd}_"
+        steps = _steps(plain, r)
+        assert collected[r + "collections"] == allocating[r + "collections"] == steps
+        assert collected[r + "allocated_bytes"] == plain[r + "allocated_bytes"]
+        assert collected[r + "adopted_kind"] == allocating[r + "adopted_kind"] == plain[r + "adopted_kind"]
+        assert _steps(allocating, r) == steps
+        assert allocating[r + "allocated_bytes"] >= plain[r + "allocated_bytes"] + 100 * steps

@@ -34,10 +34,9 @@ ROUNDS_POINTS = 420
 ROUNDS_SEED = 9
 
 
-def discovery_points() -> str:
-    """The rest means rounds() is fed, as a line of code defining PTS (x y z (Q16 g) temp (Q2
-    degC) time (64 s units) apiece): a string split on the chip, as a list literal this long
-    would not compile in its heap."""
+def discovery_numbers() -> str:
+    """The rest means rounds() is fed, as one line of numbers: x y z (Q16 g) temp (Q2 degC)
+    time (64 s units) apiece."""
     import numpy as np
 
     from accelcal import simulate
@@ -52,16 +51,29 @@ def discovery_points() -> str:
         v = simulate.uncorrect(truth, d[i][None, :])[0] + c * (temp / 4 - 28)
         v += rng.normal(scale=0.001, size=3) + drift * (time * 64 / 86400)
         pts += [int(round(x * 65536)) for x in v] + [temp, time]
-    return 'PTS = [int(v) for v in "%s".split()]\n' % " ".join(map(str, pts))
+    return " ".join(map(str, pts))
+
+
+def discovery_points() -> str:
+    """discovery_numbers() as a line of code defining PTS (a string split, as a list literal
+    this long would not compile in a chip's heap): for the unix port."""
+    return 'PTS = [int(v) for v in "%s".split()]\n' % discovery_numbers()
+
+
+# The same on the chip, read from stdin: the raw REPL keeps the code's text in the heap while it
+# runs (CircuitPython's repl_line, MicroPython's line), so the 11.5 kB of numbers as a literal
+# would stay there beside the list made of them (CircuitPython's ~17 kB left with the pipeline).
+READ_POINTS = "import sys\nPTS = [int(v) for v in sys.stdin.readline().split()]\n"
 
 
 def _kv(out: str) -> dict:
     return {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.strip())}
 
 
-def _on_chip(name: str, call: str, fw: rp2040.Firmware = rp2040.MICROPYTHON, prefix: str = "") -> str:
+def _on_chip(name: str, call: str, fw: rp2040.Firmware = rp2040.MICROPYTHON, prefix: str = "",
+             stdin: bytes = b"") -> str:
     code = prefix + Path(mp_script(name)).read_text() + "\n" + call + "\n"
-    return rp2040.run_script(code, fw=fw).out
+    return rp2040.run_script(code, stdin, fw=fw).out
 
 
 def _unix_paths() -> dict:
@@ -123,14 +135,17 @@ ROUND_PHASES = ("base", "fit", "search", "score", "blocks", "better", "place", "
 
 def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     """mp_discover_bench.py's rounds() on the chip, its steps as they run and under heap_lock
-    (one boot each): keys e + discover_round{1,2}[_locked]_{phase}_steps, _worst_step_ms (the
-    longest step that stays in the phase) and _end_step_ms (the longest that ends it and begins
-    what follows) per phase run, _heap_free_{before,begun,least,after}_bytes, _allocated_bytes,
-    _adopted_kind; after round 1, adopt()'s heap: _adopt_heap_free_{before,taken,after}_bytes,
-    _adopt_max_count."""
+    (one boot each; CircuitPython has no heap_lock): keys e + discover_round{1,2}[_locked]_
+    {phase}_steps, _worst_step_ms (the longest step that stays in the phase) and _end_step_ms
+    (the longest that ends it and begins what follows) per phase run,
+    _heap_free_{before,begun,least,after}_bytes, _allocated_bytes, _clock_bytes (what timing a
+    step allocates, counted out), _collections (made between steps), _adopted_kind; after
+    round 1, adopt()'s heap: _adopt_heap_free_{before,taken,after}_bytes, _adopt_max_count."""
     res = {}
-    for call in ("rounds(PTS)", "rounds(PTS, True)"):
-        res.update(round_keys(_on_chip("mp_discover_bench.py", call, fw, prefix + discovery_points()), e))
+    calls = ("rounds(PTS)", "rounds(PTS, True)") if fw.flavour == "micropython" else ("rounds(PTS)",)
+    for call in calls:
+        res.update(round_keys(_on_chip("mp_discover_bench.py", call, fw, prefix + READ_POINTS,
+                                       (discovery_numbers() + "\n").encode()), e))
     return res
 
 
@@ -272,15 +287,16 @@ def format_chip(m: dict) -> str:
              f"{m[MP + 'discover_gap_worst_step_ms']:.3g} / {m[MP + 'discover_place_worst_step_ms']:.3g} ms, "
              f"heap locked {m[MP + 'discover_gap_locked_worst_step_ms']:.3g} / "
              f"{m[MP + 'discover_place_locked_worst_step_ms']:.3g} ms")
-    for rnd in (1, 2):
-        r = MP + f"discover_round{rnd}_"
+    for fw, rnd in ((fw, rnd) for fw in (MP, CP) for rnd in (1, 2)):
+        r = fw + f"discover_round{rnd}_"
         if r + "base_steps" not in m:
             continue
         phases = [ph for ph in ROUND_PHASES if r + ph + "_steps" in m]
-        line(f"discovery round {rnd}, longest step per phase (ms): in it / ending it",
+        line(f"discovery round {rnd}, {'MicroPython' if fw == MP else 'CircuitPython'}, "
+             "longest step per phase (ms): in it / ending it",
              ", ".join(f"{ph} {m[r + ph + '_worst_step_ms']:.3g}/{m[r + ph + '_end_step_ms']:.3g}"
                        for ph in phases))
-        lk = MP + f"discover_round{rnd}_locked_"
+        lk = fw + f"discover_round{rnd}_locked_"
         if lk + "base_steps" in m:
             line("  the same, each step under heap_lock",
                  ", ".join(f"{ph} {m[lk + ph + '_worst_step_ms']:.3g}/{m[lk + ph + '_end_step_ms']:.3g}"
@@ -288,7 +304,8 @@ def format_chip(m: dict) -> str:
         line("  heap free before / after begin() / least / after; allocated",
              f"{m[r + 'heap_free_before_bytes']:,} / {m[r + 'heap_free_begun_bytes']:,} / "
              f"{m[r + 'heap_free_least_bytes']:,} / {m[r + 'heap_free_after_bytes']:,}; "
-             f"{m[r + 'allocated_bytes']} bytes")
+             f"{m[r + 'allocated_bytes']} bytes ({m[r + 'collections']} collections between steps, "
+             f"{m[r + 'clock_bytes']} B a step's timing counted out)")
         if r + "adopt_heap_free_before_bytes" in m:
             line("  then adopt(): heap free before / right after / collected; points a subset",
                  f"{m[r + 'adopt_heap_free_before_bytes']:,} / "

@@ -14,7 +14,8 @@ effects); bytes_per_sample_and_fit, allocated with the collector off (CircuitPyt
 heap_lock) over the detectors' stream, the apply at every full scale and the fit: 0 where nothing
 is allocated (bytes_control_list shows the counting sees an allocation).
 From MicroPython's chip scripts run there (mp_paths_bench.py, mp_fit_bench.py: bench_chip.
-paths_and_fits): the same keys as rp2040_emulated_*'s, so each sits beside MicroPython's."""
+paths_and_fits; mp_discover_bench.py's rounds(): bench_chip.discovery_rounds, without its
+heap_lock variant): the same keys as rp2040_emulated_*'s, so each sits beside MicroPython's."""
 from __future__ import annotations
 
 import numpy as np
@@ -94,4 +95,5 @@ def measure() -> dict:
     CircuitPython, so that each path and fit sits beside MicroPython's."""
     res = cp_figures(run(whole=False))
     res.update(bench_chip.paths_and_fits(rp2040.CIRCUITPYTHON, bench_chip.CP, REMOUNT))
+    res.update(bench_chip.discovery_rounds(rp2040.CIRCUITPYTHON, bench_chip.CP))
     return res

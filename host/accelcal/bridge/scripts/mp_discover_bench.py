@@ -120,20 +120,37 @@ def place(lock=False):
 PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place", "next",
           "begin")   # discover's
 
+# rounds() keeps the collector off over a round and counts what each step allocates from the
+# free heap before and after it, less what its timing allocates (clock_bytes); between steps it
+# collects when the free heap falls below LOW_FREE.  On CircuitPython the timing itself makes
+# garbage: time.monotonic_ns() returns a long int (past 2**30 ns 1.07 s after boot), an object
+# on the heap, and ticks() divides it into another: 128 B a step, more than the heap holds over
+# a round.  MicroPython's ticks_us is a small int (0 B).
+LOW_FREE = 4096
+
+
+def clock_bytes():
+    """What a step's timing (ticks(), then us()) allocates, with the collector off (the second
+    of two such pairs)."""
+    b = 0
+    for _ in range(2):
+        f = gc.mem_free()
+        us(ticks())
+        b = f - gc.mem_free()
+    return b
+
 
 def rounds(pts, lock=False):
     """A discovering pipeline fed the rest means pts (x y z (Q16 g) temp (Q2 degC) time (64 s
     units) apiece, flat), calibrated, its discovery run (round 1), the adopted effect taken and
     the discovery run again from it (round 2), each step timed; per round and phase the steps
-    and the longest, and the free heap before begin(), after begin() and after the round, the
-    least between steps, and the bytes the round allocated (gc.disable() over it: begin()'s
-    effect tuples).  A step that ends its phase also begins what follows (the next candidate's
-    testability, its fit's begin, its search, its score): those are timed apart (_end_worst_us, the longest of them;
-    _worst_us the longest of the others).  lock: each step under heap_lock (keys with
-    _locked)."""
+    and the longest (_round).  lock: each step under heap_lock (keys with _locked; nothing on
+    CircuitPython, which has no heap_lock)."""
     import micropython
     from acal import discover, profile
     from acal.pipeline import Pipeline
+    if lock and not hasattr(micropython, "heap_lock"):
+        return
     tag = "_locked" if lock else ""
     pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
     for i in range(len(pts) // 5):
@@ -142,57 +159,78 @@ def rounds(pts, lock=False):
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
     print("discover_calibrate_status", pipe.calibrate())
     d = pipe.discovery
-    steps = [0] * len(PHASES)
-    worst = [0] * len(PHASES)
-    end_worst = [0] * len(PHASES)
     for rnd in (1, 2):
-        for k in range(len(PHASES)):
-            steps[k] = worst[k] = end_worst[k] = 0
-        gc.collect()
-        gc.disable()
-        free_before = gc.mem_free()
-        alloc_before = gc.mem_alloc()
-        d.begin(pipe)
-        free_begun = least = gc.mem_free()
-        done = False
-        while not done:
-            ph = d.phase
-            if lock:
-                micropython.heap_lock()
-            t = ticks()
-            done = d.step()
-            dt = us(t)
-            if lock:
-                micropython.heap_unlock()
-            steps[ph] += 1
-            if d.phase != ph:
-                if dt > end_worst[ph]:
-                    end_worst[ph] = dt
-            elif dt > worst[ph]:
-                worst[ph] = dt
-            free = gc.mem_free()
-            if free < least:
-                least = free
-        free_after = gc.mem_free()
-        allocated = gc.mem_alloc() - alloc_before
         r = "discover_round%d%s_" % (rnd, tag)
-        print(r + "round", d.round)
-        print(r + "adopted_kind", d.kind)
-        print(r + "heap_free_before", free_before)
-        print(r + "heap_free_begun", free_begun)
-        print(r + "heap_free_least", least)
-        print(r + "heap_free_after", free_after)
-        print(r + "allocated_bytes", allocated)
-        gc.enable()
-        for k in range(len(PHASES)):
-            if steps[k]:
-                print(r + PHASES[k] + "_steps", steps[k])
-                print(r + PHASES[k] + "_worst_us", worst[k])
-                print(r + PHASES[k] + "_end_worst_us", end_worst[k])
+        _round(d, pipe, lock, r)
         if not (d.adopted and discover.more(d.kinds[d.chosen])):
             print("discover_no_second_round%s" % tag, 1)
             return
         adopt(pipe, r)
+
+
+def _round(d, pipe, lock, r):
+    """One round, its lines prefixed r: the free heap before begin(), after begin() and after
+    the round, the least between steps (less the clock's garbage since the last collection),
+    the bytes the round allocated (begin()'s effect tuples, and what its steps allocated, the
+    clock's counted out), the clock's bytes a step and the collections made; per phase the
+    steps and the longest.  A step that ends its phase also begins what follows (the next
+    candidate's testability, its fit's begin, its search, its score): those are timed apart
+    (_end_worst_us, the longest of them; _worst_us the longest of the others)."""
+    import micropython
+    steps = [0] * len(PHASES)
+    worst = [0] * len(PHASES)
+    end_worst = [0] * len(PHASES)
+    gc.collect()
+    gc.disable()
+    clock = clock_bytes()
+    gc.collect()
+    free_before = gc.mem_free()
+    d.begin(pipe)
+    free = free_begun = least = gc.mem_free()
+    allocated = free_before - free_begun
+    collections = garbage = 0      # garbage: the clock's since the last collection
+    done = False
+    while not done:
+        if free < LOW_FREE:
+            gc.collect()
+            collections += 1
+            free = gc.mem_free()
+            garbage = 0
+        ph = d.phase
+        if lock:
+            micropython.heap_lock()
+        t = ticks()
+        done = d.step()
+        dt = us(t)
+        if lock:
+            micropython.heap_unlock()
+        steps[ph] += 1
+        if d.phase != ph:
+            if dt > end_worst[ph]:
+                end_worst[ph] = dt
+        elif dt > worst[ph]:
+            worst[ph] = dt
+        now = gc.mem_free()
+        allocated += free - now - clock
+        garbage += clock
+        free = now
+        if free + garbage < least:
+            least = free + garbage
+    gc.enable()
+    print(r + "round", d.round)
+    print(r + "adopted_kind", d.kind)
+    print(r + "heap_free_before", free_before)
+    print(r + "heap_free_begun", free_begun)
+    print(r + "heap_free_least", least)
+    print(r + "heap_free_after", free + garbage)
+    print(r + "allocated_bytes", allocated)
+    print(r + "clock_bytes", clock)
+    print(r + "collections", collections)
+    for k in range(len(PHASES)):
+        if steps[k]:
+            print(r + PHASES[k] + "_steps", steps[k])
+            print(r + PHASES[k] + "_worst_us", worst[k])
+            print(r + PHASES[k] + "_end_worst_us", end_worst[k])
 
 
 def adopt(pipe, r):
