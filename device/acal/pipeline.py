@@ -210,12 +210,16 @@ class Pipeline:
         ranges (stage 5), then the optimiser started on them (stage 6; a composed model with
         the wear profile's fit: the base fit of the same points first)."""
         self.step_time = 0
-        if not self.kinds and self.held is None:
+        if self._bare():
             self.n_fit = self.bins.gather(self.points)
             self.stage = 6
         else:
             self.n_fit = self.bins.gather(self.points, self.aux)
             self.stage = 5
+
+    def _bare(self):
+        # the base model, not discovering: its fit takes no conditions (no aux, no centring)
+        return not self.kinds and self.held is None
 
     def _centre(self):
         # the references, one at a time (a tuple of the three would be the fit's only
@@ -230,7 +234,7 @@ class Pipeline:
 
     def _begin(self):
         # the optimiser (or the base fit) started on the gathered points
-        if not self.kinds and self.held is None:
+        if self._bare():
             self.stage = 1
             self.optimiser.begin(self.points, self.n_fit, self.iterations)
         elif self.base_fit is not None:

@@ -29,7 +29,8 @@ def lowest(kinds, c):
 @viper
 def middle(cond, n: int, c: int, lowest: int) -> int:
     # the middle (floor; lowest: the lowest) of condition c over n points' conditions (an int32
-    # array, COND per point; a host may pass a list), 0 for none; viper on ports with emitters
+    # array, COND per point, written 3 below: a viper loop takes no other module's const; a host
+    # may pass a list), 0 for none; viper on ports with emitters
     if n == 0:
         return 0
     p = ptr32(cond)
