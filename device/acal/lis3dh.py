@@ -1,12 +1,16 @@
 # ST LIS3DH driver over a machine.I2C-style bus (readfrom_mem_into / writeto_mem), integer-only.
 # Register names follow the datasheet (DocID17530).  Samples come out in Q10 g (fixed.py).
 #
-# Two ways to read, chosen knowingly:
-#   read_sample()  - the output registers: 12 bits in high-resolution mode (1 mg/digit at +-2 g).
-#   read_fifo()    - the 32-level FIFO in stream mode: fewer wake-ups, but it keeps 10 bits
-#                    (4 mg steps at +-2 g, truncated).  With ~1-2 mg of noise that quantisation
-#                    biases rest means (docs/boards-and-logs.md "Acquisition"), so the app reads
-#                    the registers.
+# Register fields as ST's datasheet and lis3dh_reg.h give them (docs/lis3dh-conformance.md, each
+# row checked against this driver and both chip models).  Two ways to read:
+#   read_sample()  - the output registers: 12 bits in high-resolution mode (1 mg/digit at +-2 g),
+#                    one bus transaction a sample (a Pico at 100 Hz cannot keep up: it loses ~9 %).
+#   read_fifo()    - the 32-level FIFO in stream mode, drained when its watermark is passed: what
+#                    the app uses by default, nothing lost, but it keeps 10 bits (4 mg steps at
+#                    +-2 g, truncated; docs/boards-and-logs.md "Acquisition").
+# FIFO_SRC_REG (2Fh): bit 7 WTM (unread > FTH), bit 6 OVRN_FIFO (32 unread: the next conversion
+# overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
+# OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:
@@ -32,6 +36,12 @@ _OUT_X_L = const(0x28)
 _FIFO_CTRL_REG = const(0x2E)
 _FIFO_SRC_REG = const(0x2F)
 _AUTO_INC = const(0x80)
+# FIFO_SRC_REG bits
+_WTM = const(0x80)
+_OVRN_FIFO = const(0x40)
+_FSS = const(0x1F)
+FIFO_DEPTH = const(32)
+_STREAM = const(0x80)        # FIFO_CTRL_REG FM[1:0] = 10
 
 # CTRL_REG1 ODR codes by rate in Hz.
 ODR_CODES = {1: 1, 10: 2, 25: 3, 50: 4, 100: 5, 200: 6, 400: 7}
@@ -48,19 +58,25 @@ class LIS3DHError(Exception):
 
 class LIS3DH:
     """rate_hz: output data rate (1..400); range_g: 2, 4, 8 or 16; high_res: 12-bit outputs;
-    fifo: stream-mode FIFO.  After read_sample() the sample is in x, y, z (Q10 g)."""
+    fifo: stream-mode FIFO; fth: its watermark, FTH (0..31): FIFO_SRC_REG's WTM (self.wtm after
+    fifo_level()) says more than fth samples wait.  After read_sample() the sample is in x, y, z
+    (Q10 g)."""
 
-    def __init__(self, i2c, address=ADDRESS, rate_hz=100, range_g=2, high_res=True, fifo=False):
+    def __init__(self, i2c, address=ADDRESS, rate_hz=100, range_g=2, high_res=True, fifo=False,
+                 fth=0):
         if rate_hz not in ODR_CODES:
             raise ValueError("rate_hz must be one of 1, 10, 25, 50, 100, 200, 400")
         if range_g not in RANGES_G:
             raise ValueError("range_g must be 2, 4, 8 or 16")
+        if not 0 <= fth <= 31:
+            raise ValueError("fth must be 0..31")
         self.i2c = i2c
         self.address = address
         self.rate_hz = rate_hz
         self.range_g = range_g
         self.high_res = high_res
         self.fifo = fifo
+        self.fth = fth
         self._one = bytearray(1)
         self._two = bytearray(2)
         self._xyz = bytearray(6)
@@ -72,6 +88,7 @@ class LIS3DH:
         self.y = 0
         self.z = 0
         self.overrun = False
+        self.wtm = False
         bits = 12 if high_res else 10
         self._shift = 16 - bits
         self._so_mg = _SO_MG[RANGES_G.index(range_g)] << (12 - bits)
@@ -106,7 +123,7 @@ class LIS3DH:
         self._write_u8(_TEMP_CFG_REG, 0xC0)  # ADC_EN, TEMP_EN (needs BDU, set above)
         if self.fifo:
             self._write_u8(_CTRL_REG5, 0x40)        # FIFO_EN
-            self._write_u8(_FIFO_CTRL_REG, 0x80)    # stream mode
+            self._write_u8(_FIFO_CTRL_REG, _STREAM | self.fth)
 
     # --- samples ----------------------------------------------------------------------------
     @staticmethod
@@ -141,14 +158,18 @@ class LIS3DH:
         self.z = self._to_q10(self._s16(b[4], b[5]), sh, so)
 
     def fifo_level(self):
-        """Samples waiting in the FIFO (0..32); overrun: the FIFO overwrote samples."""
+        """Samples waiting in the FIFO (0..32), from FSS and OVRN_FIFO; overrun: the FIFO is
+        full (OVRN_FIFO: samples converted from now on overwrite the oldest until it is read);
+        wtm: more than fth samples wait (WTM)."""
         s = self._read_u8(_FIFO_SRC_REG)
-        self.overrun = bool(s & 0x40)
-        return 32 if s & 0x80 else s & 0x1F
+        self.overrun = bool(s & _OVRN_FIFO)
+        self.wtm = bool(s & _WTM)
+        return FIFO_DEPTH if s & _OVRN_FIFO else s & _FSS
 
     def read_fifo(self, out, start, n):
         """Pop n <= 32 samples into the int array out (x y z ..., Q10 g) from sample index start,
-        with one bus transaction (the FIFO rolls over OUT_Z_H -> OUT_X_L)."""
+        with one bus transaction (the FIFO rolls over OUT_Z_H -> OUT_X_L).  n must not pass the
+        level fifo_level() gave: past the stored samples the chip's answer is not defined."""
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
         b = self._fifo_buf
         sh = self._fifo_shift

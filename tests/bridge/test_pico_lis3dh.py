@@ -25,13 +25,14 @@ AUTO = 0x80
 
 def random_ops(rng, n_ops=2500):
     """Register traffic a driver could make, at increasing times: configurations (every ODR
-    including 1344 Hz, low-power, normal and high resolution, each range, each FIFO mode, BOOT),
-    reads of every kind, and waits from microseconds to past a full FIFO."""
+    including 1344 Hz, low-power, normal and high resolution, each range, each FIFO mode with
+    any watermark and trigger, INT1's FIFO sources, BOOT), reads of every kind (outputs stopped
+    between an axis's two bytes too: BDU), and waits from microseconds to past a full FIFO."""
     ops, t = [], 0
     fifo = [0, 0]  # CTRL_REG5, FIFO_CTRL_REG as written: multi-sample reads only with the FIFO on
     for _ in range(n_ops):
         t += int(rng.choice([0, 7, 333, 2500, 10000, 40000, 400000]))
-        k = rng.integers(12)
+        k = rng.integers(14)
         if k == 0:
             ops.append([t, "w", CTRL1, [int(rng.integers(0, 11)) << 4 | int(rng.choice([0x07, 0x0F]))]])
         elif k == 1:
@@ -40,7 +41,8 @@ def random_ops(rng, n_ops=2500):
         elif k == 2:
             ops.append([t, "w", CTRL5, [int(rng.choice([0x00, 0x40, 0x40, 0x80]))]])
         elif k == 3:
-            ops.append([t, "w", FIFO_CTRL, [int(rng.integers(4)) << 6]])
+            ops.append([t, "w", FIFO_CTRL, [int(rng.integers(4)) << 6 | int(rng.choice([0, 0x20]))
+                                            | int(rng.choice([0, int(rng.integers(32))]))]])
         elif k == 4:
             ops.append([t, "w", TEMP_CFG | AUTO, [int(rng.choice([0, 0xC0])), 0]])
         elif k == 5:
@@ -54,10 +56,12 @@ def random_ops(rng, n_ops=2500):
         elif k == 9:
             ops.append([t, "r", STATUS, 1])
         elif k == 10:
-            # not into the outputs: a read that stops between an axis's two bytes leaves BDU
-            # holding it on the wire model, which the Python model (whole transactions) lacks
-            reg = int(rng.choice([r for r in range(0x3D) if not 0x26 <= r < 0x2E]))
+            reg = int(rng.choice(range(0x3D)))
             ops.append([t, "r", reg | AUTO, int(rng.integers(1, 4))])
+        elif k == 12:
+            ops.append([t, "w", 0x22, [int(rng.choice([0, 0x02, 0x04, 0x06]))]])  # CTRL_REG3
+        elif k == 13:
+            ops.append([t, "r", OUT_X_L + int(rng.integers(6)), 1])
         else:
             ops.append([t, "r", WHO_AM_I, 1])
         if ops[-1][1] == "w" and ops[-1][2] in (CTRL5, FIFO_CTRL):
@@ -108,9 +112,10 @@ def test_js_model_reads_what_the_python_model_reads(tmp_path, node, rng):
     first = next((i for i, (a, b) in enumerate(zip(js["reads"], py["reads"])) if a != b), None)
     assert first is None, f"read {first} differs: js {js['reads'][first]} python {py['reads'][first]}"
     assert js["dropped"] == py["dropped"] > 0          # stream overwrites happened, alike
-    # the traffic reached every corner that matters: full FIFOs, outputs past the 2 g clip
-    assert any(r[0] & 0x80 for r, o in zip(py["reads"], [o for o in ops if o[1] == "r"])
-               if o[2] == FIFO_SRC)
+    # the traffic reached every corner that matters: full FIFOs, watermarks passed and not
+    src = [r[0] for r, o in zip(py["reads"], [o for o in ops if o[1] == "r"]) if o[2] == FIFO_SRC]
+    assert any(v & 0x40 for v in src) and any(v & 0x80 and not v & 0x40 for v in src)
+    assert any(0 < v & 0x1F and not v & 0x80 for v in src)
 
 
 # ---------------------------------------------------------------- the app on the emulated Pico

@@ -1,12 +1,15 @@
 // The ST LIS3DH on the emulated RP2040's I2C0: the register model of the virtual board's
 // simulate/chip/vlis3dh.py, written again for Node (the emulator calls it on every bus event) and
-// held to it by tests/bridge/test_pico_lis3dh.py, which drives both with the same register operations at
-// the same times and compares every byte read.  What the Python model does, this one does:
-// WHO_AM_I; CTRL_REG1 ODR/LPen; CTRL_REG4 FS/HR/BDU; CTRL_REG5 FIFO_EN and BOOT; TEMP_CFG_REG and
-// OUT_ADC3 (relative temperature, 1 digit/degC); outputs left-justified at 12/10/8 bits; STATUS_REG
-// ZYXDA/ZYXOR; the 32-level FIFO (bypass, FIFO, stream) keeping 10 bits, OVRN, FSS; auto-increment
-// with the FIFO's roll-over from OUT_Z_H to OUT_X_L.  Samples are converted on the emulated clock
-// at the ODR, each reading the stimulus sample of its time (the stimulus format of vlis3dh.py).
+// held to it by tests/bridge/test_pico_lis3dh.py (the same register operations at the same times,
+// every byte read compared) and, field by field, to the datasheet by
+// tests/device/test_lis3dh_conformance.py (docs/lis3dh-conformance.md).  Written from ST's
+// datasheet (DocID17530 Rev 2) and register header (lis3dh_reg.h), as vlis3dh.py says: WHO_AM_I;
+// BOOT; CTRL_REG1 ODR/LPen; CTRL_REG4 FS/HR/BDU; TEMP_CFG_REG and OUT_ADC3 (relative temperature,
+// 1 digit/degC); outputs left-justified at 12/10/8 bits; STATUS_REG ZYXDA/ZYXOR; the 32-level
+// FIFO (bypass, FIFO, stream, stream-to-FIFO by INT1 = I1_WTM.WTM + I1_OVERRUN.OVRN_FIFO) keeping
+// 10 bits, FIFO_SRC_REG WTM (unread > FTH), OVRN_FIFO (32 unread), EMPTY, FSS (31 at 32);
+// auto-increment with the FIFO's roll-over from OUT_Z_H to OUT_X_L.  Samples are converted on the
+// emulated clock at the ODR, each reading the stimulus sample of its time (vlis3dh.py's format).
 //
 // What the wire adds (the Python model is called per transaction; here the bytes come one by one):
 //  * bus time: START, each byte (9 bits) and STOP take their SCL periods, from the I2C block's
@@ -26,7 +29,7 @@ const ODR_HZ = [0, 1, 10, 25, 50, 100, 200, 400, 1600, 1344];
 const SO_MG = [1, 2, 4, 12];
 
 const STATUS_AUX = 0x07, OUT_ADC1_L = 0x08, WHO_AM_I = 0x0f, TEMP_CFG = 0x1f, CTRL1 = 0x20;
-const CTRL4 = 0x23, CTRL5 = 0x24, STATUS = 0x27, OUT_X_L = 0x28, FIFO_CTRL = 0x2e, FIFO_SRC = 0x2f;
+const CTRL3 = 0x22, CTRL4 = 0x23, CTRL5 = 0x24, STATUS = 0x27, OUT_X_L = 0x28, FIFO_CTRL = 0x2e, FIFO_SRC = 0x2f;
 
 const floorDiv = (a, b) => Math.floor(a / b);
 const mod = (a, b) => ((a % b) + b) % b;
@@ -93,9 +96,8 @@ export class LIS3DH {
     this.regs.fill(0);
     this.regs[WHO_AM_I] = WHO_AM_I_VALUE;
     this.regs[CTRL1] = 0x07;
-    this.fifoLevel = 0;
+    this.fifoLevel = 0;   // u: unread sets
     this.fifoHead = 0;
-    this.ovrn = false;
     this.start();
     this.out = [0, 0, 0];
     this.shown = [0, 0, 0];   // what the output registers show (BDU holds an axis here)
@@ -115,6 +117,14 @@ export class LIS3DH {
   soMg() { return SO_MG[(this.regs[CTRL4] >> 4) & 3] << (12 - this.bits()); }
   fifoMode() { return this.regs[CTRL5] & 0x40 ? (this.regs[FIFO_CTRL] >> 6) & 3 : 0; }
   bdu() { return (this.regs[CTRL4] & 0x80) !== 0; }
+  fth() { return this.regs[FIFO_CTRL] & 0x1f; }
+  wtm() { return this.fifoLevel > this.fth(); }
+  int1() { const c3 = this.regs[CTRL3]; return !!((c3 & 0x04 && this.wtm()) || (c3 & 0x02 && this.fifoLevel === 32)); }
+  collectingMode() { // 1 FIFO (stops when full), 2 stream (overwrites); stream-to-FIFO by its pin
+    const m = this.fifoMode();
+    if (m === 3) return (this.regs[FIFO_CTRL] & 0x20 ? false : this.int1()) ? 1 : 2;
+    return m;
+  }
 
   raw(ug) { // to the digit of the resolution (half away from zero), clipped, left-justified
     const bits = this.bits(), step = this.soMg() * 1000;
@@ -149,7 +159,7 @@ export class LIS3DH {
       for (let i = 0; i < 3; i++) if (!this.held[i]) this.shown[i] = out[i];
       if (this.newData) this.overrun = true;
       this.newData = true;
-      const mode = this.fifoMode();
+      const mode = this.collectingMode();
       if (mode) {
         let slot = null;
         if (this.fifoLevel < 32) {
@@ -159,12 +169,10 @@ export class LIS3DH {
           slot = this.fifo[this.fifoHead];
           this.fifoHead = (this.fifoHead + 1) % 32;
           this.dropped++;
-          this.ovrn = true;
         } else { // FIFO mode stops when full
           this.dropped++;
-          this.ovrn = true;
         }
-        if (slot) for (let i = 0; i < 3; i++) slot[i] = out[i] & 0xffc0; // 10 bits kept
+        if (slot) for (let i = 0; i < 3; i++) slot[i] = out[i] & 0xffc0; // the top 10 bits kept
       }
       if (this.onSample) this.onSample(this);
     }
@@ -176,10 +184,9 @@ export class LIS3DH {
       let v;
       if (this.fifoMode()) {
         v = (this.fifoLevel === 0 ? this.out : this.fifo[this.fifoHead])[axis];
-        if (k === 5 && this.fifoLevel > 0) {
+        if (k === 5 && this.fifoLevel > 0) { // empty: the latest conversion, nothing popped
           this.fifoHead = (this.fifoHead + 1) % 32;
           this.fifoLevel--;
-          this.ovrn = false;
         }
       } else {
         v = this.shown[axis];
@@ -191,8 +198,8 @@ export class LIS3DH {
     }
     if (reg === STATUS) return (this.newData ? 0x08 : 0) | (this.overrun ? 0x80 : 0);
     if (reg === FIFO_SRC) {
-      const level = this.fifoLevel;
-      return (this.ovrn ? 0x40 : 0) | (level === 0 ? 0x20 : 0) | (level < 32 ? level & 0x1f : 0x1f) | (level >= 32 ? 0x80 : 0);
+      const u = this.fifoLevel;
+      return (u > this.fth() ? 0x80 : 0) | (u === 32 ? 0x40 : 0) | (u === 0 ? 0x20 : 0) | (u === 32 ? 31 : u);
     }
     if (reg >= OUT_ADC1_L && reg < OUT_ADC1_L + 6) {
       if (reg >= 0x0c && (this.regs[TEMP_CFG] & 0xc0) === 0xc0) {
@@ -216,7 +223,6 @@ export class LIS3DH {
     if ((reg === FIFO_CTRL || reg === CTRL5) && this.fifoMode() === 0) { // bypass empties it
       this.fifoLevel = 0;
       this.fifoHead = 0;
-      this.ovrn = false;
     }
   }
 

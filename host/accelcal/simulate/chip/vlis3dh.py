@@ -7,13 +7,36 @@
 # sees, sensor errors and noise included) and temperature in m degC; version 2 adds a fifth, the
 # board's supply in mV (the simulated battery, what the virtual board's supply_mv() reads).
 #
-# Behaviour modelled: WHO_AM_I; CTRL_REG1 ODR/LPen/axes; CTRL_REG4 FS/HR/BDU; CTRL_REG5 FIFO_EN and
-# BOOT; TEMP_CFG_REG ADC_EN/TEMP_EN and OUT_ADC3 (relative temperature, 1 digit/degC, 8 bits);
-# output registers left-justified at 12 (HR), 10 (normal) or 8 (low-power) bits; STATUS_REG
-# ZYXDA/ZYXOR; a 32-level FIFO in bypass, FIFO and stream modes that keeps 10 bits per axis (the
-# datasheet's FIFO resolution; two more bits are lost against HR output registers), OVRN and
-# the FSS level in FIFO_SRC_REG; multi-byte reads auto-increment when bit 7 of the sub-address is
-# set, and in FIFO mode roll over from OUT_Z_H back to OUT_X_L, popping the next sample.
+# The register map and its behaviour are written from ST's datasheet (DocID17530 Rev 2: section 5.1
+# the FIFO, 3.2.1 operating modes, 8.x the registers) and ST's own register header (lis3dh_reg.h,
+# STMicroelectronics/lis3dh-pid), not from the driver; docs/lis3dh-conformance.md lists each field,
+# where the datasheet says it, and tests/device/test_lis3dh_conformance.py checks every row here,
+# in bridge/scripts/lis3dh.mjs and in the driver.  Modelled:
+#  * WHO_AM_I (0Fh) 0x33; BOOT (CTRL_REG5 bit 7) reloads every register's default and empties the
+#    FIFO;
+#  * CTRL_REG1 ODR[3:0] (conversions on the clock), LPen; CTRL_REG4 BDU, FS[1:0], HR: outputs
+#    left-justified two's complement at 12 (HR), 10 (normal) or 8 (low-power) bits, 1/2/4/12 mg a
+#    digit at 12 bits for +-2/4/8/16 g (ST's conversions: 16 g HR is 12 mg/digit, not 8);
+#  * BDU: an axis is held from the read of its low byte to the read of its high byte;
+#  * STATUS_REG ZYXDA (bit 3: a set converted, not yet read out) and ZYXOR (bit 7: a set
+#    overwrote an unread one), both cleared by reading OUT_Z_H in bypass mode;
+#  * TEMP_CFG_REG bits 7:6 both set (ADC and temperature) -> OUT_ADC3: the temperature change
+#    from the chip's reference, 1 digit/degC, in OUT_ADC3_H (OUT_ADC3_L reads 0);
+#  * the FIFO (CTRL_REG5 FIFO_EN, FIFO_CTRL_REG FM[1:0], TR, FTH[4:0]; FIFO_SRC_REG WTM, OVRN_FIFO,
+#    EMPTY, FSS[4:0]): 32 sets of 10 bits per axis (the top 10 of the left-justified output, in
+#    every operating mode); bypass (or FIFO_EN = 0) empties it; FIFO mode stops collecting when
+#    full; stream mode overwrites the oldest; stream-to-FIFO runs as stream while its trigger pin
+#    (INT1 when TR = 0, INT2 when TR = 1) is low and as FIFO while it is high.  With u unread
+#    sets: FSS = u (31 when u = 32), OVRN_FIFO = (u == 32), EMPTY = (u == 0), WTM = (u > FTH).
+#    INT1 is CTRL_REG3's I1_WTM AND WTM, OR I1_OVERRUN AND OVRN_FIFO (the only sources
+#    modelled; INT2 has no FIFO source and stays low);
+#  * reads: the sub-address auto-increments when its bit 7 is set; in a FIFO mode it rolls over
+#    from OUT_Z_H (2Dh) to OUT_X_L (28h), and reading OUT_Z_H pops the set.
+# Where the datasheet is silent the model assumes, and says so: a read of the outputs with the
+# FIFO empty (EMPTY = 1) returns the latest conversion (what bypass would show) and pops nothing;
+# FSS saturates at 31 with OVRN_FIFO marking the 32nd; the per-axis XDA..ZOR bits, the
+# interrupt generators, click, BLE, self-test and the high-pass filter are not modelled (read 0,
+# or as written).
 import struct
 
 WHO_AM_I_VALUE = 0x33
@@ -25,6 +48,7 @@ _REG_OUT_ADC1_L = 0x08
 _REG_WHO_AM_I = 0x0F
 _REG_TEMP_CFG = 0x1F
 _REG_CTRL1 = 0x20
+_REG_CTRL3 = 0x22
 _REG_CTRL4 = 0x23
 _REG_CTRL5 = 0x24
 _REG_STATUS = 0x27
@@ -92,7 +116,10 @@ class SimLIS3DH:
         self.temp_ref_mc = temp_ref_mc
         self.regs = bytearray(0x40)
         self.fifo = [[0, 0, 0] for _ in range(32)]
-        self.dropped = 0        # ground truth: samples the FIFO overwrote (stream mode)
+        self.out = [0, 0, 0]      # the latest conversion
+        self.shown = [0, 0, 0]    # what the output registers show (BDU holds an axis here)
+        self.held = [False, False, False]
+        self.dropped = 0        # ground truth: samples the FIFO overwrote or refused
         self.generated = 0      # ground truth: samples produced since the ODR was set
         self.exhausted = False
         # The stimulus is the world's time line, from the moment the board powers up (the clock
@@ -107,11 +134,13 @@ class SimLIS3DH:
             self.regs[i] = 0
         self.regs[_REG_WHO_AM_I] = WHO_AM_I_VALUE
         self.regs[_REG_CTRL1] = 0x07
-        self.fifo_level = 0
+        self.fifo_level = 0     # u: unread sets
         self.fifo_head = 0
-        self.ovrn = False
         self._start()
-        self.out = [0, 0, 0]
+        for i in range(3):
+            self.out[i] = 0
+            self.shown[i] = 0
+            self.held[i] = False
         self.new_data = False
         self.overrun = False
 
@@ -135,9 +164,28 @@ class SimLIS3DH:
         return _SO_MG[(self.regs[_REG_CTRL4] >> 4) & 3] << (12 - self.bits())
 
     def fifo_mode(self):
+        """FM[1:0] when FIFO_EN is set, else 0 (bypass)."""
         if not self.regs[_REG_CTRL5] & 0x40:
             return 0
         return (self.regs[_REG_FIFO_CTRL] >> 6) & 3
+
+    def fth(self):
+        return self.regs[_REG_FIFO_CTRL] & 0x1F
+
+    def wtm(self):
+        return self.fifo_level > self.fth()
+
+    def int1(self):
+        c3 = self.regs[_REG_CTRL3]
+        return bool((c3 & 0x04 and self.wtm()) or (c3 & 0x02 and self.fifo_level == 32))
+
+    def _collecting_mode(self):
+        # what the FIFO does with the next set: 1 FIFO (stops when full), 2 stream (overwrites)
+        m = self.fifo_mode()
+        if m == 3:  # stream-to-FIFO: by the trigger pin (TR: INT1 or INT2; INT2 stays low)
+            pin = False if self.regs[_REG_FIFO_CTRL] & 0x20 else self.int1()
+            return 1 if pin else 2
+        return m
 
     # --- sample production -------------------------------------------------------------------
     def _raw(self, ug):
@@ -184,28 +232,32 @@ class SimLIS3DH:
             out[0] = self._raw(self.stim.x)
             out[1] = self._raw(self.stim.y)
             out[2] = self._raw(self.stim.z)
+            for i in range(3):
+                if not self.held[i]:
+                    self.shown[i] = out[i]
             if self.new_data:
                 self.overrun = True
             self.new_data = True
-            mode = self.fifo_mode()
-            if mode:
-                if self.fifo_level < 32:
-                    slot = self.fifo[(self.fifo_head + self.fifo_level) % 32]
-                    self.fifo_level += 1
-                elif mode == 2:  # stream: the oldest sample is overwritten
-                    slot = self.fifo[self.fifo_head]
-                    self.fifo_head = (self.fifo_head + 1) % 32
-                    self.dropped += 1
-                    self.ovrn = True
-                else:  # FIFO mode stops collecting when full
-                    slot = None
-                    self.dropped += 1
-                    self.ovrn = True
-                if slot is not None:
-                    # The FIFO keeps 10 bits: the two LSBs of a 12-bit HR value are lost.
-                    slot[0] = out[0] & 0xFFC0
-                    slot[1] = out[1] & 0xFFC0
-                    slot[2] = out[2] & 0xFFC0
+            self._store(out)
+
+    def _store(self, out):
+        mode = self._collecting_mode()
+        if not mode:
+            return
+        if self.fifo_level < 32:
+            slot = self.fifo[(self.fifo_head + self.fifo_level) % 32]
+            self.fifo_level += 1
+        elif mode == 2:  # stream: the oldest set is overwritten
+            slot = self.fifo[self.fifo_head]
+            self.fifo_head = (self.fifo_head + 1) % 32
+            self.dropped += 1
+        else:  # FIFO mode stops collecting when full
+            self.dropped += 1
+            return
+        # The FIFO keeps 10 bits: the top 10 of the left-justified output.
+        slot[0] = out[0] & 0xFFC0
+        slot[1] = out[1] & 0xFFC0
+        slot[2] = out[2] & 0xFFC0
 
     # --- register access ---------------------------------------------------------------------
     def read(self, reg, buf, start, end):
@@ -226,18 +278,19 @@ class SimLIS3DH:
     def _read_byte(self, reg):
         if _REG_OUT_X_L <= reg < _REG_OUT_X_L + 6:
             k = reg - _REG_OUT_X_L
+            axis = k >> 1
             if self.fifo_mode():
-                if self.fifo_level == 0:
-                    src = self.out
-                else:
-                    src = self.fifo[self.fifo_head]
-                v = src[k >> 1]
+                # empty: the latest conversion, nothing popped (the datasheet is silent)
+                v = (self.fifo[self.fifo_head] if self.fifo_level else self.out)[axis]
                 if k == 5 and self.fifo_level > 0:
                     self.fifo_head = (self.fifo_head + 1) % 32
                     self.fifo_level -= 1
-                    self.ovrn = False
             else:
-                v = self.out[k >> 1]
+                v = self.shown[axis]
+                if self.regs[_REG_CTRL4] & 0x80:
+                    self.held[axis] = not (k & 1)  # BDU: held from its low byte to its high
+                if not self.held[axis]:
+                    self.shown[axis] = self.out[axis]
                 if k == 5:
                     self.new_data = False
                     self.overrun = False
@@ -245,8 +298,9 @@ class SimLIS3DH:
         if reg == _REG_STATUS:
             return (0x08 if self.new_data else 0) | (0x80 if self.overrun else 0)
         if reg == _REG_FIFO_SRC:
-            level = self.fifo_level
-            return (0x40 if self.ovrn else 0) | (0x20 if level == 0 else 0) | (level & 0x1F if level < 32 else 0x1F) | (0x80 if level >= 32 else 0)
+            u = self.fifo_level
+            return ((0x80 if u > self.fth() else 0) | (0x40 if u == 32 else 0)
+                    | (0x20 if u == 0 else 0) | (31 if u == 32 else u))
         if _REG_OUT_ADC1_L <= reg < _REG_OUT_ADC1_L + 6:
             if reg >= 0x0C and (self.regs[_REG_TEMP_CFG] & 0xC0) == 0xC0:
                 # Relative temperature, 1 digit/degC, two's complement in the high byte.
@@ -283,4 +337,3 @@ class SimLIS3DH:
             if self.fifo_mode() == 0:  # bypass empties the FIFO
                 self.fifo_level = 0
                 self.fifo_head = 0
-                self.ovrn = False
