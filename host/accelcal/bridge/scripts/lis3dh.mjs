@@ -98,6 +98,7 @@ export class LIS3DH {
     this.regs[CTRL1] = 0x07;
     this.fifoLevel = 0;   // u: unread sets
     this.fifoHead = 0;
+    this.fifoStopped = false; // FIFO mode filled up: nothing more until bypass
     this.start();
     this.out = [0, 0, 0];
     this.shown = [0, 0, 0];   // what the output registers show (BDU holds an axis here)
@@ -159,23 +160,29 @@ export class LIS3DH {
       for (let i = 0; i < 3; i++) if (!this.held[i]) this.shown[i] = out[i];
       if (this.newData) this.overrun = true;
       this.newData = true;
-      const mode = this.collectingMode();
-      if (mode) {
-        let slot = null;
-        if (this.fifoLevel < 32) {
-          slot = this.fifo[(this.fifoHead + this.fifoLevel) % 32];
-          this.fifoLevel++;
-        } else if (mode === 2) { // stream: the oldest is overwritten
-          slot = this.fifo[this.fifoHead];
-          this.fifoHead = (this.fifoHead + 1) % 32;
-          this.dropped++;
-        } else { // FIFO mode stops when full
-          this.dropped++;
-        }
-        if (slot) for (let i = 0; i < 3; i++) slot[i] = out[i] & 0xffc0; // the top 10 bits kept
-      }
+      this.store(out);
       if (this.onSample) this.onSample(this);
     }
+  }
+
+  store(out) { // the FIFO's side of a conversion (vlis3dh.py _store)
+    const mode = this.collectingMode();
+    if (!mode) return;
+    let slot = null;
+    if (this.fifoStopped && this.fifoMode() === 1) {
+      this.dropped++;
+    } else if (this.fifoLevel < 32) {
+      slot = this.fifo[(this.fifoHead + this.fifoLevel) % 32];
+      this.fifoLevel++;
+      if (this.fifoLevel === 32 && this.fifoMode() === 1) this.fifoStopped = true;
+    } else if (mode === 2) { // stream: the oldest is overwritten
+      slot = this.fifo[this.fifoHead];
+      this.fifoHead = (this.fifoHead + 1) % 32;
+      this.dropped++;
+    } else { // FIFO mode stops when full
+      this.dropped++;
+    }
+    if (slot) for (let i = 0; i < 3; i++) slot[i] = out[i] & 0xffc0; // the top 10 bits kept
   }
 
   readByte(reg) {
@@ -223,6 +230,7 @@ export class LIS3DH {
     if ((reg === FIFO_CTRL || reg === CTRL5) && this.fifoMode() === 0) { // bypass empties it
       this.fifoLevel = 0;
       this.fifoHead = 0;
+      this.fifoStopped = false;
     }
   }
 

@@ -25,7 +25,7 @@
 #  * the FIFO (CTRL_REG5 FIFO_EN, FIFO_CTRL_REG FM[1:0], TR, FTH[4:0]; FIFO_SRC_REG WTM, OVRN_FIFO,
 #    EMPTY, FSS[4:0]): 32 sets of 10 bits per axis (the top 10 of the left-justified output, in
 #    every operating mode); bypass (or FIFO_EN = 0) empties it; FIFO mode stops collecting when
-#    full; stream mode overwrites the oldest; stream-to-FIFO runs as stream while its trigger pin
+#    full, until bypass is written (reading it out does not restart it); stream mode overwrites the oldest; stream-to-FIFO runs as stream while its trigger pin
 #    (INT1 when TR = 0, INT2 when TR = 1) is low and as FIFO while it is high.  With u unread
 #    sets: FSS = u (31 when u = 32), OVRN_FIFO = (u == 32), EMPTY = (u == 0), WTM = (u > FTH).
 #    INT1 is CTRL_REG3's I1_WTM AND WTM, OR I1_OVERRUN AND OVRN_FIFO (the only sources
@@ -136,6 +136,7 @@ class SimLIS3DH:
         self.regs[_REG_CTRL1] = 0x07
         self.fifo_level = 0     # u: unread sets
         self.fifo_head = 0
+        self.fifo_stopped = False   # FIFO mode filled up: nothing more until bypass
         self._start()
         for i in range(3):
             self.out[i] = 0
@@ -244,9 +245,14 @@ class SimLIS3DH:
         mode = self._collecting_mode()
         if not mode:
             return
+        if self.fifo_stopped and self.fifo_mode() == 1:
+            self.dropped += 1
+            return
         if self.fifo_level < 32:
             slot = self.fifo[(self.fifo_head + self.fifo_level) % 32]
             self.fifo_level += 1
+            if self.fifo_level == 32 and self.fifo_mode() == 1:
+                self.fifo_stopped = True
         elif mode == 2:  # stream: the oldest set is overwritten
             slot = self.fifo[self.fifo_head]
             self.fifo_head = (self.fifo_head + 1) % 32
@@ -334,6 +340,7 @@ class SimLIS3DH:
         if reg == _REG_CTRL1 and self.odr_hz() != old_odr:
             self._start()
         if reg == _REG_FIFO_CTRL or reg == _REG_CTRL5:
-            if self.fifo_mode() == 0:  # bypass empties the FIFO
+            if self.fifo_mode() == 0:  # bypass empties the FIFO and restarts it
                 self.fifo_level = 0
                 self.fifo_head = 0
+                self.fifo_stopped = False
