@@ -4,9 +4,10 @@
 # Processor (acal/processor.py) is everything after acquisition and is deterministic in the
 # samples it is fed: the host's `accelcal replay` feeds it a pulled capture and must log the same
 # records.
-# App reads the LIS3DH (output registers by default; see lis3dh.py for why not the FIFO),
-# retries bus errors, counts what is lost, and feeds the Processor in blocks of 41 samples
-# (one capture record each).
+# App reads the LIS3DH (by default its FIFO, drained past a watermark: the output registers,
+# one bus transaction a sample, lose samples on a Pico from 100 Hz; see lis3dh.py), retries bus
+# errors, counts what is lost, and feeds the Processor in blocks of 41 samples (one capture
+# record each).
 import gc
 from array import array
 
@@ -16,6 +17,11 @@ from acal.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
                             REST_RESERVE_BYTES, COUNTERS_SECONDS, CAPTURE_FLUSH_RECORDS,
                             FIT_STEPS_PER_FEED)
+
+# FIFO drains: DRAIN samples after the last, with the watermark FTH = DRAIN - 1 (WTM: at least
+# DRAIN wait); 7 of the FIFO's 32 levels are the slack for a late drain (a fit slice, a flash
+# write): 17.5 ms at 400 Hz, 70 ms at 100 Hz.
+DRAIN = 25
 
 
 class RealClock:
@@ -70,9 +76,10 @@ class MsTicksClock:
 
 class App:
     """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
-    range_g, fifo, capture_bytes, log_budget, plus Processor settings."""
+    range_g, fifo (default: the FIFO; False: the output registers, 12 bits, one read a sample),
+    capture_bytes, log_budget, plus Processor settings."""
 
-    def __init__(self, board, rate_hz=100, range_g=2, fifo=False, capture_bytes=0,
+    def __init__(self, board, rate_hz=100, range_g=2, fifo=True, capture_bytes=0,
                  log_budget=1 << 20, prefix="", **processor_settings):
         from acal.lis3dh import LIS3DH, LIS3DHError
         self.board = board
@@ -100,7 +107,8 @@ class App:
         self.sensor = None
         for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
             try:
-                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo)
+                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
+                                     DRAIN - 1)
                 break
             except (OSError, LIS3DHError) as e:
                 self.bus_errors += 1
@@ -214,34 +222,33 @@ class App:
     def _step_fifo(self):
         s = self.sensor
         buf = self.buf
-        # 25 of the FIFO's 32 levels after the last drain's clock reading, not after this
-        # drain's work: the fit's slices (up to ~100 ms a block on CircuitPython) would
-        # otherwise push the next read past the 32 the FIFO holds
+        # DRAIN samples after the last drain's clock reading, not after this drain's work: the
+        # fit's slices (up to ~100 ms a block on CircuitPython) would otherwise push the next
+        # read past the 32 the FIFO holds
         c = self.clock
-        wait = self.period_us * 25 - c.ticks_diff(c.ticks_us(), self.t_last)
+        wait = self.period_us * DRAIN - c.ticks_diff(c.ticks_us(), self.t_last)
         if wait > 0:
             c.sleep_us(wait)
-        n = 0
-        over = False
-        for attempt in range(RETRIES):
-            try:
-                # The clock before the level: every sample it says is due is then in the FIFO
-                # or overwritten.  Read after, it would count as lost the samples converted
-                # during the FIFO read (3.4 ms at 400 kHz, 18 ms on CircuitPython's 100 kHz),
-                # though they wait in the FIFO (docs/boards-and-logs.md "Lost samples").
-                self._elapsed()
-                n = s.fifo_level()
-                over = s.overrun  # counted once, however many retries
-                if n:
+        n = self._fifo_level()
+        if n < 0:
+            return 0
+        if n < DRAIN and not (self.sensor.wtm or self.sensor.overrun):
+            # WTM clear: the chip has converted fewer than DRAIN (its clock and ours differ, or
+            # the drain came a hair early): wait for the rest rather than drain a few
+            c.sleep_us(self.period_us * (DRAIN - n))
+            n = self._fifo_level()
+            if n < 0:
+                return 0
+        if n:
+            for attempt in range(RETRIES):
+                try:
                     s.read_fifo(buf, 0, n)
-                break
-            except OSError:
-                self.bus_errors += 1
-                if attempt + 1 == RETRIES:
-                    return 0
-                self.bus_retries += 1
-        if over:
-            self.fifo_overruns += 1
+                    break
+                except OSError:
+                    self.bus_errors += 1
+                    if attempt + 1 == RETRIES:
+                        return 0   # left in the FIFO: the next drain reads them
+                    self.bus_retries += 1
         if not n:
             return 0
         self._account(n)
@@ -249,6 +256,26 @@ class App:
             self._push(buf[3 * i], buf[3 * i + 1], buf[3 * i + 2])
         self.samples += n
         return n
+
+    def _fifo_level(self):
+        # The FIFO's level (FSS, or 32 with OVRN_FIFO), -1 if the bus failed RETRIES times.  The
+        # clock is read first: every sample it says is due is then in the FIFO or overwritten.
+        # Read after, it would count as lost the samples converted during the FIFO read (3.4 ms
+        # at 400 kHz, 18 ms on CircuitPython's 100 kHz), though they wait in the FIFO
+        # (docs/boards-and-logs.md "Lost samples").  An overrun is counted once a drain.
+        s = self.sensor
+        for attempt in range(RETRIES):
+            try:
+                self._elapsed()
+                n = s.fifo_level()
+                if s.overrun:
+                    self.fifo_overruns += 1
+                return n
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 < RETRIES:
+                    self.bus_retries += 1
+        return -1
 
     def write_counters(self):
         p = self.proc

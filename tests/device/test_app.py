@@ -94,7 +94,7 @@ def stim(tmp_path, rng):
 def test_bus_faults_are_retried_counted_and_lost_samples_exact(tmp_path, stim):
     path, xyz = stim
     b = board(path, faults=150)  # 15 % of transactions fail: ~0.3 % of samples fail 3 times
-    app = run_app(tmp_path, b)
+    app = run_app(tmp_path, b, fifo=False)   # the output registers: a transaction a sample
     assert app.bus_errors == b.bus.faults > 1000
     assert app.lost > 0
     assert app.samples + app.lost == b.chip.generated  # every sample is read or counted lost
@@ -213,18 +213,20 @@ from simboard import SimBoard
 from acal.app import App, BLOCK
 
 os.chdir(sys.argv[2])
-app = App(SimBoard(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600)
+app = App(SimBoard(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600,
+          fifo=sys.argv[-1] == "fifo")
+most = 32 if app.fifo else 1   # samples a step can read
 
 def work(n):  # the per-sample steps (a block flush, which logs, excluded) with the heap locked
     locked = 0
     while locked < n:
-        if app.fill == BLOCK - 1:
+        if app.fill + most >= BLOCK:
             app.step()
             continue
         micropython.heap_lock()
-        app.step()
+        got = app.step()
         micropython.heap_unlock()
-        locked += 1
+        locked += got
     return locked
 
 try:
@@ -236,21 +238,23 @@ except MemoryError:
 '''
 
 
-def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, stim):
+@pytest.mark.parametrize("reader", ["fifo", "registers"])
+def test_acquisition_allocates_nothing_per_sample_under_micropython(tmp_path, stim, reader):
     path, _ = stim
     script = tmp_path / "heap_app.py"
     script.write_text(HEAP_SCRIPT)
     sim = str(CHIP_DIR)
-    out = runtime.run_micropython_script(str(script), str(path), str(tmp_path),
+    out = runtime.run_micropython_script(str(script), str(path), str(tmp_path), reader,
                                          extra_path=[sim]).split()
     assert out[0] == "OK", out
-    assert int(out[1]) == 5000 and int(out[3]) == 0
+    assert 5000 <= int(out[1]) < 5032 and int(out[3]) == 0
 
 
 def test_acquisition_and_simulator_allocate_nothing_on_the_32_bit_port(tmp_path, stim, mp32):
     """Where ints past 2^30 allocate (the WebAssembly port, as an RP2040): the app's per-sample
-    steps on the simulated chip, its clock started 100 s before the 2^30 us tick wrap, for 200 s
-    at 25 Hz (past the 43 s where the chip's stimulus index used to leave 2^30): the app, the
+    steps on the simulated chip (register reads: a step a sample, so 5000 locked steps span the
+    wrap; the FIFO's drains are heap-checked on the unix port above), its clock started 100 s
+    before the 2^30 us tick wrap, for 200 s at 25 Hz (past the 43 s where the chip's stimulus index used to leave 2^30): the app, the
     driver, the simulated chip, its bus and clock allocate nothing, and no sample is lost."""
     path, _ = stim
     script = tmp_path / "heap_app32.py"
@@ -261,7 +265,7 @@ def test_acquisition_and_simulator_allocate_nothing_on_the_32_bit_port(tmp_path,
         'print("OK", k, app.samples, app.lost)',
         'print("OK", k, app.samples, app.lost, app.board.clock.s, app.board.clock.ticks_us())'))
     sim = str(CHIP_DIR)
-    out = mp32(str(script), str(path), str(tmp_path), extra_path=[sim]).split()
+    out = mp32(str(script), str(path), str(tmp_path), "registers", extra_path=[sim]).split()
     assert out[0] == "OK", out
     assert int(out[1]) == 5000 and int(out[3]) == 0
     assert int(out[4]) * 10 ** 6 > (1 << 30) + 60 * 10 ** 6 and int(out[5]) < 200 * 10 ** 6  # wrapped
