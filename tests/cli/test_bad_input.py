@@ -834,3 +834,29 @@ def test_real_files_too_short_or_one_sided_are_one_line_by_one_rule(capsys):
         code, _, err = run_main(capsys, [command, real / "neo.gt3x"])
         assert code == 2 and len(err.strip().splitlines()) == 1, (command, err)
         assert "no split into alternate time blocks" in err and "turns over" in err, err
+
+
+def test_a_reader_that_cannot_keep_up_is_warned_about_before_the_board_starts(capsys, monkeypatch):
+    """deploy/acquire default to the FIFO (main.py names no reader: the app's default);
+    --registers is warned about in one line before anything reaches the board; --fifo with
+    --registers is refused, exit 2, one line, the board untouched."""
+    from accelcal.board import deploy
+    calls = []
+
+    class FakeBoard:
+        def __init__(self, port, timeout=0):
+            calls.append(("open", port))
+    monkeypatch.setattr(deploy, "Remote", FakeBoard)
+    monkeypatch.setattr(deploy, "acquire", lambda port, seconds, settings, say: calls.append(settings))
+    code, _, err = run_main(capsys, ["acquire", "--port", "x", "--hours", "1"])
+    assert code == 0 and err == "" and "fifo" not in calls[-1]
+    from acal.app import App
+    import inspect
+    assert inspect.signature(App).parameters["fifo"].default is True
+    code, _, err = run_main(capsys, ["acquire", "--port", "x", "--hours", "1", "--rate", "400",
+                                     "--registers"])
+    assert code == 0 and calls[-1]["fifo"] is False
+    assert err.count("\n") == 1 and err.startswith("accelcal: warning: --registers at 400 Hz")
+    calls.clear()
+    code, _, err = run_main(capsys, ["deploy", "--port", "x", "--fifo", "--registers"])
+    assert code == 2 and err.count("\n") == 1 and "not both" in err and calls == []

@@ -33,8 +33,14 @@ def _app_settings(args) -> dict:
     s = {"rate_hz": args.rate, "profile": dprofile.parse(args.profile)}
     if args.capture_kb:
         s["capture_bytes"] = args.capture_kb * 1024
-    if args.fifo:
-        s["fifo"] = True
+    if args.registers:
+        if args.fifo:
+            raise InputError("--fifo and --registers: one reader, not both")
+        s["fifo"] = False
+        print(f"accelcal: warning: --registers at {args.rate} Hz: the app reads a sample a period "
+              "and falls behind, losing samples (the emulated Pico: 1 in 200 at 10 Hz, 76 in 1000 "
+              "at 100 Hz; docs/boards-and-logs.md); the FIFO, the default, loses none",
+              file=sys.stderr)
     if args.recal_hours is not None:
         s["recal_seconds"] = int(args.recal_hours * 3600)
     if args.discover:
@@ -177,7 +183,11 @@ def add_parsers(sub) -> None:
                        help="output data rate, Hz (default 100)")
         g.add_argument("--capture-kb", type=int_in(0, 1 << 20), default=0,
                        help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
-        g.add_argument("--fifo", action="store_true", help="read the FIFO (10 bits) instead of the registers")
+        g.add_argument("--fifo", action="store_true",
+                       help="read the FIFO, drained past its watermark (10 bits; the default)")
+        g.add_argument("--registers", action="store_true",
+                       help="read the output registers instead (12 bits, a bus transaction a "
+                            "sample: loses samples, warned about)")
         g.add_argument("--recal-hours", type=float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "
