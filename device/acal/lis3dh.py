@@ -7,7 +7,10 @@
 #                    one bus transaction a sample (a Pico at 100 Hz cannot keep up: it loses ~9 %).
 #   read_fifo()    - the 32-level FIFO in stream mode, drained when its watermark is passed: what
 #                    the app uses by default, nothing lost, but it keeps 10 bits (4 mg steps at
-#                    +-2 g, truncated; docs/boards-and-logs.md "Acquisition").
+#                    +-2 g, the HR value's two low bits dropped).  A 10-bit code r of an HR
+#                    conversion stands for the four 12-bit digits 4r..4r+3: it is read as their
+#                    middle, 4r + 1.5, not 4r, so the truncation's -1.5 digit bias does not reach
+#                    rest means (docs/boards-and-logs.md "Acquisition").
 # FIFO_SRC_REG (2Fh): bit 7 WTM (unread > FTH), bit 6 OVRN_FIFO (32 unread: the next conversion
 # overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
 # OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
@@ -50,6 +53,9 @@ _SO_MG = (1, 2, 4, 12)       # mg/digit at 12 bits, by range
 # mg -> Q10 g: x 1.024 = 16777 / 16384 (error 1.4e-5); mg <= 24 576 keeps the product < 2**30.
 _MG_Q10_MUL = const(16777)
 _MG_Q10_SHIFT = const(14)
+# FIFO codes in half digits (Q1): x 1.024 / 2 = 16777 / 32768; |(8 r + 3) * 12| <= 49 188 (r: a
+# 10-bit code, |r| <= 512; 12 mg at +-16 g) keeps the product below 8.3e8 < 2**30.
+_HALF_MG_Q10_SHIFT = const(15)
 
 
 class LIS3DHError(Exception):
@@ -92,8 +98,10 @@ class LIS3DH:
         bits = 12 if high_res else 10
         self._shift = 16 - bits
         self._so_mg = _SO_MG[RANGES_G.index(range_g)] << (12 - bits)
-        self._fifo_shift = 6  # the FIFO keeps 10 bits whatever the mode
-        self._fifo_so_mg = _SO_MG[RANGES_G.index(range_g)] << 2
+        # the FIFO keeps 10 bits whatever the mode: 4 12-bit digits a code; in HR mode a code
+        # is read as the middle of its four (+1.5 digits = 3 half digits), else it is exact
+        self._fifo_so_mg = _SO_MG[RANGES_G.index(range_g)]    # mg a 12-bit digit
+        self._fifo_mid = 3 if high_res else 0
         self.check()
         self.configure()
 
@@ -140,6 +148,16 @@ class LIS3DH:
             return -SAMPLE_MAX
         return v
 
+    def _fifo_to_q10(self, raw):
+        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits
+        h = ((raw >> 6) * 8 + self._fifo_mid) * self._fifo_so_mg
+        v = (h * _MG_Q10_MUL + (1 << (_HALF_MG_Q10_SHIFT - 1))) >> _HALF_MG_Q10_SHIFT
+        if v > SAMPLE_MAX:
+            return SAMPLE_MAX
+        if v < -SAMPLE_MAX:
+            return -SAMPLE_MAX
+        return v
+
     def data_ready(self):
         """True when the output registers hold a sample not read yet (STATUS_REG ZYXDA);
         overrun tells whether one was missed (ZYXOR)."""
@@ -172,11 +190,9 @@ class LIS3DH:
         level fifo_level() gave: past the stored samples the chip's answer is not defined."""
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
         b = self._fifo_buf
-        sh = self._fifo_shift
-        so = self._fifo_so_mg
         j = 3 * start
         for i in range(0, 6 * n, 2):
-            out[j] = self._to_q10(self._s16(b[i], b[i + 1]), sh, so)
+            out[j] = self._fifo_to_q10(self._s16(b[i], b[i + 1]))
             j += 1
 
     def temperature(self):

@@ -132,12 +132,18 @@ def pico():
 
 def fifo_q10(xyz_g):
     """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
-    digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver scales."""
+    digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver reads a
+    code as the middle of its four digits (4 r + 1.5 mg) and scales."""
+    from types import SimpleNamespace
     from acal.lis3dh import LIS3DH
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
-    return np.vectorize(lambda d: LIS3DH._to_q10(None, int(d) << 6, 6, 4))(d10)
+    hr = SimpleNamespace(_fifo_mid=3, _fifo_so_mg=1)
+    q = np.vectorize(lambda d: LIS3DH._fifo_to_q10(hr, int(d) << 6), otypes=[np.int64])(d10)
+    # the middle, to Q10 rounding (half an LSB, 0.49 mg) and 16777 / 16384 for 1.024
+    assert np.all(np.abs(q / 1.024 - (4 * d10 + 1.5)) <= 0.52)
+    return q
 
 
 # the paper's profile: the wear profile judges no segment still before 80 s of quiet ones

@@ -595,9 +595,12 @@ def _drain(drv, **settings):
 
 def d_fifo_10bit(drv):
     d, n, out, rec = _drain(drv)
-    xs = [round(out[3 * i] / 1.024) for i in range(n)]
-    assert n == 20 and xs == [4 * (k % 256) for k in range(1, 21)]          # 4 mg steps
-    assert out[1] == round(500 * 1.024) and out[2] == round(-900 * 1.024)
+    # 4 mg codes, each read as the middle of its four 1 mg digits (HR): 4 r + 1.5 mg
+    xs = np.array(out[0:3 * n:3]) / 1.024 - 1.5
+    assert n == 20 and np.abs(xs - [4 * (k % 256) for k in range(1, 21)]).max() <= 0.52
+    assert abs(out[1] / 1.024 - 501.5) <= 0.52 and abs(out[2] / 1.024 - -898.5) <= 0.52
+    d, n, out, rec = _drain(drv, high_res=False)     # normal mode: the FIFO's 10 bits are exact
+    assert abs(out[1] / 1.024 - 500) <= 0.52 and abs(out[2] / 1.024 - -900) <= 0.52
 
 
 def d_fifo_rollover(drv):
