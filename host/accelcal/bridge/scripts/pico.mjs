@@ -126,7 +126,8 @@ function run(chip, sensor, v) {
   for (const file of v.exec) {
     const r = R.exec(chip, fs.readFileSync(file, 'utf8'));
     process.stdout.write(r.out.replace(/\r\n/g, '\n'));
-    report.scripts.push({ script: file, cycles: r.cycles, emulated_ms: r.emuMs, wall_ms: r.wallMs });
+    report.scripts.push({ script: file, cycles: r.cycles, wakeups: r.wakeups, emulated_ms: r.emuMs,
+      wall_ms: r.wallMs });
     if (r.err) { process.stderr.write(r.err.replace(/\r\n/g, '\n')); failed = true; break; }
   }
   for (const spec of v.get) { // absent files are skipped: the caller sees which arrived

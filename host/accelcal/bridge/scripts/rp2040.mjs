@@ -59,7 +59,7 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
     for (let p = romHalf(0x14); romHalf(p); p += 4) if (romHalf(p) === code) return romHalf(p + 2) & ~1;
     throw new Error(`ROM function ${name} not found`);
   };
-  const chip = { mcu, cycles: 0, flavour, flashWrites: 0, hooks: new Map(), stopAt: Infinity };
+  const chip = { mcu, cycles: 0, wakeups: 0, flavour, flashWrites: 0, hooks: new Map(), stopAt: Infinity };
   chip.hooks.set(romFunc('RE'), (r) => { mcu.flash.fill(0xff, r[0], r[0] + r[1]); chip.flashWrites++; });
   chip.hooks.set(romFunc('RP'), (r) => { // NOR flash only clears bits
     for (let i = 0; i < r[2]; i++) mcu.flash[r[0] + i] &= mcu.readUint8(r[1] + i);
@@ -108,8 +108,9 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
     const { core, clock } = mcu;
     const end = Math.min(chip.cycles + n, chip.stopAt);
     while (chip.cycles < end) {
-      if (core.waiting) {
+      if (core.waiting) { // WFE/WFI: skip to the next alarm (a wake-up when it ends the wait)
         if (!clock.nextAlarm) return false;
+        chip.wakeups++;
         clock.tick(Math.max(clock.nanosToNextAlarm, 0));
         continue;
       }
@@ -193,11 +194,12 @@ export function softReset(chip) { // in the raw REPL: ^D soft-reboots and stays 
 }
 
 // Run code; stdin (bytes) is streamed to the script while it runs.  Returns
-// { out, err, cycles, emuMs, wallMs }: cycles executed from ^D to the reply.
+// { out, err, cycles, wakeups, emuMs, wallMs }: cycles executed from ^D to the reply, and the
+// waits (WFE/WFI) the core slept through to an alarm meanwhile.
 export function exec(chip, code, { stdin = null, maxCycles = HZ * 3600 } = {}) {
   chip.send(code);
   chip.runUntil(chip.sent, 'the code upload');
-  const c0 = chip.cycles, n0 = chip.mcu.clock.nanos, t0 = performance.now();
+  const c0 = chip.cycles, w0 = chip.wakeups, n0 = chip.mcu.clock.nanos, t0 = performance.now();
   chip.send('\x04');
   if (stdin) chip.send(stdin);
   // "OK", the output, ^D, the error, ^D, ">"
@@ -206,7 +208,8 @@ export function exec(chip, code, { stdin = null, maxCycles = HZ * 3600 } = {}) {
   const text = chip.rx.take();
   if (!text.startsWith('OK')) throw new Error(`the raw REPL refused the code: ${text.slice(0, 200)}`);
   const [out, err] = text.slice(2, -1).split('\x04');
-  return { out, err, cycles: chip.cycles - c0, emuMs: (chip.mcu.clock.nanos - n0) / 1e6, wallMs };
+  return { out, err, cycles: chip.cycles - c0, wakeups: chip.wakeups - w0,
+    emuMs: (chip.mcu.clock.nanos - n0) / 1e6, wallMs };
 }
 
 function check(r) {

@@ -1,0 +1,29 @@
+"""`accelcal bench --runtime rp2040`'s sleeping board (studies/bench_sleep.py): the emulator
+counts the waits the core slept through (bridge/scripts/rp2040.mjs), and the app as deployed,
+between drains, is awake a small share of the time and loses nothing."""
+import pytest
+
+from conftest import emulated_chip
+
+
+def test_the_awake_share_and_wake_ups_are_the_difference_of_two_runs():
+    from accelcal.studies import bench_sleep
+    # 1.25e9 cycles of 12 s less 0.5e9 of 4 s: 0.75e9 cycles in 8 s of 125 MHz = 75 %
+    share, wakeups = bench_sleep.awake((500_000_000, 40, 4000.0, 0), (1_250_000_000, 120, 12000.0, 0))
+    assert share == pytest.approx(75.0) and wakeups == pytest.approx(10.0)
+
+
+@pytest.mark.slow
+def test_the_app_sleeps_between_drains_on_the_emulated_pico(capsys):
+    emulated_chip()
+    from accelcal.studies import bench_sleep
+    m = bench_sleep.measure_sleep()
+    e = bench_sleep.E
+    for rate in bench_sleep.RATES:
+        assert m[e + f"lost_{rate}hz"] == 0
+        assert 0 < m[e + f"awake_pct_{rate}hz"] < 50
+        # at least a wake-up a drain (25 samples), more where the bus waits for the chip
+        assert m[e + f"wakeups_per_s_{rate}hz"] >= rate / 25
+    # the work is per sample: more samples, more awake
+    assert m[e + "awake_pct_10hz"] < m[e + "awake_pct_100hz"] < m[e + "awake_pct_400hz"]
+    print(bench_sleep.format_sleep(m))
