@@ -90,6 +90,7 @@ class App:
         self.samples = 0
         self.lost = 0
         self.fifo_overruns = 0
+        self._owed = 0      # samples a full FIFO drain may have lost that the clock has not shown
         self.bus_errors = 0
         self.bus_retries = 0
         # int arrays: the hot loops read them through typed pointers (acal/emit.py)
@@ -251,14 +252,22 @@ class App:
                     self.bus_retries += 1
         if not n:
             return 0
-        if not s.overrun:
-            # No overrun: the FIFO held every conversion since the last drain, so none is lost.
-            # A clock that says more are due is off -- a millisecond clock's resolution
-            # (CircuitPython's ticks_ms: 1 of 4 008 counted lost at 200 Hz on the emulated
-            # Feather), or a chip converting slower than its nominal ODR -- and is set back.
+        if s.overrun:
+            # full: a sample converted between the level's read and the FIFO's overwrites one
+            # more, lost but found by the clock only at a later drain
+            self._owed = 1
+        else:
+            # Not full: the FIFO held every conversion since the last drain's read, so nothing
+            # is lost but what a full drain still owes.  A clock that says more are due is off
+            # -- a millisecond clock's resolution (CircuitPython's ticks_ms: 1 of 4 008 counted
+            # lost at 200 Hz on the emulated Feather), or a chip converting slower than its
+            # nominal ODR -- and is set back.
             ahead = self.expected - (self.samples + self.lost + n)
+            if ahead > self._owed:
+                self.expected -= ahead - self._owed
+                ahead = self._owed
             if ahead > 0:
-                self.expected -= ahead
+                self._owed -= ahead
         self._account(n)
         for i in range(n):
             self._push(buf[3 * i], buf[3 * i + 1], buf[3 * i + 2])
