@@ -12,6 +12,7 @@ import gc
 from array import array
 
 from acal import effects, log
+from acal.emit import copy_ints
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
 from acal.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
@@ -269,8 +270,18 @@ class App:
             if ahead > 0:
                 self._owed -= ahead
         self._account(n)
-        for i in range(n):
-            self._push(buf[3 * i], buf[3 * i + 1], buf[3 * i + 2])
+        # into the block a run at a time (a viper copy on ports with emitters: a _push call a
+        # sample cost 73 us on the emulated Pico)
+        i = 0
+        while i < n:
+            m = BLOCK - self.fill
+            if m > n - i:
+                m = n - i
+            copy_ints(buf, 3 * i, self.block, 3 * self.fill, 3 * m)
+            self.fill += m
+            i += m
+            if self.fill == BLOCK:
+                self._flush()
         self.samples += n
         return n
 
