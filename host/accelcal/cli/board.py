@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from acal.fixed import PARAM_NAMES
+from acal.core.fixed import PARAM_NAMES
 from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 
@@ -29,7 +29,7 @@ def cmd_board_virtual(args) -> int:
 
 
 def _app_settings(args) -> dict:
-    from acal import profile as dprofile
+    from acal.core import profile as dprofile
     s = {"rate_hz": args.rate, "profile": dprofile.parse(args.profile)}
     if args.capture_kb:
         s["capture_bytes"] = args.capture_kb * 1024
@@ -48,7 +48,7 @@ def _app_settings(args) -> dict:
         try:
             spec = ModelSpec.parse(args.model)
             s["model"] = spec.device_model   # ValueError: an effect the board does not have
-            from acal import effects as deff
+            from acal.core import effects as deff
             if deff.STEP in spec.kinds and args.profile != "wear":
                 raise ValueError(f"model {spec}: a step's time is found by the wear profile's "
                                  "fit; the paper profile has no search for it")
@@ -209,7 +209,7 @@ def add_parsers(sub) -> None:
     p.set_defaults(func=cmd_deploy)
 
     p = sub.add_parser("acquire", help="run the deployed app for a while (virtual board: simulated time)",
-                       description="Runs acal.app.main(seconds=...) on the board with mpremote exec and "
+                       description="Runs acal.logger.app.main(seconds=...) on the board with mpremote exec and "
                                    "shows its hourly progress lines.")
     p.add_argument("--port", required=True)
     p.add_argument("--hours", type=float_in(0, 87600, lo_open=True), required=True, help="hours of board time")

@@ -1,8 +1,8 @@
 # The board's own model discovery (issue 29; docs/model-discovery.md "Discovery on the board"):
 # after a usable calibration of the paper's model (the wear profile's fit), each candidate effect
 # of the catalogue the board can run is fitted on the same gathered fit points, from the base
-# fit's parameters, scored on the held-out rest points (heldout.py, heldscore.py) and the
-# choice made as `diagnose` makes it (candidates.py, discovery.py's rule).
+# fit's parameters, scored on the held-out rest points (heldout.py, score.py) and the
+# choice made as `diagnose` makes it (candidates.py, rule.py's rule).
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
 # candidate's fit (gaussnewton.py's), its testability or begin, a step's change-point search
@@ -11,16 +11,16 @@
 # per candidate or per score: one GaussNewton sized for the largest candidate (9 + 6
 # parameters) is re-kinded for each (the candidates' effect tuples are made once: here, and per
 # base effect for a second round), and the results go to preallocated int32 arrays.
-# Formats: errors heldscore's (Q16 g^2, summed), saturated at ERR_MAX so that the rule's
-# products (discovery.py: 100 x an error, 15 x an error) stay below 2**30 (heldscore's own cap
-# lets a sum reach 144 x 2**22); parameters Q24 (fixed.py, effects.py).
-from acal import candidates, discovery, effects
-from acal.bins import COND, DIFFERS, int32s
-from acal.fixed import N_PARAMS
-from acal.gaussnewton import GaussNewton
-from acal.heldscore import HeldScore
-from acal.stepplace import StepPlace
-from acal.status import OK
+# Formats: errors score.py's (Q16 g^2, summed), saturated at ERR_MAX so that rule.py's products
+# (100 x an error, 15 x an error) stay below 2**30 (score.py's reach 144 x 2**22); params Q24.
+from acal.discover import candidates, rule as discovery
+from acal.core import effects
+from acal.core.bins import COND, DIFFERS, int32s
+from acal.core.fixed import N_PARAMS
+from acal.core.gaussnewton import GaussNewton
+from acal.discover.score import HeldScore
+from acal.discover.stepplace import StepPlace
+from acal.core.status import OK
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -124,7 +124,7 @@ class Discover:
         self.pairs = None           # the second round's tuples, made once per base effect
         self.pairs_base = 0
         self.score = HeldScore(held.capacity)
-        from acal.changepoint import ChangePoint   # the step's search: nothing per point
+        from acal.core.changepoint import ChangePoint   # the step's search: nothing per point
         self.search = ChangePoint()
         self.kind_ids = int32s(N_CANDIDATES)
         self.errs = int32s(N_CANDIDATES)

@@ -9,7 +9,7 @@
 # runs it between FIFO reads; run() is begin() and every step at once, the same integers.
 #
 # Every intermediate stays below 2**30, so a fit allocates nothing on a 32-bit port (an RP2040 or
-# ESP32 keeps |int| < 2**30 unboxed): products wider than that go through acal/wide.py, and the
+# ESP32 keeps |int| < 2**30 unboxed): products wider than that go through acal/core/wide.py, and the
 # sums are scaled as they grow (block floating point), per column and for the residuals.
 # Formats (fixed.py, model.py): points u Q24 g, clamped to +-2.048 g per axis; parameters Q24;
 # residuals r Q22 g^2 (model.residual); raw Jacobian rows d = J / 2 in 2**-QD_BASE (24) per
@@ -22,24 +22,24 @@
 #   A = sum d~ d~^T, b = sum d~ r~ and f = sum floor(r^2 4**-tau) all stay below 2**29.
 # The Gauss-Newton step (J^T J + lambda diag) delta = -J^T r is then, in Q24 LSB of each
 # parameter,  (A + lambda diag A) z = -b,  delta_k = z_k 2**(tau + 1 - s_k + QD_k)
-# (J = 2 d~ 2**(s - QD), r = r~ 2**(tau - 22)), solved by acal/solve.py.
+# (J = 2 d~ 2**(s - QD), r = r~ 2**(tau - 22)), solved by acal/core/solve.py.
 # The objective f is in 2**(2 tau - 44) g^4; objective and objective_start are reported in
 # Q24 g^4 (OBJ_Q), saturated at 2**30 - 1.
 from array import array
 
-from acal.fixed import N_PARAMS
-from acal.bins import COND, conditions, int32s
-from acal import model
-from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.model import FIT_W_MAX
+from acal.core.fixed import N_PARAMS
+from acal.core.bins import COND, conditions, int32s
+from acal.core import model
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
+from acal.core.model import FIT_W_MAX
 try:
     from micropython import const
 except ImportError:  # CPython
     def const(x):
         return x
-from acal.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
-from acal.solve import Solver
-from acal.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
+from acal.core.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
+from acal.core.solve import Solver
+from acal.core.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
                                insert_abs, q24, above, rhs_from_limbs, point_residual)
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
@@ -74,7 +74,7 @@ _DONE = const(6)
 
 class GaussNewton:
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
-    model, acal/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
+    model, acal/core/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
     rejection after the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
 
     After the fit: p (Q24), status (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED),
@@ -101,7 +101,7 @@ class GaussNewton:
         self.srt = int32s(max_points)   # |r| being sorted
         self.p = int32s(np_)            # int32 arrays: model.residual's typed pointer
         self.pt = int32s(np_)
-        # int32 arrays: _accumulate reads them through typed pointers (acal/emit.py)
+        # int32 arrays: _accumulate reads them through typed pointers (acal/core/emit.py)
         self.d = int32s(np_)
         self.a = int32s(np_ * np_)  # sum d~ d~^T, lower triangle
         self.b = int32s(np_)        # sum d~ r~, high limb (units of 2**B_SPLIT)
@@ -232,7 +232,7 @@ class GaussNewton:
 
     def point(self, i, w):
         """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
-        (a list of 3, Q24 g): what acal/changepoint.py reads."""
+        (a list of 3, Q24 g): what acal/core/changepoint.py reads."""
         r = point_residual(self, self.p, i)
         src = self.w if self.kinds else self.u
         at = 0 if self.kinds else 3 * i

@@ -1,13 +1,13 @@
-# The sums of the default fit's normal equations, point by point (acal/gaussnewton.py: the
+# The sums of the default fit's normal equations, point by point (acal/core/gaussnewton.py: the
 # formats, the scales tau and s_k, and why every value stays below 2**30): each point's scaled
 # Jacobian row and residual accumulated into A and b, the trial objective, the residuals' sort
 # for outlier rejection, and the exact small-int helpers on the scaled objective.  The hot loops
-# are viper on ports with emitters (acal/emit.py: typed pointers into the fit's int32 arrays;
+# are viper on ports with emitters (acal/core/emit.py: typed pointers into the fit's int32 arrays;
 # w: emit.SIGN_SHIFT), plain Python elsewhere; tests/device/test_ranges.py traces every value.
-from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.model import FIT_W_MAX, residual_jacobian
-from acal.effects import correct_kinds
-from acal.wide import mul_shift
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
+from acal.core.model import FIT_W_MAX, residual_jacobian
+from acal.core.effects import correct_kinds
+from acal.core.wide import mul_shift
 
 R_MAX = 1 << 18           # |r~| <= 2**18
 D_MAX = 1 << 11           # |d~| <= 2**11
@@ -26,7 +26,7 @@ QD_EFFECT = 16
 def accumulate(a: ptr32, d: ptr32, n: int, high, low, rh: int, rl: int, w: int):
     # One point's scaled row d~ (d) and residual r~ = rh 2**B_SPLIT + rl into A (a, the lower
     # triangle) and b (high, low limbs): the fit's hot loop, viper on ports with emitters
-    # (acal/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
+    # (acal/core/emit.py; w: emit.SIGN_SHIFT; 9 is B_SPLIT, 511 B_MASK).  Every value below 2**29
     # (above; tests/device/test_ranges.py traces them).  A and d~ are the first arguments, typed:
     # viper keeps a function's first three locals in registers (on an RP2040 this loop then
     # takes 192 us for 21 parameters, 236 us with them later), and A's index runs along its row.
@@ -55,7 +55,7 @@ def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
     # columns' scales s_k grow as the points need (the sums so far shifted down with them, but at
     # a pass's first point, where they are zero); a point that grows one takes a slice of its
     # own: it is done first in a call, or left for the next (fit.state: where this stopped, and
-    # tau).  Returns f.  Viper on ports with emitters (acal/emit.py): R_MAX 2**18, D_MAX 2**11,
+    # tau).  Returns f.  Viper on ports with emitters (acal/core/emit.py): R_MAX 2**18, D_MAX 2**11,
     # F_TAU_OFFSET 7, B_SPLIT 9; wide.mul_shift(x, x, s) of the square written out.
     row = fit.d
     d = ptr32(row)
@@ -166,7 +166,7 @@ def trial_points(fit, params, i: int, end: int, t: int, ft: int) -> int:
 @viper
 def insert_abs(res, ordered, i: int, end: int, w: int):
     # |res[i:end]| inserted into ordered[0:end], kept ascending (ordered[0:i] already is): the
-    # sort's loop, viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # sort's loop, viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     r = ptr32(res)
     srt = ptr32(ordered)
     while i < end:

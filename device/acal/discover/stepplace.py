@@ -1,15 +1,15 @@
 # An adopted step's time placed among the held-out points of its gap, scored leave-one-out
 # (issue 29; docs/model-discovery.md "Against the true sensor model").  A shock that falls in a
 # held-out block lies between two fit points, and the fit cannot tell where: only the held-out
-# points in between can place it.  acal/discover.py owns one StepPlace and drives it a slice
+# points in between can place it.  acal/discover/search.py owns one StepPlace and drives it a slice
 # per step: begin(), then step() until it returns True.  Nothing is allocated per step.  The
 # host's diagnose.place_step is the same rule in floats (its error | |a| - 1 |, its time halfway
 # between the split's neighbours): tests/pipeline/test_step_placement.py ties the two.
-# Formats: errors heldscore's (Q16 g^2, weighted); times the pipeline's (64 s units, relative
+# Formats: errors score.py's (Q16 g^2, weighted); times the pipeline's (64 s units, relative
 # to its ref_time).  Ranges: a gap point's error <= WEIGHT_CAP x ERR_CAP = 2**22, GAP_MAX of
 # them < 2**27, and the step's error (<= discover.ERR_MAX < 2**23) less and plus such sums
-# stays within +-2**28 (discover.py saturates the placed errors as its others).
-from acal.bins import COND, int32s
+# stays within +-2**28 (search.py saturates the placed errors as its others).
+from acal.core.bins import COND, int32s
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -65,7 +65,7 @@ class StepPlace:
         self.phase = _DONE
 
     def begin(self, score, held, ref_time, lo, hi, err, scan):
-        """Start placing: score (heldscore.HeldScore) begun on the step model at the fitted
+        """Start placing: score (score.HeldScore) begun on the step model at the fitted
         time hi, lo the last fit point's time before it, err the step's held-out error, scan
         the held-out slots a gathering step may scan."""
         self.clear()

@@ -1,17 +1,17 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
-from acal.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
+from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
+from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
                        gravity, int32s)
-from acal.heldout import held_out
-from acal.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
-from acal.fixed import N_PARAMS
-from acal.gaussnewton import GaussNewton
-from acal import gaussnewton
-from acal.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
-from acal.profile import GRADIENT, NEWTON, adopted_max_count
-from acal import effects
-from acal.reference import centre, lowest
+from acal.discover.heldout import held_out
+from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
+from acal.core.fixed import N_PARAMS
+from acal.core.gaussnewton import GaussNewton
+from acal.core import gaussnewton
+from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
+from acal.core.profile import GRADIENT, NEWTON, adopted_max_count
+from acal.core import effects
+from acal.core.reference import centre, lowest
 
 
 class Pipeline:
@@ -19,12 +19,12 @@ class Pipeline:
     detection; min_count, max_count, differ (Q16 g), policy: bins; fit (profile.GRADIENT: the
     paper's, with iterations and alphas, learning rates in tenths; profile.NEWTON: Gauss-Newton
     with outlier rejection, and bins that are also ready on coverage): the optimiser.  A
-    profile's settings: acal.profile.settings().
+    profile's settings: acal.core.profile.settings().
 
     on_rest, if given, is called as on_rest(x, y, z, subset) for every rest mean (Q16 g), with
     the subset it was kept in or -1 (the app logs these; the host collects them).
 
-    kinds: the effects of a composed model (acal.effects ids; () is the paper's model).  Their
+    kinds: the effects of a composed model (acal.core.effects ids; () is the paper's model).  Their
     bins track temperature, time and the board's supply (bins.py), and the feeder keeps `temp`
     (Q2 degC, fixed.TEMP_Q), `time` (64 s units) and `supply` (mV, effects.SUPPLY_OFFSET) current; a fit takes
     each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
@@ -33,7 +33,7 @@ class Pipeline:
     NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
 
     A model with a step (effects.STEP; NEWTON only): the model without the step is fitted
-    first, acal/changepoint.py finds the step's time on its residuals (step_time, 64 s units
+    first, acal/core/changepoint.py finds the step's time on its residuals (step_time, 64 s units
     from ref_time, which the calibration keeps), and the whole model is fitted from there.
 
     The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
@@ -45,7 +45,7 @@ class Pipeline:
     the host sets it from its non-wear and quality masks.
 
     discover (NEWTON, the paper's model only): the board finds its own missing effect
-    (acal/discover.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
+    (acal/discover/search.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
     held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
     condition a candidate needs (but are ready without their spread) and the fit's points carry
     them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
@@ -68,7 +68,7 @@ class Pipeline:
             if k != effects.STEP:
                 base_kinds.append(k)
         # points per subset once the discovery adopts an effect (a composed model's), for which
-        # a discovering pipeline has room from the start (adopt(), acal/grow.py)
+        # a discovering pipeline has room from the start (adopt(), acal/discover/grow.py)
         self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
         capacity = N_SUBSETS * self.adopted_count   # points the fits take
         self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON,
@@ -78,9 +78,9 @@ class Pipeline:
         self.held = None
         self.discovery = None
         if discover:
-            from acal.heldout import HeldOut   # a discovering board's modules only
-            from acal.discover import Discover
-            import acal.grow   # noqa: F401  loaded now, so that adopt() allocates no code
+            from acal.discover.heldout import HeldOut   # a discovering board's modules only
+            from acal.discover.search import Discover
+            import acal.discover.grow   # noqa: F401  loaded now, so that adopt() allocates no code
             self.bins.need_span = False
             self.held = HeldOut()
             self.discovery = Discover(capacity, self.held)
@@ -95,14 +95,14 @@ class Pipeline:
                 self.base_fit = GaussNewton(capacity, self.base_kinds, True)
                 self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
             if len(base_kinds) < len(self.kinds):
-                from acal.changepoint import ChangePoint   # a step's models only
+                from acal.core.changepoint import ChangePoint   # a step's models only
                 self.search = ChangePoint()
         elif len(base_kinds) < len(self.kinds):
             raise ValueError("a step is found by the wear profile's fit (NEWTON)")
         else:
             # the paper's gradient descent, imported here: a wear-profile board never loads it
-            # (nor acal/objective.py), whose code would sit in its RAM
-            from acal import optimiser
+            # (nor acal/paper/objective.py), whose code would sit in its RAM
+            from acal.paper import optimiser
             self.optimiser = optimiser.Optimiser(capacity, alphas, self.kinds)
             if iterations is None:
                 iterations = (optimiser.COMPOSED_ITERATIONS if self.kinds
@@ -325,7 +325,7 @@ class Pipeline:
         calibration, from this model; else no further discovery: the held-out blocks' rest
         means go to the bins again.  The bins grow to adopted_count points per subset (a composed
         model's: the next calibration fits on up to 126), every held point and its conditions
-        kept, in the room they have (acal/grow.py: nothing allocated)."""
+        kept, in the room they have (acal/discover/grow.py: nothing allocated)."""
         d = self.discovery
         fit = d.take()
         kinds = fit.kinds
@@ -338,7 +338,7 @@ class Pipeline:
         self.step_time = d.step_time
         if effects.STEP in kinds:
             self.search = d.search
-        from acal.discover import more
+        from acal.discover.search import more
         again = more(kinds)
         b = self.bins
         track(b, kinds, again)   # going on: every condition, for the next round's candidates
@@ -348,7 +348,7 @@ class Pipeline:
         if not again:
             self.held = None
             self.discovery = None
-        from acal.grow import grow_bins   # a discovering board's module only
+        from acal.discover.grow import grow_bins   # a discovering board's module only
         grow_bins(b, self.adopted_count)
 
     def _keep_base(self, why):

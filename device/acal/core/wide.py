@@ -11,9 +11,9 @@
 #   a b = ah bh 2**30 + (ah bl + al bh) 2**15 + al bl,
 # each product < 2**30 when |a|, |b| < 2**29.
 #
-# mul_shift and div_shift are viper on ports with emitters (acal/emit.py): machine-word functions
+# mul_shift and div_shift are viper on ports with emitters (acal/core/emit.py): machine-word functions
 # of small ints, every intermediate below 2**30 as above (their arguments must be small ints there).
-from acal.emit import viper
+from acal.core.emit import viper
 
 
 @viper

@@ -15,7 +15,7 @@ except ImportError:
     def const(x):
         return x
 
-from acal.fixed import SAMPLE_MAX
+from acal.core.fixed import SAMPLE_MAX
 
 ADDRESS = const(0x18)        # SDO/SA0 low; 0x19 when high
 WHO_AM_I_VALUE = const(0x33)

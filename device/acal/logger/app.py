@@ -1,7 +1,7 @@
 # The logger app: acquisition -> rest detection -> bins -> calibration when the bins fill (and
 # again later, so drift is tracked) -> applying the current calibration; logs on flash.
 #
-# Processor (acal/processor.py) is everything after acquisition and is deterministic in the
+# Processor (acal/logger/processor.py) is everything after acquisition and is deterministic in the
 # samples it is fed: the host's `accelcal replay` feeds it a pulled capture and must log the same
 # records.
 # App reads the LIS3DH (output registers by default; see lis3dh.py for why not the FIFO),
@@ -10,9 +10,10 @@
 import gc
 from array import array
 
-from acal import effects, log
+from acal.core import effects
+from acal.logger import log
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
-from acal.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
+from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
                             REST_RESERVE_BYTES, COUNTERS_SECONDS, CAPTURE_FLUSH_RECORDS,
                             FIT_STEPS_PER_FEED)
@@ -74,7 +75,7 @@ class App:
 
     def __init__(self, board, rate_hz=100, range_g=2, fifo=False, capture_bytes=0,
                  log_budget=1 << 20, prefix="", **processor_settings):
-        from acal.lis3dh import LIS3DH, LIS3DHError
+        from acal.logger.lis3dh import LIS3DH, LIS3DHError
         self.board = board
         self.clock = getattr(board, "clock", None) or RealClock()
         self.rate_hz = rate_hz
@@ -85,7 +86,7 @@ class App:
         self.fifo_overruns = 0
         self.bus_errors = 0
         self.bus_retries = 0
-        # int arrays: the hot loops read them through typed pointers (acal/emit.py)
+        # int arrays: the hot loops read them through typed pointers (acal/core/emit.py)
         self.buf = array("i", bytearray(12 * (32 if fifo else BLOCK)))
         self.block = array("i", bytearray(12 * BLOCK))
         self.fill = 0
@@ -285,7 +286,7 @@ def report(app):
 
 
 def main(seconds=None, verbose=True, **settings):
-    """Entry point on a board: `import acal.app; acal.app.main(...)` (deploy writes it into
+    """Entry point on a board: `import acal.logger.app; acal.logger.app.main(...)` (deploy writes it into
     main.py).  seconds=None runs for ever.  The board file (boards/NAME.py) is deployed as
     acal_board.py: CircuitPython's built-in `board` module owns that name."""
     import acal_board

@@ -1,6 +1,6 @@
 # Symmetric positive definite linear systems in integers: the damped normal equations of the
-# default profile's Gauss-Newton fit (acal/gaussnewton.py), n <= 21 unknowns, with every
-# intermediate below 2**30 (acal/wide.py), so that a solve allocates nothing on a 32-bit port.
+# default profile's Gauss-Newton fit (acal/core/gaussnewton.py), n <= 21 unknowns, with every
+# intermediate below 2**30 (acal/core/wide.py), so that a solve allocates nothing on a 32-bit port.
 #
 # (A + lambda diag A) x = b 2**xshift is solved, lambda = mu 2**-8, by Gaussian elimination
 # without pivoting (the system is symmetric positive definite, so the pivots are positive) on a
@@ -20,9 +20,9 @@
 # a combination of the others (multiple correlation above 1 - 2**-GUARD_SHIFT): the data does not
 # determine it, and the solver says so instead of returning a huge step.  Rounding moves the
 # Schur complements by ~2**4 an update, far below the smallest floor (2**(DIAG_BITS-2-12)).
-from acal.bins import int32s
-from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.wide import div_shift
+from acal.core.bins import int32s
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
+from acal.core.wide import div_shift
 
 DIAG_BITS = 24
 RHS_BITS = 19
@@ -162,7 +162,7 @@ def _eliminate_rows(rows, rhs, i: int, j: int, end: int, n: int, w: int) -> int:
     # i: m_jk -= mul m_ik for k > i and c_j -= mul c_i, mul = m_ji / m_ii in Q(MUL_Q)
     # (div_shift), each product wide.mul_shift(mul, ., MUL_Q) written out (s = 20, t = 5; mul's
     # halves split once).  1 (nothing more done) at a row whose |m_ji| 2**-9 reaches the pivot,
-    # else 0.  The solver's hot loop, viper on ports with emitters (acal/emit.py; w:
+    # else 0.  The solver's hot loop, viper on ports with emitters (acal/core/emit.py; w:
     # emit.SIGN_SHIFT); the same integers as mul_shift, each below 2**30 (tests/device/test_ranges.py).
     m = ptr32(rows)
     c = ptr32(rhs)
@@ -201,7 +201,7 @@ def _prepare_rows(sums, rows, scales, k: int, end: int, n: int, inv: int, w: int
     # Rows k..end-1 of the scaled copy (rows) of the sums' lower triangle: m_kj = m_jk =
     # a_kj 2**-(s_k + s_j) (floor), saturated at +-2**29 as _shift_sat, then times inv 2**-16
     # (the damping; wide.mul_shift written out for s = 16, t = 1) when inv; the diagonal
-    # a_kk 4**-s_k.  Viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT); the
+    # a_kk 4**-s_k.  Viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT); the
     # shifts lie in [-6, 22] (the scales s_k in [-11, 3]), below a word's width.
     a = ptr32(sums)
     m = ptr32(rows)
@@ -242,7 +242,7 @@ def _back_substitute(rows, rhs, sol, i: int, n: int, w: int) -> int:
     # y_i = floor((c_i 2**MUL_Q - sum_{k>i} m_ik y_k) / m_ii) into sol[i] (wide.mul_shift and
     # div_shift for MUL_Q = 20: t = 5): 1, y_i untouched, when a partial sum reaches +-_T_MAX
     # (2**28) or |t| 2**-_Y_MAX_SHIFT (3) reaches the pivot, else 0.  Viper on ports with
-    # emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     m = ptr32(rows)
     y = ptr32(sol)
     c = ptr32(rhs)
@@ -272,7 +272,7 @@ def _back_substitute(rows, rhs, sol, i: int, n: int, w: int) -> int:
 def _diagonal_scales(sums, scales, n: int, w: int) -> int:
     # s_k for each unknown: D_k = a_kk 4**-s_k in [2**(DIAG_BITS-2), 2**DIAG_BITS) (22, 24),
     # s_k < 0 scaling a small one up, into scales; 1 (a diagonal <= 0) or 0.  Viper on ports
-    # with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     a = ptr32(sums)
     s = ptr32(scales)
     k = 0
@@ -327,7 +327,7 @@ def _run(rows, rhs, sol, floors, state, n: int, budget: int, w: int) -> int:
     # (2: a pivot under its guard, rounding beyond an SPD system, or past _MAX_RESCALES).  At
     # a new pivot c is brought within +-2**RHS_BITS (19) and a back substitution that overflows
     # starts again, both by c >> 4 and e + 4 (the solution shrinks with it and is scaled back at
-    # the end).  Viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # the end).  Viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     m = ptr32(rows)
     c = ptr32(rhs)
     fl = ptr32(floors)

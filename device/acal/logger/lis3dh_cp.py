@@ -1,7 +1,7 @@
 # The LIS3DH on CircuitPython: adafruit_lis3dh finds and identifies the chip (what it does well),
 # and samples are read as raw integers through the same register code as lis3dh.LIS3DH, over
 # busio via adafruit_bus_device (no floats, no per-sample allocation).
-from acal.lis3dh import LIS3DH, ADDRESS, LIS3DHError
+from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError
 
 
 class BusioRegisters:

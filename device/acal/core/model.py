@@ -3,18 +3,18 @@
 #   a_y = kxy (v_x + o_x) + kyy (v_y + o_y)
 #   a_z = kxz (v_x + o_x) + kyz (v_y + o_y) + kzz (v_z + o_z)
 # Parameters are a list of 9 ints in Q24 (fixed.py), in the order of eq. 6.  The per-sample
-# apply of a calibration: acal/calibration.py.
-from acal.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
+# apply of a calibration: acal/core/calibration.py.
+from acal.core.fixed import (PARAM_ONE, A_Q, A_SHIFT, POINT_TO_PARAM_SHIFT, R_SHIFT, F_SHIFT, N_PARAMS,
                         K_DIAG_MIN, K_DIAG_MAX, K_OFF_MAX, O_MAX, FIT_K_DIAG_MIN,
                         FIT_K_DIAG_MAX, FIT_K_OFF_MAX, FIT_O_MAX, APPLY_W_MAX)
 
-from acal import effects
-from acal.bins import COND, int32s
-from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.core import effects
+from acal.core.bins import COND, int32s
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from array import array
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
-POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/objective.py)
+POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/paper/objective.py)
 _ARG_LIMIT = 1 << 29
 _P = array("i", [0] * N_PARAMS)   # objective()'s parameters
 _LIMBS = []                       # ... and its limbs, made on first use
@@ -52,7 +52,7 @@ def in_fit_region(p):
 def load_points(pts, n, u):
     """Points (Q16 g, flat x y z list) -> u (Q24 g; an int32 array for the exact objective), the
     form the objective reads.  False, u partly written, when a point lies past +-16 g (POINT_LIMIT:
-    the exact objective's domain, acal/objective.py; no LIS3DH reading is larger)."""
+    the exact objective's domain, acal/paper/objective.py; no LIS3DH reading is larger)."""
     for i in range(3 * n):
         v = pts[i]
         if v >= POINT_LIMIT or v < -POINT_LIMIT:
@@ -67,7 +67,7 @@ def objective(p, u, n):
     u: points in Q24 g (load_points).  Returns Q40 g^4.  The formula (objective_long) needs ints
     to ~2**62: products k*u < 2**51, a in Q28, |a|^2 < 2**61 and r**2 < 2**62 for rest means of a
     sensor inside the paper's error ranges, longs on a 32-bit board.  For u an int32 array inside
-    the exact domain (parameters in the fit region, points within +-16 g, acal/objective.py) the
+    the exact domain (parameters in the fit region, points within +-16 g, acal/paper/objective.py) the
     same integers come from limbs below 2**30 (viper on ports with emitters); otherwise from the
     formula, exact in Python ints of any size."""
     for i in range(N_PARAMS):   # past an int32, the formula (a long would not fit _P)
@@ -75,7 +75,7 @@ def objective(p, u, n):
             return objective_long(p, u, n)
         _P[i] = p[i]
     if isinstance(u, array):
-        from acal import objective as limbs   # the paper profile's, loaded when used
+        from acal.paper import objective as limbs   # the paper profile's, loaded when used
         if not _LIMBS:
             _LIMBS.append(array("i", [0] * limbs.LIMBS))
         f = _LIMBS[0]
@@ -116,7 +116,7 @@ def objective_long(p, u, n):
     return total
 
 
-# The default profile's fit (acal/gaussnewton.py) reads residuals and Jacobian rows in formats
+# The default profile's fit (acal/core/gaussnewton.py) reads residuals and Jacobian rows in formats
 # that keep every intermediate below 2**30, so that it allocates nothing on a 32-bit port:
 #   readings u clamped to +-FIT_W_MAX (2.048 g, the apply's clamp) per axis, v = u + o;
 #   a = K v in Q24 g (wide.mul_shift), |a| < 7.7 g inside the fit region;
@@ -131,7 +131,7 @@ FIT_W_MAX = APPLY_W_MAX << 10    # 2.048 g in Q24
 _ROW = int32s(9)   # residual()'s scratch row
 
 # residual_jacobian() is the default fit's hot loop, viper on ports with emitters
-# (acal/emit.py): p is an int32 array (the fit's), each wide.mul_shift written out (P below).
+# (acal/core/emit.py): p is an int32 array (the fit's), each wide.mul_shift written out (P below).
 # For a product P(k, u, 24) of a parameter k and a reading u, with h = x >> 15, l = x & 0x7fff:
 #   m = kh ul + kl uh,  c = (kl ul) >> 15,  P = ((kh uh) << 6) + (m >> 9) + (((m & 511) + c) >> 9)
 # and for a square P(a, a, 26):
@@ -224,7 +224,7 @@ def residual_jacobian(params, ux: int, uy: int, uz: int, row) -> int:
 
 
 def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):
-    """Remove a composed model's effects (acal.effects ids, parameters p[9 + 3k : 12 + 3k]) from
+    """Remove a composed model's effects (acal.core.effects ids, parameters p[9 + 3k : 12 + 3k]) from
     the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in
     (ts: a step's time, as dt; dV: the board's integer, mV from its reference).
     Each result is clamped to +-FIT_W_MAX, as the apply clamps it (fixed.APPLY_W_MAX)."""
@@ -240,7 +240,7 @@ def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):
 
 
 def objective_effects(p, u, aux, n, kinds, w, ts=0):
-    """objective() for a composed model: the effects `kinds` (acal.effects ids, parameters
+    """objective() for a composed model: the effects `kinds` (acal.core.effects ids, parameters
     p[9 + 3k : 12 + 3k]) are first removed from each point, last first (the reverse of the order
     they act in), into w (3 n ints; an int32 array for the exact objective); the 9-parameter
     objective then reads w.  aux: per point dT (Q2 degC), dt (64 s units) and dV (mV), flat (COND
@@ -260,7 +260,7 @@ def points_without_effects(p, u, aux, n, kinds, w, ts=0):
 
 
 def effects_within(p, kinds, factor):
-    """True when every effect parameter lies within factor x its bound (acal.effects.BOUNDS)."""
+    """True when every effect parameter lies within factor x its bound (acal.core.effects.BOUNDS)."""
     for k in range(len(kinds)):
         b = effects.BOUNDS[kinds[k]] * factor
         for i in range(3):

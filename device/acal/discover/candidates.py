@@ -1,10 +1,10 @@
 # The board's choice among candidate effects (issue 29), as `diagnose` chooses
 # (host/accelcal/pipeline/diagnose.py): the candidate with the lowest held-out error, except that
-# a change point (the step) gives way to the best effect without one when discovery.py's
+# a change point (the step) gives way to the best effect without one when rule.py's
 # parsimony rule prefers it; the choice is then adopted only when discovery.names holds.
-# Errors: heldscore's integers (-1: not testable); no allocation.
-from acal import discovery
-from acal.effects import STEP
+# Errors: score.py's integers (-1: not testable); no allocation.
+from acal.discover import rule as discovery
+from acal.core.effects import STEP
 
 
 def best(kinds, errs, n):

@@ -11,7 +11,7 @@
 #          (gaussnewton.py), and readiness from coverage (bins.py) rather than nine full
 #          subsets; a composed model 14 per subset (126).
 # Composed models (effects.py) keep their spread rules (bins.py) in both.
-from acal.rest import ALL_AXES, AUTO, DEFAULT_THRESHOLD
+from acal.core.rest import ALL_AXES, AUTO, DEFAULT_THRESHOLD
 
 PAPER = 0
 WEAR = 1
@@ -37,7 +37,7 @@ WEAR_COMPOSED_MAX_COUNT = 14
 # gain and curve on seed 4, drift); 126 bring every effect's seeds 1-6 within 1.25x but one
 # (docs/model-discovery.md "Points for a composed model").  Cost on an RP2040: ~7.5 kB more
 # heap for the four-effect App, a longer fit (more slices of the same size).
-# A board that discovers its effect (acal/discover.py) starts with the base model's 8 and takes
+# A board that discovers its effect (acal/discover/search.py) starts with the base model's 8 and takes
 # the composed model's 14 when it adopts one (adopted_max_count, Pipeline.adopt).
 
 

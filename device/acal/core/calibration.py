@@ -1,14 +1,14 @@
 # The calibration applied to raw samples on the board, per sample and without allocating: the
-# model of acal/model.py (a = K (v + o), a composed model's effects removed first: acal/effects.py)
+# model of acal/core/model.py (a = K (v + o), a composed model's effects removed first: acal/core/effects.py)
 # in the apply's formats (fixed.py "apply"), every product below 2**30 at every full scale.  One
 # implementation of the clamp and the products, _apply_block: a single sample and a composed
 # model's readings (after their effects) go through it too.
-from acal.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
+from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
-from acal import effects
-from acal.bins import int32s
-from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.model import identity, in_bounds, effects_within
+from acal.core import effects
+from acal.core.bins import int32s
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
+from acal.core.model import identity, in_bounds, effects_within
 
 
 class Calibration:
@@ -20,8 +20,8 @@ class Calibration:
     are Q10 g; calibrated samples out are Q(13 - e) g (self.out_q, fixed.APPLY_OUT_Q - e: a
     still sensor's sub-mg mean kept, and an int16 at every full scale).
 
-    kinds: a composed model's effects (acal.effects ids).  Their parameters follow the nine in
-    p and are kept in their per-sample form (acal/effects.py); the feeder keeps `temp` (Q2 degC),
+    kinds: a composed model's effects (acal.core.effects ids).  Their parameters follow the nine in
+    p and are kept in their per-sample form (acal/core/effects.py); the feeder keeps `temp` (Q2 degC),
     `time` (64 s units) and `supply` (mV, the board's) current, and the effects are removed with
     dT = temp - ref_temp, dt = time - ref_time and dV = supply - ref_supply, the references the
     fit used (set()); a step at dt >= step_time."""
@@ -169,7 +169,7 @@ class Calibration:
 @viper
 def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w: int):
     # The apply's one implementation (Calibration.apply_samples): the samples source[i:end]
-    # (flat x y z) into dest, viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+    # (flat x y z) into dest, viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     # Readings clamped to +-m, u = (x << s) + o in Q(14 - e) g, the Q14 products rounded by o
     # bits to Q(13 - e) g (fixed.py "apply"); every value below 2**30 at every full scale
     # (tests/device/test_ranges.py traces them).

@@ -2,7 +2,7 @@
 # is at rest when max - min of one chosen axis stays below a threshold.  Per-axis sums are
 # accumulated during the segment and the mean is taken at its end.
 #
-# Beyond the paper (the default profile, acal/profile.py): axis ALL_AXES judges max - min on all
+# Beyond the paper (the default profile, acal/core/profile.py): axis ALL_AXES judges max - min on all
 # three axes (the paper's one-axis test lets arm motion along y and z through), and threshold
 # AUTO derives the threshold from the sensor's own noise, measured here (NoiseGauge).
 #
@@ -10,8 +10,8 @@
 # state lives in int attributes, and `add` returns a bool.
 from array import array
 
-from acal.emit import SIGN_SHIFT, viper, ptr32
-from acal.fixed import SAMPLE_ONE_G, SEGMENT_MAX_SAMPLES, POINT_FROM_SAMPLE_SHIFT
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
+from acal.core.fixed import SAMPLE_ONE_G, SEGMENT_MAX_SAMPLES, POINT_FROM_SAMPLE_SHIFT
 
 # Default threshold 0.12 g in Q10 (122.88 -> 123) and segment length 5 s, as the paper.
 DEFAULT_THRESHOLD = (12 * SAMPLE_ONE_G + 50) // 100
@@ -193,7 +193,7 @@ def mean_q16(total, n):
 
 # The open segment's state, an int32 array: min and max of x, y, z (one-axis: the chosen axis's
 # in LO_X, HI_X), the three sums, the samples so far.  The scans below are the hot loop
-# (acal/emit.py: viper on ports with emitters; the literal indices are these, a viper function
+# (acal/core/emit.py: viper on ports with emitters; the literal indices are these, a viper function
 # reads no module constant).  Every value is a sample (|v| <= SAMPLE_MAX), a sum of at most
 # SEGMENT_MAX_SAMPLES of them (< 2**30) or an index below 3 * 65535 (tests/device/test_ranges.py).
 LO_X = 0

@@ -12,7 +12,7 @@
 #                          reference (degC; -128: none, temperatures are relative), model
 #                          (effects.model_code: 0 is the paper's model), fit (profile.GRADIENT or
 #                          NEWTON), discover (1: the board discovers its own missing effect,
-#                          acal/discover.py).  Version 1 (before profiles) lacks fit and
+#                          acal/discover/search.py).  Version 1 (before profiles) lacks fit and
 #                          discover, read as GRADIENT and 0; version 2 lacks discover: 0.
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
 #                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
@@ -37,10 +37,10 @@
 #   GAP      <II            raw capture: sample index, samples lost there
 #   SUPPLY   <IH            raw capture of a model that follows the board's supply: the sample
 #                          index from which the supply (mV) holds, written when it changes
-#   DISCOVERY <IBBIIBBB3i   after a board's own model discovery (acal/discover.py): sample
+#   DISCOVERY <IBBIIBBB3i   after a board's own model discovery (acal/discover/search.py): sample
 #                          index, the effects adopted (effects.model_code: an id, or two ids in
 #                          4 bits each; 0: none), the closest candidate (the one chosen; 0: none
-#                          testable), the held-out error before and with it (heldscore's Q16 g^2
+#                          testable), the held-out error before and with it (score.py's Q16 g^2
 #                          sums, weighted), the held-out blocks it is better in and of how
 #                          many, the effect its round added (its id; 0: none testable; the
 #                          curve pair's: temp_offset) and that effect's 3 parameters (Q24; all
@@ -53,8 +53,8 @@
 #                          cut anywhere leaves the whole calibration or none of it
 import struct
 
-from acal.emit import viper, ptr8, ptr32
-from acal.fixed import TEMP_Q
+from acal.core.emit import viper, ptr8, ptr32
+from acal.core.fixed import TEMP_Q
 
 SYNC = 0xA5
 BOOT = 1
@@ -321,7 +321,7 @@ def _encode_values(rtype, values):
 def pack_int16(source, n: int, dest, at: int):
     # n ints of source (an int32 array, each within int16) into the bytes dest[at:at + 2 n],
     # little-endian: a SAMPLES record's payload, the capture's per-sample hot loop (viper on
-    # ports with emitters, acal/emit.py; only the low 16 bits of each word are read, so no sign
+    # ports with emitters, acal/core/emit.py; only the low 16 bits of each word are read, so no sign
     # extension is needed).
     src = ptr32(source)
     dst = ptr8(dest)

@@ -25,9 +25,9 @@
 #   - ready() also needs the held points together to span each threshold.
 from array import array
 
-from acal import hemisphere
-from acal.emit import copy_ints
-from acal.fixed import POINT_ONE_G, TEMP_Q
+from acal.core import hemisphere
+from acal.core.emit import copy_ints
+from acal.core.fixed import POINT_ONE_G, TEMP_Q
 try:
     from micropython import const
 except ImportError:
@@ -56,7 +56,7 @@ CENTRE = 1
 # the held points reach past +-COVER_LEVEL on both sides of every axis, at least COVER_SIDE points
 # each side, and number at least COVER_POINTS (GGIR's rule is the same with +-0.3 g and one point).
 # A real wrist may never lie face down (no point in C_zn): offsets and scales are still pinned by
-# points on both sides, misalignment by the tilted ones; the fit's own guard (acal/solve.py)
+# points on both sides, misalignment by the tilted ones; the fit's own guard (acal/core/solve.py)
 # refuses a set that does not pin every parameter.
 COVER_LEVEL = (3 * 65536) // 10  # 0.3 g, Q16
 COVER_SIDE = 2
@@ -130,7 +130,7 @@ class Bins:
     2 and 2 -> 18 points); differ: minimum max-norm distance to every held point, Q16 g (default
     0.1 g); policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units),
     supply_differ (mV): 0, or the spreads a composed model needs (see above); room: slots a
-    subset has, when more than max_count (a discovering board's: acal/grow.py)."""
+    subset has, when more than max_count (a discovering board's: acal/discover/grow.py)."""
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  temp_differ=0, time_differ=0, coverage=False, supply_differ=0, room=0):
@@ -143,7 +143,7 @@ class Bins:
         self.differ = differ
         self.policy = policy
         self.set_differ(temp_differ, time_differ, supply_differ)
-        self.need_span = True   # False: ready() does not wait for the spreads (acal/discover.py)
+        self.need_span = True   # False: ready() does not wait for the spreads (acal/discover/search.py)
         self.counts = [0] * N_SUBSETS
         n = N_SUBSETS * (room if room > max_count else max_count)
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].

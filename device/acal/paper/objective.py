@@ -5,7 +5,7 @@
 # which on a 32-bit board needs ints to ~2**62 (heap-allocated longs there).  Here every value is
 # kept as limbs of 14 bits, low first, the top limb signed (floor semantics: x >> 14 and
 # x & 0x3FFF split any int), so that a sum of three limb products stays below 2**30.  Both
-# functions are viper on ports with emitters (acal/emit.py; w: emit.SIGN_SHIFT).
+# functions are viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
 #
 # Domain (checked here; outside it objective_limbs returns a non-zero code and model.objective
 # takes the long-int formula instead): parameters in the fit region (fixed.py) widened by the
@@ -24,7 +24,7 @@
 #   moves by 2**7 X (X a point's coordinate for a scale or misalignment, a K entry for an
 #   offset), X = X1 2**14 + X0, so a moves by 2 X1 + floor((rho + X0 2**7) / 2**20): a few ops
 #   per changed axis instead of the products.
-from acal.emit import viper, ptr32
+from acal.core.emit import viper, ptr32
 
 LIMBS = 4            # an objective: 4 limbs of 14 bits, the top one signed (< 2**30)
 MAX_POINTS = 128     # the sums' top limb: 128 terms of < 2**22.7
@@ -324,7 +324,7 @@ def objective_limbs(u, n: int, out, at: int, par, mode: int, cache, w: int) -> i
 
 
 def from_limbs(f, at):
-    """The int an objective's limbs f[at:at+LIMBS] hold (acal/objective.py); a long past 2**30 on
+    """The int an objective's limbs f[at:at+LIMBS] hold (acal/paper/objective.py); a long past 2**30 on
     a 32-bit port."""
     return (((((f[at + 3] << 14) + f[at + 2]) << 14) + f[at + 1]) << 14) + f[at]
 

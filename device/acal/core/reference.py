@@ -3,8 +3,8 @@
 # not trade with the offsets.  Conditions are flat int32 arrays, bins.COND per point (Q2 degC,
 # 64 s units, mV); the references are the same units.  Pipeline centres its fit points with
 # centre() (stage 5); the host reads references() for a fit it reports.
-from acal import effects
-from acal.emit import SIGN_SHIFT, viper, ptr32
+from acal.core import effects
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
 
 
 def references(cond, n, kinds):

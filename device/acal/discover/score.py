@@ -1,14 +1,14 @@
 # A model's error on the board's held-out points (issue 29; docs/model-discovery.md
-# "Held-out points on the board"): what discovery.py's rule compares, in integers.  Each held-out point's
+# "Held-out points on the board"): what rule.py's rule compares, in integers.  Each held-out point's
 # error is |r|, r = |a|^2 - 1 g^2 of the point with the model's effects removed (model.residual),
 # taken in Q16 g^2 (r >> 6), capped at ERR_CAP and times the point's weight (the rest means it
 # stands for, heldout.WEIGHT_CAP at most: `diagnose` scores a block on every rest point in it),
 # so 144 (heldout.CAPACITY) sum below 2**30; the held-out error is their sum, a block's error the
 # sum over its points.  All storage preallocated.
-from acal import model
-from acal.bins import COND, int32s
-from acal.fixed import POINT_TO_PARAM_SHIFT
-from acal.heldout import CAPACITY
+from acal.core import model
+from acal.core.bins import COND, int32s
+from acal.core.fixed import POINT_TO_PARAM_SHIFT
+from acal.discover.heldout import CAPACITY
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -23,7 +23,7 @@ ERR_CAP = const(262144)
 
 class HeldScore:
     """Scores models on a heldout.HeldOut: err (per point, Q16 g^2) of the last score, base (of
-    the model a candidate must beat).  Sliced as the fit (acal/discover.py runs it between FIFO
+    the model a candidate must beat).  Sliced as the fit (acal/discover/search.py runs it between FIFO
     reads): begin(), then part() until it returns True, the error in `total`; score() at once."""
 
     def __init__(self, capacity=CAPACITY):

@@ -8,11 +8,11 @@
 # hold the base model's until the adoption.  Grown at the adoption instead, the arrays fragmented
 # the heap of a board hours into a recording and could fail there (docs/model-discovery.md
 # "Points for a composed model").
-from acal.bins import COND, N_SUBSETS
+from acal.core.bins import COND, N_SUBSETS
 
 
 def grow_bins(b, max_count):
-    """Bins b (acal/bins.py, made with room for max_count points per subset) made to hold up to
+    """Bins b (acal/core/bins.py, made with room for max_count points per subset) made to hold up to
     max_count: every held point and its conditions kept in its subset and slot (slot k of subset
     s moves from s * m + k to s * max_count + k), nothing else changed."""
     m = b.max_count

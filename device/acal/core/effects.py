@@ -10,7 +10,7 @@
 #   NONLINEAR    w = v - q v^2         per axis, v^2 with its sign lost (a quadratic response)
 # and the generic offsets, w = v - p x with a regressor x the device computes (SHAPES below):
 #   STEP         x = [dt >= ts]        the offsets jump once, at ts (a shock); ts is found by
-#                                      acal/changepoint.py and kept beside the parameters
+#                                      acal/core/changepoint.py and kept beside the parameters
 #   TIME_OFFSET2..4   x = (dt / 2**13)^2..4     the offset ageing along a curve in time
 #   TEMP_OFFSET3..4   x = (dT / 16)^3..4        higher powers of temperature
 #   SUPPLY_OFFSET     x = dV / 1024             an integer the board supplies (its supply in mV:
@@ -40,11 +40,11 @@
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
 #   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
 #   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region: c dT <= 5.4e6 * 128 < 2**30) - or, for the Jacobian rows of
-#   gaussnewton.py, parameters below 2**22 - the wide products go through acal/wide.py, whose
+#   gaussnewton.py, parameters below 2**22 - the wide products go through acal/core/wide.py, whose
 #   floors equal the plain (a * b) >> s.
-from acal.wide import mul_shift
-from acal.fixed import TEMP_DT_MAX
-from acal.emit import SIGN_SHIFT, viper, ptr8, ptr32
+from acal.core.wide import mul_shift
+from acal.core.fixed import TEMP_DT_MAX
+from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
 try:
     from micropython import const
 except ImportError:
@@ -191,7 +191,7 @@ def model_kinds(code):
 def regressor(kind, dT, dt, ts, dV=0):
     """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (Q2 degC), dt (64 s units), with a
     step at ts (64 s units, as dt), and the board's integer dV (mV from its reference): SHAPES,
-    clamped as the formats above say; each power an exact floor (acal/wide.py)."""
+    clamped as the formats above say; each power an exact floor (acal/core/wide.py)."""
     source, power = SHAPES[kind]
     if source == SOURCE_STEP:
         return 65536 if dt >= ts else 0
@@ -223,7 +223,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
     place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
     see the formats above); ts: a step's time (as dt); dV: the board's integer (mV from its
-    reference).  Every intermediate stays below 2**30 (acal/wide.py)."""
+    reference).  Every intermediate stays below 2**30 (acal/core/wide.py)."""
     if kind in SHAPES:   # is_generic(), inline: per point / per sample
         x = regressor(kind, dT, dt, ts, dV)
         for i in range(3):
@@ -318,7 +318,7 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
             w[i] -= (k[m + i] * sq) >> (10 + e)
 
 
-# correct_u's integers for the default fit, viper on ports with emitters (acal/emit.py): the
+# correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
 # generic kinds' (source, power) as one int each (source << 3 | power), indexed by kind.
 _SHAPE_CODES = bytearray(KIND_MAX + 1)
 for _k in SHAPES:

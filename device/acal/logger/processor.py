@@ -1,17 +1,18 @@
-# Everything the logger app does after acquisition (acal/app.py reads the sensor): rest
+# Everything the logger app does after acquisition (acal/logger/app.py reads the sensor): rest
 # detection -> bins -> calibration when the bins fill (and again later, so drift is tracked) ->
 # applying the current calibration; the log's records.  Deterministic in the samples it is fed:
 # the host's `accelcal replay` feeds it a pulled capture and must log the same records.
 import struct
 from array import array
 
-from acal import effects, log
-from acal import profile as profiles
-from acal.fixed import N_PARAMS, POINT_ONE_G, TEMP_Q
-from acal.calibration import Calibration
-from acal.model import in_bounds, effects_within
-from acal.status import OK, usable
-from acal.pipeline import Pipeline
+from acal.core import effects
+from acal.logger import log
+from acal.core import profile as profiles
+from acal.core.fixed import N_PARAMS, POINT_ONE_G, TEMP_Q
+from acal.core.calibration import Calibration
+from acal.core.model import in_bounds, effects_within
+from acal.core.status import OK, usable
+from acal.core.pipeline import Pipeline
 
 VERSION = 4  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC;
 #   4: DISCOVERY carries the effect its parameters are of
@@ -32,7 +33,7 @@ FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit run
 
 
 class Processor:
-    """profile: acal.profile.WEAR (the default) or PAPER, whose settings (profile.settings) any of
+    """profile: acal.core.profile.WEAR (the default) or PAPER, whose settings (profile.settings) any of
     seconds, threshold, axis, min_count, max_count, differ, policy, iterations, fit given here
     override (as Pipeline); range_g: the sensor's full scale (the apply's format, fixed.py);
     recal_seconds: least time between calibrations; logger: a log.Log;
@@ -334,7 +335,7 @@ def _adopted_before(store):
     kinds = tuple(e[1] for e in store.effects)
     if not kinds:
         return None
-    from acal.discover import adoptable   # only a discovering board loads the discovery
+    from acal.discover.search import adoptable   # only a discovering board loads the discovery
     return kinds if adoptable(kinds) else None
 
 

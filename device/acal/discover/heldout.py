@@ -13,7 +13,7 @@
 # int32 slots = 144 x 9 x 4 = 5184 bytes of array storage (BUDGET_BYTES;
 # tests/device/test_heldout.py checks it).  The counts keep choosing the point to replace
 # linear in the points (a count per offer was CAPACITY**2 comparisons).
-from acal.bins import COND, int32s
+from acal.core.bins import COND, int32s
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -33,7 +33,7 @@ SLOT_BYTES = const(4)
 NEAR = const(6554)
 # Each slot counts the rest means it stands for (the newest kept), up to WEIGHT_CAP: `diagnose`
 # scores a block on every rest point in it, so a posture held for an hour weighs more than one
-# glanced at; heldscore.py weighs each point's error so.
+# glanced at; score.py weighs each point's error so.
 WEIGHT_CAP = const(16)
 BUDGET_BYTES = const(5184)  # CAPACITY * (3 + COND + 3) * SLOT_BYTES
 

@@ -10,20 +10,20 @@
 # docs/method-and-formats.md "Learning-rate scaling").
 # Formats: fixed.py.  Failure is reported, never returned as parameters: see the status codes.
 # Every value of a run is a small int (below 2**30): the objectives are kept as limbs and the
-# update's quotient taken from them (acal/objective.py), so a run allocates nothing on a 32-bit
+# update's quotient taken from them (acal/paper/objective.py), so a run allocates nothing on a 32-bit
 # port either.
 from array import array
 
-from acal.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
+from acal.core.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
-from acal import model
-from acal.emit import SIGN_SHIFT
-from acal.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
+from acal.core import model
+from acal.core.emit import SIGN_SHIFT
+from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
                             CACHE, PLAIN, BASE, GRADIENT)
 
-# The fits' status codes live in acal/status.py (a wear-profile board does not load this module
-# nor acal/objective.py: their code would sit in its RAM); here for the paper profile's callers.
-from acal.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
+# The fits' status codes live in acal/core/status.py (a wear-profile board does not load this module
+# nor acal/paper/objective.py: their code would sit in its RAM); here for the paper profile's callers.
+from acal.core.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
                          BASE_KEPT_FAILED, BASE_KEPT_WORSE, STATUS_NAMES, usable)
 
 MIN_POINTS = N_PARAMS
@@ -33,8 +33,8 @@ COMPOSED_ITERATIONS = 200  # composed models: the effect terms converge more slo
 
 class Optimiser:
     """Integer gradient descent on the 9 model parameters, plus 3 per effect of `kinds`
-    (acal.effects ids: a composed model; their parameters take the offsets' rate, their
-    regressors being normalised to an offset's size - acal/effects.py).
+    (acal.core.effects ids: a composed model; their parameters take the offsets' rate, their
+    regressors being normalised to an offset's size - acal/core/effects.py).
 
     Buffers for up to max_points (<= 128) points are allocated once; `run` allocates nothing.
     After run(): p holds the parameters (Q24), status a code above, iterations the number done,
@@ -55,11 +55,11 @@ class Optimiser:
         self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.u = array("i", [0] * (3 * max_points))
         self.w = array("i", [0] * (3 * max_points)) if self.kinds else None  # effects removed
-        # objectives in limbs (acal/objective.py): f(p + h e_k) per parameter k, then f(p), the
+        # objectives in limbs (acal/paper/objective.py): f(p + h e_k) per parameter k, then f(p), the
         # one at p0 and the final one
         self.base = LIMBS * self.n_params
         self.f = array("i", [0] * (self.base + 3 * LIMBS))
-        # per point, what the gradient's objectives take from the one at p (acal/objective.py;
+        # per point, what the gradient's objectives take from the one at p (acal/paper/objective.py;
         # a composed model's points move with its parameters: none)
         self.cache = self.f if self.kinds else array("i", [0] * (CACHE * max_points))
         self.p = [0] * self.n_params
@@ -110,7 +110,7 @@ class Optimiser:
 
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Fit the model to n points (flat x y z list, Q16 g; for a composed model aux holds
-        each point's dT, dt and dV, acal/bins.COND apiece, acal/effects.py) from p0; return the
+        each point's dT, dt and dV, acal/core/bins.COND apiece, acal/core/effects.py) from p0; return the
         status."""
         self.begin(pts, n, iterations, aux)
         while not self.step():

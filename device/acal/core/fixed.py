@@ -119,7 +119,7 @@ APPLY_OUT_SHIFT = const(15)         # 2 * APPLY_Q - APPLY_OUT_Q, at every full s
 # <= 9.3e8 and |a| <= 28 236 (an int16) at every range (tests/device/test_ranges.py; on the
 # 32-bit MicroPython under heap_lock, test_heap.py).
 APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
-# A composed model first removes its effects (acal/effects.py) from the reading in Q(14 - e) g;
+# A composed model first removes its effects (acal/core/effects.py) from the reading in Q(14 - e) g;
 # the result is clamped to the range a reading can have, +-2.048 * 2**e g, so the bound above
 # still holds (a correction that would go beyond full scale is clipped, as the sensor itself
 # clips).

@@ -31,7 +31,7 @@
 # up to 6.7 ms (113 moves), 8 scanned 5.7-6.3 ms; a step is now at most ~1 ms
 # (docs/model-discovery.md "Discovery on the board").  The same operations in the same
 # order as whole passes: the result is the same to the bit.
-from acal.bins import COND
+from acal.core.bins import COND
 
 MIN_SIDE_SHIFT = 3
 READ_SLICE = 8
