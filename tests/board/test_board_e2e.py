@@ -152,3 +152,34 @@ def test_mip_package_lists_every_device_module_and_installs(tmp_path):
     assert sorted(p.relative_to(lib) for p in lib.rglob("*") if p.is_file()) == \
         sorted(p.relative_to(ROOT / "device" / "acal") for p in (ROOT / "device" / "acal").rglob("*.py"))
 
+
+def test_a_base_board_gets_core_and_logger_only(tmp_path):
+    """Each install unit its own mip package (device/UNIT.json): together they list package.json's
+    modules, each once; core's and logger's alone make a board that runs the base logger and has
+    no acal/paper nor acal/discover.  `deploy --units run` copies what the settings run."""
+    units = {u: json.loads((ROOT / "device" / f"{u}.json").read_text())
+             for u in ("core", "logger", "paper", "discover")}
+    whole = json.loads((ROOT / "package.json").read_text())
+    listed = [dst for u in units.values() for dst, _ in u["urls"]]
+    assert sorted(listed) == sorted(dst for dst, _ in whole["urls"])
+    assert all(u["version"] == whole["version"] for u in units.values())
+    for name, u in units.items():
+        assert all(dst == src and (ROOT / "device" / src).exists() for dst, src in u["urls"])
+        assert all(dst.startswith(f"acal/{name}/") or dst == "acal/__init__.py" for dst, _ in u["urls"])
+    stim = tmp_path / "stim.bin"
+    test_app.stimulus(stim, np.random.default_rng(1), n_rest=2)
+    flash = tmp_path / "flash"
+    with virtual.Running(flash, stim) as b:
+        for u in ("core", "logger"):
+            mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "device" / f"{u}.json"))
+        out = mpremote(b.port, "exec", "import sys\nfrom acal.logger.processor import Processor\n"
+                       "p = Processor(None, 10)\n"
+                       "print(' '.join(sorted(m for m in sys.modules if m.startswith('acal'))))")
+        assert sorted(p.name for p in (flash / "lib" / "acal").iterdir()) == ["__init__.py", "core", "logger"]
+        mods = out.split()
+        assert "acal.core.pipeline" in mods and not [m for m in mods if m.startswith(("acal.discover", "acal.paper"))]
+        r = run_cli("deploy", "--port", b.port, "--units", "run", "--profile", "paper", "--json")
+        assert r.returncode == 0, r.stderr
+        assert json.loads(r.stdout)["units"] == ["core", "logger", "paper"]
+        assert sorted(p.name for p in (flash / "lib" / "acal").iterdir()) == \
+            ["__init__.py", "core", "logger", "paper"]   # the earlier install removed whole

@@ -3,7 +3,6 @@
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
                        gravity, int32s)
-from acal.discover.heldout import held_out
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.core.fixed import N_PARAMS
 from acal.core.gaussnewton import GaussNewton
@@ -142,7 +141,8 @@ class Pipeline:
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
         subset it was kept in or -1."""
         self.rest_count += 1
-        if self.held is not None and held_out(self.time):
+        held = self.held
+        if held is not None and held.takes(self.time):
             if gravity(x, y, z):
                 self.held.offer(x, y, z, self.temp, self.time, self.supply)
             s = self.bins.offer(x, y, z, self.temp, self.time, self.supply) if self.early else -1
@@ -157,13 +157,14 @@ class Pipeline:
         next fit, the discovery's, never sees a point the held-out set may hold) and from now
         on go to the held-out set only."""
         self.early = False
+        held = self.held
         b = self.bins
         m = b.max_count
         for s in range(N_SUBSETS):
             k = 0
             while k < b.counts[s]:
                 j = s * m + k
-                if held_out(b.cond[COND * j + 1]):
+                if held.takes(b.cond[COND * j + 1]):
                     b.remove(b.xyz[3 * j], b.xyz[3 * j + 1], b.xyz[3 * j + 2])
                 else:
                     k += 1

@@ -60,6 +60,11 @@ class HeldOut:
         self.weight = int32s(capacity)  # how many rest means slot i stands for (<= WEIGHT_CAP)
         self.count = 0
 
+    def takes(self, time):
+        """held_out(time), asked of the set (the pipeline imports no discovery module: a board
+        without discovery loads none)."""
+        return held_out(time)
+
     def nbytes(self):
         """The bytes of the preallocated arrays."""
         return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held) +

@@ -22,6 +22,17 @@ PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
 # the CircuitPython driver, which goes only to CircuitPython boards.
 CIRCUITPYTHON_ONLY = ("logger/lis3dh_cp.py",)
 APP_MODULES = tuple(m for m in device_modules() if m not in CIRCUITPYTHON_ONLY)
+# The install units every board gets; the others where the app's settings run them.
+BASE_UNITS = ("core", "logger")
+
+
+def units_run(settings: dict) -> tuple[str, ...]:
+    """The install units an app with these settings loads (docs/method-and-formats.md
+    "The device package"): core and logger, paper for the paper profile, discover for --discover."""
+    from acal.core import profile
+    return BASE_UNITS + (("paper",) if settings.get("profile", profile.DEFAULT) == profile.PAPER
+                         else ()) + (("discover",) if settings.get("discover") else ())
+
 
 def boards() -> list[str]:
     return sorted(p.stem for p in BOARDS_DIR.glob("*.py"))
@@ -144,7 +155,9 @@ def main_py(settings: dict) -> str:
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=lambda m: None) -> dict:
+           write_main: bool = True, say=lambda m: None, units: str = "all") -> dict:
+    """units: "all" (every install unit of the package) or "run" (those the settings run:
+    units_run; an acquire with other settings then needs a deploy with them)."""
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -156,7 +169,9 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
-    modules = list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+    wanted = units_run(settings or {}) if units == "run" else None
+    modules = [m for m in list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+               if wanted is None or m == "__init__.py" or m.split("/")[0] in wanted]
     head = None
     if circuitpython:
         head = circuitpython_drive(r, "boot.py" in ident["files"])
@@ -187,6 +202,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if "ACAL_OK" not in check:
         raise InputError(f"{port}: deployed, but `import acal.logger.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
+            "units": list(wanted or BASE_UNITS + ("paper", "discover")),
             "format": files[0].suffix[1:], "main_py": write_main,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 

@@ -60,10 +60,11 @@ def _app_settings(args) -> dict:
 def cmd_deploy(args) -> int:
     from accelcal.board import deploy
     r = deploy.deploy(args.port, args.board, _app_settings(args), write_main=not args.no_main,
-                          say=lambda m: print(m, file=sys.stderr))
+                      say=lambda m: print(m, file=sys.stderr), units=args.units)
     print(json.dumps(r) if args.json else
           f"deployed to {r['port']}: board {r['board']} ({r['platform']}), {r['modules']} modules as "
-          f".{r['format']}" + (", main.py starts logging at power-up" if r["main_py"] else "")
+          f".{r['format']} ({', '.join(r['units'])})"
+          + (", main.py starts logging at power-up" if r["main_py"] else "")
           + ("; boot.py makes the drive writable to the app and read-only to the computer from "
              "the next power-up" if r["boot_py"] else ""))
     return 0
@@ -204,6 +205,11 @@ def add_parsers(sub) -> None:
     p.add_argument("--port", required=True, help="serial port (or the virtual board's pty)")
     p.add_argument("--board", help="board file name (default: from the board's sys.platform)")
     p.add_argument("--no-main", action="store_true", help="do not write main.py")
+    p.add_argument("--units", choices=["all", "run"], default="all",
+                   help="the device package's install units to copy: all (default: core, logger, "
+                        "paper, discover) or run: those the app settings given here run (core and "
+                        "logger; paper with --profile paper; discover with --discover), so the "
+                        "board holds no code it does not load (acquire then needs the same settings)")
     p.add_argument("--json", action="store_true")
     app_args(p)
     p.set_defaults(func=cmd_deploy)

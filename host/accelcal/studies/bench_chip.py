@@ -149,6 +149,28 @@ def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     return res
 
 
+# A board's install units (mp_units_bench.py): the wear profile's base model (core + logger), the
+# paper profile (+ paper), a discovering board (+ discover), every module of every unit imported.
+UNIT_CASES = ("base", "paper", "discover", "all")
+
+
+def install_units(fw: rp2040.Firmware, e: str) -> dict:
+    """mp_units_bench.py on a fresh boot per case of UNIT_CASES: keys e + units_{case}_
+    import_app_ms, _free_after_import_bytes, _free_with_processor_bytes, _modules,
+    _discover_modules, _paper_modules."""
+    res = {}
+    for case in UNIT_CASES:
+        out = _on_chip("mp_units_bench.py", f"main({case!r})", fw)
+        kv = {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines()
+                                      if line.startswith("units_"))}
+        p = f"units_{case}_"
+        res[e + p + "import_app_ms"] = kv[p + "import_app_us"] / 1000
+        for k in ("free_after_import_bytes", "free_with_processor_bytes", "modules",
+                  "discover_modules", "paper_modules"):
+            res[e + p + k] = kv[p + k]
+    return res
+
+
 def round_keys(out: str, e: str) -> dict:
     """rounds()'s printed lines as the bench's keys (prefix e): µs to ms, bytes named so."""
     res = {}
@@ -178,6 +200,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         e + "rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"] and chip["rest_wear_heap_locked_ok"]),
         **paths_and_fits(rp2040.MICROPYTHON, e),
         **discovery_rounds(rp2040.MICROPYTHON, e),
+        **install_units(rp2040.MICROPYTHON, e),
     }
     res.update(unix_figures())
     return res
@@ -311,6 +334,14 @@ def format_chip(m: dict) -> str:
                  f"{m[r + 'adopt_heap_free_before_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_taken_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_after_bytes']:,} bytes; {m[r + 'adopt_max_count']}")
+    if MP + "units_base_modules" in m:
+        line("install units, MicroPython: import acal.logger.app / heap free after it / with its "
+             "Processor; acal modules loaded (discover, paper)", "")
+        for case in UNIT_CASES:
+            u = MP + f"units_{case}_"
+            line(f"  {case}", f"{m[u + 'import_app_ms']:.4g} ms / {m[u + 'free_after_import_bytes']:,} / "
+                 f"{m[u + 'free_with_processor_bytes']:,} bytes; {m[u + 'modules']} "
+                 f"({m[u + 'discover_modules']}, {m[u + 'paper_modules']})")
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:
