@@ -1,4 +1,4 @@
-"""Nothing lost by default: the app as `deploy` starts it (acal.app.main with no reader named:
+"""Nothing lost by default: the app as `deploy` starts it (acal.logger.app.main with no reader named:
 the FIFO, drained past its watermark) on the emulated Pico (MicroPython, boards/pico.py) and the
 emulated Feather RP2040 (CircuitPython, boards/feather_rp2040.py, busio at 100 kHz) loses no
 sample at any rate the CLI offers: the app counts none lost, the chip model overwrote none, and
@@ -10,8 +10,8 @@ from accelcal.simulate.stimulus import calibration_dance
 from conftest import ROOT, emulated_chip
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
-APP = """import acal.app
-app = acal.app.main(seconds={seconds}, verbose=False, rate_hz={rate}, profile=1)
+APP = """import acal.logger.app
+app = acal.logger.app.main(seconds={seconds}, verbose=False, rate_hz={rate}, profile=1)
 print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
 """
 BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5"),

@@ -1,6 +1,6 @@
 """docs/lis3dh-conformance.md, row by row: each row's check runs against the Python chip model
 (simulate/chip/vlis3dh.py), the Node one (bridge/scripts/lis3dh.mjs) and the driver
-(device/acal/lis3dh.py, and lis3dh_cp.py over busio).  The expectations are the datasheet's
+(device/acal/logger/lis3dh.py, and lis3dh_cp.py over busio).  The expectations are the datasheet's
 (DocID17530) and ST's lis3dh_reg.h, written out here: register addresses, bit positions and
 mg/digit from those, not from either model or the driver.  And the old driver's fifo_level(),
 kept below as a fixture, fails on a chip that sets WTM where the datasheet does."""
@@ -23,7 +23,7 @@ from vbus import BusioI2C, I2C  # noqa: E402
 from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
-from acal import lis3dh, lis3dh_cp  # noqa: E402
+from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
 
 # lis3dh_reg.h
 WHO_AM_I, TEMP_CFG, CTRL1, CTRL3, CTRL4, CTRL5 = 0x0F, 0x1F, 0x20, 0x22, 0x23, 0x24
@@ -34,7 +34,7 @@ ODR_HZ = {1: 1, 2: 10, 3: 25, 4: 50, 5: 100, 6: 200, 7: 400, 9: 1344}   # lis3dh
 P = 2500          # 400 Hz (ODR code 7): the stimulus' rate too, so conversion n reads sample n
 DOC = ROOT / "docs" / "lis3dh-conformance.md"
 FILES = {"python": CHIP_DIR / "vlis3dh.py", "node": Path(script("lis3dh.mjs")),
-         "driver": ROOT / "device" / "acal" / "lis3dh.py"}
+         "driver": ROOT / "device" / "acal" / "logger" / "lis3dh.py"}
 
 
 def table_rows():

@@ -16,8 +16,8 @@ from accelcal.locations import BOARDS_DIR
 
 RATES = (10, 100, 400)
 SHORT_S, LONG_S = 4, 12
-APP = """import acal.app, acal_board
-app = acal.app.App(acal_board, rate_hz={rate}, profile=1)
+APP = """import acal.logger.app, acal_board
+app = acal.logger.app.App(acal_board, rate_hz={rate}, profile=1)
 app.run({seconds})
 print('ACAL_DONE', app.samples, app.lost)
 """
