@@ -4,7 +4,7 @@
 # Register fields as ST's datasheet and lis3dh_reg.h give them (docs/lis3dh-conformance.md, each
 # row checked against this driver and both chip models).  Two ways to read:
 #   read_sample()  - the output registers: 12 bits in high-resolution mode (1 mg/digit at +-2 g),
-#                    one bus transaction a sample (a Pico at 100 Hz cannot keep up: it loses ~9 %).
+#                    one bus transaction a sample (the emulated Pico at 100 Hz loses 8-9 % so).
 #   read_fifo()    - the 32-level FIFO in stream mode, drained when its watermark is passed: what
 #                    the app uses by default, nothing lost, but it keeps 10 bits (4 mg steps at
 #                    +-2 g, the HR value's two low bits dropped).  A 10-bit code r of an HR
