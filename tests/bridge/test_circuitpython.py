@@ -138,15 +138,18 @@ def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
     """`accelcal deploy` to the Feather (RUNTIME circuitpython, no ARCH) writes .mpy from
     CircuitPython's mpy-cross ('C'), the Pico's from MicroPython's ('M'), the virtual board's
     the sources; every module the board needs, the CircuitPython driver only on the Feather."""
-    from accelcal.board import deploy
+    from accelcal.board import deploy, tree
+    device = sorted(p.relative_to(ROOT / "device" / "acal").with_suffix("").as_posix()
+                    for p in (ROOT / "device" / "acal").rglob("*.py") if "__pycache__" not in p.parts)
     for board, head in (("feather_rp2040", b"C\x06"), ("pico", b"M\x06"), ("virtual", None)):
         info = deploy.board_info(board)
         cp = info["RUNTIME"] == "circuitpython"
-        modules = list(deploy.APP_MODULES) + (list(deploy.CIRCUITPYTHON_ONLY) if cp else [])
         pkg = tmp_path / board
         pkg.mkdir()
-        files, what = deploy.package_files(info, modules, pkg)
-        assert [f.stem for f in files] == modules and ("lis3dh_cp" in modules) == cp
+        files, what = deploy.package_files(info, tree.package_sources(cp), pkg)
+        got = sorted(f.relative_to(pkg).with_suffix("").as_posix() for f in files)
+        assert got == [m for m in device if cp or not m.endswith("lis3dh_cp")]
+        assert any(m.endswith("lis3dh_cp") for m in got) == cp
         if head is None:
             assert what == "sources" and all(f.suffix == ".py" for f in files)
         else:

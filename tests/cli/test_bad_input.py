@@ -545,9 +545,12 @@ def test_a_forced_pull_holds_only_the_new_pull(pulled, capsys, monkeypatch):
         def identify(self):
             return {"files": ["log.bin"], "sizes": {"log.bin": len(new_log)}}
 
-        def run(self, *args):   # fs cp :log.bin DEST
-            shutil.copy(board / args[2][1:], args[3])
+    def fetch(port, names, dest, progress, total=None):    # the board's files into dest
+        for n in names:
+            shutil.copy(board / n, dest / n)
+    from accelcal.board import transfer
     monkeypatch.setattr(deploy, "Remote", FakeBoard)
+    monkeypatch.setattr(transfer, "fetch", fetch)
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     (pulled / f".pull-{dead.pid}.partial").mkdir()    # a killed pull's copies

@@ -8,21 +8,19 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from accelcal.bridge import boardlog, rp2040
 from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
+from accelcal.board import settings as bsettings, tree
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
-# The device modules an app needs: every module of the device package but the CircuitPython
-# driver, which goes only to CircuitPython boards.
-CIRCUITPYTHON_ONLY = ("lis3dh_cp",)
-APP_MODULES = tuple(sorted(p.stem for p in DEVICE_PKG.glob("*.py")
-                           if p.stem not in CIRCUITPYTHON_ONLY))
+PULLED = (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE, "summary.json")   # what a pull writes
 
 
 def boards() -> list[str]:
@@ -130,7 +128,11 @@ def main_py(settings: dict) -> str:
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=lambda m: None) -> dict:
+           write_main: bool = True, say=lambda m: None, options: dict | None = None) -> dict:
+    """The package onto the board so that exactly its files remain in :lib/acal (staged in
+    :lib/.acal-new, then swapped in: the old package, its stale .py/.mpy and modules the package
+    no longer has removed, and any shadowing :acal), the board file, main.py, and the settings
+    (options: the app options as the command line named them) in :acal_settings.json."""
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -142,33 +144,39 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
-    modules = list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
     head = None
     if circuitpython:
         head = circuitpython_drive(r, "boot.py" in ident["files"])
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "acal"
         pkg.mkdir()
-        files, what = package_files(info, modules, pkg)
+        files, what = package_files(info, tree.package_sources(circuitpython), pkg)
+        fmt = "mpy" if what.startswith(".mpy") else "py"
         others = board_files(info, settings or {}, write_main, Path(tmp), head)
+        (Path(tmp) / bsettings.SETTINGS_FILE).write_text(
+            bsettings.settings_text(options or {}, settings or {}, board, fmt))
+        others.append((Path(tmp) / bsettings.SETTINGS_FILE, bsettings.SETTINGS_FILE))
         say(f"deploying acal ({len(files)} modules, {what}) and board {board} to {port}")
         if circuitpython and "boot.py" not in [remote for _, remote in others]:
             say("boot.py: the board's own kept; the app needs it to remount the drive writable "
                 "(storage.remount(\"/\", readonly=False))")
-        # Stale modules of the other kind (.py beside .mpy) would shadow or confuse: remove both.
-        names = " ".join(repr(f"lib/acal/{m}.{ext}") for m in modules for ext in ("py", "mpy"))
-        r.exec("import os\nfor d in ('lib', 'lib/acal'):\n    try:\n        os.mkdir(d)\n"
-               "    except OSError:\n        pass\n"
-               f"for f in ({names},):\n    try:\n        os.remove(f)\n    except OSError:\n        pass\n")
-        cmd = ["fs", "cp", *map(str, files), ":lib/acal/"]
+        rels = [f.relative_to(pkg).as_posix() for f in files]
+        folders = sorted({str(Path(x).parent) for x in rels} - {"."}, key=lambda d: d.count("/"))
+        r.exec(tree.stage_code(folders))
+        cmd = []
+        for local, rel in zip(files, rels):
+            cmd += ["fs", "cp", str(local), f":{tree.STAGE}/{rel}", "+"]
         for local, remote in others:
-            cmd += ["+", "fs", "cp", str(local), f":{remote}"]
-        r.run(*cmd)
-    check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION)")
+            cmd += ["fs", "cp", str(local), f":{remote}", "+"]
+        r.run(*cmd[:-1])
+    stale = tree.swap_report(r.exec(tree.swap_code()), rels)
+    if stale:
+        say(f"removed {len(stale)} stale file(s) the new package does not have: {' '.join(stale)}")
+    check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION, acal.app.__file__)")
     if "ACAL_OK" not in check:
         raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
-            "format": files[0].suffix[1:], "main_py": write_main,
+            "format": fmt, "main_py": write_main, "stale_removed": stale,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 
 
@@ -209,11 +217,11 @@ def board_files(info: dict, settings: dict, write_main: bool, dest: Path,
     return out
 
 
-def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path], str]:
-    """The modules as the board loads them, written into pkg, and what they are: .mpy for the
-    board's ARCH (MicroPython: PyPI's mpy-cross), CircuitPython's .mpy from its own mpy-cross
-    (committed with its firmware: a source checkout has it; MicroPython's .mpy it refuses), else
-    the sources."""
+def package_files(info: dict, sources: list[Path], pkg: Path) -> tuple[list[Path], str]:
+    """The modules (sources: paths relative to the device package) as the board loads them,
+    written into pkg in the same subfolders, and what they are: .mpy for the board's ARCH
+    (MicroPython: PyPI's mpy-cross), CircuitPython's .mpy from its own mpy-cross (committed with
+    its firmware: a source checkout has it; MicroPython's .mpy it refuses), else the sources."""
     fw, what = None, "sources"
     if info["ARCH"]:
         fw, what = rp2040.MICROPYTHON, f".mpy for {info['ARCH']}"
@@ -224,9 +232,10 @@ def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path]
         except InputError as e:   # an installed accelcal has no firmware/: the sources run too
             what = f"sources: no CircuitPython mpy-cross here ({e})"
     files = []
-    for m in modules:
-        src = DEVICE_PKG / f"{m}.py"
-        dst = pkg / f"{m}.{'mpy' if fw else 'py'}"
+    for rel in sources:
+        src = DEVICE_PKG / rel
+        dst = pkg / rel.with_suffix(".mpy" if fw else ".py")
+        dst.parent.mkdir(parents=True, exist_ok=True)
         if fw:
             mpy_cross(src, dst, info["ARCH"], fw)
         else:
@@ -235,12 +244,25 @@ def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path]
     return files, what
 
 
-def acquire(port: str, seconds: int, settings: dict, say=lambda m: None) -> str:
-    """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can)."""
+def recorded_settings(r: Remote, ident: dict) -> dict | None:
+    """What deploy recorded on the board (settings.py), or None: deployed before it recorded them."""
+    if bsettings.SETTINGS_FILE not in ident["files"]:
+        return None
+    text = r.exec(f"print(open({bsettings.SETTINGS_FILE!r}).read())")
+    return bsettings.parse(text, r.port)
+
+
+def acquire(port: str, seconds: int, resolve, say=lambda m: None) -> str:
+    """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can),
+    with the settings resolve(the app options deploy recorded, or None) gives."""
     r = Remote(port, timeout=24 * 3600)
     ident = r.identify()
     if "lib" not in ident["files"] or "acal_board.py" not in ident["files"]:
         raise InputError(f"{port}: accelcal is not deployed there (run `accelcal deploy --port {port}`)")
+    recorded = recorded_settings(r, ident)
+    if recorded is None:
+        say(f"{port}: no settings recorded by deploy (an older deploy): the options given here")
+    settings = resolve(None if recorded is None else recorded["options"])
     args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
     code = (f"import acal.app\napp = acal.app.main({args})\n"
             "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
@@ -258,44 +280,55 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
         pid = stale.name[len(".pull-"):-len(".partial")]
         if pid.isdigit() and not pid_running(int(pid)):
             shutil.rmtree(stale, ignore_errors=True)
-    held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
+    held = [f for f in PULLED if (out / f).exists()]
     if held and not force:
         raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "
                          "--force to replace them, or choose another folder")
     return out
 
 
-def pull(port: str, outdir: str | Path, say=lambda m: None, force: bool = False) -> dict:
-    """Copy the logs off the board into outdir and decode them.  The files are copied into a
-    temporary folder inside it and renamed into place once all have arrived; then the files of
-    an earlier pull (--force) that this one does not hold are removed."""
+def pull(port: str, outdir: str | Path, say=lambda m: None, force: bool = False,
+         progress=lambda done, total: None) -> dict:
+    """Copy the logs (and the settings deploy recorded) off the board into outdir and decode
+    them (transfer.fetch: base64 blocks in one raw-REPL program, each file's size and CRC-32
+    checked; progress(bytes, total) as they arrive).  The files are copied into a temporary
+    folder inside it and renamed into place once all have arrived; then the files of an earlier
+    pull (--force) that this one does not hold are removed."""
+    from accelcal.board import transfer
     out = check_pull_dir(outdir, force)
     r = Remote(port, timeout=3600)
     ident = r.identify()
-    present = [f for f in boardlog.LOG_FILES if f in ident["files"]]
+    present = [f for f in (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE) if f in ident["files"]]
     if "log.bin" not in present:
         raise InputError(f"{port}: no accelcal log.bin on this board (not ours, or never run); "
                          f"it holds: {' '.join(ident['files'][:12]) or 'nothing'}")
     total = sum(ident["sizes"].get(f, 0) for f in present)
-    if total > 200000:  # mpremote moves about 60 kB/s
-        say(f"copying {total / 1e6:.1f} MB over mpremote (about {total / 60000:.0f} s)...")
     tmp = out / f".pull-{os.getpid()}.partial"
     tmp.mkdir(exist_ok=True)
+    t0 = time.monotonic()
     try:
-        cmd = []
-        for f in present:
-            cmd += ["fs", "cp", f":{f}", str(tmp / f), "+"]
-        r.run(*cmd[:-1])
+        transfer.fetch(port, present, tmp, progress, total=total)
         for f in present:
             os.replace(tmp / f, out / f)
         # the whole earlier pull goes (--force): none of its files stays beside the new log
-        for f in (*boardlog.LOG_FILES, "summary.json"):
+        for f in PULLED:
             if f not in present and (out / f).exists():
                 (out / f).unlink()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    took = time.monotonic() - t0
     sizes = {f: (out / f).stat().st_size for f in present}
-    say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out}")
+    say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out} in {took:.1f} s "
+        f"({sum(sizes.values()) / max(took, 1e-3) / 1e3:.0f} kB/s)")
     summ = boardlog.summary(out)
+    deployed = read_deployed(out)
+    if deployed is not None:
+        summ["deployed"] = deployed
     write_text(out / "summary.json", json.dumps(summ, indent=1))
     return summ
+
+
+def read_deployed(folder: Path) -> dict | None:
+    """The settings deploy recorded, as a pull brought them (None: not recorded)."""
+    f = Path(folder) / bsettings.SETTINGS_FILE
+    return bsettings.parse(f.read_text(), str(f)) if f.exists() else None

@@ -288,7 +288,17 @@ class BoardReport(dict):
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
         lines += [board_discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
+        if self["summary"].get("deployed"):
+            lines.insert(0, deployed_line(self["summary"]["deployed"]))
         return "\n".join(lines)
+
+
+def deployed_line(s: dict) -> str:
+    """The settings deploy recorded on the board (board/settings.py), as its command line gave
+    them: the app options away from their unset value."""
+    opts = " ".join(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v}")
+                    for k, v in sorted(s.get("options", {}).items()) if v not in (None, False))
+    return f"deployed with {opts} (board {s.get('board')}, modules as .{s.get('modules')})"
 
 
 def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
