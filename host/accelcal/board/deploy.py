@@ -13,7 +13,7 @@ from pathlib import Path
 
 from accelcal.bridge import boardlog, rp2040
 from accelcal.bridge.rp2040 import mpy_cross
-from accelcal.errors import InputError
+from accelcal.errors import InputError, require_tool
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
 from accelcal.board import settings as bsettings, tree
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
@@ -45,6 +45,7 @@ class Remote:
     """mpremote against one port; every failure becomes a one-line InputError."""
 
     def __init__(self, port: str, timeout: float = 3600):
+        require_tool("mpremote", "mpremote")
         if not port:
             raise InputError("no port given (--port /dev/ttyACM0, or the one `accelcal board virtual` printed)")
         if not port.startswith(("rfc2217:", "socket:")) and not os.path.exists(port):

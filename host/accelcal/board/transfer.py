@@ -11,9 +11,8 @@ import time
 import zlib
 from pathlib import Path
 
-from accelcal.errors import InputError
+from accelcal.errors import PIP_BOARD, InputError
 
-PIP_BOARD = "pip install 'accelcal[board]'"
 BLOCK = 8192        # bytes the board reads and sends per line (11 kB of base64): 13x fs cp on the
                     # emulated Pico, 8 kB more heap while pulling (the app is stopped then)
 

