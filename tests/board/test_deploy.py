@@ -3,6 +3,7 @@
 back.  The virtual board (the real MicroPython unix port on a pty) and the real mpremote; the
 board-side swap also on a package with subfolders (issue 48's layout), under MicroPython."""
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -34,8 +35,11 @@ def test_deploy_over_sources_and_an_orphan_leaves_only_the_package(tmp_path):
     flash = tmp_path / "flash"
     with virtual.Running(flash, stim) as b:
         # an older install: mip's sources (with the CircuitPython driver this board does not
-        # get), an orphan module, a .mpy beside its .py, and an `acal` at the top that shadows lib/
-        mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "package.json"))
+        # get; the flash is a folder here: copied as `mpremote mip install --target lib
+        # package.json` puts them, test_board_e2e.py runs mip itself), an orphan module, a .mpy
+        # beside its .py, and an `acal` at the top that shadows lib/
+        shutil.copytree(ROOT / "device" / "acal", flash / "lib" / "acal",
+                        ignore=shutil.ignore_patterns("__pycache__"))
         (flash / "lib" / "acal" / "orphan.py").write_text("X = 1\n")
         (flash / "lib" / "acal" / "fixed.mpy").write_bytes(b"M\x06stale")
         (flash / "acal").mkdir()
