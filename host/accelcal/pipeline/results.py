@@ -112,6 +112,9 @@ class CalibrationResult(dict):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if r.get("model_from") == "discovery":
+            lines.append(f"  the model the discovery ended with (saved and applied as such); the "
+                         f"base fit: {r['base_fit']['error_after_mg']:.2f} mg after")
         if "discovery" in r:
             lines.append("  " + discovery_line(r["discovery"]))
         return "\n".join(lines)
