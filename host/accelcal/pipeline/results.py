@@ -227,7 +227,8 @@ class CompareResult(dict):
 
     @property
     def any_calibrated(self) -> bool:
-        return any(r["status"] == "calibrated" for r in self["rows"])
+        """Any method fitted (a row worse than no calibration was fitted too, and says so)."""
+        return any(r["status"] in ("calibrated", "worse_than_none") for r in self["rows"])
 
     def table(self) -> str:
         """The table `compare` prints."""
@@ -244,9 +245,11 @@ class CompareResult(dict):
                  hdr, "-" * (len(hdr) + 20)]
         for r, name in zip(self["rows"], names):
             head = f"{name:<{w}}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
-            if r["status"] == "calibrated":
+            if r["status"] in ("calibrated", "worse_than_none"):
                 imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
-                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  ok")
+                verdict = "ok" if r["status"] == "calibrated" else \
+                    f"WORSE than no calibration ({r['error_after_mg'] / r['error_before_mg']:.1f}x)"
+                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  {verdict}")
             else:
                 lines.append(f"{head}{'-':>10}{'-':>11}  FAILED: {r['reason']}")
         return "\n".join(lines)
