@@ -364,6 +364,8 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec = CalibrationResult(file=path, format=sc.format, model=str(spec), method=method,
                             runtime=runtime_name)
     rec.update(quality(sc, m))
+    if rec_in.overlapping_pages is not None:   # files/pagetimes.py
+        rec["overlapping_pages"] = rec_in.overlapping_pages
     if rec_in.warnings:
         rec["reader_warnings"] = rec_in.warnings
     rec = Fit(g, r, cfg, spec, method, points).record(rec)
@@ -375,10 +377,12 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
 
 def quality(sc, m: dict) -> dict:
     """The per-file figures researchers' tools report (GGIR, actipy, scikit-digital-health)."""
-    seg_h = sc.length / sc.rate_hz / 3600.0
+    rate = sc.measured_rate_hz
+    seg_h = sc.length / rate / 3600.0
     nonwear_h = float(m["nonwear"].sum() * seg_h)
     return {
-        "rate_hz": sc.rate_hz,
+        "rate_hz": round(rate, 4),   # as measured (a float); the device's segments: rate_hz_device
+        "rate_hz_device": sc.rate_hz,
         "hours": round(sc.hours, 4),
         "hours_used": round(sc.hours - nonwear_h, 4),
         "gaps": len(sc.gap_starts),

@@ -86,7 +86,7 @@ class CalibrationResult(dict):
             ex = r["excluded"]
             tr = r["temp_range_c"]
             lines.append(
-                f"{head}{r['file']} ({r['format']}, {r['rate_hz']} Hz): {r['hours']:.2f} h, "
+                f"{head}{r['file']} ({r['format']}, {r['rate_hz']:g} Hz): {r['hours']:.2f} h, "
                 f"{r['gaps']} gaps, {r['still_windows']} still windows kept (excluded: "
                 f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
                 f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
