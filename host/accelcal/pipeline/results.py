@@ -112,6 +112,8 @@ class CalibrationResult(dict):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if "auto" in r:   # --model auto (pipeline/job.py calibrate_auto)
+            lines.append(f"  model auto: {r['auto']}")
         if r.get("model_from") == "discovery":
             lines.append(f"  the model the discovery ended with (saved and applied as such); the "
                          f"base fit: {r['base_fit']['error_after_mg']:.2f} mg after")
