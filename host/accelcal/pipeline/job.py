@@ -140,8 +140,8 @@ def calibrate(path: str, *, model: str = "base", method: str = "device", profile
               effects: str | None = None, progress=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
-    and after (mg) and, for a recording, its quality.  settings: Job.of's (engine, cfg, or
-    runtime.Config fields)."""
+    and after (mg) and, for a recording, its quality.  model: a spec, or "auto"
+    (calibrate_auto).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
                                        runtime_name=runtime, fallback=fallback, points=points,
                                        effects=effects, **settings), progress)
