@@ -129,3 +129,28 @@ def test_a_1_56_hz_recording_has_its_hours(tmp_path, capsys):
     r = json.loads(out)
     assert abs(r["rate_hz"] - rate) < 0.001 and r["rate_hz_device"] == 2, r["rate_hz"]
     assert abs(r["hours"] - days * 24) < 0.5 and r["gaps"] == 0, r
+
+
+def test_a_drifting_rate_is_kept_as_measured(tmp_path, capsys):
+    """A CSV whose clock drifts from 25 Hz to 26 Hz over 4 hours, with a 10-minute gap: the
+    rate is the samples over the time they span outside the gap (25.5 Hz, not the first
+    chunk's 25), the hours the 4 hours less the gap."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    span = 4 * 3600.0
+    # instantaneous rate 25 + s / span: t(s) solves dN/dt = rate, N(t) = 25 t + t^2 / (2 span)
+    n_total = int(25 * span + span / 2)
+    k = np.arange(n_total)
+    t = (-25 + np.sqrt(25 ** 2 + 2 * k / span)) * span
+    keep = (t < 3600) | (t >= 3600 + 600)
+    t, n = t[keep], int(keep.sum())
+    v = postures(n, 25.5, seed=2)
+    path = tmp_path / "drift.csv"
+    pacsv.write_csv(pa.table({"t": np.round(t, 4), "x": np.round(v[:, 0], 4),
+                              "y": np.round(v[:, 1], 4), "z": np.round(v[:, 2], 4)}), path)
+    code, out, err = run_main(capsys, ["calibrate", path, "--json"])
+    r = json.loads(out)
+    gap_free = span - 600
+    assert r["gaps"] == 1 and r["rate_hz_device"] == 25, r
+    assert abs(r["hours"] - gap_free / 3600) < 0.005, r["hours"]
+    assert abs(r["rate_hz"] - (n - 2) / (t[-1] - t[0] - 600)) < 0.01, r["rate_hz"]
