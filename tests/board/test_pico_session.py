@@ -38,14 +38,15 @@ def session(tmp_path, app_args, seconds):
     with virtual.Running(tmp_path / "pico.bin", tmp_path / "stim.bin", "--chip", "rp2040") as b:
         # an older install's sources (MicroPython imports a .py before the .mpy beside it) and a
         # module the package no longer has: deploy removes both
-        mpremote(b.port, "exec", "import os\nfor d in ('lib', 'lib/acal'):\n    os.mkdir(d)\n"
-                 "for f in ('fixed.py', 'orphan.py'):\n    open('lib/acal/' + f, 'w').write('X = 1')")
+        mpremote(b.port, "exec", "import os\nfor d in ('lib', 'lib/acal', 'lib/acal/core'):\n"
+                 "    os.mkdir(d)\nfor f in ('core/fixed.py', 'orphan.py'):\n"
+                 "    open('lib/acal/' + f, 'w').write('X = 1')")
         r = run_cli("deploy", "--port", b.port, *app_args, "--json")
         assert r.returncode == 0, r.stderr
         info = json.loads(r.stdout)
-        assert info["stale_removed"] == ["lib/acal/fixed.py", "lib/acal/orphan.py"]
-        out = mpremote(b.port, "exec", "import acal.fixed\nprint(acal.fixed.__file__)")
-        assert out.strip() == "/lib/acal/fixed.mpy"
+        assert sorted(info["stale_removed"]) == ["lib/acal/core/fixed.py", "lib/acal/orphan.py"]
+        out = mpremote(b.port, "exec", "import acal.core.fixed\nprint(acal.core.fixed.__file__)")
+        assert out.strip() == "/lib/acal/core/fixed.mpy"
         r = run_cli("acquire", "--port", b.port, "--hours", seconds / 3600, *app_args)
         assert r.returncode == 0, r.stderr
         out = tmp_path / "pulled"

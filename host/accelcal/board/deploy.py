@@ -16,11 +16,25 @@ from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError, require_tool
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
 from accelcal.board import settings as bsettings, tree
-from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
+from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG, device_modules
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
 PULLED = (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE, "summary.json")   # what a pull writes
+# The device modules an app needs (paths in the package): every module of the device package but
+# the CircuitPython driver, which goes only to CircuitPython boards.
+CIRCUITPYTHON_ONLY = ("logger/lis3dh_cp.py",)
+APP_MODULES = tuple(m for m in device_modules() if m not in CIRCUITPYTHON_ONLY)
+# The install units every board gets; the others where the app's settings run them.
+BASE_UNITS = ("core", "logger")
+
+
+def units_run(settings: dict) -> tuple[str, ...]:
+    """The install units an app with these settings loads (docs/method-and-formats.md
+    "The device package"): core and logger, paper for the paper profile, discover for --discover."""
+    from acal.core import profile
+    return BASE_UNITS + (("paper",) if settings.get("profile", profile.DEFAULT) == profile.PAPER
+                         else ()) + (("discover",) if settings.get("discover") else ())
 
 
 def boards() -> list[str]:
@@ -124,16 +138,19 @@ def boot_py() -> str:
 def main_py(settings: dict) -> str:
     args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
     return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
-            "import acal.app\n"
-            f"acal.app.main({args})\n")
+            "import acal.logger.app\n"
+            f"acal.logger.app.main({args})\n")
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=lambda m: None, options: dict | None = None) -> dict:
+           write_main: bool = True, say=lambda m: None, units: str = "all",
+           options: dict | None = None) -> dict:
     """The package onto the board so that exactly its files remain in :lib/acal (staged in
-    :lib/.acal-new, then swapped in: the old package, its stale .py/.mpy and modules the package
-    no longer has removed, and any shadowing :acal), the board file, main.py, and the settings
-    (options: the app options as the command line named them) in :acal_settings.json."""
+    :lib/.acal-new, then swapped in: the old package, its stale .py/.mpy and modules or units
+    the new one does not have removed, and any shadowing :acal), the board file, main.py, and
+    the settings (options: the app options as the command line named them) in
+    :acal_settings.json.  units: "all" (every install unit of the package) or "run" (those the
+    settings run: units_run; acquire runs with the recorded settings)."""
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -145,13 +162,16 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
+    wanted = units_run(settings or {}) if units == "run" else None
+    modules = [m for m in list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+               if wanted is None or m == "__init__.py" or m.split("/")[0] in wanted]
     head = None
     if circuitpython:
         head = circuitpython_drive(r, "boot.py" in ident["files"])
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "acal"
         pkg.mkdir()
-        files, what = package_files(info, tree.package_sources(circuitpython), pkg)
+        files, what = package_files(info, modules, pkg)
         fmt = "mpy" if what.startswith(".mpy") else "py"
         others = board_files(info, settings or {}, write_main, Path(tmp), head)
         (Path(tmp) / bsettings.SETTINGS_FILE).write_text(
@@ -173,10 +193,11 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     stale = tree.swap_report(r.exec(tree.swap_code()), rels)
     if stale:
         say(f"removed {len(stale)} stale file(s) the new package does not have: {' '.join(stale)}")
-    check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION, acal.app.__file__)")
+    check = r.exec("import acal.logger.app, acal_board\nprint('ACAL_OK', acal.logger.app.VERSION)")
     if "ACAL_OK" not in check:
-        raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
+        raise InputError(f"{port}: deployed, but `import acal.logger.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
+            "units": list(wanted or BASE_UNITS + ("paper", "discover")),
             "format": fmt, "main_py": write_main, "stale_removed": stale,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 
@@ -233,7 +254,7 @@ def package_files(info: dict, sources: list[Path], pkg: Path) -> tuple[list[Path
         except InputError as e:   # an installed accelcal has no firmware/: the sources run too
             what = f"sources: no CircuitPython mpy-cross here ({e})"
     files = []
-    for rel in sources:
+    for rel in map(Path, sources):
         src = DEVICE_PKG / rel
         dst = pkg / rel.with_suffix(".mpy" if fw else ".py")
         dst.parent.mkdir(parents=True, exist_ok=True)
@@ -265,7 +286,7 @@ def acquire(port: str, seconds: int, resolve, say=lambda m: None) -> str:
         say(f"{port}: no settings recorded by deploy (an older deploy): the options given here")
     settings = resolve(None if recorded is None else recorded["options"])
     args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
-    code = (f"import acal.app\napp = acal.app.main({args})\n"
+    code = (f"import acal.logger.app\napp = acal.logger.app.main({args})\n"
             "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
     out = r.exec(code, stream=say)
     if "ACAL_DONE" not in out:

@@ -1,6 +1,6 @@
 """The settings `deploy` records on the board (acal_settings.json at the top of its filesystem),
 so that `acquire`, `pull` and `report` run with and show what the board was deployed with: the
-app options as the command line named them (`options`), the arguments acal.app.main() gets from
+app options as the command line named them (`options`), the arguments acal.logger.app.main() gets from
 them (`app`), the board file and the format of the modules.  An option given again on
 `acquire`'s command line must agree with the recorded one (else one line, exit 2)."""
 from __future__ import annotations

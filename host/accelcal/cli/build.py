@@ -34,7 +34,7 @@ module("acal_board.py")
 
 
 def default_settings() -> tuple[dict, dict]:
-    """deploy's app options and acal.app.main's arguments when none is given."""
+    """deploy's app options and acal.logger.app.main's arguments when none is given."""
     from accelcal.cli import build_parser
     from accelcal.cli.board import _app_options, _app_settings
     args = build_parser().parse_args(["deploy", "--port", "-"])
