@@ -72,6 +72,7 @@ bench: setup $(STAMP_BENCH)
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	$(BIN)/python -m accelcal.cli.build build
+	@rm -rf build/circuitpython
 	@cd device/acal && find . -name '*.py' -not -path '*/__pycache__/*' | sort | while read f; do \
 	  mkdir -p $(CURDIR)/build/circuitpython/acal/$$(dirname $$f); \
 	  $(abspath $(CP_MPY_CROSS)) -o $(CURDIR)/build/circuitpython/acal/$${f%.py}.mpy $$f || exit 1; \
