@@ -17,9 +17,9 @@ STAMP_MP32 := $(MP32)/.installed
 RP2040JS := build/rp2040js
 STAMP_RP2040JS := $(RP2040JS)/.installed
 
-.PHONY: setup demo test bench build clean
+.PHONY: setup qemu demo test bench build clean
 
-setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS)
+setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS) qemu
 
 $(STAMP): pyproject.toml setup.py host/accelcal/files/_csvfast.c
 	$(PY) -m venv $(VENV)
@@ -42,6 +42,21 @@ $(STAMP_RP2040JS):
 	mkdir -p $(RP2040JS)
 	npm install --silent --no-audit --no-fund --prefix $(RP2040JS) rp2040js@1.4.1
 	touch $@
+
+# qemu-system-riscv32 for --runtime rv32 (bridge/rv32.py, firmware/rv32): Debian's
+# qemu-system-misc, installed when missing if we are root with apt-get (without recommends: 28
+# packages, 53 MB to fetch, 244 MB installed); elsewhere, or if that fails, the rv32 tests skip
+# and say how to install it.
+qemu:
+	@command -v qemu-system-riscv32 >/dev/null || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing qemu-system-misc (qemu-system-riscv32, for --runtime rv32)"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	      --no-install-recommends qemu-system-misc >/dev/null; } || \
+	    echo "qemu-system-misc not installed: the rv32 runtime's tests will skip"; \
+	  else \
+	    echo "qemu-system-riscv32 not found: the rv32 runtime's tests skip (apt-get install qemu-system-misc)"; \
+	  fi; }
 
 demo: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo

@@ -159,7 +159,8 @@ def add_parsers(sub) -> None:
                         "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
                         "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy; "
                         "rp2040-romfs, the same firmware built with a ROMFS partition, the package "
-                        "run in place from /rom")
+                        "run in place from /rom; rv32, an ESP32-C3-class RISC-V MicroPython under "
+                        "qemu (firmware/rv32), the package as rv32imc .mpy")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "
