@@ -36,7 +36,7 @@ FIRMWARE = rp2040.Firmware("rv32", "rv32", "firmware.elf", "micropython", "rv32i
 # Samples per B line of the protocol (its lines are split into a str per value there): as on the
 # RP2040, whose heap is about as large
 SAMPLES_PER_LINE = rp2040.SAMPLES_PER_LINE
-CHUNK = 6144                   # bytes of a file per raw-REPL command (base64 in the command)
+CHUNK = 16384                  # bytes of a file per raw-REPL command (base64 in the command)
 RAW_PROMPT = b"raw REPL; CTRL-B to exit\r\n>"
 
 
