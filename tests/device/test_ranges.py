@@ -364,6 +364,9 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
                              T(mu), [T(k)] * n)
             finally:
                 del solve.int
+            # the scales, plain ints (so their shifts are not traced): in [-11, 3], which keeps
+            # the scaled copy's shifts in [-6, 22] (solve._prepare_rows)
+            assert all(-11 <= v <= 3 for v in s.s[:n]), list(s.s[:n])
             if trial % 2 == 0 and np.linalg.cond(a) < 1e4:
                 assert ok, (n, decades)
                 err = np.abs(np.array(x, float) - want * 2.0 ** k).max() / 2.0 ** 20
@@ -549,4 +552,16 @@ def test_viper_shifts_stay_below_32_over_whole_domains():
         with viper_casts():
             got = solve._rhs_shift([T(v) for v in b], [T(s) for s in sc], len(b), 0)
         assert got == want, (b, sc)
+    # and two whose computed amounts the fits' traces do not reach: rhs_from_limbs's e past 9
+    # (|high| >= 2^27; e <= 13 for any int32) and div_shift's last 1-3 bits
+    for high in ([(1 << 31) - 1, -(1 << 31) + 1, 5], [(1 << 27) + 3, -7, 0], [1 << 17, 0, -1]):
+        low = [511, 0, 256]
+        r = [T(0)] * 3
+        with viper_casts():
+            e = normal_sums.rhs_from_limbs([T(v) for v in high], [T(v) for v in low], r, 3, 0)
+        assert e == max(0, max(abs(v).bit_length() for v in high) - 18)
+        assert [int(v) for v in r] == [-((h * 512 + lo) >> e) for h, lo in zip(high, low)]
+    from acal.wide import div_shift
+    for x, d, s in ((lim, (1 << 26) - 1, 3), (-lim, 3, 1), (12345, 7, 30), (-1, 1, 27)):
+        assert div_shift(T(x), T(d), T(s)) == (x << s) // d
     assert tr.shifts and max(hi for _, hi, _ in tr.shifts.values()) == 31   # the bound is met
