@@ -17,12 +17,14 @@ from conftest import run_main
 
 @pytest.fixture(scope="module")
 def board():
-    """The booted board with the package installed (one per test process)."""
+    """The booted board with the package installed, for this module's tests."""
     try:
         rv32.check()
-        return rv32.board()
+        b = rv32.board()
     except InputError as e:
         pytest.skip(f"rv32 runtime not available: {e}")
+    yield b
+    rv32.close()          # an idle board polls its UART: not kept for the rest of the suite
 
 
 def test_firmware_is_an_rv32_micropython_that_masks_shift_amounts(board):

@@ -6,8 +6,10 @@ package goes onto the board's filesystem as rv32imc `.mpy` files (PyPI's mpy-cro
 build` and `deploy` compile it) over the raw REPL, as a deployment would; scripts run over the
 raw REPL in raw-paste mode, the protocol (bridge/protocol.py) fed to their stdin.
 
-One board is booted per process and the package put once (~2-3 s); between runs a soft reset
-(an empty raw-REPL command) starts a fresh VM and heap, the files kept.  A run that fails or
+One board is booted per process and the package put once (5-10 s here); between runs a soft
+reset (an empty raw-REPL command) starts a fresh VM and heap, the files kept.  An idle board
+polls its UART (~30 % of a core): close() ends it (at exit at the latest; a test module's
+fixture closes it when done).  A run that fails or
 times out ends that qemu: the next boots afresh.  It is not an ESP32: no peripherals, qemu's
 speed and the host's clock (no timing here says anything of a C3's), one contiguous heap.  What
 it shows: the package's RV32 machine code gives CPython's integers (a viper shift there takes its
@@ -67,6 +69,16 @@ def check() -> None:
     firmware_path()
 
 
+def _die_with_parent() -> None:
+    """In the child before qemu starts (Linux): qemu is killed when this process dies, however
+    it dies - an idle board polls its UART, ~30 % of a core here."""
+    try:
+        import ctypes
+        ctypes.CDLL(None).prctl(1, 9)      # PR_SET_PDEATHSIG, SIGKILL
+    except (OSError, AttributeError):
+        pass
+
+
 class BoardError(Exception):
     """qemu or the firmware did not answer as the raw REPL should."""
 
@@ -81,7 +93,8 @@ class Board:
         self.proc = subprocess.Popen(
             [qemu_path(), "-machine", "virt", "-bios", "none", "-nographic", "-monitor", "null",
              "-semihosting", "-serial", "stdio", "-kernel", str(firmware_path())],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            preexec_fn=_die_with_parent)
         threading.Thread(target=self._read, daemon=True).start()
         self._until(b">>> ", 0, 60)
         at = len(self.buf)
@@ -103,6 +116,12 @@ class Board:
             self.proc.stdin.flush()
         except (BrokenPipeError, ValueError):
             raise BoardError("qemu exited") from None
+
+    def _feed(self, data: bytes):
+        try:
+            self._send(data)
+        except BoardError:       # qemu ended: exec() says so
+            pass
 
     def _until(self, token: bytes, start: int, timeout: float | None = None) -> int:
         """The index of token in the output at or after start, waiting for it."""
@@ -167,7 +186,7 @@ class Board:
         as LF, latin1 (the board's bytes one for one)."""
         start = self._paste(code.encode() if isinstance(code, str) else code)
         if stdin:      # a thread: the pipe blocks while the UART's FIFO is full
-            threading.Thread(target=self._send, args=(stdin,), daemon=True).start()
+            threading.Thread(target=self._feed, args=(stdin,), daemon=True).start()
         e1 = self._until(b"\x04", start, timeout)
         e2 = self._until(b"\x04", e1 + 1, timeout)
         self._until(b">", e2 + 1, timeout)
