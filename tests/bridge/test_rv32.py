@@ -111,6 +111,24 @@ def test_both_profiles_on_rv32_equal_cpython(paper_points, board, capsys, profil
     assert cp["status"] == "calibrated" and cp["profile"] == profile
 
 
+def test_point_sets_identical_on_rv32(rng, board):
+    """6 random devices' point sets (5-200 points, noise 0 to 50 mg) through the device
+    pipeline, paper profile (first-come bins) and wear profile: every field of every result the
+    same as CPython's (as tests/bridge/test_runtimes.py for the unix and WebAssembly ports)."""
+    from accelcal import simulate
+    groups = []
+    for i in range(6):
+        n = int(rng.integers(5, 200))
+        noise = float(rng.choice([0.0, 1e-3, 5e-3, 0.05]))
+        groups.append(runtime.Group(f"d{i}", points=simulate.paper_scenario(rng, n, noise)[1]))
+    fits = 0
+    for cfg in (runtime.Config(policy="first", max_count=3), runtime.Config.for_profile("wear")):
+        a = runtime.run(groups, cfg, "cpython")
+        assert runtime.run(groups, cfg, "rv32") == a and len(a) == 6
+        fits += sum(r.status == 0 for r in a)
+    assert fits >= 4                                     # real fits compared
+
+
 def test_composed_model_on_rv32_equals_cpython(tmp_path, board, capsys):
     """base+temp_offset on every 32nd rest point of a simulated wrist day with a temperature
     offset (as tests/bridge/test_rp2040.py): the bins, the base fit and the composed fit."""

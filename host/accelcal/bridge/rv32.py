@@ -6,10 +6,10 @@ package goes onto the board's filesystem as rv32imc `.mpy` files (PyPI's mpy-cro
 build` and `deploy` compile it) over the raw REPL, as a deployment would; scripts run over the
 raw REPL in raw-paste mode, the protocol (bridge/protocol.py) fed to their stdin.
 
-One board is booted per process and the package put once (5-10 s here); between runs a soft
-reset (an empty raw-REPL command) starts a fresh VM and heap, the files kept.  An idle board
-polls its UART (~30 % of a core): close() ends it (at exit at the latest; a test module's
-fixture closes it when done).  A run that fails or
+One board is booted per process and the package put once (9-16 s here under load: the emulated
+UART's rate); between runs a soft reset (an empty raw-REPL command) starts a fresh VM and heap,
+the files kept.  An idle board polls its UART (~30 % of a core): close() ends it (at exit at the
+latest; a test module's fixture closes it when done).  A run that fails or
 times out ends that qemu: the next boots afresh.  It is not an ESP32: no peripherals, qemu's
 speed and the host's clock (no timing here says anything of a C3's), one contiguous heap.  What
 it shows: the package's RV32 machine code gives CPython's integers (a viper shift there takes its
@@ -17,7 +17,6 @@ amount mod 32, as on Xtensa: bridge/ranges.py proves the package's amounts in 0.
 from __future__ import annotations
 
 import atexit
-import binascii
 import hashlib
 import os
 import shutil
@@ -38,7 +37,6 @@ FIRMWARE = rp2040.Firmware("rv32", "rv32", "firmware.elf", "micropython", "rv32i
 # Samples per B line of the protocol (its lines are split into a str per value there): as on the
 # RP2040, whose heap is about as large
 SAMPLES_PER_LINE = rp2040.SAMPLES_PER_LINE
-CHUNK = 16384                  # bytes of a file per raw-REPL command (base64 in the command)
 RAW_PROMPT = b"raw REPL; CTRL-B to exit\r\n>"
 
 
@@ -67,6 +65,39 @@ def check() -> None:
     """InputError, one line, unless qemu and the firmware are both here."""
     qemu_path()
     firmware_path()
+
+
+# Run on the board by Board.put_all: the file count, then "path size crc32" lines, then the files'
+# bytes back to back, all on stdin; the files written (folders made), each CRC checked.
+_PUT_ALL = """
+import os, sys, binascii, micropython
+micropython.kbd_intr(-1)
+src = sys.stdin.buffer
+heads = [src.readline().split() for _ in range(int(src.readline()))]
+buf = bytearray(2048)
+mv = memoryview(buf)
+for path, size, crc in heads:
+    path = path.decode()
+    p = ''
+    for d in path.split('/')[1:-1]:
+        p += '/' + d
+        try:
+            os.mkdir(p)
+        except OSError:
+            pass
+    left = int(size)
+    c = 0
+    with open(path, 'wb') as f:
+        while left:
+            n = src.readinto(mv[:min(left, 2048)])
+            f.write(mv[:n])
+            c = binascii.crc32(mv[:n], c)
+            left -= n
+    if c != int(crc):
+        raise OSError('CRC of ' + path)
+micropython.kbd_intr(3)
+print('PUT', len(heads))
+"""
 
 
 def _die_with_parent() -> None:
@@ -194,19 +225,15 @@ class Board:
         err = bytes(self.buf[e1 + 1:e2]).replace(b"\r\n", b"\n").decode("latin1")
         return out, err
 
-    def put(self, data: bytes, remote: str) -> None:
-        """Write bytes to a file on the board, its folders made."""
-        head = ("import os, binascii\np = ''\n"
-                f"for d in {remote!r}.split('/')[1:-1]:\n    p += '/' + d\n    try:\n"
-                "        os.mkdir(p)\n    except OSError:\n        pass\n"
-                f"f = open({remote!r}, 'wb')\n")
-        for i in range(0, max(len(data), 1), CHUNK):
-            b64 = binascii.b2a_base64(data[i:i + CHUNK], newline=False).decode()
-            code = (head if i == 0 else f"f = open({remote!r}, 'ab')\n") + \
-                f"f.write(binascii.a2b_base64({b64!r}))\nf.close()\n"
-            out, err = self.exec(code)
-            if err:
-                raise BoardError(f"writing {remote}: {err.strip().splitlines()[-1]}")
+    def put_all(self, files: list[tuple[bytes, str]]) -> None:
+        """Write files (bytes, remote path) to the board, their folders made: one raw-REPL
+        command reading them raw from its stdin (Ctrl-C off), each checked by its CRC-32."""
+        import zlib
+        head = "".join(f"{remote} {len(data)} {zlib.crc32(data)}\n" for data, remote in files)
+        out, err = self.exec(_PUT_ALL, str(len(files)).encode() + b"\n" + head.encode()
+                             + b"".join(data for data, _ in files))
+        if err or out.split() != ["PUT", str(len(files))]:
+            raise BoardError(f"putting the package: {(err or out).strip()[-200:]}")
 
     def soft_reset(self) -> None:
         """A fresh VM and heap (an empty raw-REPL command); the files stay."""
@@ -259,8 +286,7 @@ def board() -> Board:
         files = installed_files()
         b = Board()
         try:
-            for data, remote in files:
-                b.put(data, remote)
+            b.put_all(files)
         except BoardError:
             b.close()
             raise
