@@ -129,9 +129,12 @@ def test_point_sets_identical_on_rv32(rng, board):
     assert fits >= 4                                     # real fits compared
 
 
+@pytest.mark.slow
 def test_composed_model_on_rv32_equals_cpython(tmp_path, board, capsys):
     """base+temp_offset on every 32nd rest point of a simulated wrist day with a temperature
-    offset (as tests/bridge/test_rp2040.py): the bins, the base fit and the composed fit."""
+    offset (as tests/bridge/test_rp2040.py): the bins, the base fit and the composed fit, through
+    `calibrate` (slow: ~8 s, most of it simulating the day; the default suite's composed fits
+    and apply are the heap-locked test's)."""
     from accelcal import cli
     from accelcal.pipeline.restpoints import rest_points
     rec = tmp_path / "day.csv"
