@@ -227,6 +227,14 @@ def test_apply_and_fits_allocate_nothing_and_equal_cpython_on_rv32(board, rng):
     assert got == on_cpython(script)
 
 
+def test_a_script_that_raises_is_one_line_and_the_board_goes_on(board):
+    from accelcal.errors import InterpreterFailed
+    pid = rv32.board().proc.pid
+    with pytest.raises(InterpreterFailed, match="rv32 failed .*ValueError: no such thing"):
+        rv32.run_script("import acal.fixed\nraise ValueError('no such thing')\n")
+    assert rv32.run_script("print(6 * 7)\n") == "42\n" and rv32.board().proc.pid == pid
+
+
 def test_missing_qemu_is_one_line(monkeypatch, tmp_path):
     monkeypatch.setenv(rv32.QEMU_ENV, str(tmp_path / "no-qemu"))
     with pytest.raises(InputError, match="apt-get install qemu-system-misc"):

@@ -127,10 +127,14 @@ class Board:
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             preexec_fn=_die_with_parent)
         threading.Thread(target=self._read, daemon=True).start()
-        self._until(b">>> ", 0, 60)
-        at = len(self.buf)
-        self._send(b"\r\x01")                   # Ctrl-A: the raw REPL
-        self._until(RAW_PROMPT, at, 60)
+        try:
+            self._until(b">>> ", 0, 60)
+            at = len(self.buf)
+            self._send(b"\r\x01")               # Ctrl-A: the raw REPL
+            self._until(RAW_PROMPT, at, 60)
+        except BoardError:
+            self.close()
+            raise
 
     def _read(self):
         while True:
@@ -236,10 +240,12 @@ class Board:
             raise BoardError(f"putting the package: {(err or out).strip()[-200:]}")
 
     def soft_reset(self) -> None:
-        """A fresh VM and heap (an empty raw-REPL command); the files stay."""
-        at = len(self.buf)
+        """A fresh VM and heap (an empty raw-REPL command); the files stay.  The output so far
+        is dropped (nothing reads it after a run)."""
+        with self.cond:
+            self.buf.clear()
         self._send(b"\x04")
-        self._until(RAW_PROMPT, at, 60)
+        self._until(RAW_PROMPT, 0, 60)
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -305,17 +311,19 @@ def close() -> None:
 
 def run_script(code: str, stdin: bytes = b"", timeout: float = 1800) -> str:
     """Run a script on a freshly reset board with the package installed; its stdout.  A script
-    that raises or a board that stops answering: InterpreterFailed, one line (and a new board
-    for the next run: what was left of stdin must not reach the REPL)."""
-    b = board()
+    that raises or a board that stops answering: InterpreterFailed, one line (and, unless it
+    raised with no stdin, a new board for the next run: what was left of its stdin must not
+    reach the REPL)."""
     try:
+        b = board()
         b.soft_reset()
         out, err = b.exec(code, stdin, timeout)
     except BoardError as e:
         close()
         raise InterpreterFailed("rv32", subprocess.CompletedProcess(["rv32"], 2, "", str(e)))
     if err:
-        close()
+        if stdin:
+            close()
         raise InterpreterFailed("rv32", subprocess.CompletedProcess(["rv32"], 1, out, err))
     return out
 
