@@ -1,34 +1,32 @@
 """`accelcal deploy` compiles the package for the architecture the board reports
 (sys.implementation._mpy >> 10; issue 49): a board running the esp32 port gets xtensawin on an
 ESP32/S3 and rv32imc on an ESP32-C3/C6 from the one board file, a Pico armv6m; a port without
-emitters gets the sources.  Against a stand-in for mpremote that answers as such a board would
-and keeps what deploy copies."""
+emitters gets the sources.  Against a stand-in for mpremote answering identify() as such a board
+would (the real Remote parses its printout), stopped where deploy compiles; the .mpy each arch
+gives carry it in their header (tests/device/test_integer_only.py)."""
 import pytest
 
 from accelcal.board import deploy
 
 # sys.implementation._mpy of MicroPython 1.28 (.mpy v6.3) on each: version | 3 << 8 | arch << 10;
-# 12038 is what the RV32 firmware of firmware/rv32 reports (docs/boards-and-logs.md)
+# 12038 is what the RV32 firmware of firmware/rv32 reports (bridge/rv32.py)
 MPY = {"armv6m": 6 | 3 << 8 | 4 << 10, "xtensawin": 6 | 3 << 8 | 10 << 10,
        "rv32imc": 12038, None: 6 | 3 << 8}
 
 
-def fake_remote(platform, mpy, copied):
+class Compiling(Exception):
+    """Raised where deploy hands the package to the compiler: what it chose is recorded."""
+
+
+def fake_remote(platform, mpy):
     class Board(deploy.Remote):
         def __init__(self, port, timeout=0):
             self.port = port
+            self.timeout = timeout
 
-        def exec(self, code, stream=None, timeout=None):
-            if code.startswith("import sys, os"):          # identify()
-                return f"ACAL micropython {platform} {mpy}\nFILES boot.py:100\n"
-            return "ACAL_OK 1\n" if "ACAL_OK" in code else ""
-
-        def run(self, *args, stream=None, timeout=None):   # fs cp FILES... :lib/acal/ + ...
-            end = args.index(":lib/acal/")
-            for f in args[2:end]:
-                with open(f, "rb") as fh:
-                    copied[f.rsplit("/", 1)[-1]] = fh.read()
-            return ""
+        def exec(self, code, stream=None, timeout=None):   # identify()'s probe
+            assert code.startswith("import sys, os")
+            return f"ACAL micropython {platform} {mpy}\nFILES boot.py:100\n"
     return Board
 
 
@@ -38,18 +36,16 @@ def fake_remote(platform, mpy, copied):
                                                  ("esp32", "esp32", None)])
 def test_deploy_compiles_for_the_arch_the_board_reports(monkeypatch, platform, board, arch):
     assert deploy.mpy_arch(MPY[arch]) == arch
-    copied = {}
-    monkeypatch.setattr(deploy, "Remote", fake_remote(platform, MPY[arch], copied))
-    r = deploy.deploy("fake", write_main=False)
-    assert r["board"] == board and r["arch"] == arch
-    assert sorted(copied) == sorted(m + (".mpy" if arch else ".py") for m in deploy.APP_MODULES)
-    if arch:
-        # the modules with viper code carry the arch in their header (byte 2 >> 2), the rest
-        # are bytecode (0), loadable anywhere
-        archs = {deploy.MPY_ARCHS[data[2] >> 2] for data in copied.values()}
-        assert archs == {arch, None} and copied["wide.mpy"][2] >> 2 == MPY[arch] >> 10
-    else:
-        assert b"@viper" in copied["wide.py"]
+    monkeypatch.setattr(deploy, "Remote", fake_remote(platform, MPY[arch]))
+    chosen = []
+
+    def package_files(info, *args, **kwargs):
+        chosen.append((info["name"], info["ARCH"]))
+        raise Compiling
+    monkeypatch.setattr(deploy, "package_files", package_files)
+    with pytest.raises(Compiling):
+        deploy.deploy("fake", write_main=False)
+    assert chosen == [(board, arch)]
 
 
 def test_a_board_file_without_arch_and_a_port_without_mpy_keep_theirs():
