@@ -31,12 +31,12 @@ def test_firmware_is_an_rv32_micropython_that_masks_shift_amounts(board):
     from accelcal.board.deploy import mpy_arch
     out = rv32.run_script(
         "import sys, micropython\nprint(sys.implementation._mpy, sys.maxsize)\n"
-        "import acal.wide\nprint(acal.wide.__file__)\n"
+        "import acal.core.wide\nprint(acal.core.wide.__file__)\n"
         "@micropython.viper\ndef shr(a: int, s: int) -> int:\n    return a >> s\n"
         "print(shr(1000, 31), shr(1000, 32), shr(1000, 40))\n").split("\n")
     mpy, maxsize = map(int, out[0].split())
     assert mpy_arch(mpy) == "rv32imc" and maxsize == 2**31 - 1   # 32-bit words: 2^30 small ints
-    assert out[1] == "/lib/acal/wide.mpy"                          # installed as .mpy
+    assert out[1] == "/lib/acal/core/wide.mpy"                     # installed as .mpy
     assert out[2] == "0 1000 3"           # the amount mod 32: Python's answer only below 32
 
 
@@ -54,9 +54,9 @@ def on_cpython(script):
 
 EDGES = r"""
 from array import array
-from acal.wide import mul_shift
-from acal.normal_sums import grow_columns
-from acal.solve import _rhs_shift
+from acal.core.wide import mul_shift
+from acal.core.normal_sums import grow_columns
+from acal.core.solve import _rhs_shift
 L = (1 << 29) - 1
 res = []
 for s in (16, 31, 46, 47, 61, 62, 63, 64, 78, 100):
@@ -154,10 +154,10 @@ def test_composed_model_on_rv32_equals_cpython(tmp_path, board, capsys):
 HEAP = r"""
 import micropython
 from array import array
-from acal.calibration import Calibration
-from acal import effects
-from acal.gaussnewton import GaussNewton
-from acal.optimiser import Optimiser
+from acal.core.calibration import Calibration
+from acal.core import effects
+from acal.core.gaussnewton import GaussNewton
+from acal.paper.optimiser import Optimiser
 PTS = array("i", %s)
 AUX = array("i", %s)
 CORNER = [20971520, 20971520, 20971520, 2097152, -2097152, 2097152, 4194304, -4194304, 4194304]
@@ -231,7 +231,7 @@ def test_a_script_that_raises_is_one_line_and_the_board_goes_on(board):
     from accelcal.errors import InterpreterFailed
     pid = rv32.board().proc.pid
     with pytest.raises(InterpreterFailed, match="rv32 failed .*ValueError: no such thing"):
-        rv32.run_script("import acal.fixed\nraise ValueError('no such thing')\n")
+        rv32.run_script("import acal.core.fixed\nraise ValueError('no such thing')\n")
     assert rv32.run_script("print(6 * 7)\n") == "42\n" and rv32.board().proc.pid == pid
 
 

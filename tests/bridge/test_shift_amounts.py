@@ -12,7 +12,7 @@ from accelcal.bridge.ranges import (SHIFT_MAX, Tracer, device_viper_functions, t
 from accelcal.locations import DEVICE_PACKAGE
 
 PLANTED = '''
-from acal.emit import viper
+from acal.core.emit import viper
 
 
 @viper
@@ -59,7 +59,7 @@ def test_constant_viper_shift_amounts_are_below_32():
     """Every shift by a constant inside a @viper function: 0..31.  (`<< w >> w`, the 64-bit
     ports' sign extension, is dropped from the 32-bit builds: bridge/rp2040.py.)"""
     names = set(device_viper_functions().values())
-    assert len(names) >= 25 and "acal.wide.mul_shift" in names
+    assert len(names) >= 25 and "acal.core.wide.mul_shift" in names
     constants = 0
     for path in sorted(DEVICE_PACKAGE.rglob("*.py")):
         for node in ast.parse(path.read_text()).body:

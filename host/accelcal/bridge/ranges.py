@@ -5,7 +5,7 @@ the small-int limit of 32-bit MicroPython ports (|v| < 2**30).  Used by the test
 ranges of the device code) and the bench (how many optimiser values would be longs on a 32-bit
 board: none).
 
-It also records the amount of every shift made inside a `@viper` function (acal/emit.py): a viper
+It also records the amount of every shift made inside a `@viper` function (acal/core/emit.py): a viper
 shift is one machine instruction, and the architectures disagree past 31 (ARMv6-M gives Python's
 answer, Xtensa and RV32 take the amount mod 32: `1000 >> 32` is 1000 there), so an amount the
 worst cases drive outside 0..31 is a defect on some board (Tracer.wild_shifts)."""
@@ -16,7 +16,7 @@ import importlib
 import sys
 from pathlib import Path
 
-from acal import fixed
+from acal.core import fixed
 from accelcal.locations import DEVICE_PACKAGE
 
 SMALL_INT_LIMIT = 1 << 30
@@ -131,7 +131,7 @@ class TracedArray(list):
 def traced_optimiser(T, n, alphas=None):
     """The paper profile's Optimiser for n points with its int32 arrays as TracedArrays, so that
     its viper functions' values are traced too: run it inside `with viper_casts():`."""
-    from acal.optimiser import Optimiser
+    from acal.paper.optimiser import Optimiser
     o = Optimiser(n)
     for name in ("u", "f", "pa", "alpha", "cache"):
         setattr(o, name, TracedArray(T, len(getattr(o, name))))
@@ -139,9 +139,9 @@ def traced_optimiser(T, n, alphas=None):
     return o
 
 
-# the device modules whose viper functions cast with int() (acal/emit.py)
-VIPER_MODULES = ("objective", "normal_sums", "gaussnewton", "model", "effects", "solve",
-                 "calibration")
+# the device modules whose viper functions cast with int() (acal/core/emit.py)
+VIPER_MODULES = ("paper.objective", "core.normal_sums", "core.gaussnewton", "core.model",
+                 "core.effects", "core.solve", "core.calibration")
 
 
 class viper_casts:
@@ -172,7 +172,7 @@ GAUSS_NEWTON_ARRAYS = ("aux", "d", "a", "b", "bl", "u", "p", "pt", "sh", "grown"
 def traced_gauss_newton(T, n, kinds=()):
     """The default profile's GaussNewton for n points with its int32 arrays as traced lists:
     run it inside `with viper_casts():` on Int32s of traced points (and conditions)."""
-    from acal.gaussnewton import GaussNewton
+    from acal.core.gaussnewton import GaussNewton
     gn = GaussNewton(n, kinds)
     for name in GAUSS_NEWTON_ARRAYS:
         setattr(gn, name, [T(0)] * len(getattr(gn, name)))

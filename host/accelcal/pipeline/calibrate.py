@@ -7,9 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
-from acal import bins as dbins, effects as deff
-from acal import fixed, hemisphere, optimiser
-from acal import profile as dprofile
+from acal.core import bins as dbins, effects as deff
+from acal.core import fixed, hemisphere
+from acal.paper import optimiser
+from acal.core import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.model.effects import ModelSpec, column_ref
@@ -243,8 +244,8 @@ class Fit:
                 pts = RestPoints(v, seen.time, seen.temp, np.zeros(len(v)), "points", cols)
                 if spec.host_only:   # the host's references, as diagnose takes them
                     ref = refs(pts, spec)
-                else:   # the device's references (acal.reference.references)
-                    from acal.reference import references
+                else:   # the device's references (acal.core.reference.references)
+                    from acal.core.reference import references
                     c = cond[ok]
                     ref = self._reference(references([int(x) for x in c.ravel()], len(c),
                                                      spec.kinds))
@@ -278,7 +279,7 @@ class Fit:
                 if spec.change_point:
                     ref["ts"] = ref["t0"] + seconds(r.step_time)
             rec.update(model=str(spec), method=self.method,
-                       scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                       scale="Q24 per normalised regressor (device/acal/core/effects.py); decoded in "
                              "g, 1/degC, g/day, 1/g",
                        params_int=dict(zip(spec.param_names, map(int, p_int))),
                        params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())),
