@@ -158,7 +158,7 @@ def test_batch_survives_a_reader_that_dies(tmp_path):
         [str(hook), str(ROOT / "host"), os.environ.get("PYTHONPATH", "")]))
     r = subprocess.run([sys.executable, "-m", "accelcal.cli", "calibrate", str(good[0]), str(dead),
                         *map(str, good[1:]), "--jobs", "2", "--json", "--quiet"],
-                       capture_output=True, text=True, timeout=300, env=env)
+                       capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     recs = {rec["file"].rsplit("/", 1)[-1]: rec for rec in
             (json.loads(ln) for ln in r.stdout.splitlines() if ln.startswith("{"))}

@@ -64,7 +64,15 @@ def diagnose(path: str, model: str = "base", plots: str | None = None, *,
     file of declared effects (registered; never written over).  Every output is checked before
     the analysis."""
     from accelcal.model.declared import register
+    if not isinstance(model, str):
+        raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
+    if not isinstance(force, bool):
+        raise InputError(f"force={force!r:.40}: True or False")
     register(effects)
+    try:
+        ModelSpec.parse(model)   # before any output is checked or the file read
+    except ValueError as e:
+        raise InputError(str(e)) from None
     reads = [path, effects]
     if history:   # appended to, only if a history: checked here, before the analysis
         check_output(history, reads, True, "--history")

@@ -30,11 +30,24 @@ class Job:
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
         settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
-        vector under cpython, device under a MicroPython runtime (as the CLI)."""
+        vector under cpython, device under a MicroPython runtime (as the CLI).  Every argument
+        is checked as the CLI checks its option (files/arguments.py): InputError, one line."""
+        from accelcal.files import arguments as a
+        from accelcal.methods import METHODS
+        a.choice("method", method, ["device", *METHODS])
+        a.choice("runtime", runtime_name, runtime.RUNTIMES)
+        a.choice("points", points)
+        if engine is not None:
+            a.choice("engine", engine)
+        if not isinstance(model, str):
+            raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
         if cfg is None:
-            cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+            cfg = runtime.Config.for_profile(a.choice("profile", profile), "+" in model,
+                                             **a.pipeline_settings(settings))
         elif settings:
-            raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+            raise InputError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+        elif not isinstance(cfg, runtime.Config):
+            raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
         return cls(cfg, method, runtime_name, model,
                    engine or ("vector" if runtime_name == "cpython" else "device"),
                    fallback, points, effects)
