@@ -40,7 +40,7 @@ CALIBRATE = [dict(method="nope"), dict(model="nope"), dict(model=3), dict(profil
              dict(axis=None, min_count=0), dict(max_count=99), dict(min_count=5, max_count=2),
              dict(differ=-1), dict(differ=NAN), dict(select="x"), dict(policy="x"),
              dict(iterations=0), dict(iterations=10 ** 7), dict(rates=(1, 2)),
-             dict(rates="3,8,2"), dict(foo=1), dict(cfg="x"), dict(cfg=None, seconds=0)]
+             dict(rates="3,8,2"), dict(discover=1), dict(foo=1), dict(cfg="x"), dict(cfg=None, seconds=0)]
 DIAGNOSE = [dict(model="nope"), dict(model=None), dict(model="base+nope"), dict(force="yes")]
 COMPARE = [dict(train="nope"), dict(methods="nope"), dict(methods=3), dict(split="nope"),
            dict(profile="nope"), dict(runtime_name="x"), dict(cfg=5), dict(model="nope")]
@@ -134,3 +134,30 @@ def test_nothing_written_over_without_force(good, tmp_path):
     assert (tmp_path / "w.csv").read_text().startswith("t,x,y,z") and truth["samples"] == 8640
     accelcal.apply(params, rec, str(out), force=True)
     assert out.read_text().startswith("t,x,y,z")
+
+
+def test_good_keywords_are_the_cli_s_options(good, capsys):
+    """The keywords that pass are taken as the CLI takes its options: the same record."""
+    import accelcal
+    d, pts, rec, params = good
+    kw = dict(profile="wear", seconds=10, threshold=0.1, axis="y", min_count=2, max_count=8,
+              differ=0.2, select="first", iterations=30, rates=(3, 8, 2))
+    api = accelcal.calibrate(pts, **kw)
+    code, out, err = run_main(capsys, ["calibrate", pts, "--json", "--profile", "wear",
+                                       "--seconds", "10", "--threshold", "0.1", "--axis", "y",
+                                       "--min-count", "2", "--max-count", "8", "--differ", "0.2",
+                                       "--select", "first", "--iterations", "30",
+                                       "--rates", "0.3,0.8,0.2"])
+    assert code == 0, err
+    assert json.loads(api.to_json()) == json.loads(out)
+    # every setting, not only those a points file uses: the Config each makes
+    from accelcal.cli import build_parser
+    from accelcal.cli.options import pipeline_config
+    args = build_parser().parse_args(["calibrate", pts, "--profile", "wear", "--seconds", "10",
+                                      "--threshold", "0.1", "--axis", "y", "--min-count", "2",
+                                      "--max-count", "8", "--differ", "0.2", "--select", "first",
+                                      "--iterations", "30", "--rates", "0.3,0.8,0.2"])
+    assert accelcal.Job.of(**kw).cfg == pipeline_config(args)
+    for k, v in (("seconds", 11), ("axis", "x"), ("threshold", 0.2), ("differ", 0.3)):
+        assert accelcal.Job.of(**(kw | {k: v})).cfg != pipeline_config(args)
+    assert accelcal.calibrate(pts, threshold="auto", axis=3, policy="centre", differ_g=0.1).ok

@@ -99,10 +99,14 @@ def pipeline_settings(settings: dict) -> dict:
             if not (isinstance(v, (tuple, list)) and len(v) == 3):
                 _bad("rates", f"{v!r}: three non-negative multiples of 0.1, e.g. (3, 8, 2) tenths")
             out["rates_tenths"] = tuple(whole("rates", r, 0, 1000) for r in v)
+        elif k == "discover":
+            if not isinstance(v, bool):
+                _bad("discover", f"{v!r:.40}: True or False")
+            out[k] = v
         else:
             raise InputError(f"unknown setting {k}={v!r:.40}; the pipeline's are seconds, "
                              "threshold, axis, min_count, max_count, differ, select, "
-                             "iterations, rates")
+                             "iterations, rates, discover")
     mn, mx = out.get("min_count"), out.get("max_count")
     if mn is not None and mx is not None and mx < mn:
         raise InputError("--max-count must be >= --min-count")
