@@ -167,3 +167,31 @@ def test_batch_survives_a_reader_that_dies(tmp_path):
     assert signal.Signals.SIGABRT.name in recs["dead.bin"]["reason"], recs["dead.bin"]
     for g in good:
         assert recs[g.name]["status"] != "failed", recs[g.name]
+
+
+def test_library_warnings_never_reach_the_terminal(tmp_path):
+    """With the header check switched off (a sitecustomize, as above), pygt3x meets Sample Rate
+    0 and numpy warns ("divide by zero", 4 lines with Python's -W default): the command line
+    still says one line, exit 2; the warnings show only when -W asks for them."""
+    import os
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(
+        "import accelcal.files.recordings as r\nr.check_device_file = lambda path: None\n")
+    src = zipfile.ZipFile(AGDC)
+    agdc = tmp_path / "rate0.agdc"
+    with zipfile.ZipFile(agdc, "w") as z:
+        for m in src.infolist():
+            data = src.read(m)
+            if m.filename == "info.txt":
+                data = re.sub(rb"Sample Rate: [^\r\n]*", b"Sample Rate: 0", data)
+            z.writestr(m.filename, data)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(hook), str(ROOT / "host"), os.environ.get("PYTHONPATH", "")]))
+    env.pop("PYTHONWARNINGS", None)
+    runs = {w: subprocess.run([sys.executable, *w, "-m", "accelcal.cli", "calibrate", str(agdc)],
+                              capture_output=True, text=True, timeout=120, env=env)
+            for w in ((), ("-W", "default"))}
+    quiet, loud = runs[()], runs[("-W", "default")]
+    assert quiet.returncode == 2 and len(quiet.stderr.splitlines()) == 1, quiet.stderr
+    assert "RuntimeWarning" in loud.stderr      # the warnings were there to be dropped
