@@ -77,6 +77,21 @@ def _zip(info: str, members=None) -> bytes:
     return buf.getvalue()
 
 
+def _claim(data: bytes, name: str, size: int) -> bytes:
+    """The zip with member `name`'s uncompressed size set to `size` in its central directory
+    entry (and its local header): what a damaged or crafted file claims."""
+    b = bytearray(data)
+    for sig, at in ((b"PK\x01\x02", 24), (b"PK\x03\x04", 22)):
+        i = b.find(sig)
+        while i >= 0:
+            n = 46 if sig == b"PK\x01\x02" else 30
+            ln = int.from_bytes(b[i + (28 if n == 46 else 26):][:2], "little")
+            if bytes(b[i + n:i + n + ln]) == name.encode():
+                b[i + at:i + at + 4] = min(size, 0xFFFFFFFF).to_bytes(4, "little")
+            i = b.find(sig, i + 4)
+    return bytes(b)
+
+
 def gt3x_cases():
     info = zipfile.ZipFile(GT3X).read("info.txt").decode()
     cases = {}
@@ -87,6 +102,8 @@ def gt3x_cases():
         for v in values:
             cases[f"{key} {v}"] = _zip(re.sub(rf"{key}: [^\r\n]*", f"{key}: {v}", info))
     cases["no info.txt"] = _zip(None)
+    for claim in (200 << 20, 1 << 30, 0xFFFFFFFF):    # log.bin's uncompressed size, as claimed
+        cases[f"log.bin claims {claim} bytes"] = _claim(_zip(info), "log.bin", claim)
     cases["not a zip"] = b"PK\x03\x04" + b"\0" * 100
     cases["zip cut short"] = GT3X.read_bytes()[:5000]
     return cases

@@ -29,6 +29,7 @@ CWA_BLOCK = 512
 CWA_MIN_CODE = 5                 # rate code 5 = 6.25 Hz, 15 = 3200 Hz (3200 / 2^(15 - code))
 GT3X_INFO_MAX = 64 * 1024
 GT3X_MEMBER_MAX = 4 << 30        # a member of the zip, uncompressed (a week at 100 Hz is ~0.3 GB)
+DEFLATE_RATIO = 1032              # deflate expands a byte to at most 1032 (258 per 2 bits)
 TICKS_MAX = 3155378975999999999  # .NET DateTime.MaxValue.Ticks
 SCALE_MAX = 1e5                  # ActiGraph "Acceleration Scale": counts per g (256, 341, 1024...)
 
@@ -132,16 +133,20 @@ def check_cwa(head: bytes, path: str, size: int) -> None:
 def check_zip(path: str) -> None:
     """An ActiGraph .gt3x or CentrePoint .agdc: a zip holding info.txt (and log.bin or, in old
     NHANES-format files, activity.bin).  Checked: every member's uncompressed size (at most
-    GT3X_MEMBER_MAX), info.txt's Sample Rate (an integer, RATE_HZ), Acceleration Scale (0 <
+    GT3X_MEMBER_MAX, and what its compressed size can expand to), info.txt's Sample Rate (an integer, RATE_HZ), Acceleration Scale (0 <
     scale <= SCALE_MAX), and dates (ticks within 0..TICKS_MAX, the start not after the last
     sample)."""
     try:
         with zipfile.ZipFile(path) as z:
             members = z.infolist()
-            big = [m for m in members if m.file_size > GT3X_MEMBER_MAX]
+            big = [m for m in members if m.file_size > GT3X_MEMBER_MAX or
+                   m.file_size > DEFLATE_RATIO * m.compress_size + (1 << 20)]
             if big:
-                raise InputError(f"{path}: zip member {big[0].filename[:60]!r} claims "
-                                 f"{big[0].file_size} bytes (at most {GT3X_MEMBER_MAX >> 30} GiB)")
+                m = big[0]
+                raise InputError(f"{path}: zip member {m.filename[:60]!r} claims {m.file_size} "
+                                 f"bytes from {m.compress_size} compressed (at most "
+                                 f"{GT3X_MEMBER_MAX >> 30} GiB, and {DEFLATE_RATIO} times its "
+                                 "compressed size: deflate's limit; a damaged file)")
             try:
                 info = z.getinfo("info.txt")
             except KeyError:
