@@ -212,3 +212,18 @@ def test_library_warnings_never_reach_the_terminal(tmp_path):
     quiet, loud = runs[()], runs[("-W", "default")]
     assert quiet.returncode == 2 and len(quiet.stderr.splitlines()) == 1, quiet.stderr
     assert "RuntimeWarning" in loud.stderr      # the warnings were there to be dropped
+
+
+@pytest.mark.slow
+def test_the_whole_corpus_as_real_processes(tmp_path):
+    """Every case above as a real process (the in-process run cannot see a signal): exit 2, one
+    line on stderr, never a signal (a negative return code), never a traceback."""
+    bad = []
+    for name, ext, data in CORPUS:
+        path = tmp_path / f"damaged{ext}"
+        path.write_bytes(data)
+        r = subprocess.run([sys.executable, "-m", "accelcal.cli", "calibrate", str(path)],
+                           capture_output=True, text=True, timeout=120)
+        if r.returncode != 2 or len(r.stderr.splitlines()) != 1 or "Traceback" in r.stderr:
+            bad.append((name, r.returncode, r.stderr[-300:]))
+    assert not bad, bad
