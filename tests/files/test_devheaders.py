@@ -227,3 +227,18 @@ def test_the_whole_corpus_as_real_processes(tmp_path):
         if r.returncode != 2 or len(r.stderr.splitlines()) != 1 or "Traceback" in r.stderr:
             bad.append((name, r.returncode, r.stderr[-300:]))
     assert not bad, bad
+
+
+def test_a_long_first_page_counts_whole(tmp_path, capsys):
+    """actfast reserves pages x the first page's samples: a first hex line longer than a read
+    (1 MiB) counts whole, so 40 pages after a 3 MB first line are refused (they would reserve
+    ~40 x 3 MB / 12 samples of 20 bytes: 200 MB from a 3 MB file)."""
+    head = BIN[:BIN.index(b"Recorded Data")]
+    page = BIN[BIN.index(b"Recorded Data"):BIN.index(b"Recorded Data", BIN.index(b"Recorded Data") + 1)]
+    hexline = page.rstrip(b"\r\n").rsplit(b"\n", 1)[1].strip()
+    first = page.replace(hexline, hexline * (3_000_000 // len(hexline)))
+    small = page.replace(hexline, hexline[:12])
+    path = tmp_path / "long.bin"
+    path.write_bytes(_field(head, b"Number of Pages", b"40") + first + small * 39)
+    code, _, err = run_main(capsys, ["calibrate", path])
+    assert code == 2 and "hex characters is more than the file's" in err, err

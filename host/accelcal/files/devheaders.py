@@ -54,7 +54,7 @@ def _within(path: str, what: str, v: float, lo: float, hi: float, unit: str = ""
 
 
 def check_bin(path: str) -> None:
-    """A GENEActiv .bin: the 59-line text header, then pages of 9 lines and a hex line.  Checked:
+    """A GENEActiv .bin: the 59-line text header, then pages of "Recorded Data", 8 field lines and a hex line.  Checked:
     the header's rate, gains and offsets, "Number of Pages" (1 to the pages the file holds, and
     pages x the first page's hex line within twice the file's size: actfast reserves that), and
     every page's "Measurement Frequency" (read line by line, a line at most BIN_LINE_MAX)."""
@@ -89,6 +89,8 @@ def check_bin(path: str) -> None:
             line = fh.readline(BIN_LINE_MAX)
             if not line:
                 break
+            if not at_start and found == 1 and n_line == 10:   # the first hex line, continued
+                first_hex += len(line.strip())
             if at_start:
                 if line.startswith(b"Recorded Data"):
                     found, n_line = found + 1, 0
@@ -97,7 +99,7 @@ def check_bin(path: str) -> None:
                     _within(path, what, _number(path, what, line[22:].decode("latin-1")),
                             *RATE_HZ, " Hz")
                 n_line += 1
-                if found == 1 and n_line == 11:      # "Recorded Data", 9 fields, the hex line
+                if found == 1 and n_line == 10:      # "Recorded Data", 8 fields, the hex line
                     first_hex = len(line.strip())
             at_start = line.endswith(b"\n")
     if not 1 <= declared <= found:
