@@ -54,10 +54,10 @@ def _within(path: str, what: str, v: float, lo: float, hi: float, unit: str = ""
 
 
 def check_bin(path: str) -> None:
-    """A GENEActiv .bin: the 59-line text header, then pages of "Recorded Data", 8 field lines and a hex line.  Checked:
-    the header's rate, gains and offsets, "Number of Pages" (1 to the pages the file holds, and
+    """A GENEActiv .bin: the 59-line text header, then pages of "Recorded Data", 8 field lines
+    and a hex line.  Checked: the header's rate, gains and offsets, "Number of Pages" (1 to the pages the file holds, and
     pages x the first page's hex line within twice the file's size: actfast reserves that), and
-    every page's "Measurement Frequency" (read line by line, a line at most BIN_LINE_MAX)."""
+    every page's "Measurement Frequency" (read line by line, BIN_LINE_MAX bytes at a time)."""
     size = os.path.getsize(path)
     with open(path, "rb") as fh:
         head = fh.read(BIN_HEADER_MAX)
