@@ -40,16 +40,35 @@ CALIBRATE = [dict(method="nope"), dict(model="nope"), dict(model=3), dict(profil
              dict(axis=None, min_count=0), dict(max_count=99), dict(min_count=5, max_count=2),
              dict(differ=-1), dict(differ=NAN), dict(select="x"), dict(policy="x"),
              dict(iterations=0), dict(iterations=10 ** 7), dict(rates=(1, 2)),
-             dict(rates="3,8,2"), dict(discover=1), dict(foo=1), dict(cfg="x"), dict(cfg=None, seconds=0)]
-DIAGNOSE = [dict(model="nope"), dict(model=None), dict(model="base+nope"), dict(force="yes")]
+             dict(rates="3,8,2"), dict(discover=1), dict(foo=1), dict(cfg="x"), dict(cfg=None, seconds=0), dict(fallback=3),
+             dict(effects=3)]
+DIAGNOSE = [dict(model="nope"), dict(model=None), dict(model="base+nope"), dict(force="yes"),
+            dict(history=3), dict(plots=b""), dict(effects=1.5)]
 COMPARE = [dict(train="nope"), dict(methods="nope"), dict(methods=3), dict(split="nope"),
            dict(profile="nope"), dict(runtime_name="x"), dict(cfg=5), dict(model="nope")]
-APPLY = [dict(range_g=3), dict(range_g=0), dict(range_g="8"), dict(range_g=NAN)]
+APPLY = [dict(range_g=3), dict(range_g=0), dict(range_g="8"), dict(range_g=NAN), dict(effects=3)]
 SIMULATE = [dict(days=0), dict(days=1e9), dict(days=NAN), dict(days=-1), dict(days="1"),
             dict(days=math.inf), dict(rate_hz=7), dict(rate_hz=25.0), dict(range_g=3),
             dict(seed=-1), dict(seed=1.5), dict(seed=2 ** 40), dict(effects=["nope"]),
             dict(effects="drift"), dict(effects=["drift", "drift"]), dict(force="yes"),
             dict(events_within_days=0)]
+
+
+def test_paths_must_be_paths(good, tmp_path):
+    """A path argument that is not one (an int is a file descriptor to open(): never taken)."""
+    import accelcal
+    d, pts, rec, params = good
+    out = str(tmp_path / "o.csv")
+    for call in (lambda: accelcal.calibrate(3), lambda: accelcal.diagnose(None),
+                 lambda: accelcal.compare(3), lambda: accelcal.apply(3, rec, out),
+                 lambda: accelcal.apply(params, 3, out), lambda: accelcal.apply(params, rec, 3),
+                 lambda: accelcal.simulate_wrist(3, 0.01, 10, 1),
+                 lambda: accelcal.simulate_wrist(None, 0.01, 10, 1),
+                 lambda: accelcal.simulate_wrist(out, 0.01, 10, 1, stimulus=2),
+                 lambda: accelcal.calibrate_file(pts, "x"), lambda: accelcal.calibrate(""),
+                 lambda: accelcal.Job.of(fallback=3)):
+        assert "not a path" in _refused(call) or "a Job" in _refused(call)
+    assert list(tmp_path.iterdir()) == []
 
 
 def _refused(call):

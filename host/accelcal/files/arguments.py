@@ -72,6 +72,17 @@ def choice(name: str, v, choices=None):
     return v
 
 
+def paths(*, required=(), **named) -> None:
+    """Each named argument a path (a str or os.PathLike, not empty); None passes (not given)
+    unless its name is in required."""
+    import os
+    for name, v in named.items():
+        if v is None and name not in required:
+            continue
+        if not isinstance(v, (str, os.PathLike)) or str(v) == "":
+            raise InputError(f"{name}={v!r:.60}: not a path (a str or os.PathLike)")
+
+
 def threshold(v):
     """--threshold: g in (0, 2], or "auto" (None: the profile's)."""
     return v if v is None or v == "auto" else number("threshold", v)

@@ -285,6 +285,7 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
     from accelcal.files import arguments as a
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
+    a.paths(required=("path",), path=path, plots=plots, effects=effects)
     a.choice("train", train)
     a.choice("runtime", runtime_name, runtime.RUNTIMES)
     if cfg is None:

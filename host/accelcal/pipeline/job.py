@@ -34,6 +34,7 @@ class Job:
         is checked as the CLI checks its option (files/arguments.py): InputError, one line."""
         from accelcal.files import arguments as a
         from accelcal.methods import METHODS
+        a.paths(fallback=fallback, effects=effects)
         a.choice("method", method, ["device", *METHODS])
         a.choice("runtime", runtime_name, runtime.RUNTIMES)
         a.choice("points", points)
@@ -81,8 +82,12 @@ def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
     record (pipeline/batch.py).  progress(samples read): a recording's reading."""
+    from accelcal.files.arguments import paths
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    paths(path=path, required=("path",))
+    if not isinstance(job, Job):
+        raise InputError(f"job={job!r:.60}: a Job (accelcal.Job.of(...))")
     spec = job.spec()
     if is_recording(path):
         return calibrate_recording(path, job.cfg, job.method, job.runtime_name, spec, job.engine,

@@ -21,6 +21,7 @@ def simulate_wrist(out_csv: str | Path, days: float = 1.0, rate_hz: int = 25, se
     force: replace files that exist (else InputError, as the CLI without --force)."""
     from accelcal.model.effects import CATALOGUE
     from accelcal.simulate import wearer
+    a.paths(required=("out_csv",), out_csv=out_csv, stimulus=stimulus)
     days = a.number("days", days)
     rate_hz = a.choice("rate", rate_hz)
     range_g = a.choice("range", range_g)
