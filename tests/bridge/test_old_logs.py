@@ -1,6 +1,6 @@
 """Every board-log record layout the app ever wrote still loads (docs/boards-and-logs.md
 "Record layouts"): fixtures written by the log.py of each layout's time (tests/data/oldlogs/,
-made by make_fixtures.py beside them from `git show COMMIT:device/acal/log.py`) decode with no
+made by make_fixtures.py beside them from each commit's own device/acal) decode with no
 record dropped or called malformed, each field as the layout's rule reads it (a BOOT without
 the temperature reference: -128, relative temperatures; without the model: 0; without fit or
 discover: GRADIENT, 0; an EFFECT's whole-degC reference in Q2; a version-3 DISCOVERY's effect

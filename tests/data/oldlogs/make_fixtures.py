@@ -1,6 +1,6 @@
 """Makes the old-log fixtures beside it: one log.bin per record layout the board app ever wrote,
-written by the log.py of that time (`git show COMMIT:device/acal/log.py`, run under CPython
-with its own Log class and FORMATS), so the bytes are what a board of that time wrote.  Run from
+written by the log.py of that time (COMMIT's device/acal, `git archive`d into a scratch folder
+and imported under CPython: its own Log class and FORMATS), so the bytes are what a board of that time wrote.  Run from
 a checkout that has the history: python tests/data/oldlogs/make_fixtures.py.  The layouts:
 docs/boards-and-logs.md "Record layouts"; the test: tests/bridge/test_old_logs.py.
 
@@ -10,7 +10,6 @@ COUNTERS, and a DISCOVERY (temp_offset adopted) where it has it."""
 import struct
 import subprocess
 import sys
-import types
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -24,12 +23,26 @@ TEMP_OFFSET = 1
 
 
 def old_log(commit: str):
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:device/acal/log.py"],
-                         capture_output=True, text=True, check=True).stdout
-    sys.path.insert(0, str(ROOT / "device"))      # acal.emit, acal.fixed (for newer ones)
-    mod = types.ModuleType(f"log_{commit}")
-    exec(compile(src, f"{commit}:device/acal/log.py", "exec"), mod.__dict__)
-    return mod
+    """acal.log as it was at commit, imported from that commit's device/acal (git archive into
+    a scratch folder), so its own acal.emit and acal.fixed come with it, wherever they live now."""
+    import importlib
+    import tarfile
+    import tempfile
+    tmp = Path(tempfile.mkdtemp(prefix=f"acal-{commit}-"))
+    tar = subprocess.run(["git", "-C", str(ROOT), "archive", commit, "device/acal"],
+                         capture_output=True, check=True).stdout
+    import io
+    with tarfile.open(fileobj=io.BytesIO(tar)) as t:
+        t.extractall(tmp, filter="data")
+    for name in [m for m in sys.modules if m == "acal" or m.startswith("acal.")]:
+        del sys.modules[name]
+    sys.path.insert(0, str(tmp / "device"))
+    try:
+        return importlib.import_module("acal.log")     # loaded whole: the folder can go
+    finally:
+        sys.path.remove(str(tmp / "device"))
+        import shutil
+        shutil.rmtree(tmp)
 
 
 def fields(fmt: str) -> int:
