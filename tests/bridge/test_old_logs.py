@@ -60,3 +60,14 @@ def test_report_lists_effects_and_discoveries(name, tmp_path, capsys):
     assert ("discovery at sample 2000 (0.0 h): ADOPTED temp_offset (held-out error -40 %, better "
             "in 7 of 8 held-out blocks)" in out) == disc, out
     assert "malformed" not in out + err
+
+
+def test_report_page_of_an_old_log_shows_its_effect_and_discovery(tmp_path, capsys):
+    (tmp_path / "log.bin").write_bytes((OLD / "disc1-791069c.bin").read_bytes())
+    page = tmp_path / "board.html"
+    code, _, err = run_main(capsys, ["report", tmp_path, "--html", page])
+    assert code == 0, err
+    html = page.read_text()
+    cals, disc = html.split("<h2>Calibrations over time</h2>")[1].split(
+        "<h2>Discovery on the board</h2>")
+    assert "temp_offset" in cals.split("<h2>")[0] and "temp_offset" in disc.split("<h2>")[0]
