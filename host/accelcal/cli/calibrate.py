@@ -136,7 +136,9 @@ def add_parsers(sub) -> None:
                    help="recording (CSV t,x,y,z[,temp][,NAME...]; Axivity .cwa, GENEActiv .bin, ActiGraph "
                         ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default="base",
-                   help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
+                   help="model spec: base (the paper's 9 parameters), auto (base+temp_offset where "
+                        "the data has temperature and that fit calibrates, else base: the GGIR "
+                        "family's choice; docs/real-recordings.md) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
                         "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "

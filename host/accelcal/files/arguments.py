@@ -21,7 +21,7 @@ CHOICES = {"profile": ("wear", "paper"), "axis": ("x", "y", "z", "all"),
            "train": ("selected", "thinned", "all"), "points": ("bins", "all"),
            "rate": (10, 25, 50, 100), "range": (2, 4, 8, 16),
            "split": ("blocks", "first-half", "second-half")}
-AXES = {"x": 0, "y": 1, "z": 2, "all": 3}     # 3: acal.rest.ALL_AXES
+AXES = {"x": 0, "y": 1, "z": 2, "all": 3}     # 3: acal.core.rest.ALL_AXES
 
 
 def flag(name: str) -> str:

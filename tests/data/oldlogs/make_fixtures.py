@@ -23,8 +23,9 @@ TEMP_OFFSET = 1
 
 
 def old_log(commit: str):
-    """acal.log as it was at commit, imported from that commit's device/acal (git archive into
-    a scratch folder), so its own acal.emit and acal.fixed come with it, wherever they live now."""
+    """The board-log module (log.py) as it was at commit, imported from that commit's device
+    package (git archive into a scratch folder), with the modules it imports as they were then,
+    wherever log.py lived at that commit."""
     import importlib
     import tarfile
     import tempfile
@@ -37,8 +38,10 @@ def old_log(commit: str):
     for name in [m for m in sys.modules if m == "acal" or m.startswith("acal.")]:
         del sys.modules[name]
     sys.path.insert(0, str(tmp / "device"))
+    log_py = sorted((tmp / "device").glob("acal/**/log.py"))[0]
+    name = ".".join(log_py.relative_to(tmp / "device").with_suffix("").parts)
     try:
-        return importlib.import_module("acal.log")     # loaded whole: the folder can go
+        return importlib.import_module(name)     # loaded whole: the folder can go
     finally:
         sys.path.remove(str(tmp / "device"))
         import shutil
