@@ -160,8 +160,8 @@ def add_parsers(sub) -> None:
                         "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
                         "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
                         "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy; "
-                        "rp2040-romfs, the same firmware built with a ROMFS partition, the package "
-                        "run in place from /rom")
+                        "rp2040-romfs, the same with a ROMFS partition, the package run from /rom; "
+                        "rv32, an ESP32-C3-class RISC-V MicroPython under qemu, rv32imc .mpy")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "
