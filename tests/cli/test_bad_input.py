@@ -283,7 +283,7 @@ def test_more_points_per_subset_than_the_fits_take_is_one_line(good, capsys):
     from accelcal.cli.options import MAX_PER_SUBSET
     assert MAX_PER_SUBSET == protocol.MAX_PER_SUBSET   # the parser's copy of the bound
     assert N_SUBSETS * MAX_PER_SUBSET <= min(MAX_POINTS, PAPER_MAX_POINTS) < N_SUBSETS * (MAX_PER_SUBSET + 1)
-    with pytest.raises(accelcal.InputError, match="max_count 15"):   # the same from Python
+    with pytest.raises(accelcal.InputError, match=r"--max-count: 15 is outside \[1, 14\]"):  # Python: the CLI's words
         accelcal.calibrate(str(good[1]), max_count=15)
     _, pts, _, _ = good
     for profile in ("wear", "paper"):

@@ -181,7 +181,9 @@ def _add_virtual(bsub) -> None:
                         "on its I2C0 (make setup installs it), on its emulated clock")
     q.add_argument("--flash", help="the board's flash: a folder for the unix port (default "
                                    "vboard-flash), a 2 MB image file for rp2040 (default "
-                                   "vboard-pico.bin, made on first use, saved when the board stops)")
+                                   "vboard-pico.bin, made on first use, saved when the board "
+                                   "stops; an existing file must be such an image by its "
+                                   "content: the RP2040 boot stage, else it is refused)")
     q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
     q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
                    help="without --stimulus: days to simulate (default 1)")

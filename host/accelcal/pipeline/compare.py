@@ -308,8 +308,18 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
     curve (Gietzelt figure 3).  effects: a file of declared effects (registered).  split: how
     the rest points are split (restpoints.SPLIT_RULES: "blocks", the default, or "first-half" /
     "second-half", the half of their time span that trains).  say(message): progress."""
+    from accelcal.files import arguments as a
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
+    a.paths(required=("path",), path=path, plots=plots, effects=effects)
+    a.choice("train", train)
+    a.choice("runtime", runtime_name, runtime.RUNTIMES)
+    if cfg is None:
+        a.choice("profile", profile)
+    elif not isinstance(cfg, runtime.Config):
+        raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
+    if methods is not None and not isinstance(methods, (str, list)):
+        raise InputError(f"methods {methods!r:.60}: a list of names or a string \"lsq,device\"")
     register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     check_rule(split)   # before the file is read

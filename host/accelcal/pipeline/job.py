@@ -30,11 +30,25 @@ class Job:
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
         settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
-        vector under cpython, device under a MicroPython runtime (as the CLI)."""
+        vector under cpython, device under a MicroPython runtime (as the CLI).  Every argument
+        is checked as the CLI checks its option (files/arguments.py): InputError, one line."""
+        from accelcal.files import arguments as a
+        from accelcal.methods import METHODS
+        a.paths(fallback=fallback, effects=effects)
+        a.choice("method", method, ["device", *METHODS])
+        a.choice("runtime", runtime_name, runtime.RUNTIMES)
+        a.choice("points", points)
+        if engine is not None:
+            a.choice("engine", engine)
+        if not isinstance(model, str):
+            raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
         if cfg is None:
-            cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+            cfg = runtime.Config.for_profile(a.choice("profile", profile), "+" in model,
+                                             **a.pipeline_settings(settings))
         elif settings:
-            raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+            raise InputError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+        elif not isinstance(cfg, runtime.Config):
+            raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
         return cls(cfg, method, runtime_name, model,
                    engine or ("vector" if runtime_name == "cpython" else "device"),
                    fallback, points, effects)
@@ -99,8 +113,12 @@ def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
     record (pipeline/batch.py).  progress(samples read): a recording's reading."""
+    from accelcal.files.arguments import paths
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    paths(path=path, required=("path",))
+    if not isinstance(job, Job):
+        raise InputError(f"job={job!r:.60}: a Job (accelcal.Job.of(...))")
     if job.model == AUTO:
         return calibrate_auto(path, job, progress)
     spec = job.spec()

@@ -295,6 +295,10 @@ class BoardReport(dict):
             lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
+            for name, e in c.get("effects", {}).items():   # a composed model's EFFECT records
+                vals = " ".join(f"{n}={v:+.4g}" for n, v in e["params"].items())
+                lines.append(f"{'':>6} effect {name}: {vals} {e['unit']} (reference "
+                             f"{e['ref_temp']:g} degC)")
         lines += [board_discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
         if self["summary"].get("deployed"):
             lines.insert(0, deployed_line(self["summary"]["deployed"]))
