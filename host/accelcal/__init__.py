@@ -21,7 +21,7 @@ _WHERE = {
     "diagnose": "accelcal.pipeline.diagnose",
     "compare": "accelcal.pipeline.compare",
     "apply": "accelcal.pipeline.apply",
-    "simulate_wrist": "accelcal.simulate.wearer",
+    "simulate_wrist": "accelcal.simulate.public",
     "CalibrationResult": "accelcal.pipeline.results",
     "DiagnoseResult": "accelcal.pipeline.results",
     "CompareResult": "accelcal.pipeline.results",

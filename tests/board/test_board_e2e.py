@@ -42,7 +42,8 @@ def mpremote(port, *args):
 
 def test_deploy_acquire_pull_replay_bit_for_bit(board):
     port = board.port
-    r = run_cli("deploy", "--port", port, "--rate", RATE, "--capture-kb", 2048, "--json")
+    r = run_cli("deploy", "--port", port, "--rate", RATE, "--capture-kb", 2048, "--recal-hours",
+                0.25, "--json")
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     from accelcal.board.deploy import APP_MODULES
@@ -51,11 +52,11 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
               for f in (ROOT / "device" / "acal").rglob("*.py")} - {"logger/lis3dh_cp.py"}
     assert info["modules"] == len(APP_MODULES) and set(APP_MODULES) == device
     assert (board.dir / "flash" / "lib" / "acal" / "paper" / "optimiser.py").exists()
-    assert "acal.logger.app.main(rate_hz=10, profile=1, capture_bytes=2097152)" in \
+    assert "acal.logger.app.main(rate_hz=10, profile=1, capture_bytes=2097152, recal_seconds=900)" in \
         (board.dir / "flash" / "main.py").read_text()   # profile 1: wear, the default
 
-    r = run_cli("acquire", "--port", port, "--hours", 2, "--rate", RATE, "--capture-kb", 2048,
-                "--recal-hours", 0.25)
+    # acquire runs with what deploy recorded on the board
+    r = run_cli("acquire", "--port", port, "--hours", 2)
     assert r.returncode == 0, r.stderr
     assert "acal: 3600 s" in r.stderr  # hourly progress lines from the board's console
 

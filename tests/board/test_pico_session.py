@@ -2,6 +2,8 @@
 emulated chip's USB CDC on a pseudo-terminal, and `deploy`, `acquire` and `pull` use that port as
 a Pico's, unchanged.  What the board logged replays on the host bit for bit."""
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -23,13 +25,28 @@ def emulator():
         pytest.skip(f"emulated RP2040 not available: {e}")
 
 
+def mpremote(port, *args):
+    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    return p.stdout
+
+
 def session(tmp_path, app_args, seconds):
     """deploy, acquire `seconds` of board time, pull: (deploy's JSON, pull's JSON, the pulled
     folder)."""
     with virtual.Running(tmp_path / "pico.bin", tmp_path / "stim.bin", "--chip", "rp2040") as b:
+        # an older install's sources (MicroPython imports a .py before the .mpy beside it) and a
+        # module the package no longer has: deploy removes both
+        mpremote(b.port, "exec", "import os\nfor d in ('lib', 'lib/acal', 'lib/acal/core'):\n"
+                 "    os.mkdir(d)\nfor f in ('core/fixed.py', 'orphan.py'):\n"
+                 "    open('lib/acal/' + f, 'w').write('X = 1')")
         r = run_cli("deploy", "--port", b.port, *app_args, "--json")
         assert r.returncode == 0, r.stderr
         info = json.loads(r.stdout)
+        assert sorted(info["stale_removed"]) == ["lib/acal/core/fixed.py", "lib/acal/orphan.py"]
+        out = mpremote(b.port, "exec", "import acal.core.fixed\nprint(acal.core.fixed.__file__)")
+        assert out.strip() == "/lib/acal/core/fixed.mpy"
         r = run_cli("acquire", "--port", b.port, "--hours", seconds / 3600, *app_args)
         assert r.returncode == 0, r.stderr
         out = tmp_path / "pulled"

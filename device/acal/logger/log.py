@@ -14,6 +14,11 @@
 #                          NEWTON), discover (1: the board discovers its own missing effect,
 #                          acal/discover/search.py).  Version 1 (before profiles) lacks fit and
 #                          discover, read as GRADIENT and 0; version 2 lacks discover: 0.
+#                          Version 1 was written in three shorter layouts before: without the
+#                          model (BOOT_V1B: model 0, the paper's), and before that without the
+#                          temperature reference too (BOOT_V1A: -128, temperatures relative;
+#                          its first field the boot's number, not the log's size); all load.
+#                          docs/boards-and-logs.md "Record layouts" tabulates every layout.
 #   REST     <IiiibbH       sample index at the segment's end, mean x y z, temperature (degC:
 #                          OUT_ADC3 + the reference, or relative), subset kept in (-1: none),
 #                          rest segments merged into this record since the last one
@@ -70,6 +75,8 @@ DISCOVERY = 10
 TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
               GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply",
               DISCOVERY: "discovery"}
+BOOT_V1A = "<IHHBHBBBBBHBI"    # the first app's (9562c53): no temperature reference, model
+BOOT_V1B = "<IHHBHBBBBBHBIb"   # with the temperature reference (a3c88e0): no model
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
 BOOT_V2 = "<IHHBHBBBBBHBIbHB"
 FORMATS = {BOOT: "<IHHBHBBBBBHBIbHBB", REST: "<IiiibbH", CAL: "<IHBBBII9i", COUNTERS: "<9I",
@@ -80,6 +87,10 @@ SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 23: a STORE of 4 effects is 145 bytes
 _EFFECT_V1_SIZE = struct.calcsize(EFFECT_V1)     # 22
+# every older layout a record of each kind was written with (unpack reads each; sizes:
+# BOOT 23, 24, 26, 27 beside 28 now; EFFECT 22 beside 23; DISCOVERY 28 beside 29)
+OLD_FORMATS = {BOOT: (BOOT_V1A, BOOT_V1B, BOOT_V1, BOOT_V2), EFFECT: (EFFECT_V1,),
+               DISCOVERY: (DISCOVERY_V1,)}
 MAX_PAYLOAD = 255
 SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
 OVERHEAD = 7             # sync, type, length, CRC
@@ -226,6 +237,10 @@ def unpack(rtype, payload):
     if rtype == SAMPLES:
         first, count, temp = struct.unpack_from(SAMPLES_HEAD, payload, 0)
         return first, count, temp, struct.unpack_from("<%dh" % (3 * count), payload, 6)
+    if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V1A):
+        return struct.unpack(BOOT_V1A, payload) + (-128, 0, 0, 0)
+    if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V1B):
+        return struct.unpack(BOOT_V1B, payload) + (0, 0, 0)
     if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V1):
         return struct.unpack(BOOT_V1, payload) + (0, 0)
     if rtype == BOOT and len(payload) == struct.calcsize(BOOT_V2):

@@ -8,16 +8,19 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from accelcal.bridge import boardlog, rp2040
 from accelcal.bridge.rp2040 import mpy_cross
-from accelcal.errors import InputError
+from accelcal.errors import InputError, require_tool
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
+from accelcal.board import settings as bsettings, tree
 from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG, device_modules
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
+PULLED = (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE, "summary.json")   # what a pull writes
 # The device modules an app needs (paths in the package): every module of the device package but
 # the CircuitPython driver, which goes only to CircuitPython boards.
 CIRCUITPYTHON_ONLY = ("logger/lis3dh_cp.py",)
@@ -32,6 +35,27 @@ def units_run(settings: dict) -> tuple[str, ...]:
     from acal.core import profile
     return BASE_UNITS + (("paper",) if settings.get("profile", profile.DEFAULT) == profile.PAPER
                          else ()) + (("discover",) if settings.get("discover") else ())
+# sys.implementation._mpy >> 10: the native code a MicroPython port loads (MicroPython's
+# py/persistentcode.h MP_NATIVE_ARCH_*; 0: none).  An ESP32 says xtensawin, an ESP32-C3/C6 rv32imc.
+MPY_ARCHS = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "armv7emsp", "armv7emdp",
+             "xtensa", "xtensawin", "rv32imc", "rv64imc")
+
+
+def mpy_arch(mpy: int) -> str | None:
+    """The architecture in a sys.implementation._mpy (None: bytecode only)."""
+    a = (mpy >> 10) & 0xF
+    return MPY_ARCHS[a] if a < len(MPY_ARCHS) else None
+
+
+def board_arch(info: dict, ident: dict) -> str | None:
+    """The arch deploy compiles for: a board file that wants native .mpy (its ARCH) gets the
+    arch the board itself reports, when it reports one with the viper emitter (one esp32.py
+    serves the Xtensa ESP32/S3 and the RISC-V C3/C6); reporting none (a port built without
+    emitters) it gets the sources; a board file without ARCH keeps it."""
+    if not info["ARCH"] or ident.get("arch", info["ARCH"]) == info["ARCH"]:
+        return info["ARCH"]
+    arch = ident.get("arch")
+    return arch if arch in rp2040.EMITTER_ARCHS else None
 
 
 def boards() -> list[str]:
@@ -56,6 +80,7 @@ class Remote:
     """mpremote against one port; every failure becomes a one-line InputError."""
 
     def __init__(self, port: str, timeout: float = 3600):
+        require_tool("mpremote", "mpremote")
         if not port:
             raise InputError("no port given (--port /dev/ttyACM0, or the one `accelcal board virtual` printed)")
         if not port.startswith(("rfc2217:", "socket:")) and not os.path.exists(port):
@@ -100,13 +125,16 @@ class Remote:
         probe = float(os.environ.get("ACCELCAL_REPL_TIMEOUT", "20"))
         out = self.exec(timeout=probe, code="import sys, os\n"
                         "print('ACAL', sys.implementation.name, sys.platform, "
-                        "getattr(sys.implementation, '_mpy', 0) & 0xff)\n"
+                        "getattr(sys.implementation, '_mpy', -1))\n"
                         "print('FILES', ' '.join('%s:%d' % (f, os.stat(f)[6]) for f in os.listdir()))")
         info = {"implementation": None, "platform": None, "mpy": 0, "files": [], "sizes": {}}
         for line in out.splitlines():
             parts = line.split()
             if parts[:1] == ["ACAL"] and len(parts) >= 4:
-                info.update(implementation=parts[1], platform=parts[2], mpy=int(parts[3]))
+                mpy = int(parts[3])
+                info.update(implementation=parts[1], platform=parts[2], mpy=max(mpy, 0) & 0xff)
+                if mpy >= 0:       # the port says which native code it loads
+                    info["arch"] = mpy_arch(mpy)
             elif parts[:1] == ["FILES"]:
                 for item in parts[1:]:
                     name, _, size = item.rpartition(":")
@@ -120,22 +148,6 @@ class Remote:
 # A CircuitPython board's drive is read-only to code unless boot.py remounts it at power-up, and
 # then read-only to the computer (docs/boards-and-logs.md "CircuitPython on the Feather RP2040").
 BOOT_PY_HEAD = "# Written by `accelcal deploy`: the app logs to this drive."
-
-
-# MicroPython code defining rm(path): a file or a folder and all it holds, gone (none: nothing).
-REMOVE_TREE = """import os
-def rm(p):
-    try:
-        st = os.stat(p)[0]
-    except OSError:
-        return
-    if st & 0x4000:
-        for f in os.listdir(p):
-            rm(p + '/' + f)
-        os.rmdir(p)
-    else:
-        os.remove(p)
-"""
 
 
 def boot_py() -> str:
@@ -155,9 +167,14 @@ def main_py(settings: dict) -> str:
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=lambda m: None, units: str = "all") -> dict:
-    """units: "all" (every install unit of the package) or "run" (those the settings run:
-    units_run; an acquire with other settings then needs a deploy with them)."""
+           write_main: bool = True, say=lambda m: None, units: str = "all",
+           options: dict | None = None) -> dict:
+    """The package onto the board so that exactly its files remain in :lib/acal (staged in
+    :lib/.acal-new, then swapped in: the old package, its stale .py/.mpy and modules or units
+    the new one does not have removed, and any shadowing :acal), the board file, main.py, and
+    the settings (options: the app options as the command line named them) in
+    :acal_settings.json.  units: "all" (every install unit of the package) or "run" (those the
+    settings run: units_run; acquire runs with the recorded settings)."""
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -166,6 +183,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
             raise InputError(f"{port}: unknown platform {ident['platform']!r}; say which board with "
                              f"--board ({', '.join(boards())})")
     info = board_info(board)
+    info["ARCH"] = board_arch(info, ident)
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
@@ -179,31 +197,33 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
         pkg = Path(tmp) / "acal"
         pkg.mkdir()
         files, what = package_files(info, modules, pkg)
+        fmt = "mpy" if what.startswith(".mpy") else "py"
         others = board_files(info, settings or {}, write_main, Path(tmp), head)
+        (Path(tmp) / bsettings.SETTINGS_FILE).write_text(
+            bsettings.settings_text(options or {}, settings or {}, board, fmt))
+        others.append((Path(tmp) / bsettings.SETTINGS_FILE, bsettings.SETTINGS_FILE))
         say(f"deploying acal ({len(files)} modules, {what}) and board {board} to {port}")
         if circuitpython and "boot.py" not in [remote for _, remote in others]:
             say("boot.py: the board's own kept; the app needs it to remount the drive writable "
                 "(storage.remount(\"/\", readonly=False))")
-        # The package installed before (stale modules of the other kind, .py beside .mpy, or of
-        # an older layout would shadow or confuse): removed whole, then its folders made.
-        folders = sorted({f"lib/acal/{m.rpartition('/')[0]}".rstrip("/") for m in modules})
-        r.exec(REMOVE_TREE + "rm('lib/acal')\nimport os\n"
-               f"for d in ('lib', {', '.join(map(repr, folders))}):\n    try:\n        os.mkdir(d)\n"
-               "    except OSError:\n        pass\n")
+        rels = [f.relative_to(pkg).as_posix() for f in files]
+        folders = sorted({str(Path(x).parent) for x in rels} - {"."}, key=lambda d: d.count("/"))
+        r.exec(tree.stage_code(folders))
         cmd = []
-        for folder in folders:
-            cmd += [*(["+"] if cmd else []), "fs", "cp",
-                    *(str(f) for f, m in zip(files, modules)
-                      if f"lib/acal/{m.rpartition('/')[0]}".rstrip("/") == folder), f":{folder}/"]
+        for local, rel in zip(files, rels):
+            cmd += ["fs", "cp", str(local), f":{tree.STAGE}/{rel}", "+"]
         for local, remote in others:
-            cmd += ["+", "fs", "cp", str(local), f":{remote}"]
-        r.run(*cmd)
+            cmd += ["fs", "cp", str(local), f":{remote}", "+"]
+        r.run(*cmd[:-1])
+    stale = tree.swap_report(r.exec(tree.swap_code()), rels)
+    if stale:
+        say(f"removed {len(stale)} stale file(s) the new package does not have: {' '.join(stale)}")
     check = r.exec("import acal.logger.app, acal_board\nprint('ACAL_OK', acal.logger.app.VERSION)")
     if "ACAL_OK" not in check:
         raise InputError(f"{port}: deployed, but `import acal.logger.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
             "units": list(wanted or BASE_UNITS + ("paper", "discover")),
-            "format": files[0].suffix[1:], "main_py": write_main,
+            "format": fmt, "arch": info["ARCH"], "main_py": write_main, "stale_removed": stale,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 
 
@@ -244,11 +264,11 @@ def board_files(info: dict, settings: dict, write_main: bool, dest: Path,
     return out
 
 
-def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path], str]:
-    """The modules as the board loads them, written into pkg, and what they are: .mpy for the
-    board's ARCH (MicroPython: PyPI's mpy-cross), CircuitPython's .mpy from its own mpy-cross
-    (committed with its firmware: a source checkout has it; MicroPython's .mpy it refuses), else
-    the sources."""
+def package_files(info: dict, sources: list[Path], pkg: Path) -> tuple[list[Path], str]:
+    """The modules (sources: paths relative to the device package) as the board loads them,
+    written into pkg in the same subfolders, and what they are: .mpy for the board's ARCH
+    (MicroPython: PyPI's mpy-cross), CircuitPython's .mpy from its own mpy-cross (committed with
+    its firmware: a source checkout has it; MicroPython's .mpy it refuses), else the sources."""
     fw, what = None, "sources"
     if info["ARCH"]:
         fw, what = rp2040.MICROPYTHON, f".mpy for {info['ARCH']}"
@@ -259,9 +279,9 @@ def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path]
         except InputError as e:   # an installed accelcal has no firmware/: the sources run too
             what = f"sources: no CircuitPython mpy-cross here ({e})"
     files = []
-    for m in modules:
-        src = DEVICE_PKG / m
-        dst = pkg / f"{m[:-3]}.{'mpy' if fw else 'py'}"
+    for rel in map(Path, sources):
+        src = DEVICE_PKG / rel
+        dst = pkg / rel.with_suffix(".mpy" if fw else ".py")
         dst.parent.mkdir(parents=True, exist_ok=True)
         if fw:
             mpy_cross(src, dst, info["ARCH"], fw)
@@ -271,12 +291,25 @@ def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path]
     return files, what
 
 
-def acquire(port: str, seconds: int, settings: dict, say=lambda m: None) -> str:
-    """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can)."""
+def recorded_settings(r: Remote, ident: dict) -> dict | None:
+    """What deploy recorded on the board (settings.py), or None: deployed before it recorded them."""
+    if bsettings.SETTINGS_FILE not in ident["files"]:
+        return None
+    text = r.exec(f"print(open({bsettings.SETTINGS_FILE!r}).read())")
+    return bsettings.parse(text, r.port)
+
+
+def acquire(port: str, seconds: int, resolve, say=lambda m: None) -> str:
+    """Run the deployed app for `seconds` of board time (the virtual board: as fast as it can),
+    with the settings resolve(the app options deploy recorded, or None) gives."""
     r = Remote(port, timeout=24 * 3600)
     ident = r.identify()
     if "lib" not in ident["files"] or "acal_board.py" not in ident["files"]:
         raise InputError(f"{port}: accelcal is not deployed there (run `accelcal deploy --port {port}`)")
+    recorded = recorded_settings(r, ident)
+    if recorded is None:
+        say(f"{port}: no settings recorded by deploy (an older deploy): the options given here")
+    settings = resolve(None if recorded is None else recorded["options"])
     args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
     code = (f"import acal.logger.app\napp = acal.logger.app.main({args})\n"
             "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
@@ -294,44 +327,55 @@ def check_pull_dir(outdir: str | Path, force: bool = False) -> Path:
         pid = stale.name[len(".pull-"):-len(".partial")]
         if pid.isdigit() and not pid_running(int(pid)):
             shutil.rmtree(stale, ignore_errors=True)
-    held = [f for f in (*boardlog.LOG_FILES, "summary.json") if (out / f).exists()]
+    held = [f for f in PULLED if (out / f).exists()]
     if held and not force:
         raise InputError(f"{outdir}: already holds {', '.join(held)} (an earlier pull); add "
                          "--force to replace them, or choose another folder")
     return out
 
 
-def pull(port: str, outdir: str | Path, say=lambda m: None, force: bool = False) -> dict:
-    """Copy the logs off the board into outdir and decode them.  The files are copied into a
-    temporary folder inside it and renamed into place once all have arrived; then the files of
-    an earlier pull (--force) that this one does not hold are removed."""
+def pull(port: str, outdir: str | Path, say=lambda m: None, force: bool = False,
+         progress=lambda done, total: None) -> dict:
+    """Copy the logs (and the settings deploy recorded) off the board into outdir and decode
+    them (transfer.fetch: base64 blocks in one raw-REPL program, each file's size and CRC-32
+    checked; progress(bytes, total) as they arrive).  The files are copied into a temporary
+    folder inside it and renamed into place once all have arrived; then the files of an earlier
+    pull (--force) that this one does not hold are removed."""
+    from accelcal.board import transfer
     out = check_pull_dir(outdir, force)
     r = Remote(port, timeout=3600)
     ident = r.identify()
-    present = [f for f in boardlog.LOG_FILES if f in ident["files"]]
+    present = [f for f in (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE) if f in ident["files"]]
     if "log.bin" not in present:
         raise InputError(f"{port}: no accelcal log.bin on this board (not ours, or never run); "
                          f"it holds: {' '.join(ident['files'][:12]) or 'nothing'}")
     total = sum(ident["sizes"].get(f, 0) for f in present)
-    if total > 200000:  # mpremote moves about 60 kB/s
-        say(f"copying {total / 1e6:.1f} MB over mpremote (about {total / 60000:.0f} s)...")
     tmp = out / f".pull-{os.getpid()}.partial"
     tmp.mkdir(exist_ok=True)
+    t0 = time.monotonic()
     try:
-        cmd = []
-        for f in present:
-            cmd += ["fs", "cp", f":{f}", str(tmp / f), "+"]
-        r.run(*cmd[:-1])
+        transfer.fetch(port, present, tmp, progress, total=total)
         for f in present:
             os.replace(tmp / f, out / f)
         # the whole earlier pull goes (--force): none of its files stays beside the new log
-        for f in (*boardlog.LOG_FILES, "summary.json"):
+        for f in PULLED:
             if f not in present and (out / f).exists():
                 (out / f).unlink()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    took = time.monotonic() - t0
     sizes = {f: (out / f).stat().st_size for f in present}
-    say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out}")
+    say(f"pulled {', '.join(f'{f} ({n} B)' for f, n in sizes.items())} into {out} in {took:.1f} s "
+        f"({sum(sizes.values()) / max(took, 1e-3) / 1e3:.0f} kB/s)")
     summ = boardlog.summary(out)
+    deployed = read_deployed(out)
+    if deployed is not None:
+        summ["deployed"] = deployed
     write_text(out / "summary.json", json.dumps(summ, indent=1))
     return summ
+
+
+def read_deployed(folder: Path) -> dict | None:
+    """The settings deploy recorded, as a pull brought them (None: not recorded)."""
+    f = Path(folder) / bsettings.SETTINGS_FILE
+    return bsettings.parse(f.read_text(), str(f)) if f.exists() else None

@@ -73,13 +73,47 @@ def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(),
         return PicoRun(p.stdout, files, json.loads((t / "report.json").read_text()))
 
 
+def _crc32_mpeg2(data: bytes) -> int:
+    """CRC-32/MPEG-2 (polynomial 0x04C11DB7, not reflected, init 0xFFFFFFFF): the RP2040 boot
+    ROM's check of the second-stage bootloader (RP2040 datasheet 2.8.1.3.1)."""
+    crc = 0xFFFFFFFF
+    for b in data:
+        crc ^= b << 24
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x04C11DB7) if crc & 0x80000000 else crc << 1
+            crc &= 0xFFFFFFFF
+    return crc
+
+
+def looks_like_flash_image(head: bytes) -> str | None:
+    """None when `head` (a file's first 264 bytes) begins as an RP2040 flash image does: a
+    256-byte boot2 whose last 4 bytes are the CRC the boot ROM checks over the first 252, then
+    the firmware's vector table (the initial stack pointer in SRAM, the reset handler a Thumb
+    address in flash); else what is missing."""
+    if len(head) < 264:
+        return "shorter than a boot stage and a vector table"
+    if _crc32_mpeg2(head[:252]) != int.from_bytes(head[252:256], "little"):
+        return "no RP2040 boot stage: its first 256 bytes fail the boot ROM's CRC"
+    sp, reset = int.from_bytes(head[256:260], "little"), int.from_bytes(head[260:264], "little")
+    if not (0x20000000 <= sp <= 0x20042000 and 0x10000000 <= reset < 0x11000000 and reset & 1):
+        return "no firmware vector table after the boot stage"
+    return None
+
+
 def check_flash_image(path, stimulus=None) -> Path:
-    """The emulated Pico's flash: a new file, or one this board saved before (2 MB exactly), so
-    that no other file is ever taken for a flash image and overwritten."""
+    """The emulated Pico's flash: a new file, or one this board saved before, recognised by its
+    content (2 MB exactly, beginning with the RP2040's boot stage and a vector table), never by
+    its size alone: no other file is ever taken for a flash image and overwritten (a user's
+    2 MiB CSV was, when only the size was checked)."""
     p = check_output(path, [stimulus], True, "--flash")
-    if p.exists() and p.stat().st_size != rp2040.FLASH_SIZE:
-        raise InputError(f"{path}: not an emulated Pico's flash image ({p.stat().st_size} bytes, "
-                         f"an image has {rp2040.FLASH_SIZE}); give a new file name")
+    if p.exists():
+        size = p.stat().st_size
+        with open(p, "rb") as fh:
+            why = looks_like_flash_image(fh.read(264))
+        if size != rp2040.FLASH_SIZE or why:
+            raise InputError(f"{path}: not an emulated Pico's flash image ("
+                             f"{why if size == rp2040.FLASH_SIZE else f'{size} bytes, an image has {rp2040.FLASH_SIZE}'}"
+                             "); give a new file name")
     return p
 
 

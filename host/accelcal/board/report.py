@@ -18,8 +18,12 @@ def board_report(*, pulled_dir: str, html: str | None = None, force: bool = Fals
     if html:
         check_output(html, [d / "log.bin"], force, "--html")
     summ = boardlog.summary(d)
+    from accelcal.board.deploy import read_deployed
+    deployed = read_deployed(d)     # what deploy recorded on the board (None: not recorded)
+    if deployed is not None:
+        summ["deployed"] = deployed
     boots = boardlog.decode(d / "log.bin").dicts(boardlog.log.BOOT)
-    rate = boots[-1]["rate_hz"] if boots else None
+    rate = boots[-1]["rate_hz"] if boots else (deployed or {}).get("app", {}).get("rate_hz")
     cals = summ["calibrations"]
     if html:
         import io

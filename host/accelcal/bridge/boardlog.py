@@ -108,8 +108,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         if n < 6 or (n - 6) % 6 or payload[4] != (n - 6) // 6 or payload[4] > log.SAMPLES_PER_RECORD:
             return f"{name} record of {n} bytes does not hold the samples it counts"
         return None
-    sizes = ((_SIZES[rtype], struct.calcsize(log.BOOT_V1), struct.calcsize(log.BOOT_V2))
-             if rtype == log.BOOT else (_SIZES[rtype],))
+    # every layout the app ever wrote (log.OLD_FORMATS; docs/boards-and-logs.md "Record layouts")
+    sizes = (_SIZES[rtype], *(struct.calcsize(f) for f in log.OLD_FORMATS.get(rtype, ())))
     if n not in sizes:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)

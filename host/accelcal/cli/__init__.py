@@ -24,6 +24,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     from accelcal.files.outputs import forget_inputs
     forget_inputs()
+    if not sys.warnoptions:   # a library's warnings (numpy's on a damaged file) are not our lines
+        import warnings
+        warnings.simplefilter("ignore")
     ap = build_parser()
     args = ap.parse_args(argv)
     try:

@@ -37,10 +37,6 @@ def _app_settings(args) -> dict:
         if args.fifo:
             raise InputError("--fifo and --registers: one reader, not both")
         s["fifo"] = False
-        print(f"accelcal: warning: --registers at {args.rate} Hz: the app reads a sample a period "
-              "and falls behind, losing samples (the emulated Pico: 1 in 200 at 10 Hz, 76 in 1000 "
-              "at 100 Hz; docs/boards-and-logs.md); the FIFO, the default, loses none",
-              file=sys.stderr)
     if args.recal_hours is not None:
         s["recal_seconds"] = int(args.recal_hours * 3600)
     if args.discover:
@@ -63,10 +59,27 @@ def _app_settings(args) -> dict:
     return s
 
 
+def _warn_slow_reader(args) -> None:
+    """One line before the board starts when its reader cannot keep up (measured)."""
+    if args.registers:
+        print(f"accelcal: warning: --registers at {args.rate} Hz: the app reads a sample a period "
+              "and falls behind, losing samples (the emulated Pico: 1 in 200 at 10 Hz, 76 in 1000 "
+              "at 100 Hz; docs/boards-and-logs.md); the FIFO, the default, loses none",
+              file=sys.stderr)
+
+
+def _app_options(args) -> dict:
+    """The app options as given (the "app settings" group), what deploy records on the board."""
+    return {dest: getattr(args, dest) for dest in args.app_flags}
+
+
 def cmd_deploy(args) -> int:
     from accelcal.board import deploy
-    r = deploy.deploy(args.port, args.board, _app_settings(args), write_main=not args.no_main,
-                      say=lambda m: print(m, file=sys.stderr), units=args.units)
+    settings = _app_settings(args)
+    _warn_slow_reader(args)
+    r = deploy.deploy(args.port, args.board, settings, write_main=not args.no_main,
+                      say=lambda m: print(m, file=sys.stderr), units=args.units,
+                      options=_app_options(args))
     print(json.dumps(r) if args.json else
           f"deployed to {r['port']}: board {r['board']} ({r['platform']}), {r['modules']} modules as "
           f".{r['format']} ({', '.join(r['units'])})"
@@ -77,16 +90,39 @@ def cmd_deploy(args) -> int:
 
 
 def cmd_acquire(args) -> int:
-    from accelcal.board import deploy
-    deploy.acquire(args.port, int(args.hours * 3600), _app_settings(args),
-                       say=lambda m: print(m, file=sys.stderr, flush=True))
+    import argparse
+    from accelcal.board import deploy, settings
+    given = _app_options(args)
+    # the options given, checked before the board is touched (the defaults for those not given)
+    _app_settings(argparse.Namespace(**{**vars(args), **{
+        d: args.app_defaults[d] if v is None else v for d, v in given.items()}}))
+
+    def resolve(recorded: dict | None) -> dict:
+        """The settings deploy recorded on the board (None: a board deployed before they were
+        recorded), an app option given here checked against them; acal.logger.app.main's arguments."""
+        for dest, value in settings.resolve(given, args.app_defaults, args.app_flags, recorded,
+                                            args.port).items():
+            setattr(args, dest, value)
+        app = _app_settings(args)
+        _warn_slow_reader(args)
+        return app
+
+    deploy.acquire(args.port, int(args.hours * 3600), resolve,
+                   say=lambda m: print(m, file=sys.stderr, flush=True))
     return 0
 
 
 def cmd_pull(args) -> int:
     from accelcal.board import deploy
-    s = deploy.pull(args.port, args.output, say=lambda m: print(m, file=sys.stderr),
-                        force=args.force)
+    from tqdm import tqdm
+    # a bar for a person watching (a terminal): bytes, rate and time left as measured so far
+    with tqdm(unit="B", unit_scale=True, desc="pull", file=sys.stderr, leave=False,
+              disable=not sys.stderr.isatty()) as bar:
+        def progress(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+        s = deploy.pull(args.port, args.output, say=lambda m: print(m, file=sys.stderr),
+                        force=args.force, progress=progress)
     if args.json:
         print(json.dumps(s))
         return 0
@@ -114,6 +150,9 @@ def _print_summary(s, where):
     from accelcal.pipeline.results import board_discovery_line
     for d in s.get("discoveries", []):
         print("  " + board_discovery_line(d))
+    if s.get("deployed"):
+        from accelcal.pipeline.results import deployed_line
+        print("  " + deployed_line(s["deployed"]))
     if s["stored_calibration"]:
         print(f"  stored calibration: number {s['stored_calibration']['number']} (slot {s['stored_calibration']['slot']})")
     for d in s["dropped"]:
@@ -157,7 +196,9 @@ def _add_virtual(bsub) -> None:
                         "on its I2C0 (make setup installs it), on its emulated clock")
     q.add_argument("--flash", help="the board's flash: a folder for the unix port (default "
                                    "vboard-flash), a 2 MB image file for rp2040 (default "
-                                   "vboard-pico.bin, made on first use, saved when the board stops)")
+                                   "vboard-pico.bin, made on first use, saved when the board "
+                                   "stops; an existing file must be such an image by its "
+                                   "content: the RP2040 boot stage, else it is refused)")
     q.add_argument("--stimulus", help="stimulus file (from `simulate wrist --stimulus`)")
     q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
                    help="without --stimulus: days to simulate (default 1)")
@@ -178,17 +219,17 @@ def add_parsers(sub) -> None:
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     _add_virtual(bsub)
 
-    def app_args(q):
-        g = q.add_argument_group("app settings")
+    def app_args(q, recorded=False):
+        """The app settings; recorded: acquire's, whose options default to what deploy
+        recorded on the board (given, they must agree with it)."""
+        g = q.add_argument_group("app settings" + (" (default: as deployed; given, they must "
+                                                   "agree with what deploy recorded)" if recorded else ""))
         g.add_argument("--rate", type=int, choices=[10, 25, 50, 100, 200, 400], default=100,
                        help="output data rate, Hz (default 100)")
         g.add_argument("--capture-kb", type=int_in(0, 1 << 20), default=0,
                        help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
-        g.add_argument("--fifo", action="store_true",
-                       help="read the FIFO, drained past its watermark (10 bits; the default)")
-        g.add_argument("--registers", action="store_true",
-                       help="read the output registers instead (12 bits, a bus transaction a "
-                            "sample: loses samples, warned about)")
+        g.add_argument("--fifo", action="store_true", help="read the FIFO past its watermark (default)")
+        g.add_argument("--registers", action="store_true", help="read the output registers (warned: loses samples)")
         g.add_argument("--recal-hours", type=float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "
@@ -204,6 +245,12 @@ def add_parsers(sub) -> None:
                             "every effect of its catalogue, scores them on rest points of held-out "
                             "2-hour blocks, adopts one by diagnose's rule and logs a DISCOVERY "
                             "record (wear profile, base model)")
+        acts = g._group_actions
+        q.set_defaults(app_flags={a.dest: a.option_strings[0] for a in acts},
+                       app_defaults={a.dest: a.default for a in acts})
+        if recorded:
+            for a in acts:
+                a.default = None
 
     p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "
@@ -229,7 +276,7 @@ def add_parsers(sub) -> None:
                                    "shows its hourly progress lines.")
     p.add_argument("--port", required=True)
     p.add_argument("--hours", type=float_in(0, 87600, lo_open=True), required=True, help="hours of board time")
-    app_args(p)
+    app_args(p, recorded=True)
     p.set_defaults(func=cmd_acquire)
 
     p = sub.add_parser("pull", help="copy a board's logs off and decode them",

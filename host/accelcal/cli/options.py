@@ -8,6 +8,7 @@ import math
 from dataclasses import replace
 
 from accelcal.errors import InputError, one_line
+from accelcal.files.arguments import AXES, CHOICES, FLOATS, INTS, outside_float, outside_int
 
 
 class Parser(argparse.ArgumentParser):
@@ -31,7 +32,7 @@ def int_in(lo, hi):
         except ValueError:
             raise argparse.ArgumentTypeError(f"{s!r} is not a whole number") from None
         if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{v} is outside [{lo}, {hi}]")
+            raise argparse.ArgumentTypeError(outside_int(v, lo, hi))
         return v
     parse.__name__ = "int"
     return parse
@@ -45,8 +46,7 @@ def float_in(lo, hi, lo_open=False):
         except ValueError:
             raise argparse.ArgumentTypeError(f"{s!r} is not a number") from None
         if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
-            raise argparse.ArgumentTypeError(
-                f"{s} is outside {'(' if lo_open else '['}{lo:g}, {hi:g}]")
+            raise argparse.ArgumentTypeError(outside_float(s, lo, hi, lo_open))
         return v
     parse.__name__ = "float"
     return parse
@@ -86,28 +86,28 @@ def threshold(s):
         v = float(s)
     except ValueError:
         raise argparse.ArgumentTypeError("a number of g (e.g. 0.05) or auto") from None
-    if not 0 < v <= 2:
-        raise argparse.ArgumentTypeError("must be in (0, 2] g, or auto")
+    lo, hi, lo_open = FLOATS["threshold"]
+    if not (math.isfinite(v) and lo < v <= hi):
+        raise argparse.ArgumentTypeError(outside_float(s, lo, hi, lo_open) + " g, or auto")
     return v
 
 
-AXES = {"x": 0, "y": 1, "z": 2, "all": 3}  # 3: acal.core.rest.ALL_AXES
 
 
 def add_pipeline_args(p):
     g = p.add_argument_group("device pipeline",
                              "--profile sets every default below; an option given overrides it.")
-    g.add_argument("--profile", choices=["wear", "paper"], default="wear",
+    g.add_argument("--profile", choices=CHOICES["profile"], default="wear",
                    help="wear (default): rest on all axes against a threshold from the sensor's "
                         "measured noise, 8 points per subset (14 for a composed model), a "
                         "Gauss-Newton fit to the optimum "
                         "with outlier rejection, ready on coverage; paper: Farago 2024 to the "
                         "letter (x axis, 0.12 g, 2 points per subset, 50 gradient steps)")
-    g.add_argument("--seconds", type=int_in(1, 3600), default=5, help="rest segment length, s (default 5)")
+    g.add_argument("--seconds", type=int_in(*INTS["seconds"]), default=5, help="rest segment length, s (default 5)")
     g.add_argument("--threshold", type=threshold, default=None,
                    help="max-min rest threshold, g, or auto (from the measured noise); "
                         "default: wear auto, paper 0.12")
-    g.add_argument("--axis", choices=["x", "y", "z", "all"], default=None,
+    g.add_argument("--axis", choices=CHOICES["axis"], default=None,
                    help="axis for the rest test, or all; default: wear all, paper x")
     g.add_argument("--min-count", type=int_in(1, MAX_PER_SUBSET), default=None,
                    help="points per subset to calibrate (default 2)")
@@ -115,12 +115,12 @@ def add_pipeline_args(p):
                    help="points kept per subset (default: wear 8, 14 for a composed model; paper "
                         f"2, 4 for a composed model); at most {MAX_PER_SUBSET}: both fits take at "
                         "most 128 points, the count their integer sums are proven for")
-    g.add_argument("--differ", type=float_in(0, 2), default=0.1,
+    g.add_argument("--differ", type=float_in(*FLOATS["differ"][:2]), default=0.1,
                    help="a new rest mean must differ by this much (max-norm, g) from held points (default 0.1)")
-    g.add_argument("--select", choices=["centre", "first"], default="centre",
+    g.add_argument("--select", choices=CHOICES["select"], default="centre",
                    help="point selection once a subset is full: centre (replace by better-placed points) "
                         "or first (first come, as printed in the paper)")
-    g.add_argument("--iterations", type=int_in(1, 100000), default=None,
+    g.add_argument("--iterations", type=int_in(*INTS["iterations"]), default=None,
                    help="optimiser iterations (default: wear up to 20 Gauss-Newton steps per "
                         "round; paper 50, 200 for a composed model)")
     g.add_argument("--rates", type=rates, default=(3, 8, 2), metavar="S,M,O",

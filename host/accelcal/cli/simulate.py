@@ -9,6 +9,7 @@ import numpy as np
 
 from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
+from accelcal.files.arguments import CHOICES, FLOATS
 from accelcal.files.outputs import FORCE_HELP, atomic, check_output, write_text
 
 
@@ -41,7 +42,7 @@ def cmd_simulate_paper(args) -> int:
 
 def cmd_simulate_wrist(args) -> int:
     from accelcal.model.effects import CATALOGUE
-    from accelcal.simulate import wearer
+    from accelcal.simulate import public
     register_effects(args)
     for name in args.effect:
         if name not in CATALOGUE:
@@ -57,8 +58,9 @@ def cmd_simulate_wrist(args) -> int:
     def progress(done, total):
         print(f"\rsimulated {done / (86400 * args.rate):5.2f} of {args.days:g} days", end="",
               file=sys.stderr, flush=True)
-    truth = wearer.simulate_wrist(out, args.days, args.rate, args.seed, effects=args.effect,
-                                  stimulus=args.stimulus, range_g=args.range, progress=progress)
+    truth = public.simulate_wrist(out, args.days, args.rate, args.seed, effects=args.effect,
+                                  stimulus=args.stimulus, range_g=args.range, progress=progress,
+                                  force=args.force)
     print(file=sys.stderr)
     h = ", ".join(f"{k} {v:.1f} h" for k, v in truth["hours"].items())
     print(f"wrote {truth['samples']} samples to {out}, truth to {out.with_suffix('.truth.json')}"
@@ -91,10 +93,10 @@ def add_parsers(sub) -> None:
                                     "temperature trace.  Writes the recording CSV (t,x,y,z,temp), its "
                                     "truth as NAME.truth.json, and with --stimulus the virtual board's "
                                     "input (before quantisation: the simulated chip quantises).")
-    q.add_argument("--days", type=float_in(0, 3650, lo_open=True), default=1.0,
+    q.add_argument("--days", type=float_in(*FLOATS["days"][:2], lo_open=True), default=1.0,
                    help="days of wear (default 1)")
-    q.add_argument("--rate", type=int, choices=[10, 25, 50, 100], default=25, help="Hz (default 25)")
-    q.add_argument("--range", type=int, choices=[2, 4, 8, 16], default=2, help="full scale, g (default 2)")
+    q.add_argument("--rate", type=int, choices=CHOICES["rate"], default=25, help="Hz (default 25)")
+    q.add_argument("--range", type=int, choices=CHOICES["range"], default=2, help="full scale, g (default 2)")
     q.add_argument("--seed", type=int_in(0, 2 ** 32 - 1), default=1)
     q.add_argument("--stimulus", metavar="FILE.bin", help="also write the stimulus for `board virtual`")
     from accelcal.model.effects import CATALOGUE

@@ -89,7 +89,9 @@ def add_parsers(sub) -> None:
                        description="Measured in one run: optimiser time (N=18, M=50) under both "
                                    "runtimes, rest-detector cost per sample as a ratio to a bare "
                                    "loop, bytes allocated per sample and per optimiser run, "
-                                   "the fits' slices, the app on the simulated LIS3DH.")
+                                   "the fits' slices, the app on the simulated LIS3DH, and a file "
+                                   "pulled off the virtual board (and the emulated Pico with "
+                                   "--runtime rp2040) by mpremote fs cp and by pull's copy.")
     p.add_argument("--runtime", choices=["micropython", "rp2040", "rp2040-romfs", "circuitpython"],
                    default="micropython",
                    help="micropython (default): the unix port, the 32-bit port and CPython, with "

@@ -27,6 +27,7 @@ import numpy as np
 from accelcal.errors import InputError
 from accelcal.files.checks import MAX_ABS_G, TEMP_RANGE_C, check_values
 from accelcal.files.csvpieces import parsed
+from accelcal.files.devheaders import check_cwa, check_device_file
 from accelcal.files.readers import ACTIGRAPHY, is_recording, layout, recording_columns  # noqa: F401
 
 # Which file is a recording, and its header's names: files/readers.py (the one rule).
@@ -65,8 +66,11 @@ class Chunk:
         return self._xyz
 
 
-def gap_limit(rate_hz: int) -> float:
-    return max(1.5 / rate_hz, GAP_S)
+def gap_limit(rate_hz: float) -> float:
+    """A gap: a step in time over 1 s and over 2.5 sample periods (at rates under 2.5 Hz a
+    block's timestamps place samples up to a period off: an AX3 at 1.5625 Hz steps 0.44-1.08 s
+    where a block's whole-second timestamp falls between two samples)."""
+    return max(2.5 / rate_hz, GAP_S)
 
 
 class Recording:
@@ -82,6 +86,7 @@ class Recording:
         self.has_temp = False
         self.columns: list[str] = []    # further named columns (CSV only), Chunk.cols
         self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
+        self.overlapping_pages: int | None = None   # a paged format's (GENEActiv), resolved
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         raise NotImplementedError
@@ -157,7 +162,9 @@ def _actfast(path: str, fmt: str) -> dict:
     import actfast
     try:
         return actfast.read(path)
-    except Exception as e:  # actfast raises its own errors for corrupt or unknown files
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except BaseException as e:  # actfast's own errors, and a Rust panic (a BaseException)
         raise InputError(f"{path}: not a readable {fmt} file "
                          f"({' '.join(str(e).split())[:200]})") from None
 
@@ -171,13 +178,18 @@ def _group(timeseries: dict, key: str) -> dict | None:
     return None
 
 
-def _columns(data: dict):
-    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None)."""
+def _columns(data: dict, paged: bool = False):
+    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None).
+    paged: a GENEActiv file, whose overlapping page times are resolved first (files/pagetimes.py;
+    the count in data["overlapping_pages"])."""
     ts = data.get("timeseries", {})
     hf = _group(ts, "acceleration")
     if hf is None:
         return None
     t = hf["datetime"].astype(np.float64) / 1e9
+    if paged:
+        from accelcal.files.pagetimes import resolve_overlaps
+        data["overlapping_pages"] = resolve_overlaps(t)
     lf = _group(ts, "temperature")
     temp = None
     if lf is not None:
@@ -255,6 +267,7 @@ class ActigraphyRecording(Recording):
         super().__init__(path)
         ext = Path(path).suffix.lower()
         self.format = ACTIGRAPHY[ext]
+        check_device_file(path)     # what the readers trust, before they see the file
         data, cols = {}, None
         why = "CentrePoint .agdc files are read by pygt3x"
         if ext != ".agdc":    # actfast does not know CentrePoint files: pygt3x reads them
@@ -265,7 +278,7 @@ class ActigraphyRecording(Recording):
                     raise
                 why = str(e).removeprefix(f"{path}: ")   # an old NHANES-format .gt3x, say
             self.format = data.get("format", self.format)
-            cols = _columns(data) if data else None
+            cols = _columns(data, ext == ".bin") if data else None
             if data and cols is None:
                 why = "actfast reads no samples from this ActiGraph file (a GT9X Link?)"
         if cols is None and ext in (".gt3x", ".agdc"):
@@ -277,10 +290,13 @@ class ActigraphyRecording(Recording):
         if cols is None or not len(cols[0]):
             raise InputError(f"{path}: {self.format} file holds no acceleration samples")
         self.t, self.xyz, self.temp = cols
+        _check_samples(path, self.t, self.xyz, self.temp, 0)
         self.has_temp = self.temp is not None
         self.meta = data.get("metadata", {})
         self.warnings = [" ".join(str(w).split()) for w in data.get("warnings", [])]
         self.range_g = _declared_range(self.meta)
+        if ext == ".bin":   # pages whose times overlapped, placed as the maker's readers place them
+            self.overlapping_pages = data.get("overlapping_pages", 0)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         n = len(self.t)
@@ -304,11 +320,10 @@ class CwaRecording(Recording):
         super().__init__(path)
         self.format = "Axivity CWA"
         with open(path, "rb") as fh:
-            head = fh.read(4)
-        if len(head) < 4 or head[:2] != b"MD":
-            raise InputError(f"{path}: not an Axivity CWA file (no 'MD' header packet)")
-        self.header_len = int.from_bytes(head[2:4], "little") + 4
+            head = fh.read(1024 + self.BLOCK)
         size = Path(path).stat().st_size
+        check_cwa(head, path, size)     # the header packet and the first block's rate
+        self.header_len = int.from_bytes(head[2:4], "little") + 4
         self.n_blocks = max(0, (size - self.header_len) // self.BLOCK)
         if self.n_blocks == 0:
             raise InputError(f"{path}: {self.format} file holds no data blocks")
@@ -341,6 +356,7 @@ class CwaRecording(Recording):
             if cols is None:
                 continue
             t, xyz, temp = cols
+            _check_samples(self.path, t, xyz, temp, first)
             if self.has_temp and temp is None:   # a piece without a reading: hold the last
                 temp = np.full(len(t), held[0])
             yield Chunk(t, None, temp if self.has_temp else None, first, axes=xyz)
@@ -349,6 +365,22 @@ class CwaRecording(Recording):
             first += len(t)
         if first == 0:
             raise InputError(f"{self.path}: {self.format} file holds no acceleration samples")
+
+
+def _check_samples(path: str, t, xyz, temp, first: int) -> None:
+    """What a device reader gave, as check_values bounds a CSV's: finite times, accelerations
+    within MAX_ABS_G, temperatures within TEMP_RANGE_C; InputError naming the sample."""
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(xyz) <= MAX_ABS_G).all(axis=1) | ~np.isfinite(t)
+        if temp is not None:
+            bad |= ~((temp >= TEMP_RANGE_C[0]) & (temp <= TEMP_RANGE_C[1]))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{path}: sample {first + i}: t {t[i]:g} s, x/y/z {xyz[i][0]:g} "
+                         f"{xyz[i][1]:g} {xyz[i][2]:g} g, temperature "
+                         f"{'-' if temp is None else f'{temp[i]:g}'} degC: not what a device "
+                         f"reads (|g| <= {MAX_ABS_G:g}, {TEMP_RANGE_C[0]:g}..{TEMP_RANGE_C[1]:g} "
+                         "degC; a damaged file)")
 
 
 def _declared_range(meta: dict) -> float | None:

@@ -125,10 +125,15 @@ def apply(params: str, path: str, output: str, *, device: str | None = None,
     """`accelcal apply`: the parameters saved at params (calibrate --save; device: which device
     of a --by file) applied to the recording at path, written to output (never one of the
     inputs; force: replace it).  effects: a file of declared effects the model uses."""
+    from accelcal.files.arguments import choice, paths
     from accelcal.files.outputs import check_output
     from accelcal.files.params import load_params
     from accelcal.files.readers import is_recording
     from accelcal.model.declared import register
+    paths(required=("params", "path", "output"), params=params, path=path, output=output,
+          effects=effects)
+    if range_g is not None:
+        choice("range", range_g)
     register(effects)
     model, p_int, ref = load_params(params, device)
     if not is_recording(path):

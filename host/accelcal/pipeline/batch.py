@@ -29,6 +29,33 @@ def batch_record(path: str, job: Job) -> CalibrationResult:
     return rec
 
 
+def _child(path: str, job: Job, conn) -> None:
+    conn.send(batch_record(path, job))
+    conn.close()
+
+
+def isolated_record(path: str, job: Job, ctx) -> CalibrationResult:
+    """batch_record in a process of its own: if a native reader kills it (an abort, a signal,
+    memory), that is this file's status, "failed", with the signal named."""
+    import signal
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(path, job, send), daemon=True)
+    proc.start()
+    send.close()
+    try:
+        rec = recv.recv()
+    except EOFError:
+        rec = None
+    proc.join()
+    if rec is not None:
+        return rec
+    code = proc.exitcode or 0
+    how = (f"signal {signal.Signals(-code).name}" if code < 0 and -code in signal.valid_signals()
+           else f"exit {code}")
+    return CalibrationResult.failed(path, f"the process reading the file died ({how}): a file "
+                                    "its reader cannot survive (a damaged file?)")
+
+
 def run_local(paths: list[str], job: Job, jobs: int, done=lambda rec: None) -> list[CalibrationResult]:
     """The batch on a process pool of `jobs` workers (1: in this process).  Records in the
     order of paths."""
@@ -40,16 +67,25 @@ def run_local(paths: list[str], job: Job, jobs: int, done=lambda rec: None) -> l
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures.process import BrokenProcessPool
         # forkserver: workers do not inherit Arrow's or BLAS's threads mid-flight
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("forkserver")) as ex:
+        ctx = mp.get_context("forkserver")
+        lost: list[int] = []
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as ex:
             futs = {ex.submit(batch_record, p, job): i for i, p in enumerate(paths)}
             for f in as_completed(futs):
                 i = futs[f]
                 try:
                     out[i] = f.result()
+                except BrokenProcessPool:   # a worker died: every file not done is lost with it
+                    lost.append(i)
+                    continue
                 except Exception as e:  # the worker died (killed, out of memory)
                     out[i] = CalibrationResult.failed(paths[i], f"worker lost: {type(e).__name__}: {e}")
                 done(out[i])
+        for i in sorted(lost):   # each again in a process of its own: one death, one file's status
+            out[i] = isolated_record(paths[i], job, ctx)
+            done(out[i])
     return [out[i] for i in range(len(paths))]
 
 

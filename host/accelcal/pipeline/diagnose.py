@@ -63,8 +63,18 @@ def diagnose(path: str, model: str = "base", plots: str | None = None, *,
     this step is appended to; report: a folder for report.html (force: replace it); effects: a
     file of declared effects (registered; never written over).  Every output is checked before
     the analysis."""
+    from accelcal.files.arguments import paths
     from accelcal.model.declared import register
+    paths(required=("path",), path=path, plots=plots, history=history, report=report, effects=effects)
+    if not isinstance(model, str):
+        raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
+    if not isinstance(force, bool):
+        raise InputError(f"force={force!r:.40}: True or False")
     register(effects)
+    try:
+        ModelSpec.parse(model)   # before any output is checked or the file read
+    except ValueError as e:
+        raise InputError(str(e)) from None
     reads = [path, effects]
     if history:   # appended to, only if a history: checked here, before the analysis
         check_output(history, reads, True, "--history")

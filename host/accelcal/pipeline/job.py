@@ -30,23 +30,40 @@ class Job:
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
         settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
-        vector under cpython, device under a MicroPython runtime (as the CLI)."""
+        vector under cpython, device under a MicroPython runtime (as the CLI).  Every argument
+        is checked as the CLI checks its option (files/arguments.py): InputError, one line."""
+        from accelcal.files import arguments as a
+        from accelcal.methods import METHODS
+        a.paths(fallback=fallback, effects=effects)
+        a.choice("method", method, ["device", *METHODS])
+        a.choice("runtime", runtime_name, runtime.RUNTIMES)
+        a.choice("points", points)
+        if engine is not None:
+            a.choice("engine", engine)
+        if not isinstance(model, str):
+            raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
         if cfg is None:
-            cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+            cfg = runtime.Config.for_profile(a.choice("profile", profile), "+" in model,
+                                             **a.pipeline_settings(settings))
         elif settings:
-            raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+            raise InputError(f"settings {', '.join(settings)} given with cfg: give one or the other")
+        elif not isinstance(cfg, runtime.Config):
+            raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
         return cls(cfg, method, runtime_name, model,
                    engine or ("vector" if runtime_name == "cpython" else "device"),
                    fallback, points, effects)
 
     def spec(self):
         """The job's model, its options checked (bad options are bad input, before any file is
-        read)."""
+        read).  AUTO: the paper's model is checked here; calibrate_file chooses."""
         from accelcal.model.declared import register
         from accelcal.model.effects import ModelSpec
         register(self.effects)   # a worker process starts with the built-in catalogue
+        if self.model == AUTO and (self.method not in ("device", "lsq") or self.cfg.discover):
+            raise InputError(f"--model {AUTO} chooses between base and {AUTO_MODEL}, fitted by "
+                             "--method device or lsq, without --discover")
         try:
-            spec = ModelSpec.parse(self.model)
+            spec = ModelSpec.parse("base" if self.model == AUTO else self.model)
         except ValueError as e:
             raise InputError(str(e)) from None
         if spec.effects and self.method not in ("device", "lsq"):
@@ -63,13 +80,47 @@ class Job:
         return spec
 
 
+AUTO = "auto"
+AUTO_MODEL = "base+temp_offset"
+
+
+def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
+    """`--model auto`: the GGIR family's default, a temperature offset beside the paper's model
+    where the data has temperature (base+temp_offset, fitted with the composed model's settings:
+    pipeline/compare.py composed_config), the paper's model where it has none or the composed
+    fit does not calibrate (its spread not reached: too short, too little temperature range).
+    The record says which (`model`, and `auto` with the reason); docs/real-recordings.md
+    "Temperature in the default" gives the held-out figures it was chosen by."""
+    from dataclasses import replace
+    from accelcal.pipeline.compare import composed_config
+    composed = replace(job, model=AUTO_MODEL, cfg=composed_config(job.cfg),
+                       points="all" if job.method == "lsq" else job.points)
+    try:
+        rec = calibrate_file(path, composed, progress)
+        if rec.ok:
+            rec["auto"] = "temperature in the data: the paper's model and a temperature offset"
+            return rec
+        why = f"{AUTO_MODEL} did not calibrate ({rec.get('reason')})"
+    except InputError as e:   # no temperature column, say
+        why = f"{AUTO_MODEL} does not apply ({str(e).removeprefix(f'{path}: ')})"
+    rec = calibrate_file(path, replace(job, model="base"), progress)
+    rec["auto"] = f"the paper's model: {why}"
+    return rec
+
+
 def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
     """One file's record, a recording or a points file (one device): status calibrated,
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
     record (pipeline/batch.py).  progress(samples read): a recording's reading."""
+    from accelcal.files.arguments import paths
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    paths(path=path, required=("path",))
+    if not isinstance(job, Job):
+        raise InputError(f"job={job!r:.60}: a Job (accelcal.Job.of(...))")
+    if job.model == AUTO:
+        return calibrate_auto(path, job, progress)
     spec = job.spec()
     if is_recording(path):
         return calibrate_recording(path, job.cfg, job.method, job.runtime_name, spec, job.engine,
@@ -92,6 +143,9 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
     if job.fallback:
         raise InputError("--fallback is one device's calibration; --by calibrates each device "
                          "of the file")
+    if job.model == AUTO:
+        raise InputError(f"--model {AUTO} chooses per file; with --by name the model (base or "
+                         f"{AUTO_MODEL})")
     spec = job.spec()
     if is_recording(path):
         raise InputError(f"{path}: --by applies to points files; this is a recording")
@@ -104,8 +158,8 @@ def calibrate(path: str, *, model: str = "base", method: str = "device", profile
               effects: str | None = None, progress=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
-    and after (mg) and, for a recording, its quality.  settings: Job.of's (engine, cfg, or
-    runtime.Config fields)."""
+    and after (mg) and, for a recording, its quality.  model: a spec, or "auto"
+    (calibrate_auto).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
                                        runtime_name=runtime, fallback=fallback, points=points,
                                        effects=effects, **settings), progress)

@@ -86,7 +86,7 @@ class CalibrationResult(dict):
             ex = r["excluded"]
             tr = r["temp_range_c"]
             lines.append(
-                f"{head}{r['file']} ({r['format']}, {r['rate_hz']} Hz): {r['hours']:.2f} h, "
+                f"{head}{r['file']} ({r['format']}, {r['rate_hz']:g} Hz): {r['hours']:.2f} h, "
                 f"{r['gaps']} gaps, {r['still_windows']} still windows kept (excluded: "
                 f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
                 f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
@@ -112,6 +112,11 @@ class CalibrationResult(dict):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if "auto" in r:   # --model auto (pipeline/job.py calibrate_auto)
+            lines.append(f"  model auto: {r['auto']}")
+        if r.get("model_from") == "discovery":
+            lines.append(f"  the model the discovery ended with (saved and applied as such); the "
+                         f"base fit: {r['base_fit']['error_after_mg']:.2f} mg after")
         if "discovery" in r:
             lines.append("  " + discovery_line(r["discovery"]))
         return "\n".join(lines)
@@ -224,7 +229,8 @@ class CompareResult(dict):
 
     @property
     def any_calibrated(self) -> bool:
-        return any(r["status"] == "calibrated" for r in self["rows"])
+        """Any method fitted (a row worse than no calibration was fitted too, and says so)."""
+        return any(r["status"] in ("calibrated", "worse_than_none") for r in self["rows"])
 
     def table(self) -> str:
         """The table `compare` prints."""
@@ -241,9 +247,11 @@ class CompareResult(dict):
                  hdr, "-" * (len(hdr) + 20)]
         for r, name in zip(self["rows"], names):
             head = f"{name:<{w}}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
-            if r["status"] == "calibrated":
+            if r["status"] in ("calibrated", "worse_than_none"):
                 imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
-                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  ok")
+                verdict = "ok" if r["status"] == "calibrated" else \
+                    f"WORSE than no calibration ({r['error_after_mg'] / r['error_before_mg']:.1f}x)"
+                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  {verdict}")
             else:
                 lines.append(f"{head}{'-':>10}{'-':>11}  FAILED: {r['reason']}")
         return "\n".join(lines)
@@ -287,8 +295,22 @@ class BoardReport(dict):
             lines.append(f"{c['number']:>6} {h} {c['status']:<34} {c['points']:>6}  {c['kxx']:.5f}  "
                          f"{c['kyy']:.5f}  {c['kzz']:.5f}  {c['ox'] * 1e3:6.2f}  "
                          f"{c['oy'] * 1e3:6.2f}  {c['oz'] * 1e3:6.2f}")
+            for name, e in c.get("effects", {}).items():   # a composed model's EFFECT records
+                vals = " ".join(f"{n}={v:+.4g}" for n, v in e["params"].items())
+                lines.append(f"{'':>6} effect {name}: {vals} {e['unit']} (reference "
+                             f"{e['ref_temp']:g} degC)")
         lines += [board_discovery_line(d, rate) for d in self["summary"].get("discoveries", [])]
+        if self["summary"].get("deployed"):
+            lines.insert(0, deployed_line(self["summary"]["deployed"]))
         return "\n".join(lines)
+
+
+def deployed_line(s: dict) -> str:
+    """The settings deploy recorded on the board (board/settings.py), as its command line gave
+    them: the app options away from their unset value."""
+    opts = " ".join(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v}")
+                    for k, v in sorted(s.get("options", {}).items()) if v not in (None, False))
+    return f"deployed with {opts} (board {s.get('board')}, modules as .{s.get('modules')})"
 
 
 def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:

@@ -41,7 +41,10 @@ def awake(short: tuple, long: tuple) -> tuple[float, float]:
 
 
 def measure_sleep() -> dict:
+    import sys
     from accelcal.simulate.stimulus import calibration_dance
+    print("the app sleeping between drains on the emulated Pico (a few minutes)...",
+          file=sys.stderr)
     truth = [1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04]
     res = {}
     with tempfile.TemporaryDirectory() as tmp:

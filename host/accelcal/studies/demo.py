@@ -63,7 +63,6 @@ def main() -> int:
         common = ["--port", board.port, "--rate", str(RATE), "--capture-kb", "8192"]
         cli("deploy", *common)
         cli("acquire", "--hours", str(24 * DAYS), *common)
-        print("(the capture is ~5.5 MB: mpremote copies it at about 60 kB/s)")
         cli("pull", "--port", board.port, "-o", str(work / "pulled"))
     rep = cli("replay", str(work / "pulled"))
     cli("report", str(work / "pulled"), "--html", str(work / "board.html"), "--force", quiet=True)
