@@ -57,7 +57,7 @@ def bin_cases():
 
 def cwa_cases():
     cases = {f"header length {v}": _put(CWA, 2, v.to_bytes(2, "little")) for v in (0, 4, 0xFFFF)}
-    for v in (0, 1, 0x40):     # rate codes 0, 1: 0.1 Hz, 0.2 Hz
+    for v in (0, 0x40, 0x80):  # rate code 0 (0.1 Hz) at three ranges
         cases[f"header rate byte {v}"] = _put(CWA, 36, bytes([v]))
         cases[f"first block rate byte {v}"] = _put(CWA, 1024 + 24, bytes([v]))
     cases["first block not AX"] = _put(CWA, 1024, b"ZZ")

@@ -9,7 +9,7 @@ length and the rate byte of its first block place and space every sample we hand
 read here, cheaply, and checked against the file's size and physical bounds: a file that fails
 is one line (InputError) naming the field, its value and the bound.  Bounds, from the devices'
 datasheets with a margin: sample rates 1-1000 Hz for GENEActiv and ActiGraph (they sample at
-10-100 Hz and 30-100 Hz), 6.25-3200 Hz for Axivity (its rate codes); GENEActiv gains 1..2^20
+10-100 Hz and 30-100 Hz), 0.195-3200 Hz for Axivity (its accelerometer's rate codes 1-15); GENEActiv gains 1..2^20
 (about 25 000 per g on real devices) and offsets within +-2^20; ActiGraph dates as .NET ticks.
 docs/real-recordings.md "Damaged headers"; tests/files/test_devheaders.py holds a corpus."""
 from __future__ import annotations
@@ -26,7 +26,9 @@ BIN_LINE_MAX = 1 << 20           # a page's hex line is 3600 characters on real 
 GAIN_MAX = 1 << 20
 CWA_HEADER_LEN = 1020            # the 'MD' packet's length field (cwa.h: 1024 bytes in all)
 CWA_BLOCK = 512
-CWA_MIN_CODE = 5                 # rate code 5 = 6.25 Hz, 15 = 3200 Hz (3200 / 2^(15 - code))
+CWA_MIN_CODE = 1                 # rate code 1 = 0.195 Hz, 15 = 3200 Hz (3200 / 2^(15 - code)): the
+                                 # ADXL345's codes; AX3 tools offer 6.25 Hz up, but slow clocks
+                                 # (1.5625 Hz, code 4) are real recordings; code 0 is refused
 GT3X_INFO_MAX = 64 * 1024
 GT3X_MEMBER_MAX = 4 << 30        # a member of the zip, uncompressed (a week at 100 Hz is ~0.3 GB)
 DEFLATE_RATIO = 1032              # deflate expands a byte to at most 1032 (258 per 2 bits)
@@ -112,8 +114,8 @@ def check_bin(path: str) -> None:
 
 def check_cwa(head: bytes, path: str, size: int) -> None:
     """An Axivity .cwa: the 'MD' header packet (its length field 1020: 1024 bytes in all), its
-    sample-rate byte, and the first data block ('AX', its rate byte): a rate code 5-15
-    (6.25-3200 Hz); `head` is the file's first 1024 + 512 bytes."""
+    sample-rate byte, and the first data block ('AX', its rate byte): a rate code 1-15
+    (0.195-3200 Hz); `head` is the file's first 1024 + 512 bytes."""
     if len(head) < 4 or head[:2] != b"MD":
         raise InputError(f"{path}: not an Axivity CWA file (no 'MD' header packet)")
     length = int.from_bytes(head[2:4], "little")
@@ -129,7 +131,7 @@ def check_cwa(head: bytes, path: str, size: int) -> None:
         if code < CWA_MIN_CODE:
             raise InputError(f"{path}: {where}'s sample-rate byte 0x{head[at]:02x} is "
                              f"{3200 / 2 ** (15 - code):g} Hz (an Axivity samples at "
-                             f"6.25-3200 Hz; a damaged header, the file is not read)")
+                             f"0.195-3200 Hz; a damaged header, the file is not read)")
 
 
 def check_zip(path: str) -> None:
