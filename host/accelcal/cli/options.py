@@ -12,7 +12,13 @@ from accelcal.errors import InputError, one_line
 
 class Parser(argparse.ArgumentParser):
     """An option error is one line (and exit 2) like every other bad input, with the command's
-    --help named for the details."""
+    --help named for the details.  A long option is taken only as spelled in full: argparse's
+    prefix matching (allow_abbrev) is off here and in every subcommand's parser (add_parser
+    makes them of this class), so `--effect` is an unknown option, never `--effects`."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")

@@ -202,7 +202,7 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.heldout", description=__doc__,
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.heldout", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--effects", default=",".join(CASES))

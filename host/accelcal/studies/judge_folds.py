@@ -65,7 +65,7 @@ def row(how, fold, points, r0, rc, better, blocks) -> dict:
 def main(argv=None) -> int:
     from accelcal.simulate import wearer
     from accelcal.studies.heldout import FIT_DAYS, RATE
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.judge_folds", description=__doc__,
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.judge_folds", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("case", help="clean or a catalogue effect hidden in the wrist")
     ap.add_argument("seed", type=int)
