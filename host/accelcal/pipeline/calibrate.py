@@ -362,7 +362,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     r = runtime.run([g], cfg, runtime_name)[0]
     if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
         r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level
-    rec = CalibrationResult(file=path, format=sc.format, model=str(spec), method=method,
+    rec = CalibrationResult(file=str(path), format=sc.format, model=str(spec), method=method,
                             runtime=runtime_name)
     rec.update(quality(sc, m))
     if rec_in.warnings:

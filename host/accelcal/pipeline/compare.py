@@ -206,7 +206,7 @@ def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str =
         except ValueError as e:
             raise InputError(str(e)) from None
         rows += composed_rows(spec, sp, cfg, runtime_name, before)
-    return CompareResult(input=path, profile=cfg.profile, split=sp.how, training=training,
+    return CompareResult(input=str(path), profile=cfg.profile, split=sp.how, training=training,
                          rest_points={"train": len(sp.train), "heldout": len(sp.test)},
                          heldout="every held-out rest point",
                          metric="mean | |a| - 1 g |, mg (Farago Table 3)", rows=rows), sp
@@ -272,18 +272,22 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def compare(path: str, *, methods: str | list[str] | None = None, model: str = "base",
+def compare(path, *, methods: str | list[str] | None = None, model: str = "base",
             cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
             runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
-            split: str = "blocks", say=lambda m: None) -> CompareResult:
+            split: str = "blocks", say=lambda m: None, rate: float | None = None, temp=None,
+            time=None) -> CompareResult:
     """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
     same training points and scored on the same held-out ones; with a composed model two more
     rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
     curve (Gietzelt figure 3).  effects: a file of declared effects (registered).  split: how
     the rest points are split (restpoints.SPLIT_RULES: "blocks", the default, or "first-half" /
     "second-half", the half of their time span that trains).  say(message): progress."""
+    from accelcal.files.arrays import as_input
+    from accelcal.files.readers import path_of
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
+    path = as_input(path, rate, temp, time)
     register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     check_rule(split)   # before the file is read
@@ -294,13 +298,13 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
     if cfg is None:
         cfg = runtime.Config.for_profile(profile, bool(spec.effects))
     if plots:
-        check_output_dir(plots, [path], "--plots")
+        check_output_dir(plots, [path_of(path)], "--plots")
     out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec, split)
     if plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, runtime_name)
         png = Path(plots) / "training_curve.png"
-        plot_curve(curve, png, f"{Path(path).name}: held-out error against training vectors "
+        plot_curve(curve, png, f"{Path(str(path)).name}: held-out error against training vectors "
                                "(first n in time order)")
         out["training_curve"] = curve
         out["plots"] = [str(png)]

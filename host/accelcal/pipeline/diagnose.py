@@ -55,17 +55,21 @@ STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
 
 
 
-def diagnose(path: str, model: str = "base", plots: str | None = None, *,
+def diagnose(path, model: str = "base", plots: str | None = None, *,
              history: str | None = None, report: str | None = None, force: bool = False,
-             effects: str | None = None) -> DiagnoseResult:
+             effects: str | None = None, rate: float | None = None, temp=None,
+             time=None) -> DiagnoseResult:
     """`accelcal diagnose`: the model's held-out error beside the noise floor, where it fails,
     and the missing effect named (or none).  plots: a folder for its figures; history: a file
     this step is appended to; report: a folder for report.html (force: replace it); effects: a
     file of declared effects (registered; never written over).  Every output is checked before
     the analysis."""
+    from accelcal.files.arrays import as_input
+    from accelcal.files.readers import path_of
     from accelcal.model.declared import register
+    path = as_input(path, rate, temp, time)
     register(effects)
-    reads = [path, effects]
+    reads = [path_of(path), effects]
     if history:   # appended to, only if a history: checked here, before the analysis
         check_output(history, reads, True, "--history")
         check_history(history)
@@ -164,7 +168,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                                test_block)
         explanation += " " + (remains["text"] if remains else
                               complete_text(err, said, wrist["floor_mg"]))
-    out = DiagnoseResult(model=str(spec), input=path, split=halves.how,
+    out = DiagnoseResult(model=str(spec), input=str(path), split=halves.how,
                          rest_points={"train": len(train), "heldout": len(test)},
                          heldout_error_mg=err, noise_floor_mg=floor, noise_floor_measured=measured,
                          wrist_floor_mg=wrist["floor_mg"], wrist_floor_pairs=wrist["pairs"],

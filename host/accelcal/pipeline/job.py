@@ -99,13 +99,16 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
                             job.points)
 
 
-def calibrate(path: str, *, model: str = "base", method: str = "device", profile: str = "wear",
+def calibrate(path, *, model: str = "base", method: str = "device", profile: str = "wear",
               runtime: str = "cpython", fallback: str | None = None, points: str = "bins",
-              effects: str | None = None, progress=None, **settings) -> CalibrationResult:
+              effects: str | None = None, progress=None, rate: float | None = None, temp=None,
+              time=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
     and after (mg) and, for a recording, its quality.  settings: Job.of's (engine, cfg, or
     runtime.Config fields)."""
+    from accelcal.files.arrays import as_input
+    path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
                                        runtime_name=runtime, fallback=fallback, points=points,
                                        effects=effects, **settings), progress)

@@ -97,7 +97,8 @@ class Record(dict):
         return ""
 
     def __repr__(self):
-        return f"<{type(self).__name__} {self._repr_fields()}>".replace(" >", ">")
+        fields = self._repr_fields()
+        return f"<{type(self).__name__}{' ' + fields if fields else ''}>"
 
     def _repr_pretty_(self, p, cycle):   # IPython: the short repr, not the dict
         p.text(repr(self))
