@@ -45,7 +45,7 @@ def cmd_calibrate(args) -> int:
         from dataclasses import replace
         cfg = replace(cfg, discover=True)
     job = Job.of(cfg=cfg, model=args.model,
-                 method=args.method, runtime_name=args.runtime, engine=args.engine,
+                 method=args.method, runtime=args.runtime, engine=args.engine,
                  fallback=args.fallback, points=args.points or "bins", effects=args.effects)
     job.spec()   # bad options are bad input, before any file is read or written
     if args.save:

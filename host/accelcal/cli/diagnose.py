@@ -54,8 +54,8 @@ def cmd_compare(args) -> int:
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = args.json or not sys.stderr.isatty()
     out = compare(args.input, methods=args.methods, model=args.model, train=args.train,
-                  cfg=pipeline_config(args, args.model != "base"), runtime_name=args.runtime,
-                  plots=args.plots, split=args.split, say=(lambda m: None) if quiet else say)
+                  cfg=pipeline_config(args, args.model != "base"), runtime=args.runtime,
+                  plots=args.plots, split=args.split, progress=None if quiet else say)
     if args.json:
         print(out.to_json())
     else:

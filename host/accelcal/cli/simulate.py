@@ -57,7 +57,7 @@ def cmd_simulate_wrist(args) -> int:
     def progress(done, total):
         print(f"\rsimulated {done / (86400 * args.rate):5.2f} of {args.days:g} days", end="",
               file=sys.stderr, flush=True)
-    truth = wearer.simulate_wrist(out, args.days, args.rate, args.seed, effects=args.effect,
+    truth = wearer.simulate_wrist(out, args.days, args.rate, args.seed, effect=args.effect,
                                   stimulus=args.stimulus, range_g=args.range, progress=progress)
     print(file=sys.stderr)
     h = ", ".join(f"{k} {v:.1f} h" for k, v in truth["hours"].items())

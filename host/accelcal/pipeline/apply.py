@@ -14,6 +14,7 @@ from accelcal.files.outputs import atomic
 from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample
 from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
+from accelcal.vocabulary import documented
 
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
@@ -133,6 +134,7 @@ def params_of(params, device: str | None = None) -> tuple[str, list[int], dict]:
     return load_params(params, device)
 
 
+@documented
 def apply(params, path, output: str | None = None, *, device: str | None = None,
           range_g: int | None = None, force: bool = False, effects: str | None = None,
           rate: float | None = None, temp=None, time=None):

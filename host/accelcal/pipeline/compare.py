@@ -28,10 +28,12 @@ import numpy as np
 from acal import fixed, optimiser
 from accelcal import methods
 from accelcal.bridge import runtime
+from accelcal.bridge.runtime import Config
 from accelcal.pipeline.results import CompareResult
 from accelcal.pipeline.restpoints import (RestPoints, check_coverage, check_rule, rest_points,
                                           split, usable)
 from accelcal.errors import InputError
+from accelcal.vocabulary import documented
 from accelcal.fixedpoint import params_to_float
 from accelcal.files.table import read_table
 from accelcal.files.outputs import check_output_dir, save_figure
@@ -272,22 +274,25 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     plt.close(fig)
 
 
+@documented
 def compare(path, *, methods: str | list[str] | None = None, model: str = "base",
             cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
-            runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
-            split: str = "blocks", say=lambda m: None, rate: float | None = None, temp=None,
+            runtime: str = "cpython", plots: str | None = None, effects: str | None = None,
+            split: str = "blocks", progress=None, rate: float | None = None, temp=None,
             time=None) -> CompareResult:
     """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
     same training points and scored on the same held-out ones; with a composed model two more
     rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
     curve (Gietzelt figure 3).  effects: a file of declared effects (registered).  split: how
     the rest points are split (restpoints.SPLIT_RULES: "blocks", the default, or "first-half" /
-    "second-half", the half of their time span that trains).  say(message): progress."""
+    "second-half", the half of their time span that trains).  progress(message): what is
+    being done, with an estimate for the slow methods (de)."""
     from accelcal.files.arrays import as_input
     from accelcal.files.readers import path_of
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
     path = as_input(path, rate, temp, time)
+    runtime_name, say = runtime, progress or (lambda m: None)
     register(effects)
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     check_rule(split)   # before the file is read
@@ -296,7 +301,7 @@ def compare(path, *, methods: str | list[str] | None = None, model: str = "base"
     except ValueError as e:
         raise InputError(str(e)) from None
     if cfg is None:
-        cfg = runtime.Config.for_profile(profile, bool(spec.effects))
+        cfg = Config.for_profile(profile, bool(spec.effects))
     if plots:
         check_output_dir(plots, [path_of(path)], "--plots")
     out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec, split)

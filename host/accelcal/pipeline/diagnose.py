@@ -40,6 +40,7 @@ from accelcal.pipeline.history import append_history, check_history, read_histor
 from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
+from accelcal.vocabulary import documented
 
 # the acceptance rule, shared with the board's own discovery (acal/discovery.py)
 MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
@@ -55,6 +56,7 @@ STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
 
 
 
+@documented
 def diagnose(path, model: str = "base", plots: str | None = None, *,
              history: str | None = None, report: str | None = None, force: bool = False,
              effects: str | None = None, rate: float | None = None, temp=None,

@@ -8,6 +8,9 @@ from dataclasses import dataclass
 from accelcal.bridge import runtime
 from accelcal.errors import InputError
 from accelcal.pipeline.results import CalibrationResult
+from accelcal.vocabulary import documented
+
+Config = runtime.Config
 
 
 @dataclass
@@ -16,7 +19,7 @@ class Job:
     the pool and for Dask)."""
     cfg: runtime.Config
     method: str = "device"
-    runtime_name: str = "cpython"
+    runtime: str = "cpython"
     model: str = "base"
     engine: str = "vector"
     fallback: str | None = None
@@ -24,19 +27,20 @@ class Job:
     effects: str | None = None     # a user's effects file, registered in each worker
 
     @classmethod
+    @documented
     def of(cls, *, model: str = "base", method: str = "device", profile: str = "wear",
-           runtime_name: str = "cpython", engine: str | None = None, fallback: str | None = None,
+           runtime: str = "cpython", engine: str | None = None, fallback: str | None = None,
            points: str = "bins", effects: str | None = None, cfg: runtime.Config | None = None,
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
         settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
         vector under cpython, device under a MicroPython runtime (as the CLI)."""
         if cfg is None:
-            cfg = runtime.Config.for_profile(profile, "+" in model, **settings)
+            cfg = Config.for_profile(profile, "+" in model, **settings)
         elif settings:
             raise TypeError(f"settings {', '.join(settings)} given with cfg: give one or the other")
-        return cls(cfg, method, runtime_name, model,
-                   engine or ("vector" if runtime_name == "cpython" else "device"),
+        return cls(cfg, method, runtime, model,
+                   engine or ("vector" if runtime == "cpython" else "device"),
                    fallback, points, effects)
 
     def spec(self):
@@ -63,7 +67,8 @@ class Job:
         return spec
 
 
-def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
+@documented
+def calibrate_file(path, job: Job, progress=None) -> CalibrationResult:
     """One file's record, a recording or a points file (one device): status calibrated,
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
@@ -72,11 +77,11 @@ def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
     spec = job.spec()
     if is_recording(path):
-        return calibrate_recording(path, job.cfg, job.method, job.runtime_name, spec, job.engine,
+        return calibrate_recording(path, job.cfg, job.method, job.runtime, spec, job.engine,
                                    progress=progress, fallback=job.fallback, points=job.points)
     from accelcal.files.table import read_table
     rec = CalibrationResult(file=path, format="points", **calibrate_groups(
-        read_table(path), None, job.cfg, job.method, job.runtime_name, spec, job.points)[0])
+        read_table(path), None, job.cfg, job.method, job.runtime, spec, job.points)[0])
     rec["calibration"] = "new" if rec.ok else "none"
     if not rec.ok and job.fallback:
         import numpy as np
@@ -95,10 +100,11 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
     spec = job.spec()
     if is_recording(path):
         raise InputError(f"{path}: --by applies to points files; this is a recording")
-    return calibrate_groups(read_table(path), by, job.cfg, job.method, job.runtime_name, spec,
+    return calibrate_groups(read_table(path), by, job.cfg, job.method, job.runtime, spec,
                             job.points)
 
 
+@documented
 def calibrate(path, *, model: str = "base", method: str = "device", profile: str = "wear",
               runtime: str = "cpython", fallback: str | None = None, points: str = "bins",
               effects: str | None = None, progress=None, rate: float | None = None, temp=None,
@@ -110,5 +116,5 @@ def calibrate(path, *, model: str = "base", method: str = "device", profile: str
     from accelcal.files.arrays import as_input
     path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
-                                       runtime_name=runtime, fallback=fallback, points=points,
+                                       runtime=runtime, fallback=fallback, points=points,
                                        effects=effects, **settings), progress)

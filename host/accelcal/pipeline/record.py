@@ -86,6 +86,7 @@ class Record(dict):
         return json.loads(self.to_json())
 
     def to_json(self) -> str:
+        """The record as the command's --json prints it (one line)."""
         return json.dumps(self)
 
     def summary(self) -> str:

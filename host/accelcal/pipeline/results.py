@@ -335,14 +335,11 @@ def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
 
 class ApplyResult(Record):
     """`apply`: the file written (output), samples calibrated, how many were past the device's
-    full scale (clipped, range_g), and the effects applied on the host (host_only); given
-    arrays or a frame, the calibrated samples of the same kind (calibrated, not in the JSON)."""
+    full scale (clipped, range_g), and the effects applied on the host (host_only).  (Samples
+    given as an array or frame come back calibrated as the same kind instead.)"""
 
     def _repr_fields(self) -> str:
         return f"{self['samples']} samples -> {self['output']}, {self['clipped']} clipped"
-
-    def to_json(self) -> str:
-        return json.dumps({k: v for k, v in self.items() if k != "calibrated"})
 
     def report(self) -> str:
         """The line `apply` says."""

@@ -143,7 +143,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     name = f"{effect}_{seed}"
     whole, fit, test = d / f"{name}.csv", d / f"{name}.fit.csv", d / f"{name}.test.csv"
     truth = wearer.simulate_wrist(whole, FIT_DAYS + TEST_DAYS, RATE, seed,
-                                  effects=[] if effect == "clean" else [effect],
+                                  effect=[] if effect == "clean" else [effect],
                                   events_within_days=FIT_DAYS)
     split(whole, fit, test)
     whole.unlink()

@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"{a.case}_{a.seed}.csv"
         wearer.simulate_wrist(path, FIT_DAYS, RATE, a.seed,
-                              effects=[] if a.case == "clean" else [a.case])
+                              effect=[] if a.case == "clean" else [a.case])
         rows = judge(str(path), a.model, a.candidate)
     for r in rows:
         print(f"{a.case} seed {a.seed}: {a.model} +{a.candidate}, fit on {r['fit']:<4} train "
