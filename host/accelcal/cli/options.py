@@ -24,6 +24,26 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
+# Every command, in `accelcal --help`'s order: name -> (the module of accelcal.cli that builds its
+# parser and runs it, its one-line help).  `accelcal --help` is made from this table alone, and a
+# command imports only its own module (cli/__init__.py): the help without numpy or the device code.
+COMMANDS = {
+    "calibrate": ("calibrate", "calibrate a recording or points file"),
+    "apply": ("calibrate", "calibrate a recording with saved parameters"),
+    "simulate": ("simulate", "simulate data with known truth"),
+    "board": ("board", "boards: the virtual board"),
+    "deploy": ("board", "copy the device package and a board file to a board"),
+    "acquire": ("board", "run the deployed app for a while (virtual board: simulated time)"),
+    "pull": ("board", "copy a board's logs off and decode them"),
+    "replay": ("board", "re-run a pulled capture through the current device modules"),
+    "diagnose": ("diagnose", "where the model fails, and which effect is missing"),
+    "report": ("diagnose", "the model steps of a diagnose --history file"),
+    "compare": ("diagnose", "every calibration method on the same data, one table"),
+    "paper": ("studies", "reproduce the paper's results"),
+    "bench": ("studies", "timings and allocations under MicroPython and CPython"),
+}
+
+
 # points per subset the fits take (bridge.protocol.MAX_PER_SUBSET, derived there from the
 # device's bounds; written here so that building the parser imports neither numpy nor acal)
 MAX_PER_SUBSET = 14

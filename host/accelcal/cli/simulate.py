@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
+from accelcal.cli.options import COMMANDS, add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 from accelcal.files.outputs import FORCE_HELP, atomic, check_output, write_text
 
@@ -67,7 +67,7 @@ def cmd_simulate_wrist(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate data with known truth")
+    p = sub.add_parser("simulate", help=COMMANDS["simulate"][1])
     ssub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     q = ssub.add_parser("paper", help="the paper's simulation (eqs. 17-20): rest means per device",
                         description="Random 9-parameter sensors (eq. 17), unit points turned into "

@@ -102,14 +102,16 @@ def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"
     return params_to_float(r.params_int), sel, None
 
 
-def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str):
-    """(params or None, seconds, reason or None)."""
+def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str, say=None):
+    """(params or None, seconds, reason or None).  say(message): a slow method's progress and
+    estimate (de)."""
     t0 = time.perf_counter()
     if name == "device":
         p, _, why = device_fit(v, cfg, runtime_name)
         return p, time.perf_counter() - t0, why
     try:
-        p = methods.METHODS[name](v)
+        p = methods.METHODS[name](v, progress=say) if say and name == "de" else \
+            methods.METHODS[name](v)
     except methods.FitError as e:
         return None, time.perf_counter() - t0, str(e)
     return p, time.perf_counter() - t0, None
@@ -186,7 +188,7 @@ def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str =
     for name in names:
         say(f"  fitting {name}")
         v = sp.train.v if name == "device" else fit_on
-        p, secs, why = fit_method(name, v, cfg, runtime_name)
+        p, secs, why = fit_method(name, v, cfg, runtime_name, say)
         row = {"method": name,
                "role": "the integer device method (Farago 2024)" if name == "device"
                else methods.METHODS[name].role,

@@ -42,6 +42,7 @@ import json
 import struct
 import sys
 import tempfile
+import time
 import timeit
 from pathlib import Path
 
@@ -234,6 +235,31 @@ def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
     return chips, missing
 
 
+STARTUP_RUNS = 5
+STARTUP = {   # what a user waits for before anything is done: fresh interpreters, best of runs
+    "python_startup_ms": "pass",
+    "import_accelcal_ms": "import accelcal",
+    "help_wall_ms": "import sys\nfrom accelcal.cli import main\ntry:\n    main(['--help'])\n"
+                    "except SystemExit:\n    pass",
+}
+
+
+def measure_startup(runs: int = STARTUP_RUNS) -> dict:
+    """Wall time of a fresh interpreter doing nothing, `import accelcal`, and `accelcal --help`
+    (what the installed command runs), ms, the best of runs each (issue 51: under 300 ms).  The
+    interpreter's own start is in each; the editable install's path hook too, a wheel's not."""
+    import subprocess
+    out = {}
+    for key, code in STARTUP.items():
+        best = float("inf")
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", code], check=True, stdout=subprocess.DEVNULL)
+            best = min(best, time.perf_counter() - t0)
+        out[key] = best * 1e3
+    return out
+
+
 def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> int:
     """runtime_name: micropython (the unix port, the 32-bit port, CPython), rp2040 (those and the
     emulated RP2040 under MicroPython and, where its firmware is here, CircuitPython:
@@ -244,6 +270,7 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     chips, cp_missing = chip_firmwares(runtime_name)
     print("measuring (MicroPython unix port and CPython)...", file=sys.stderr)
     m = measure(pts)
+    m.update(measure_startup())
     print("timing the fit's slices...", file=sys.stderr)
     m.update(measure_fit_slices())
     print("measuring the app on the simulated LIS3DH (about a minute)...", file=sys.stderr)
@@ -304,7 +331,8 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
                "fit_wear_base_bytes_mp32": "0", "fit_wear_temp_offset_bytes_mp32": "0",
                "fit_wear_four_effects_bytes_mp32": "0", "long_ints_per_wear_fit_32bit": "0",
                "bytes_per_sample": "0", "rp2040_core_share_100hz_register_pct": "far below 100 %",
-               "log_days_per_mb": ">= 14", "log_worst_case_days_per_mb": ">= 14"}
+               "log_days_per_mb": ">= 14", "log_worst_case_days_per_mb": ">= 14",
+               "import_accelcal_ms": "< 300 ms", "help_wall_ms": "< 300 ms"}
     for k in m:   # every discovery step on the chip: the placement's locked too, both rounds'
         if k.startswith("rp2040_emulated_discover_") and k.endswith(("_worst_step_ms", "_end_step_ms")):
             targets.setdefault(k, "<= 2 ms")
