@@ -74,7 +74,8 @@ class CalibrationResult(Record):
             head += (f" {self.get('model', 'base')} by {self.get('method', '?')}: "
                      f"{self['error_before_mg']:.2f} -> {self['error_after_mg']:.2f} mg")
         elif self.get("reason"):
-            head += f": {self['reason'][:80]}"
+            why = self["reason"]
+            head += f": {why[:80]}" + ("..." if len(why) > 80 else "")
         return head
 
     def summary(self) -> str:
