@@ -1,6 +1,6 @@
 """The mistakes people make, caught kindly (issue 51): readings in m/s^2 or raw counts named with
-the fix in one line, a long option taken only as spelled in full, and bins that did not fill
-named as the orientations still missing and how long to hold each."""
+the fix in one line, a long option taken only as spelled in full (the nearest one named), and
+bins that did not fill named as the orientations still missing and how long to hold each."""
 import argparse
 
 import numpy as np
@@ -60,9 +60,13 @@ def test_points_in_m_s2_are_named_and_readings_in_g_pass(tmp_path, capsys, rng):
 def test_a_long_option_is_taken_only_in_full(tmp_path, capsys):
     f = recording(tmp_path / "r.csv")
     line = one_line(capsys, ["diagnose", f, "--effect", "drift"])
-    assert "unrecognized arguments: --effect drift" in line, line
+    assert "unrecognized arguments: --effect drift; did you mean --effects? (see `accelcal " \
+        "diagnose --help`)" in line, line
     line = one_line(capsys, ["calibrate", f, "--meth", "lsq"])
-    assert "unrecognized arguments: --meth" in line, line
+    assert "unrecognized arguments: --meth lsq; did you mean --method?" in line, line
+    line = one_line(capsys, ["simulate", "wrist", "--day", "1", "-o", tmp_path / "w.csv"])
+    assert "did you mean --days? (see `accelcal simulate wrist --help`)" in line, line
+    assert "did you mean" not in one_line(capsys, ["calibrate", f, "--zzz"])
 
     def parsers(p):
         yield p

@@ -23,6 +23,29 @@ class Parser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an unknown option is named beside the nearest the command has
+        (`--effect`: did you mean --effects?) and the command's own --help."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            parser = self._chosen(ns)
+            known = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+            import difflib
+            near = [m for e in extras if e.startswith("-")
+                    for m in difflib.get_close_matches(e.split("=")[0], known, 1, 0.75)]
+            parser.error(f"unrecognized arguments: {' '.join(extras)}"
+                         + (f"; did you mean {' or '.join(dict.fromkeys(near))}?" if near else ""))
+        return ns
+
+    def _chosen(self, ns) -> "Parser":
+        """The (sub)command's parser the parsed namespace ns went through, deepest first."""
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                name = getattr(ns, a.dest, None)
+                if name in a.choices:
+                    return a.choices[name]._chosen(ns)
+        return self
+
 
 # Every command, in `accelcal --help`'s order: name -> (the module of accelcal.cli that builds its
 # parser and runs it, its one-line help).  `accelcal --help` is made from this table alone, and a
