@@ -102,6 +102,8 @@ def as_input(data, rate: float | None = None, temp=None, time=None):
     degC) if any; a pandas or polars frame with columns x, y, z (and temp, t/time; the module's
     names), its times from its index or time column, or from rate."""
     import os
+    if isinstance(data, ArrayRecording):   # already made
+        return data
     if isinstance(data, (str, os.PathLike)):
         if rate is not None or temp is not None or time is not None:
             raise InputError("rate, temp and time go with samples given as an array or frame; "

@@ -73,9 +73,11 @@ def calibrate_file(path, job: Job, progress=None) -> CalibrationResult:
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
     record (pipeline/batch.py).  progress(samples read): a recording's reading."""
+    from accelcal.files.arrays import as_input
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
     spec = job.spec()
+    path = as_input(path)   # a file, or samples in memory (with their times: a frame's own)
     if is_recording(path):
         return calibrate_recording(path, job.cfg, job.method, job.runtime, spec, job.engine,
                                    progress=progress, fallback=job.fallback, points=job.points)
