@@ -29,8 +29,10 @@ def test_a_numpy_array_gives_the_file_s_integers(day):
     _, c, want = day
     same_fit(accelcal.calibrate(c[:, 1:4], time=c[:, 0], temp=c[:, 4]), want)
     assert np.array_equal(c[:, 0], np.arange(len(c)) / 10)   # the file's clock: 10 Hz from 0
-    got = accelcal.calibrate(c[:, 1:4], rate=10, temp=c[:, 4])
+    xyz = np.ascontiguousarray(c[:, 1:4])     # float64, contiguous: read in place, not copied
+    got = accelcal.calibrate(xyz, rate=10, temp=c[:, 4])
     assert got["params_int"] == want["params_int"] and got["format"] == "numpy array"
+    assert np.array_equal(xyz, c[:, 1:4])      # nothing writes into the caller's samples
     with pytest.raises(accelcal.InputError, match="rate= .Hz. or time="):
         accelcal.calibrate(c[:, 1:4])
     with pytest.raises(accelcal.InputError, match=r"\(n, 3\)"):
