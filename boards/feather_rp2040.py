@@ -2,7 +2,7 @@
 import supervisor
 import time
 
-from acal.app import MsTicksClock
+from acal.logger.app import MsTicksClock
 
 RUNTIME = "circuitpython"
 ARCH = None          # CircuitPython runs the sources (its .mpy format differs from MicroPython's)
@@ -12,7 +12,7 @@ TEMP_REF_C = None
 
 def i2c():
     import board
-    from acal.lis3dh_cp import BusioRegisters
+    from acal.logger.lis3dh_cp import BusioRegisters
     return BusioRegisters(board.I2C(), I2C_ADDRESS)
 
 

@@ -120,7 +120,7 @@ def true_corrected(rec, v, temp, t, cols, effects_file=None):
     by a simulated recording's true sensor model (true_heldout_error's way)."""
     import json
     import numpy as np
-    from acal.fixed import PARAM_NAMES
+    from acal.core.fixed import PARAM_NAMES
     from accelcal.methods import correct as base_correct
     from accelcal.model.declared import register
     from accelcal.model.effects import CATALOGUE
@@ -219,7 +219,7 @@ def effect_orders():
     effect meets at worst a clamped reading whatever came before it: the pairs cover all a
     generic offset can meet or hand on."""
     import itertools
-    from acal import effects
+    from acal.core import effects
     specific = [k for k in effects.NAMES if k not in effects.SHAPES]
     orders = [o for n in range(1, len(specific) + 1) for o in itertools.permutations(specific, n)]
     orders += [o for o in itertools.permutations(effects.NAMES, 2)

@@ -18,6 +18,16 @@ LAYERS = [{"errors", "fixedpoint", "locations", "vocabulary"}, {"methods"}, {"mo
           {"bridge", "report", "simulate"}, {"pipeline"}, {"board"}, {"studies"}, {"cli"}]
 MAX_MODULE_LINES = 450      # "about 400"
 MAX_FUNCTION_LINES = 90     # "about 80"
+# The cap is by concept, not by ruler (issue 48): a module may pass MAX_MODULE_LINES where one
+# concept needs the room, up to its own ceiling here, with why; every other module stays under it.
+LONGER_BY_CONCEPT: dict[str, tuple[int, str]] = {
+    "device/acal/discover/search.py": (
+        560, "the discovery's sliced state machine: one class (Discover) whose phases share its "
+             "state; cut by the ruler, its phases would go to modules of their own"),
+    "device/acal/core/gaussnewton.py": (
+        560, "the wear fit's sliced state machine (GaussNewton): one class whose slices, rounds "
+             "and outlier rejection share its preallocated arrays"),
+}
 
 
 def host_modules() -> dict[str, Path]:
@@ -83,14 +93,17 @@ def test_modules_and_functions_stay_readable():
     device = sorted((ROOT / "device").rglob("*.py")) + sorted((ROOT / "boards").glob("*.py"))
     for p in [*HOST.rglob("*.py"), *device]:
         text = p.read_text()
-        if text.count("\n") > MAX_MODULE_LINES:
-            long_modules.append(str(p.relative_to(ROOT)))
+        rel = p.relative_to(ROOT).as_posix()
+        if text.count("\n") > LONGER_BY_CONCEPT.get(rel, (MAX_MODULE_LINES,))[0]:
+            long_modules.append(rel)
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
                     node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES and \
                     not any(getattr(d, "id", None) == "viper" for d in node.decorator_list):
                 long_functions.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}")
     assert not long_modules and not long_functions, (long_modules, long_functions)
+    for rel, (ceiling, why) in LONGER_BY_CONCEPT.items():   # each exception a module, and argued
+        assert (ROOT / rel).exists() and MAX_MODULE_LINES < ceiling and len(why) > 40, rel
 
 
 # The orchestration rule (docs/command-line.md "Who does what"): cli/ parses and prints;

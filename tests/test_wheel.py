@@ -48,8 +48,8 @@ def run(installed, *args, timeout=600):
 def test_the_wheel_carries_the_device_package_boards_and_scripts(installed):
     wheel, site, _ = installed
     names = set(zipfile.ZipFile(wheel).namelist())
-    for f in (ROOT / "device" / "acal").glob("*.py"):
-        assert f"acal/{f.name}" in names
+    for f in (ROOT / "device" / "acal").rglob("*.py"):
+        assert f"acal/{f.relative_to(ROOT / 'device' / 'acal').as_posix()}" in names
     for f in (ROOT / "boards").glob("*.py"):
         assert f"accelcal/boards/{f.name}" in names
     for f in ("mp_runner.py", "mp_bench.py", "mp_fit_bench.py", "mp32.mjs"):
@@ -106,8 +106,10 @@ def test_deploy_from_the_wheel_to_the_virtual_board(installed):
         info = json.loads(r.stdout)
         assert info["board"] == "virtual"
         lib = work / "flash" / "lib" / "acal"
-        device = {f.stem for f in (ROOT / "device" / "acal").glob("*.py")} - {"lis3dh_cp"}
-        assert {f.stem for f in lib.iterdir()} == device
+        device = {f.relative_to(ROOT / "device" / "acal").with_suffix("").as_posix()
+                  for f in (ROOT / "device" / "acal").rglob("*.py")} - {"logger/lis3dh_cp"}
+        assert {f.relative_to(lib).with_suffix("").as_posix()
+                for f in lib.rglob("*") if f.is_file()} == device
         assert (work / "flash" / "acal_board.py").read_text() == (ROOT / "boards" / "virtual.py").read_text()
     finally:
         board.terminate()

@@ -1,6 +1,6 @@
 """Floats in g <-> the device's fixed-point integers.  The formats are defined once, in
-device/acal/fixed.py: samples Q10 g (SAMPLE_ONE_G), rest points Q16 g (POINT_ONE_G), parameters Q24
-(PARAM_ONE).  And the device's conditions (acal.bins.COND: Q2 degC, 64 s units, mV) <-> physical
+device/acal/core/fixed.py: samples Q10 g (SAMPLE_ONE_G), rest points Q16 g (POINT_ONE_G), parameters Q24
+(PARAM_ONE).  And the device's conditions (acal.core.bins.COND: Q2 degC, 64 s units, mV) <-> physical
 units, both ways in one place."""
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from dataclasses import dataclass, make_dataclass
 
 import numpy as np
 
-from acal import bins as dbins
-from acal import effects as deff
-from acal import fixed
+from acal.core import bins as dbins
+from acal.core import effects as deff
+from acal.core import fixed
 
 
 def g_to_sample(g: np.ndarray) -> np.ndarray:
@@ -42,9 +42,9 @@ def params_to_int(p: np.ndarray) -> list[int]:
 
 @dataclass(frozen=True)
 class Quantity:
-    """One quantity the board reads with each point, a device condition (acal.bins.COND, in
+    """One quantity the board reads with each point, a device condition (acal.core.bins.COND, in
     QUANTITIES' order).  The device holds it as round(x * 2**q) (the temperature: Q2 degC,
-    acal.fixed.TEMP_Q) or, for a `step` quantity, floor((x - origin) / step) with the group's
+    acal.core.fixed.TEMP_Q) or, for a `step` quantity, floor((x - origin) / step) with the group's
     first time as origin; its name is the device's (ref_NAME,
     NAME_span, the bins' NAME_differ); `column` is the recording column it is read from, `ref`
     the key a fitted model stores its reference under (None: the column's, column_ref())."""
@@ -54,7 +54,7 @@ class Quantity:
     ref: str | None
     show: tuple          # a span, and the least spread, as a reason states them
     step: int = 1
-    # a board column's: the device kind of an offset linear in it (acal.effects) and the
+    # a board column's: the device kind of an offset linear in it (acal.core.effects) and the
     # range its regressor is normalised by (Q24 per that many units)
     kind: int | None = None
     per: int = 1
@@ -70,7 +70,7 @@ QUANTITIES = (
     Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{:g} degC of temperature", "{:g}"),
              q=fixed.TEMP_Q),
     Quantity("time", "t", dbins.TIME_DIFFER, "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
-    # the board's supply in mV (acal.effects.SUPPLY_OFFSET): a recording column the board reads
+    # the board's supply in mV (acal.core.effects.SUPPLY_OFFSET): a recording column the board reads
     Quantity("supply", "supply_mv", dbins.SUPPLY_DIFFER, None, ("{} mV of supply_mv", "{}"),
              kind=deff.SUPPLY_OFFSET, per=deff.SUPPLY_MAX),
 )

@@ -13,6 +13,19 @@ DEVICE_PACKAGE = Path(acal.__file__).resolve().parent      # .../acal: what `dep
 DEVICE_PATH = DEVICE_PACKAGE.parent                         # on MICROPYPATH, so `import acal` works
 SCRIPTS_DIR = Path(str(resources.files("accelcal.bridge.scripts")))
 CHIP_DIR = Path(str(resources.files("accelcal.simulate.chip")))
+# The device package's features, each a folder and an install unit (docs/method-and-formats.md
+# "The device package"): core and logger on every board, paper and discover where they run.
+DEVICE_UNITS = ("core", "logger", "paper", "discover")
+
+
+def device_modules(units: tuple[str, ...] = DEVICE_UNITS) -> list[str]:
+    """The device package's module files as paths relative to it ("__init__.py", "core/bins.py"
+    ...), sorted: the package's own __init__.py and every module of the given units."""
+    out = ["__init__.py"]
+    for unit in units:
+        out += sorted(p.relative_to(DEVICE_PACKAGE).as_posix()
+                      for p in (DEVICE_PACKAGE / unit).glob("*.py"))
+    return sorted(out)
 
 
 def checkout() -> Path | None:

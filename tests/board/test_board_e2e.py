@@ -47,10 +47,11 @@ def test_deploy_acquire_pull_replay_bit_for_bit(board):
     info = json.loads(r.stdout)
     from accelcal.board.deploy import APP_MODULES
     assert info["board"] == "virtual" and info["platform"] == "linux"
-    device = {f.stem for f in (ROOT / "device" / "acal").glob("*.py")} - {"lis3dh_cp"}
+    device = {f.relative_to(ROOT / "device" / "acal").as_posix()
+              for f in (ROOT / "device" / "acal").rglob("*.py")} - {"logger/lis3dh_cp.py"}
     assert info["modules"] == len(APP_MODULES) and set(APP_MODULES) == device
-    assert (board.dir / "flash" / "lib" / "acal" / "optimiser.py").exists()
-    assert "acal.app.main(rate_hz=10, profile=1, capture_bytes=2097152)" in \
+    assert (board.dir / "flash" / "lib" / "acal" / "paper" / "optimiser.py").exists()
+    assert "acal.logger.app.main(rate_hz=10, profile=1, capture_bytes=2097152)" in \
         (board.dir / "flash" / "main.py").read_text()   # profile 1: wear, the default
 
     r = run_cli("acquire", "--port", port, "--hours", 2, "--rate", RATE, "--capture-kb", 2048,
@@ -137,14 +138,48 @@ def test_replay_of_a_corrupt_log_is_one_line_exit_2(tmp_path):
 def test_mip_package_lists_every_device_module_and_installs(tmp_path):
     pkg = json.loads((ROOT / "package.json").read_text())
     listed = sorted(dst for dst, src in pkg["urls"])
-    assert listed == sorted(f"acal/{p.name}" for p in (ROOT / "device" / "acal").glob("*.py"))
+    assert listed == sorted(f"acal/{p.relative_to(ROOT / 'device' / 'acal').as_posix()}"
+                            for p in (ROOT / "device" / "acal").rglob("*.py"))
     assert all((ROOT / src).exists() for _, src in pkg["urls"])
     stim = tmp_path / "stim.bin"
     test_app.stimulus(stim, np.random.default_rng(1), n_rest=2)
     with virtual.Running(tmp_path / "flash", stim) as b:
         mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "package.json"))
-        out = mpremote(b.port, "exec", "import acal.app, acal.lis3dh_cp\nprint(acal.app.VERSION)")
-    from acal.app import VERSION
+        out = mpremote(b.port, "exec", "import acal.logger.app, acal.logger.lis3dh_cp\nprint(acal.logger.app.VERSION)")
+    from acal.logger.app import VERSION
     assert out.strip() == str(VERSION) == "4"
-    assert sorted(p.name for p in (tmp_path / "flash" / "lib" / "acal").iterdir()) == \
-        sorted(p.name for p in (ROOT / "device" / "acal").glob("*.py"))
+    lib = tmp_path / "flash" / "lib" / "acal"
+    assert sorted(p.relative_to(lib) for p in lib.rglob("*") if p.is_file()) == \
+        sorted(p.relative_to(ROOT / "device" / "acal") for p in (ROOT / "device" / "acal").rglob("*.py"))
+
+
+def test_a_base_board_gets_core_and_logger_only(tmp_path):
+    """Each install unit its own mip package (device/UNIT.json): together they list package.json's
+    modules, each once; core's and logger's alone make a board that runs the base logger and has
+    no acal/paper nor acal/discover.  `deploy --units run` copies what the settings run."""
+    units = {u: json.loads((ROOT / "device" / f"{u}.json").read_text())
+             for u in ("core", "logger", "paper", "discover")}
+    whole = json.loads((ROOT / "package.json").read_text())
+    listed = [dst for u in units.values() for dst, _ in u["urls"]]
+    assert sorted(listed) == sorted(dst for dst, _ in whole["urls"])
+    assert all(u["version"] == whole["version"] for u in units.values())
+    for name, u in units.items():
+        assert all(dst == src and (ROOT / "device" / src).exists() for dst, src in u["urls"])
+        assert all(dst.startswith(f"acal/{name}/") or dst == "acal/__init__.py" for dst, _ in u["urls"])
+    stim = tmp_path / "stim.bin"
+    test_app.stimulus(stim, np.random.default_rng(1), n_rest=2)
+    flash = tmp_path / "flash"
+    with virtual.Running(flash, stim) as b:
+        for u in ("core", "logger"):
+            mpremote(b.port, "mip", "install", "--target", "lib", str(ROOT / "device" / f"{u}.json"))
+        out = mpremote(b.port, "exec", "import sys\nfrom acal.logger.processor import Processor\n"
+                       "p = Processor(None, 10)\n"
+                       "print(' '.join(sorted(m for m in sys.modules if m.startswith('acal'))))")
+        assert sorted(p.name for p in (flash / "lib" / "acal").iterdir()) == ["__init__.py", "core", "logger"]
+        mods = out.split()
+        assert "acal.core.pipeline" in mods and not [m for m in mods if m.startswith(("acal.discover", "acal.paper"))]
+        r = run_cli("deploy", "--port", b.port, "--units", "run", "--profile", "paper", "--json")
+        assert r.returncode == 0, r.stderr
+        assert json.loads(r.stdout)["units"] == ["core", "logger", "paper"]
+        assert sorted(p.name for p in (flash / "lib" / "acal").iterdir()) == \
+            ["__init__.py", "core", "logger", "paper"]   # the earlier install removed whole

@@ -78,7 +78,7 @@ def test_boot_records_of_earlier_versions_read_as_not_discovering():
     """A board flashed before discovery logged a shorter BOOT (version 2 without `discover`,
     version 1 without `fit` too): pulled logs of those boards still decode, as not discovering."""
     import struct
-    from acal import log
+    from acal.logger import log
     from accelcal.bridge import boardlog
     values = (0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600, -128, 0, 1)
     for fmt, vals, fit in ((log.BOOT_V2, values, 1), (log.BOOT_V1, values[:-1], 0)):
@@ -96,7 +96,7 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
     after it those points leave the bins, and the discovery runs from the next calibration, on
     points its held-out set never shares.  Held out from the start, the same stream's bins
     fill later."""
-    from acal import log
+    from acal.logger import log
     from accelcal.bridge import boardlog
     script = test_discover._stream(tmp_path, "hidden", test_discover.C_TRUE)
     text = script.read_text()
@@ -118,10 +118,10 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
 
 
 def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
-    from acal import profile
-    from acal.bins import N_SUBSETS
-    from acal.heldout import held_out
-    from acal.pipeline import Pipeline
+    from acal.core import profile
+    from acal.core.bins import N_SUBSETS
+    from acal.discover.heldout import held_out
+    from acal.core.pipeline import Pipeline
     pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR, False))
     pipe.early = True
     rng = np.random.default_rng(3)

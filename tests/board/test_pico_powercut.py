@@ -4,7 +4,7 @@ powered up again on the flash as the cut left it.  0 acknowledged records lost, 
 0 mixed calibrations, 0 failed boots; and the judge sees each of those when it is there."""
 import pytest
 
-from acal import log
+from acal.logger import log
 from accelcal.board import powercut
 from conftest import emulated_chip
 

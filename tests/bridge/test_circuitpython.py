@@ -48,7 +48,7 @@ def test_both_profiles_and_a_composed_model_bit_identical(rng, chip):
     """In one boot: the wear profile on points with outliers and on recordings (its noise gauge,
     rest detector, bins, Gauss-Newton with rejection), the paper's on recordings, and a
     composed wear model (temperature offset) on points: every record as CPython's."""
-    from acal import effects
+    from acal.core import effects
     pts = []
     for i in range(4):
         n = int(rng.integers(40, 200))
@@ -117,10 +117,11 @@ def test_circuitpythons_mpy_cross_compiles_every_device_module(tmp_path):
     the package; its .mpy files say CircuitPython ('C', version 6) where MicroPython's say 'M'
     (which CircuitPython refuses)."""
     from accelcal.locations import DEVICE_PACKAGE
-    sources = sorted(DEVICE_PACKAGE.glob("*.py"))
+    sources = sorted(DEVICE_PACKAGE.rglob("*.py"))
     assert len(sources) >= 10
     for src in sources:
-        cp, mp = tmp_path / f"{src.stem}.cp.mpy", tmp_path / f"{src.stem}.mp.mpy"
+        name = src.relative_to(DEVICE_PACKAGE).with_suffix("").as_posix().replace("/", "_")
+        cp, mp = tmp_path / f"{name}.cp.mpy", tmp_path / f"{name}.mp.mpy"
         rp2040.mpy_cross(src, cp, None, FW)
         rp2040.mpy_cross(src, mp, None)
         assert cp.read_bytes()[:2] == b"C\x06" and mp.read_bytes()[:2] == b"M\x06"
@@ -146,7 +147,8 @@ def test_deploy_gives_a_circuitpython_board_circuitpythons_mpy(tmp_path):
         pkg = tmp_path / board
         pkg.mkdir()
         files, what = deploy.package_files(info, modules, pkg)
-        assert [f.stem for f in files] == modules and ("lis3dh_cp" in modules) == cp
+        assert [f"{f.relative_to(pkg).with_suffix('').as_posix()}.py" for f in files] == modules
+        assert ("logger/lis3dh_cp.py" in modules) == cp
         if head is None:
             assert what == "sources" and all(f.suffix == ".py" for f in files)
         else:
@@ -171,7 +173,7 @@ def test_deploy_writes_boot_py_to_a_circuitpython_board_only(tmp_path):
     assert sorted(feather) == ["acal_board.py", "boot.py", "main.py"]
     assert feather["acal_board.py"] == (ROOT / "boards" / "feather_rp2040.py").read_text()
     assert feather["main.py"] == deploy.main_py(settings)
-    assert "acal.app.main(fifo=True, profile=0)" in feather["main.py"]
+    assert "acal.logger.app.main(fifo=True, profile=0)" in feather["main.py"]
     boot = feather["boot.py"]
     compile(boot, "boot.py", "exec")
     assert boot.splitlines()[0] == deploy.BOOT_PY_HEAD
@@ -190,7 +192,7 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     (bridge/scripts/cp_bench.py).  Both profiles' rest detectors over 1000 samples, the apply at
     every full scale (readings past it, parameters at the bounds' corner), and the default
     (wear) fit of 72 points with outlier rejection, slice by slice as the app runs it: 0 bytes.
-    A list shows the counting sees an allocation.  Memory: after `import acal.app` and a
+    A list shows the counting sees an allocation.  Memory: after `import acal.logger.app` and a
     Processor of each of the largest models (four effects, a step among them), the heap keeps
     room for the app (its buffers, log and bus: ~10 kB)."""
     from accelcal.studies import bench_circuitpython
@@ -202,7 +204,7 @@ def test_nothing_allocated_per_sample_or_per_fit_slice_and_the_largest_model_fit
     assert r["rest_segments"] == "2 2"                         # the detectors saw the rests
     status, iterations, rejected = map(int, r["fit_wear_status"].split())
     assert status == 0 and rejected >= 2 and r["fit_wear_slices"] > 100
-    from acal.gaussnewton import GaussNewton
+    from acal.core.gaussnewton import GaussNewton
     host = GaussNewton(72)
     host.run(bench_circuitpython.fit_points(), 72)
     assert r["fit_wear_params"] == " ".join(map(str, host.p[:9]))   # what CPython fits
@@ -268,9 +270,9 @@ FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh
 lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
 time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
-import acal.app, acal_board
+import acal.logger.app, acal_board
 ms = supervisor.ticks_ms()
-app = acal.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
+app = acal.logger.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
 app.run({seconds})
 print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors, app.proc.calibrations,
       ms, supervisor.ticks_ms())
@@ -302,7 +304,8 @@ def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     from accelcal.board import deploy, emulated
     from accelcal.bridge import boardlog
     from accelcal.simulate.stimulus import calibration_dance
-    from acal import fixed, log
+    from acal.core import fixed
+    from acal.logger import log
     from test_pico_lis3dh import RATE, TRUTH, fifo_q10
     xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=6, rounds=3, rest_s=2,
                             move_s=0.5)

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from acal import bins as dbins
-from acal import effects as deff
+from acal.core import bins as dbins
+from acal.core import effects as deff
 from accelcal.bridge import feed
 from accelcal.bridge.protocol import Collector, Config, Group, device_conditions, protocol_items
 from accelcal.bridge.scripts import mp_runner

@@ -128,7 +128,7 @@ def pico():
 def fifo_q10(xyz_g):
     """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
     digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver scales."""
-    from acal.lis3dh import LIS3DH
+    from acal.logger.lis3dh import LIS3DH
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
@@ -136,8 +136,8 @@ def fifo_q10(xyz_g):
 
 
 # the paper's profile: the wear profile judges no segment still before 80 s of quiet ones
-APP = """import acal.app
-app = acal.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=400000,
+APP = """import acal.logger.app
+app = acal.logger.app.main(seconds={seconds}, verbose=False, rate_hz=100, fifo=True, capture_bytes=400000,
                     profile=0)
 print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
 """
@@ -173,8 +173,8 @@ def test_the_app_on_pico_reads_the_stimulus_and_replays(tmp_path, pico):
     assert rep["rest"]["board"] >= 1, rep      # the replay compared the rest means it logged
 
 
-LATE = """import time, acal.app, acal_board
-app = acal.app.App(acal_board, rate_hz=100, fifo=True, profile=0)
+LATE = """import time, acal.logger.app, acal_board
+app = acal.logger.app.App(acal_board, rate_hz=100, fifo=True, profile=0)
 for _ in range(4):
     app.step()
 time.sleep_ms(700)   # late: 70 samples come due in a 32-level FIFO (a long flash erase, say)

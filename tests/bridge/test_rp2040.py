@@ -22,11 +22,11 @@ def chip():
 
 def test_firmware_is_micropython_on_an_rp2040(chip):
     out = chip.run_script("import sys, gc\nprint(sys.implementation._machine)\n"
-                          "print(sys.maxsize)\nimport acal.fixed\nprint(acal.fixed.__file__)\n").out
+                          "print(sys.maxsize)\nimport acal.core.fixed\nprint(acal.core.fixed.__file__)\n").out
     machine, maxsize, where = out.split("\n")[:3]
     assert "RP2040" in machine
     assert int(maxsize) == 2**31 - 1             # 32-bit words: small ints stop at 2^30
-    assert where.endswith("acal/fixed.mpy")      # installed as .mpy, as a deployment is
+    assert where.endswith("acal/core/fixed.mpy")      # installed as .mpy, as a deployment is
 
 
 def test_cycles_are_counted(chip):
@@ -129,7 +129,7 @@ def test_the_same_sources_give_the_same_mpy_bytes_in_any_checkout(tmp_path, fw):
     """A module compiled from two places (another checkout; a viper module goes through a
     temporary file) gives the same .mpy bytes, so a flash image is the same in every clone."""
     from accelcal.locations import DEVICE_PACKAGE
-    src = DEVICE_PACKAGE / "rest.py"
+    src = DEVICE_PACKAGE / "core" / "rest.py"
     assert rp2040.VIPER_MARKER.search(src.read_text())   # the temporary-file path is taken
     other = tmp_path / "another" / "checkout" / "device" / "acal"
     other.mkdir(parents=True)

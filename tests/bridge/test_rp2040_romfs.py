@@ -11,8 +11,8 @@ from accelcal.bridge import rp2040
 from conftest import emulated_chip, run_main
 
 # gc.mem_free() before and after importing the app, and where its module came from
-HEAP_AFTER_IMPORT = ("import gc\ngc.collect()\nbefore = gc.mem_free()\nimport acal.app\n"
-                     "gc.collect()\nprint(acal.app.__file__, before - gc.mem_free())\n")
+HEAP_AFTER_IMPORT = ("import gc\ngc.collect()\nbefore = gc.mem_free()\nimport acal.logger.app\n"
+                     "gc.collect()\nprint(acal.logger.app.__file__, before - gc.mem_free())\n")
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +24,8 @@ def test_package_executes_from_rom_and_leaves_the_heap(chips):
     chip = chips[0]
     where_rom, cost_rom = chip.run_script(HEAP_AFTER_IMPORT, fw=rp2040.MICROPYTHON_ROMFS).out.split()
     where_lfs, cost_lfs = chip.run_script(HEAP_AFTER_IMPORT, fw=rp2040.MICROPYTHON).out.split()
-    assert where_rom == "/rom/lib/acal/app.mpy"     # the ROMFS copy, not a littlefs one
-    assert where_lfs == "/lib/acal/app.mpy"
+    assert where_rom == "/rom/lib/acal/logger/app.mpy"     # the ROMFS copy, not a littlefs one
+    assert where_lfs == "/lib/acal/logger/app.mpy"
     # the same .mpy files: from littlefs their bytecode and constants are copied to the heap,
     # from /rom they stay in flash (the viper code is copied either way); measured here: 47.2 kB
     # from /rom against 74.7 kB from littlefs, so a quarter less is a safe floor

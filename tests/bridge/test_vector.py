@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from acal.calibration import Calibration
-from acal.rest import RestDetector
+from acal.core.calibration import Calibration
+from acal.core.rest import RestDetector
 from accelcal.bridge import twin
 from conftest import run_cli
 
@@ -78,7 +78,7 @@ def test_rest_segments_equal_the_device_detector(case):
 def test_noise_gauge_twin_equals_the_device_gauge(seed, n, chunk):
     """The threshold every segment is judged by: the device's NoiseGauge, one spread at a time,
     against the twin's over arrays fed in chunks (updates, halving, spreads of 0 and >= 128)."""
-    from acal.rest import NoiseGauge
+    from acal.core.rest import NoiseGauge
     rng = np.random.default_rng(seed)
     spread = rng.choice([0, 1, 2, 3, 5, 9, 40, 127, 128, 900], n, p=[.05, .2, .2, .2, .1, .1, .05,
                                                                     .04, .03, .03])
@@ -95,7 +95,7 @@ def test_noise_gauge_twin_equals_the_device_gauge(seed, n, chunk):
 
 
 def test_noise_gauge_halves_its_counts():
-    from acal.rest import NOISE_HALVE, NoiseGauge
+    from acal.core.rest import NOISE_HALVE, NoiseGauge
     g = NoiseGauge()
     for _ in range(NOISE_HALVE + 40):
         g.add(3)
@@ -108,7 +108,7 @@ def test_noise_gauge_twin_through_many_halvings(seed, at_once, chunk):
     """Updates computed together (NoiseGaugeTwin.AT_ONCE at a time, up to each halving) over
     ~7 halvings of the counts: the device's NoiseGauge's thresholds and state, whatever the
     chunks and the number computed at once."""
-    from acal.rest import NoiseGauge
+    from acal.core.rest import NoiseGauge
     rng = np.random.default_rng(seed)
     n = 60_000
     level = np.repeat(rng.integers(1, 40, 12), n // 12)          # the sensor's noise changes
@@ -159,8 +159,9 @@ def test_the_apps_calibrated_blocks_are_the_twins(rng, range_g, tmp_path):
     """What the app hands on_samples (Processor.feed: the block copied and applied in one pass)
     is the twin's output at the board's full scale, in Q(13 - e) g."""
     from array import array
-    from acal import fixed, log
-    from acal.processor import Processor
+    from acal.core import fixed
+    from acal.logger import log
+    from acal.logger.processor import Processor
     p = [int(v) for v in rng.integers(15 << 20, 17 << 20, 3)] + \
         [int(v) for v in rng.integers(-(1 << 20), 1 << 20, 6)]
     proc = Processor(log.Log(str(tmp_path / "log.bin")), 100, range_g=range_g)
@@ -181,7 +182,7 @@ def composed_cases(draw):
     """A composed model of any of the device's effects inside the calibration bounds at any full
     scale, samples to the extremes, dT, dt and the supply's dV past the device's clamps, a step's
     time anywhere."""
-    from acal import effects as deff
+    from acal.core import effects as deff
     kinds = draw(st.lists(st.sampled_from(sorted(deff.NAMES)), min_size=1, max_size=4, unique=True))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
     one = 1 << 24

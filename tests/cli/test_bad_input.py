@@ -218,14 +218,14 @@ def test_a_time_split_that_cannot_be_made_says_why_in_one_line(tmp_path, capsys)
 
 
 def board_log(records):
-    from acal import log
+    from acal.logger import log
     return b"".join(log.encode(t, p) for t, p in records)
 
 
 @pytest.fixture(scope="module")
 def bad_logs(tmp_path_factory):
     """Pulled-log folders whose records pass their CRC but not their kind's rules."""
-    from acal import log
+    from acal.logger import log
     d = tmp_path_factory.mktemp("badlogs")
     boot = struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600, -128,
                        0, 1, 0)
@@ -275,9 +275,9 @@ def test_more_points_per_subset_than_the_fits_take_is_one_line(good, capsys):
     """9 subsets of 15 are past the 128 points both fits are proven for (they raised a
     ValueError from the device code, a traceback, before): refused where the option enters; 14,
     the composed wear bins' count, runs."""
-    from acal.bins import N_SUBSETS
-    from acal.gaussnewton import MAX_POINTS
-    from acal.objective import MAX_POINTS as PAPER_MAX_POINTS
+    from acal.core.bins import N_SUBSETS
+    from acal.core.gaussnewton import MAX_POINTS
+    from acal.paper.objective import MAX_POINTS as PAPER_MAX_POINTS
     import accelcal
     from accelcal.bridge import protocol
     from accelcal.cli.options import MAX_PER_SUBSET
@@ -444,7 +444,7 @@ EFFECTS_PY = ("EFFECTS = [dict(name='ageing9', regressor='time', unit='g/day', b
 @pytest.fixture
 def pulled(tmp_path):
     """A folder as `pull` writes it: log.bin (a BOOT), capture.bin, cal_a.bin, summary.json."""
-    from acal import log
+    from acal.logger import log
     d = tmp_path / "pulled"
     d.mkdir()
     boot = struct.pack(log.FORMATS[log.BOOT], 0, 2, 25, 5, 0, 3, 2, 0, 2, 8, 6553, 20, 600,
@@ -531,7 +531,7 @@ def test_a_forced_pull_holds_only_the_new_pull(pulled, capsys, monkeypatch):
     import shutil
     from accelcal.board import deploy
     new_log = board_log([])  # replaced below by a BOOT with another rate
-    from acal import log
+    from acal.logger import log
     new_log = board_log([(log.BOOT, struct.pack(log.FORMATS[log.BOOT], 0, 2, 50, 5, 0, 3, 2, 0,
                                                 2, 8, 6553, 20, 600, -128, 0, 1, 0))])
     board = pulled.parent / "board"
@@ -663,7 +663,7 @@ def test_huge_files_are_one_line_in_bounded_memory(tmp_path):
 
 
 def _boot(rate=25, seconds=5, min_count=2, max_count=8, model=0):
-    from acal import log
+    from acal.logger import log
     return struct.pack(log.FORMATS[log.BOOT], 0, 2, rate, seconds, 0, 3, 2, 0, min_count,
                        max_count, 6553, 20, 600, -128, model, 1, 0)
 
@@ -672,7 +672,7 @@ def _boot(rate=25, seconds=5, min_count=2, max_count=8, model=0):
                                   dict(model=0x11), dict(rate=5376, seconds=255),
                                   dict(min_count=60, max_count=60)])
 def test_replay_of_absurd_boot_settings_is_one_line(tmp_path, capsys, boot):
-    from acal import log
+    from acal.logger import log
     b = _boot(**boot)
     samples = [(log.SAMPLES, struct.pack(log.SAMPLES_HEAD, 41 * i, 41, 25)
                 + struct.pack("<" + "hhh" * 41, *([0, 0, 1024] * 41))) for i in range(20)]

@@ -209,7 +209,7 @@ def test_apply_composed_at_8_g_at_the_device_outputs_full_resolution(tmp_path, r
     not clipped, and what apply writes is the device's output, Q11 g at 8 g, to the last bit
     (the twin's integers back from the CSV, exactly), within the format's rounding of the
     float model; at --range 2 the same file is clipped."""
-    from acal import fixed
+    from acal.core import fixed
     from accelcal.bridge import twin
     from accelcal.fixedpoint import g_to_sample
     from accelcal.model.effects import ModelSpec

@@ -84,6 +84,6 @@ def test_bins_that_did_not_fill_name_the_orientations_and_the_hold(tmp_path, cap
     f.write_text("x,y,z\n1,0,0\n-1,0,0\n0,1,0\n0,-1,0\n0,0,1\n")
     main(["calibrate", str(f), "--profile", "paper", "--seconds", str(seconds)])
     out = capsys.readouterr().out
-    # five points, one per subset of the first five (acal.bins.subset_of): the rest are empty
+    # five points, one per subset of the first five (acal.core.bins.subset_of): the rest are empty
     assert "x-down 1, x-level 1, x-up 1, y-down 1, y-level 1, y-up 2, z-down 2" in out, out
     assert f"each held still >= {2 * seconds} s" in out and "up: the axis reads +1 g" in out

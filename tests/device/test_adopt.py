@@ -1,4 +1,4 @@
-"""A discovering board's adoption gives its bins a composed model's points (device/acal/grow.py,
+"""A discovering board's adoption gives its bins a composed model's points (device/acal/discover/grow.py,
 Pipeline.adopt; docs/model-discovery.md "Points for a composed model"): the wear bins go from 8 to
 14 points per subset in the room they have from the start (the fit points and fits take 126
 from the start too), every held point and its conditions kept in its subset and slot; fed the
@@ -14,10 +14,11 @@ import pytest
 
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
-from acal import effects, log, profile
-from acal.bins import Bins
-from acal.grow import grow_bins
-from acal.pipeline import Pipeline
+from acal.core import effects, profile
+from acal.logger import log
+from acal.core.bins import Bins
+from acal.discover.grow import grow_bins
+from acal.core.pipeline import Pipeline
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
 C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset
@@ -44,9 +45,9 @@ def rest_means(seed, first, n, drift):
 # adoption; ROUNDS: the adoptions (2: the discovery ends with the second, as a fresh pipeline of
 # that model runs without one; 1: it goes on, the fresh pipeline takes the points at the end).
 SCRIPT = r'''
-from acal import profile
-from acal.bins import N_SUBSETS
-from acal.pipeline import Pipeline
+from acal.core import profile
+from acal.core.bins import N_SUBSETS
+from acal.core.pipeline import Pipeline
 try:
     from micropython import heap_lock, heap_unlock
 except ImportError:   # CPython
@@ -188,8 +189,8 @@ def test_adopted_bins_take_a_composed_models_points_as_a_fresh_pipeline(tmp_path
 # a third calibration.
 PROCESSOR = r'''
 import sys
-from acal import log
-from acal.processor import Processor
+from acal.logger import log
+from acal.logger.processor import Processor
 
 PTS = [int(v) for v in "%s".split()]
 MORE = [int(v) for v in "%s".split()]

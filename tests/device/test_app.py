@@ -20,9 +20,10 @@ from simboard import ADDRESS, SimBoard  # noqa: E402
 from vbus import I2C  # noqa: E402
 from vclock import Clock  # noqa: E402
 
-from acal import fixed, log  # noqa: E402
-from acal.app import App  # noqa: E402
-from acal.profile import PAPER, WEAR  # noqa: E402
+from acal.core import fixed
+from acal.logger import log  # noqa: E402
+from acal.logger.app import App  # noqa: E402
+from acal.core.profile import PAPER, WEAR  # noqa: E402
 
 RATE = 25
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
@@ -196,12 +197,12 @@ def test_replay_finds_a_changed_device_module(tmp_path, stim, monkeypatch, prof)
     run_app(tmp_path, board(path), profile=prof)
     assert boardlog.replay(tmp_path)["identical"]
     if prof == PAPER:  # a "change" to the device code: one iteration fewer
-        from acal import optimiser
+        from acal.paper import optimiser
         real_begin = optimiser.Optimiser.begin
         monkeypatch.setattr(optimiser.Optimiser, "begin",
                             lambda self, pts, n, it, *a: real_begin(self, pts, n, it - 1, *a))
     else:  # a laxer convergence rule
-        from acal import gaussnewton
+        from acal.core import gaussnewton
         monkeypatch.setattr(gaussnewton, "CONVERGED_SHIFT", 4)
     r = boardlog.replay(tmp_path)
     assert not r["identical"] and r["cal"]["differ"] >= 1
@@ -210,7 +211,7 @@ def test_replay_finds_a_changed_device_module(tmp_path, stim, monkeypatch, prof)
 HEAP_SCRIPT = r'''
 import sys, os, micropython
 from simboard import SimBoard
-from acal.app import App, BLOCK
+from acal.logger.app import App, BLOCK
 
 os.chdir(sys.argv[2])
 app = App(SimBoard(sys.argv[1]), rate_hz=25, capture_bytes=0, recal_seconds=600)
@@ -276,7 +277,7 @@ def test_the_millisecond_clock_allocates_nothing_on_the_32_bit_port(tmp_path, st
     script.write_text(HEAP_SCRIPT.replace(
         "app = App(SimBoard(sys.argv[1]),",
         "from vclock import Clock\n"
-        "from acal.app import MsTicksClock\n"
+        "from acal.logger.app import MsTicksClock\n"
         "b = SimBoard(sys.argv[1], clock=Clock(0, %d))\n"
         "b.clock = MsTicksClock(lambda: b.chip.clock.ticks_ms() & %d, b.chip.clock.sleep_us)\n"
         "app = App(b," % (MS_WRAP * 1000 - 100 * 10 ** 6, MS_WRAP - 1)).replace(
@@ -291,7 +292,7 @@ def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
     """A wearer who rests 5 s in a new orientation every 5 s for 14 days (every rest segment
     differs, all of them logged were there no allowance), with hourly counters and calibrations
     every 6 h: the log stays within 1 MiB and refuses nothing."""
-    from acal.app import Processor, REST_BUDGET_BYTES
+    from acal.logger.app import Processor, REST_BUDGET_BYTES
     rate = 1
     lg = log.Log(str(tmp_path / "log.bin"), 1 << 20)
     proc = Processor(lg, rate, recal_seconds=6 * 3600)
@@ -322,7 +323,7 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
     """The CircuitPython board's bus (busio.I2C through adafruit_bus_device, as
     boards/feather_rp2040.py wires it) gives the app the same samples, hence the same log."""
     from vbus import BusioI2C
-    from acal.lis3dh_cp import BusioRegisters
+    from acal.logger.lis3dh_cp import BusioRegisters
     path, _ = stim
     logs = []
     for name in ("machine", "busio"):
@@ -339,7 +340,7 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
 
 
 def test_setup_retries_bus_faults_and_says_why_when_the_chip_is_absent(tmp_path, stim):
-    from acal.lis3dh import LIS3DHError
+    from acal.logger.lis3dh import LIS3DHError
     path, _ = stim
     b = board(path, faults=150)  # setup (8 transactions) often needs its retries
     os.chdir(tmp_path)
@@ -372,7 +373,7 @@ def test_the_sliced_fit_loses_no_sample_at_100_hz(tmp_path, rng, monkeypatch):
         parts.append(v + rng.normal(scale=0.3, size=(rate * 2, 3)))
     path = tmp_path / "stim100.bin"
     write_stimulus(path, rate, np.clip(np.concatenate(parts), -1.9, 1.9), np.full(60 * 10 * rate, 30.0))
-    from acal import pipeline
+    from acal.core import pipeline
     real_step = pipeline.Pipeline.fit_step
     results = {}
     for mode in ("sliced", "one go"):
@@ -383,7 +384,7 @@ def test_the_sliced_fit_loses_no_sample_at_100_hz(tmp_path, rng, monkeypatch):
             return real_step(self)
         monkeypatch.setattr(pipeline.Pipeline, "fit_step", charged)
         if mode == "one go":
-            from acal import processor
+            from acal.logger import processor
             monkeypatch.setattr(processor, "FIT_STEPS_PER_FEED", 1 << 20)
         d = tmp_path / mode.replace(" ", "_")
         d.mkdir()
@@ -443,7 +444,7 @@ def ms_ticks_board(path, start_us, faults=30):
     """The virtual board with the clock boards/feather_rp2040.py gives the app: MsTicksClock on
     a millisecond counter that wraps at 2^29 (supervisor.ticks_ms, read off the virtual clock);
     the same stalls as the tick-wrap test."""
-    from acal.app import MsTicksClock
+    from acal.logger.app import MsTicksClock
     clock = StallingClock(every=500, stall_us=400000)
     clock.set_us(start_us)
     b = board(path, faults=faults, clock=clock)
@@ -486,7 +487,7 @@ def test_the_millisecond_clock_against_the_modular_definitions(rng):
     """MsTicksClock's ticks_us (whole ms, wrapping at 2^30 us) read after random waits from
     random starts, across the 2^29 ms counter wrap: always (t // 1000 * 1000) mod 2^30, and
     its ticks_diff the true difference for waits below 2^29 us."""
-    from acal.app import MsTicksClock
+    from acal.logger.app import MsTicksClock
     from vclock import TICKS_PERIOD
     for start in (0, MS_WRAP * 1000 - 5, MS_WRAP * 1000 - 123456789, 10 ** 15 + 999999):
         c = Clock(start_us=start)
@@ -508,8 +509,8 @@ def test_the_millisecond_clock_against_the_modular_definitions(rng):
 APP_LOG_SCRIPT = r'''
 import sys, os
 from simboard import SimBoard
-from acal.app import App
-from acal import log
+from acal.logger.app import App
+from acal.logger import log
 os.chdir(sys.argv[2])
 app = App(SimBoard(sys.argv[1], 100), rate_hz=25, capture_bytes=0, recal_seconds=600)
 app.run(10 ** 6)

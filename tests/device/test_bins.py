@@ -1,9 +1,9 @@
 """Bins: the nine subsets, counts, the differs-enough test, first-come and centre policies."""
 import numpy as np
 
-from acal import bins
-from acal.bins import Bins, subset_of
-from acal.fixed import TEMP_Q
+from acal.core import bins
+from acal.core.bins import Bins, subset_of
+from acal.core.fixed import TEMP_Q
 from accelcal.fixedpoint import g_to_point
 
 G = 65536
@@ -233,8 +233,9 @@ def test_the_bins_and_the_fit_points_answer_the_span_question_alike(rng):
     flat for the fit) ask one question through effects.condition_of and bins.DIFFERS: for every
     effect kind, on points whose ranges straddle each threshold, they answer alike, and as the
     threshold of the condition the effect's regressor reads says (by name, independently)."""
-    from acal import discover, effects
-    from acal.pipeline import spanned
+    from acal.discover import search as discover
+    from acal.core import effects
+    from acal.core.pipeline import spanned
     reads = {"temp": 0, "time": 1, "drift": 1, "step": 1, "supply": 2}
     for trial in range(40):
         b = Bins(2, 4, differ=G // 10, temp_differ=1, time_differ=1, supply_differ=1)

@@ -21,9 +21,10 @@ def test_the_app_finds_and_removes_a_shock(tmp_path):
     """In the default run (about 30 s): the board's own code path, app to log to replay."""
     sys.path.insert(0, str(CHIP_DIR))
     from simboard import SimBoard
-    from acal import effects as deff, log
-    from acal.app import App
-    from acal.profile import WEAR
+    from acal.core import effects as deff
+    from acal.logger import log
+    from acal.logger.app import App
+    from acal.core.profile import WEAR
     rec, stim = tmp_path / "rec.csv", tmp_path / "stim.bin"
     r = run_cli("simulate", "wrist", "--days", 2, "--rate", RATE, "--seed", 31, "--effect", "step",
                 "-o", rec, "--stimulus", stim)

@@ -82,9 +82,10 @@ class NoSupply:
 def test_the_app_follows_the_board_supply(wrist, tmp_path):
     sys.path.insert(0, str(CHIP_DIR))
     from simboard import SimBoard
-    from acal import effects as deff, log
-    from acal.app import App
-    from acal.profile import WEAR
+    from acal.core import effects as deff
+    from acal.logger import log
+    from acal.logger.app import App
+    from acal.core.profile import WEAR
     rec, stim = wrist
     mv = np.loadtxt(rec, delimiter=",", skiprows=1, usecols=5)
     sim = SimBoard(str(stim))     # its stimulus carries the battery: the board reads it

@@ -1,8 +1,8 @@
-"""The board's choice among candidate effects (device/acal/candidates.py, issue 29): the lowest
+"""The board's choice among candidate effects (device/acal/discover/candidates.py, issue 29): the lowest
 held-out error, a step giving way to a plain effect within 1.5x of it, untestable ones skipped,
 adoption only under the naming rule (10 % lower, 70 % of blocks) - the rule diagnose states."""
-from acal import candidates
-from acal.effects import DRIFT, STEP, TEMP_OFFSET
+from acal.discover import candidates
+from acal.core.effects import DRIFT, STEP, TEMP_OFFSET
 
 
 def test_lowest_error_wins_and_untestable_are_skipped():

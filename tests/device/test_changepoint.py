@@ -1,13 +1,13 @@
-"""The step's change-point search (acal/changepoint.py) in slices: at every slice size (points
+"""The step's change-point search (acal/core/changepoint.py) in slices: at every slice size (points
 read, sort moves, points scanned a step; one step for a whole pass) it finds the same split with
 the same score, and its order is the stable sort of the kept points by time (Python's sorted),
 with ties in time and points the fit rejected; the smaller the slices, the more steps."""
 import numpy as np
 import pytest
 
-from acal import changepoint
-from acal.bins import COND
-from acal.changepoint import ChangePoint
+from acal.core import changepoint
+from acal.core.bins import COND
+from acal.core.changepoint import ChangePoint
 
 
 class _Fit:

@@ -19,11 +19,11 @@ from accelcal.locations import CHIP_DIR  # noqa: E402
 sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
-from acal import log  # noqa: E402
-from acal.bins import TEMP_DIFFER  # noqa: E402
-from acal.fixed import TEMP_Q  # noqa: E402
-from acal.app import App, Processor  # noqa: E402
-from acal.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
+from acal.logger import log  # noqa: E402
+from acal.core.bins import TEMP_DIFFER  # noqa: E402
+from acal.core.fixed import TEMP_Q  # noqa: E402
+from acal.logger.app import App, Processor  # noqa: E402
+from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
 
 RATE = 25
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
@@ -138,8 +138,8 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
 
 APPLY_SCRIPT = r'''
 from array import array
-from acal import effects
-from acal.calibration import Calibration
+from acal.core import effects
+from acal.core.calibration import Calibration
 buf = array("i", [rnd(2097) * 4 for _ in range(3 * 2000)])   # to +-8 g: clamped at 2 g
 # the first effects; then a step and two generic offsets (time^4, temperature^4); then at
 # +-8 g full scale, without effects (the viper block alone) and with two

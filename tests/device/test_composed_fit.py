@@ -9,10 +9,10 @@ from accelcal import simulate
 from accelcal.pipeline.restpoints import RestPoints
 from accelcal.pipeline.composed_lsq import fit
 from accelcal.model.effects import CATALOGUE, ModelSpec, device_effects
-from acal.gaussnewton import GaussNewton
-from acal import effects as deff
-from acal.fixed import TEMP_Q
-from acal.optimiser import OK, Optimiser
+from acal.core.gaussnewton import GaussNewton
+from acal.core import effects as deff
+from acal.core.fixed import TEMP_Q
+from acal.paper.optimiser import OK, Optimiser
 
 # The paper profile's gradient fit runs the catalogue's candidates; the device's generic offsets
 # (shapes for declared effects) and the step are fitted by the wear profile's Gauss-Newton
@@ -87,8 +87,8 @@ def test_gauss_newton_fits_the_generic_offsets_near_least_squares(name, seed):
 
 RUNNER = r'''
 import sys
-from acal.optimiser import Optimiser
-from acal.gaussnewton import GaussNewton
+from acal.paper.optimiser import Optimiser
+from acal.core.gaussnewton import GaussNewton
 vals = [int(x) for x in open(sys.argv[1]).read().split()]
 newton, kind, n, it = vals[0], vals[1], vals[2], vals[3]
 pts = vals[4:4 + 3 * n]

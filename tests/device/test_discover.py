@@ -1,4 +1,4 @@
-"""The board's own model discovery (device/acal/discover.py, issue 29): a Processor started with
+"""The board's own model discovery (device/acal/discover/search.py, issue 29): a Processor started with
 `base` and discover=True, fed a simulated stream (two days of rest postures at a daily
 temperature cycle, a hidden temp_offset), adopts temp_offset and logs DISCOVERY, CAL and EFFECT
 records that the real MicroPython reproduces byte for byte; on the same stream without the
@@ -11,8 +11,10 @@ import pytest
 
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
-from acal import discover, effects, log
-from acal.fixed import PARAM_NAMES
+from acal.discover import search as discover
+from acal.core import effects
+from acal.logger import log
+from acal.core.fixed import PARAM_NAMES
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
 C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset, the LIS3DH's size
@@ -37,8 +39,8 @@ def postures(rng, c, n=384, drift=np.zeros(3)):
 STREAM = r'''
 import sys
 from array import array
-from acal import log
-from acal.processor import Processor
+from acal.logger import log
+from acal.logger.processor import Processor
 
 REST = %s
 GAP = %d
@@ -109,7 +111,7 @@ def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_pa
     assert np.all(np.sign(p) == np.sign(C_TRUE)) and np.all(np.abs(p - C_TRUE) < 3e-4), p
     # powered up again (the same store, still flashed with base and --discover): it goes on
     # with the adopted model and its stored parameters, not discovering again
-    from acal.processor import Processor
+    from acal.logger.processor import Processor
     cal = d.dicts(log.CAL)[-1]
     for f in ("cpython.bin", "mp.bin"):
         store = log.CalStore(str(tmp_path / f) + ".a", str(tmp_path / f) + ".b")
@@ -145,7 +147,7 @@ def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
     from accelcal.model.effects import CATALOGUE   # and `pull`/`report` tell them so
     told = boardlog._discovery(found[1], CATALOGUE)
     assert told["adopted"] == "temp_offset+drift" and told["params_effect"] == "drift", told
-    from acal.processor import Processor
+    from acal.logger.processor import Processor
     store = log.CalStore(str(tmp_path / "cpython.bin") + ".a", str(tmp_path / "cpython.bin") + ".b")
     again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
     assert again.kinds == both and again.pipe.discovery is None
@@ -158,7 +160,7 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
     assert found and all(f["adopted"] == 0 for f in found), found
     assert not boardlog.decode(tmp_path / "clean.bin").of(log.EFFECT)
     # powered up again: base, discovering (its store holds a base calibration)
-    from acal.processor import Processor
+    from acal.logger.processor import Processor
     store = log.CalStore(str(tmp_path / "clean.bin") + ".a", str(tmp_path / "clean.bin") + ".b")
     again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
     assert again.kinds == () and again.pipe.discovery is not None and again.calibrations >= 1
@@ -169,7 +171,7 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
     discovery's limit of two effects) or base+drift+drift: a board flashed with base and
     --discover starts afresh, discovering; base+temp_offset+drift (a second round's model) and
     drift alone (a first round's) are taken."""
-    from acal.processor import Processor
+    from acal.logger.processor import Processor
     store = log.CalStore(str(tmp_path / "a"), str(tmp_path / "b"))
     cal = (100, 3, 0, 5, 72, 0, 0) + (1 << 24, 1 << 24, 1 << 24, 0, 0, 0, 0, 0, 0)
     for kinds in ((effects.TEMP_OFFSET, effects.DRIFT, effects.SUPPLY_OFFSET),
@@ -205,9 +207,10 @@ d.begin(pipe)
 
 HEAP = r'''
 import micropython
-from acal.pipeline import Pipeline
-from acal import profile, candidates, discover
-from acal.bins import int32s
+from acal.core.pipeline import Pipeline
+from acal.core import profile
+from acal.discover import candidates, search as discover
+from acal.core.bins import int32s
 
 ''' + FEED + r'''# the rule at its largest errors: every candidate saturated, one just below
 errs = int32s(discover.N_CANDIDATES)
@@ -340,7 +343,7 @@ def test_a_second_round_adds_the_second_effect_and_allocates_nothing(tmp_path, m
 
 # A hidden shock (effects.STEP: the offsets jump once) inside a held-out 2-hour block: the fit's
 # step time is the first fit point after it, and the discovery places it among the held-out
-# points in between before the choice (acal/stepplace.py), and is chosen on its placed error.
+# points in between before the choice (acal/discover/stepplace.py), and is chosen on its placed error.
 # The offsets' jump (g): at 6, -8, 5 mg with the shock at 1700 or 1740 the change-point search
 # split at 1470 on these points, and drift, within 1.5x of that step, was adopted.
 J_TRUE = np.array([0.010, -0.012, 0.008])
@@ -348,9 +351,9 @@ SHOCK = 1760                # 64 s units: inside held-out block 15 (1687.5 .. 18
 
 STEP_HEAP = r'''
 import micropython
-from acal.pipeline import Pipeline
-from acal import profile
-from acal.bins import COND
+from acal.core.pipeline import Pipeline
+from acal.core import profile
+from acal.core.bins import COND
 
 ''' + FEED + r'''SHOCK = %d
 

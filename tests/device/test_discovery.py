@@ -1,6 +1,6 @@
-"""The acceptance rule of model discovery (acal/discovery.py): one definition for the host's
+"""The acceptance rule of model discovery (acal/discover/rule.py): one definition for the host's
 diagnose and the board, at its edges, and the same decisions under MicroPython."""
-from acal import discovery
+from acal.discover import rule as discovery
 from accelcal.bridge import runtime
 from accelcal.pipeline import diagnose
 
@@ -64,7 +64,7 @@ CASES = [(b, a, k, n) for b in (1000, 2047, 5) for a in range(0, 1200, 37)
          for n in (3, 5, 10, 18, 25, 26) for k in range(n + 1)]
 
 SCRIPT = r'''
-from acal import discovery
+from acal.discover import rule as discovery
 out = []
 for b, a, k, n in %r:
     out.append("1" if discovery.names(b, a, k, n) else "0")

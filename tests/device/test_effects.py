@@ -1,4 +1,4 @@
-"""The effects' integer application (device/acal/effects.py) against the host's float form
+"""The effects' integer application (device/acal/core/effects.py) against the host's float form
 (host/accelcal/model/effects.py, the same first-order model), bit-identical under MicroPython, and
 inside 2**30 on the per-sample path at the worst case."""
 import itertools
@@ -6,8 +6,8 @@ import itertools
 import numpy as np
 import pytest
 
-from acal import effects as deff
-from acal.fixed import TEMP_Q
+from acal.core import effects as deff
+from acal.core.fixed import TEMP_Q
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, run_both
@@ -94,7 +94,7 @@ def test_apply_form_at_larger_full_scales_matches_the_float_model(name, rng):
 
 
 SCRIPT = r'''
-from acal import effects
+from acal.core import effects
 out = []
 for kind in sorted(effects.NAMES):
     p = [rnd(effects.BOUNDS[kind]) for _ in range(3)]
@@ -116,7 +116,7 @@ print("\n".join(out))
 
 def test_micropython_gives_the_same_integers(tmp_path, mp):
     got, host = run_both(SCRIPT, tmp_path, mp)
-    from acal import effects
+    from acal.core import effects
     assert got.split() == host.split() and len(got.splitlines()) == 100 * len(effects.NAMES)
 
 
@@ -126,8 +126,8 @@ def test_apply_stays_small_in_every_composition_and_order():
     corners of their bounds and of the calibration bounds, readings at and past full scale
     (+-2.048 * 2**e g), dT and dt at and past their clamps
     (a drift removed over years, then temp_scale multiplying what is left): below 2**30."""
-    from acal import calibration
-    from acal.calibration import Calibration
+    from acal.core import calibration
+    from acal.core.calibration import Calibration
     tr = Tracer()
     T = traced(tr)
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
@@ -169,7 +169,8 @@ def test_effect_kinds_fit_the_logs_model_field():
     KIND_MAX, the longest model round-trips, and past either limit model_code refuses rather
     than wrap.  is_generic() is the one test of a generic offset: exactly SHAPES's kinds."""
     import struct
-    from acal import effects as E, log
+    from acal.core import effects as E
+    from acal.logger import log
     assert all(0 < k <= E.KIND_MAX == (1 << E.KIND_BITS) - 1 for k in E.NAMES)
     longest = tuple(sorted(E.NAMES)[-E.MODEL_EFFECTS_MAX:])
     code = E.model_code(longest)

@@ -31,12 +31,12 @@ def feed(d, buf, n):  # locals only: a new module global would itself allocate
 '''
 
 SCRIPT = STREAM + r'''
-from acal.rest import RestDetector
-from acal.optimiser import Optimiser
-from acal.pipeline import Pipeline
-from acal.rest import ALL_AXES, AUTO
-from acal.gaussnewton import GaussNewton
-from acal.profile import WEAR, settings
+from acal.core.rest import RestDetector
+from acal.paper.optimiser import Optimiser
+from acal.core.pipeline import Pipeline
+from acal.core.rest import ALL_AXES, AUTO
+from acal.core.gaussnewton import GaussNewton
+from acal.core.profile import WEAR, settings
 
 N = 10000
 buf = stream(N, 1500)
@@ -102,8 +102,8 @@ def test_heap_lock_does_detect_allocation(tmp_path):
 
 
 PER_SAMPLE_32 = STREAM + r'''
-from acal.rest import RestDetector, ALL_AXES, AUTO
-from acal.calibration import Calibration
+from acal.core.rest import RestDetector, ALL_AXES, AUTO
+from acal.core.calibration import Calibration
 
 N = 6000
 buf = stream(N, 900)
@@ -118,7 +118,7 @@ for r in (2, 4, 8, 16):
     cals.append(c)
 # a composed model of every temperature form (dT in Q2 degC: fixed.TEMP_Q), its effects at their
 # bounds, at the smallest and largest full scale, read at and past dT's clamp
-from acal import effects
+from acal.core import effects
 TEMPS = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2, effects.TEMP_SCALE, effects.TEMP_OFFSET4)
 composed = []
 for r in (2, 16):
@@ -171,10 +171,10 @@ def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):
 
 FIT_32 = r'''
 import micropython
-from acal.gaussnewton import GaussNewton
-from acal.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2, STEP
-from acal.effects import TIME_OFFSET2, TEMP_OFFSET4, SUPPLY_OFFSET
-from acal.changepoint import ChangePoint
+from acal.core.gaussnewton import GaussNewton
+from acal.core.effects import TEMP_OFFSET, TEMP_SCALE, DRIFT, NONLINEAR, TEMP_OFFSET2, STEP
+from acal.core.effects import TIME_OFFSET2, TEMP_OFFSET4, SUPPLY_OFFSET
+from acal.core.changepoint import ChangePoint
 
 from array import array
 PTS = array("i", %s)   # int32 arrays, as the pipeline hands them over
@@ -214,10 +214,10 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     ints past 2^30 allocate: 18 points, its largest point count (72, the wear profile's 8 per
     subset), a composed model of all four first effects, one with the curved temperature
     response and one of three generic offsets (time^2, temperature^4, the board's supply) over
-    72 points with temperatures, times and supplies spread across the clamps, and a step: its time searched (acal/changepoint.py) on the four-effect
+    72 points with temperatures, times and supplies spread across the clamps, and a step: its time searched (acal/core/changepoint.py) on the four-effect
     fit, then fitted.  Each runs bit-identical to CPython."""
-    from acal import effects
-    from acal.gaussnewton import GaussNewton
+    from acal.core import effects
+    from acal.core.gaussnewton import GaussNewton
     from accelcal import simulate
     truth = np.array([1.03, 0.98, 1.01, 0.02, -0.01, 0.015, 0.05, -0.03, 0.04])
     d = rng.normal(size=(72, 3))
@@ -244,7 +244,7 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
         gn.run(pts, n, 20, a)
         fits.append(gn)
         expect.append("%d:%d:%d:%d" % (gn.status, gn.iterations, gn.rejected, gn.p[6]))
-    from acal.changepoint import ChangePoint
+    from acal.core.changepoint import ChangePoint
     search = ChangePoint()
     assert search.run(fits[2])
     step = GaussNewton(72, (effects.TEMP_OFFSET, effects.STEP))
@@ -258,9 +258,9 @@ def test_default_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
 
 PIPELINE_MEMORY = r'''
 import gc
-from acal.pipeline import Pipeline
-from acal import profile, effects
-import acal.changepoint   # its code loads with a step's first pipeline: not the pipeline's own
+from acal.core.pipeline import Pipeline
+from acal.core import profile, effects
+import acal.core.changepoint   # its code loads with a step's first pipeline: not the pipeline's own
 out = []
 for kinds in ((effects.DRIFT,), (effects.STEP,), (effects.DRIFT, effects.STEP),
               (effects.TEMP_OFFSET, effects.TEMP_SCALE, effects.DRIFT, effects.NONLINEAR)):
@@ -276,7 +276,7 @@ print(" ".join(map(str, out)))
 
 def test_a_step_costs_the_board_no_more_memory_than_a_drift(tmp_path):
     """Under MicroPython: a wear-profile pipeline with a step allocates within 1 kB of one with
-    a drift (the change-point search keeps nothing per point of its own, acal/changepoint.py;
+    a drift (the change-point search keeps nothing per point of its own, acal/core/changepoint.py;
     its first form kept 4 kB of copies, and base+step did not start on the virtual board's
     160 kB heap), and drift + step no more than the four first effects together.  (base+step
     on that heap for two simulated days: tests/device/test_board_step.py, make bench.)"""
@@ -289,8 +289,8 @@ def test_a_step_costs_the_board_no_more_memory_than_a_drift(tmp_path):
 
 PAPER_32 = r"""
 import micropython
-from acal.optimiser import Optimiser
-from acal.effects import TEMP_OFFSET, DRIFT
+from acal.paper.optimiser import Optimiser
+from acal.core.effects import TEMP_OFFSET, DRIFT
 
 PTS = %s
 AUX = %s
@@ -314,12 +314,12 @@ print(" ".join(res))
 
 def test_paper_fit_allocates_nothing_on_the_32_bit_port(tmp_path, mp32, rng):
     """The paper profile's gradient descent under heap_lock where ints past 2^30 allocate: its
-    objective and update in limbs (acal/objective.py), 18 and 36 points of a sensor inside the
+    objective and update in limbs (acal/paper/objective.py), 18 and 36 points of a sensor inside the
     paper's error ranges, the rates that diverge, and a composed model (temperature offset and
     drift) over 36 points with temperatures and times spread: nothing allocated, each run
     bit-identical to CPython's (objectives read after the lock is off: longs there)."""
-    from acal import effects
-    from acal.optimiser import Optimiser
+    from acal.core import effects
+    from acal.paper.optimiser import Optimiser
     from accelcal import simulate
     from accelcal.fixedpoint import g_to_point
     _, v = simulate.paper_scenario(rng, 36, 2e-3)

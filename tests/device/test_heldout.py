@@ -1,10 +1,10 @@
-"""The board's held-out set (device/acal/heldout.py, issue 29): it keeps exactly the rest points
+"""The board's held-out set (device/acal/discover/heldout.py, issue 29): it keeps exactly the rest points
 the host's diagnose holds out (odd 2-hour blocks from the start), with their conditions; its
 preallocated storage is the written byte budget; once full it follows the wear (the oldest point
 of the fullest block replaced, so every block seen keeps points);
 and keeping a point allocates nothing under the real MicroPython, 64- and 32-bit ports."""
-from acal import heldout
-from acal.bins import COND
+from acal.discover import heldout
+from acal.core.bins import COND
 
 from accelcal.bridge import runtime
 
@@ -81,7 +81,7 @@ def test_a_full_set_stays_spread_over_the_blocks():
 
 SCRIPT = r'''
 import micropython
-from acal.heldout import HeldOut
+from acal.discover.heldout import HeldOut
 h = HeldOut()
 kept = 0   # a new module global made under the lock would itself allocate
 

@@ -1,10 +1,10 @@
-"""A model's held-out error on the board (device/acal/heldscore.py, issue 29): per point |
+"""A model's held-out error on the board (device/acal/discover/score.py, issue 29): per point |
 |K (v + o)|^2 - 1 | against the float formula, the blocks a model improves counted by hand, and
 scoring allocates nothing under the real MicroPython."""
 import numpy as np
 
-from acal import heldout, heldscore
-from acal.bins import int32s
+from acal.discover import heldout, score as heldscore
+from acal.core.bins import int32s
 
 from accelcal.bridge import runtime
 
@@ -53,7 +53,7 @@ def test_better_blocks_counts_blocks_whose_sum_falls():
 
 
 def test_slot_by_slot_scans_count_what_whole_passes_count(rng):
-    """mark_slot / compare_slot (acal/discover.py's sliced steps, a scan resumed every `budget`
+    """mark_slot / compare_slot (acal/discover/search.py's sliced steps, a scan resumed every `budget`
     slots) give the whole passes' marks and blocks better, at every budget."""
     for _ in range(20):
         h = heldout.HeldOut()
@@ -84,9 +84,9 @@ def test_slot_by_slot_scans_count_what_whole_passes_count(rng):
 
 SCRIPT = r'''
 import micropython
-from acal.heldout import HeldOut
-from acal.heldscore import HeldScore
-from acal.bins import int32s
+from acal.discover.heldout import HeldOut
+from acal.discover.score import HeldScore
+from acal.core.bins import int32s
 h = HeldOut()
 for i in range(72):
     a = [0, 0, 0]

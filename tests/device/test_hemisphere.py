@@ -1,11 +1,11 @@
-"""The coverage rule's hemisphere test on the device (acal/hemisphere.py): the same verdict as the
+"""The coverage rule's hemisphere test on the device (acal/core/hemisphere.py): the same verdict as the
 host's linear programme (methods.one_side_margin, which every float method, compare and diagnose
 ask through coverage_reason), small ints only, the same under MicroPython; and the wear profile's
 bins not ready on one-sided points, where they were before (calibrate then says why)."""
 import numpy as np
 
-from acal import bins as dbins
-from acal import hemisphere
+from acal.core import bins as dbins
+from acal.core import hemisphere
 from accelcal.bridge import runtime
 from accelcal.bridge.ranges import SMALL_INT_LIMIT, Tracer, traced
 from accelcal.methods import coverage_reason, one_side_margin
@@ -65,7 +65,7 @@ def test_small_ints_at_the_bins_extremes():
 
 
 SCRIPT = r'''
-from acal import hemisphere
+from acal.core import hemisphere
 print("".join("1" if hemisphere.one_sided(f, [len(f) // 3], len(f) // 3, len(f) // 3) else "0"
               for f in %r))
 '''

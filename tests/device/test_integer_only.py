@@ -39,7 +39,7 @@ def test_device_has_modules():
     assert {"fixed", "rest", "bins", "optimiser", "model", "pipeline"} <= names
 
 
-@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.relative_to(DEVICE).as_posix())
 def test_no_float_constructs(path):
     found = float_constructs(ast.parse(path.read_text(), filename=str(path)))
     assert found == [], f"{path.name}: " + "; ".join(f"line {n}: {w}" for n, w in found)
@@ -56,7 +56,7 @@ def test_the_audit_catches_floats():
 @pytest.mark.parametrize("arch", ["armv6m", "xtensawin"])
 def test_mpy_cross_compiles_every_device_module(arch, tmp_path):
     # As the builds compile them (make build, deploy, the emulated RP2040): the hot loops marked
-    # @viper (acal/emit.py) as viper code for these targets.
+    # @viper (acal/core/emit.py) as viper code for these targets.
     from accelcal.bridge.rp2040 import emitted_source, mpy_cross
     marked = 0
     for f in FILES:

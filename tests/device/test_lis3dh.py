@@ -13,7 +13,7 @@ from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 import adafruit_lis3dh  # noqa: E402
-from acal import lis3dh, lis3dh_cp  # noqa: E402
+from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
 from accelcal.simulate.stimulus import write_stimulus  # noqa: E402
 
 G = adafruit_lis3dh.STANDARD_GRAVITY

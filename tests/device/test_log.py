@@ -4,8 +4,9 @@ import random
 import struct
 
 
-from acal import effects, log
-from acal.fixed import TEMP_Q
+from acal.core import effects
+from acal.logger import log
+from acal.core.fixed import TEMP_Q
 
 
 def make_log(n=1000, seed=7):
@@ -222,7 +223,7 @@ def test_a_board_flashed_with_another_model_numbers_on_from_the_store(tmp_path):
     """The store holds calibration 7 of base+temp_offset; the board is flashed as base: it
     starts uncalibrated, its first calibration is number 8, the store's newest, and the next boot
     resumes it (the old model's stays in the other slot)."""
-    from acal.app import Processor
+    from acal.logger.app import Processor
     a, b = tmp_path / "cal_a.bin", tmp_path / "cal_b.bin"
     store = log.CalStore(str(a), str(b))
     store.save(cal_values(7, 7), [effect_values(700, 1, 1)])

@@ -1,4 +1,4 @@
-"""acal/objective.py, the paper objective and its update in 14-bit limbs, against the long-int
+"""acal/paper/objective.py, the paper objective and its update in 14-bit limbs, against the long-int
 formula it replaces (kept here as the reference, in CPython's exact ints): the same integers on
 random and worst-case inputs across the fit region and the points' domain (+-16 g), the formula
 outside it; the optimiser run on them the same run as the one on the formula.  Their ranges:
@@ -9,10 +9,11 @@ from array import array
 import numpy as np
 import pytest
 
-from acal import fixed as F, model, objective, optimiser
-from acal.objective import (BASE, CACHE, GRADIENT, LIMBS, MAX_POINTS, PLAIN, QUOTIENT_MAX,
+from acal.core import fixed as F, model
+from acal.paper import objective, optimiser
+from acal.paper.objective import (BASE, CACHE, GRADIENT, LIMBS, MAX_POINTS, PLAIN, QUOTIENT_MAX,
                             objective_limbs, update)
-from acal.optimiser import Optimiser
+from acal.paper.optimiser import Optimiser
 from accelcal import simulate
 from accelcal.fixedpoint import g_to_point
 

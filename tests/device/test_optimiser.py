@@ -1,9 +1,9 @@
 """The integer optimiser against float64: the same algorithm, the optimum, and failure reports."""
 import numpy as np
 
-from acal import optimiser
-from acal.bins import Bins
-from acal.optimiser import Optimiser
+from acal.paper import optimiser
+from acal.core.bins import Bins
+from acal.paper.optimiser import Optimiser
 from accelcal import methods, simulate
 from accelcal.fixedpoint import g_to_point, params_to_float, point_to_g
 

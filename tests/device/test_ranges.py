@@ -1,17 +1,18 @@
 """Every intermediate of the per-sample path stays within +-2**30 (the small-int limit of 32-bit
 MicroPython ports) for any in-range input, shown by running the device code on traced ints at
 the worst case: the per-sample path, the paper's objective and gradient descent (in limbs:
-acal/objective.py), the default profile's fit (docs/method-and-formats.md "Integer ranges")."""
+acal/paper/objective.py), the default profile's fit (docs/method-and-formats.md "Integer ranges")."""
 import itertools
 import math
 
 import numpy as np
 import pytest
 
-from acal import fixed
-from acal.calibration import Calibration
-from acal import calibration, objective, rest
-from acal.rest import ALL_AXES, RestDetector
+from acal.core import fixed
+from acal.core.calibration import Calibration
+from acal.core import calibration, rest
+from acal.paper import objective
+from acal.core.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import (SMALL_INT_LIMIT, Int32s, TracedArray, Tracer, traced,
                                      traced_gauss_newton, traced_optimiser, viper_casts)
 from conftest import effect_orders
@@ -22,7 +23,7 @@ FULL_2G = {bits: (round(-2.048 * 1024), round(2.047 * 1024)) for bits in (12, 10
 
 
 def detector_run(samples, length, axis=0):
-    # The scans are viper on the boards (acal/emit.py): machine words there, so every value they
+    # The scans are viper on the boards (acal/core/emit.py): machine words there, so every value they
     # make is traced here.  int() is viper's cast and the state an int32 array: for the trace
     # the cast passes a traced int through and the state is a list of traced ints.
     tr = Tracer()
@@ -135,10 +136,10 @@ def test_apply_rejects_parameters_outside_bounds():
         Calibration().set(p)
 
 
-# --- the paper profile's objective and gradient step (acal/objective.py): below 2**30 ----------
+# --- the paper profile's objective and gradient step (acal/paper/objective.py): below 2**30 ----------
 
 def _traced_kernel(T, p, pts, mode, cache):
-    from acal.objective import LIMBS
+    from acal.paper.objective import LIMBS
     out = TracedArray(T, 9 * LIMBS)
     with viper_casts():   # viper's cast: the traced int passes
         st = objective.objective_limbs([T(v) for v in pts], len(pts) // 3, out, T(0),
@@ -171,7 +172,7 @@ def test_paper_objective_stays_small_at_the_domain_corners():
     cache at every corner of the fit region (BASE, then the gradient's nine objectives), with
     points at +-16 g per axis in the octants that make |a| largest and smallest: no
     intermediate reaches 2^30; and the sums over 128 of the largest terms neither."""
-    from acal.objective import BASE, CACHE, GRADIENT, PLAIN
+    from acal.paper.objective import BASE, CACHE, GRADIENT, PLAIN
     tr = Tracer()
     T = traced(tr)
     worst = None
@@ -197,7 +198,7 @@ def test_paper_objective_shortcuts_stay_small_at_their_edges(rng):
     checks (|a| < 2 g, |a|^2 within 1/4 g^2 of 1) are met and missed by little; traced, from
     the cache too, no intermediate reaches 2^30 (and the values are the formula's:
     tests/device/test_objective.py)."""
-    from acal.objective import BASE, CACHE, GRADIENT
+    from acal.paper.objective import BASE, CACHE, GRADIENT
     tr = Tracer()
     T = traced(tr)
     F = fixed
@@ -256,7 +257,7 @@ def test_gauss_newton_rows_stay_small_at_the_fit_region_corners():
     region (k_ii 0.5 or 2, |k_ij| and |o| 0.5) and readings at the fit's clamp (+-2.048 g per
     axis) in every octant: no intermediate reaches 2^30."""
     import itertools
-    from acal import model
+    from acal.core import model
     tr = Tracer()
     T = traced(tr)
     w = model.FIT_W_MAX
@@ -279,7 +280,7 @@ def test_effects_fit_form_stays_small_at_its_clamps():
     past their clamps; and model.remove_effects over the effects in every order
     (conftest.effect_orders)."""
     import itertools
-    from acal import effects, model
+    from acal.core import effects, model
     tr = Tracer()
     T = traced(tr)
     w = model.FIT_W_MAX
@@ -304,14 +305,14 @@ def test_effects_fit_form_stays_small_at_its_clamps():
 
 
 def test_solver_stays_small_on_ill_conditioned_systems(rng):
-    """acal/solve.py on normal equations as the default fit builds them (A = sum d d^T over up
+    """acal/core/solve.py on normal equations as the default fit builds them (A = sum d d^T over up
     to 128 rows, each column scaled to |d| < 2^11, so entries reach 2^29) for 9 and 21
     unknowns, condition numbers up to 10^8, right-hand sides from 1 to 2^28 and damping from
     none to MU_MAX: no intermediate reaches 2^30; undamped, with condition numbers up to 10^4,
     it solves them, to 2e-3 of the float solution's size."""
-    from acal.gaussnewton import MU_MAX
-    from acal import solve
-    from acal.solve import Solver
+    from acal.core.gaussnewton import MU_MAX
+    from acal.core import solve
+    from acal.core.solve import Solver
     tr = Tracer()
     T = traced(tr)
     worst = 0.0
@@ -354,8 +355,8 @@ def test_default_fit_stays_small_on_hostile_points(rng):
     """The whole default fit, traced: as many points as it takes (gaussnewton.MAX_POINTS, 128:
     the wear profile's composed bins hold 126, its base bins 72) with outliers at the clamp,
     points past it, a composed model of all four effects with dT and dt past their clamps."""
-    from acal import effects
-    from acal.gaussnewton import MAX_POINTS as n
+    from acal.core import effects
+    from acal.core.gaussnewton import MAX_POINTS as n
     from accelcal import simulate
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
@@ -376,7 +377,7 @@ def test_default_fit_stays_small_on_hostile_points(rng):
 
 
 class _HeldFit:
-    """What acal/changepoint.py reads of a finished fit: points, their times, their residuals."""
+    """What acal/core/changepoint.py reads of a finished fit: points, their times, their residuals."""
 
     def __init__(self, T, w, r, t):
         self.n_given = len(r)
@@ -392,12 +393,12 @@ class _HeldFit:
 
 
 def test_change_point_search_stays_small_at_the_worst_case(rng):
-    """The step's search (acal/changepoint.py) over 128 points at +-2.048 g per axis (the fit's
+    """The step's search (acal/core/changepoint.py) over 128 points at +-2.048 g per axis (the fit's
     clamp), residuals at and past their clamp, all of one sign or alternating, directions all
     alike (a singular split, skipped), on the axes, or random: no intermediate reaches 2^30; and
     a step put in noisy residuals is found as well as the host's float search finds it."""
-    from acal import model
-    from acal.changepoint import ChangePoint
+    from acal.core import model
+    from acal.core.changepoint import ChangePoint
     from accelcal.pipeline.composed_lsq import change_point
     tr = Tracer()
     T = traced(tr)
@@ -436,14 +437,15 @@ def test_change_point_search_stays_small_at_the_worst_case(rng):
 
 
 def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
-    """The board's own discovery (acal/discover.py, heldscore.py, discovery.py): a full held-out
+    """The board's own discovery (acal/discover/search.py, score.py, rule.py): a full held-out
     set (144 points at +-1.25 g per axis, past what gravity() keeps, each standing for
     heldout.WEIGHT_CAP rest means, conditions far past the fit's clamps) scored with parameters
     at the fit region's corners and effects at 4x their bounds (every point's error at ERR_CAP),
     its blocks compared, the rule on errors at discover.ERR_MAX and every block count the sign
     test takes, and the conditions' ranges: no intermediate reaches 2^30."""
-    from acal import discover, discovery, effects, heldout, heldscore
-    from acal.bins import COND
+    from acal.discover import search as discover, rule as discovery, heldout, score as heldscore
+    from acal.core import effects
+    from acal.core.bins import COND
     tr = Tracer()
     T = traced(tr)
     h = heldout.HeldOut()

@@ -1,7 +1,7 @@
 """The rest detector against an independent numpy computation of the same definition."""
 import numpy as np
 
-from acal.rest import RestDetector, mean_q16
+from acal.core.rest import RestDetector, mean_q16
 from accelcal.fixedpoint import g_to_sample
 
 
@@ -76,7 +76,7 @@ def test_mean_q16_is_exact_floor(rng):
 def test_pipeline_does_not_offer_rest_while_not_worn():
     """The host's non-wear signal (Pipeline.worn): a still segment that closes while it is False
     is counted as excluded and never reaches the bins; the detector itself is unchanged."""
-    from acal.pipeline import Pipeline
+    from acal.core.pipeline import Pipeline
     still = [0, 0, 1024] * 50            # 50 samples = one 5 s segment at 10 Hz
     seen = []
     p = Pipeline(10, on_rest=lambda x, y, z, s: seen.append((x, y, z)))

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from acal import bins as dbins
-from acal import fixed, optimiser, rest
-from acal.gaussnewton import GaussNewton
-from acal.optimiser import Optimiser
-from acal.pipeline import Pipeline
-from acal.profile import WEAR, settings
+from acal.core import bins as dbins
+from acal.core import fixed, rest
+from acal.paper import optimiser
+from acal.core.gaussnewton import GaussNewton
+from acal.paper.optimiser import Optimiser
+from acal.core.pipeline import Pipeline
+from acal.core.profile import WEAR, settings
 from accelcal.bridge import runtime
 from accelcal import simulate
 from test_runtimes import random_recording
@@ -219,7 +220,7 @@ def test_composed_points_identical_under_micropython(rng, mp):
     temp = rng.uniform(20, 36, n)
     v = simulate.uncorrect(truth, d) + 0.0008 * (temp - 28)[:, None] + rng.normal(scale=5e-4, size=(n, 3))
     g = runtime.Group("c", points=v, temp=temp, t=np.arange(n) * 300.0)
-    from acal import effects
+    from acal.core import effects
     cfg = wear_config(composed=True, kinds=(effects.TEMP_OFFSET,))
     a = runtime.run([g], cfg, "cpython")
     b = runtime.run([g], cfg, mp)
@@ -274,7 +275,7 @@ def test_paper_simulation_parameter_errors_equal_lsq_on_the_same_points():
 def test_a_composed_fit_that_fails_keeps_the_base_calibration(rng):
     # drift with every point seen at the same time: its parameters are not determined, the
     # composed fit fails, and the pipeline keeps the base fit of the same points (effects zero)
-    from acal import effects
+    from acal.core import effects
     truth = np.array([1.02, 0.97, 1.01, 0.01, -0.02, 0.01, 0.04, -0.05, 0.03])
     pts = simulate.uncorrect(truth, simulate.unit_points(rng, 300)) + rng.normal(scale=5e-4, size=(300, 3))
     pipe = Pipeline(100, kinds=(effects.DRIFT,), **settings(WEAR))

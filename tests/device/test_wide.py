@@ -1,10 +1,10 @@
-"""acal/wide.py, the products and quotients the default profile's fit needs past 2^30, against
+"""acal/core/wide.py, the products and quotients the default profile's fit needs past 2^30, against
 CPython's exact integers: random operands over the whole domain and its edges, and the same
 integers, with the heap locked, on the 32-bit MicroPython (where any int past 2^30 would
 allocate)."""
 import random
 
-from acal.wide import div_shift, mul_shift
+from acal.core.wide import div_shift, mul_shift
 
 LIM = 1 << 29
 
@@ -56,7 +56,7 @@ def test_the_same_integers_without_a_long_on_the_32_bit_port(tmp_path, mp32):
     f = tmp_path / "wide32.py"
     f.write_text(f"""
 import micropython
-from acal.wide import mul_shift, div_shift
+from acal.core.wide import mul_shift, div_shift
 M = [int(v) for v in "{' '.join(str(v) for c in muls for v in c)}".split()]
 D = [int(v) for v in "{' '.join(str(v) for c in divs for v in c)}".split()]
 nm = len(M) // 3
@@ -108,7 +108,7 @@ def test_fit_rows_are_the_mul_shift_products():
     mul_shift gives, over the fit region and the fit's clamp, its corners included."""
     import itertools
 
-    from acal import fixed, model
+    from acal.core import fixed, model
     rnd = random.Random(5)
     w = model.FIT_W_MAX
     kd = (fixed.FIT_K_DIAG_MIN, fixed.FIT_K_DIAG_MAX)

@@ -1,4 +1,4 @@
-"""The board's own discovery (`calibrate FILE --discover`, device/acal/discover.py) beside the
+"""The board's own discovery (`calibrate FILE --discover`, device/acal/discover/search.py) beside the
 host's `diagnose` on simulated wear, behind `slow`: every catalogue effect x seeds, the share of
 recordings where the board names what diagnose names (goal >= 90 %), the board's false names
 on 10 clean seeds, and its held-out error after within 1.5x the true sensor model's on the same
@@ -22,7 +22,7 @@ def board_names(path):
 
 
 def true_board_heldout_mg(path, d) -> float:
-    """The simulation's true sensor model scored as the board scores a model (heldscore.py): on
+    """The simulation's true sensor model scored as the board scores a model (score.py): on
     the board's held-out points and their conditions, each point's | |a|^2 - 1 | weighted by
     the rest means it stands for, as mg (heldout_mg's |a|^2 - 1 ~ 2 (|a| - 1))."""
     hs = d["heldout_set"]
@@ -43,7 +43,7 @@ def study_rows(folder, cases) -> list:
     days at 10 Hz are 94 MB each): (name_seed, diagnose's effect, the board's, its closest,
     blocks better, blocks, held-out error before, after, the true model's on the same points),
     printed as they come.  A step's error is its placed time's, leave-one-out
-    (acal/stepplace.py): the honest figure for a time the held-out points placed."""
+    (acal/discover/stepplace.py): the honest figure for a time the held-out points placed."""
     rows = []
     for k in range(0, len(cases), 2):
         pair = {f"{n}_{s}": (s, eff) for n, s, eff in cases[k:k + 2]}

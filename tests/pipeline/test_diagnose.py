@@ -11,7 +11,7 @@ import pytest
 from accelcal.bridge.runtime import Config
 from accelcal.pipeline.diagnose import heldout_error_of
 from accelcal.pipeline.job import calibrate as calibrate_api
-from acal.fixed import PARAM_NAMES
+from acal.core.fixed import PARAM_NAMES
 from conftest import ROOT, run_cli, run_main, simulate_wrists
 
 DAYS, RATE = 3, 10
@@ -237,7 +237,7 @@ DISCOVER = Config.for_profile("wear", discover=True)
 
 
 def test_the_board_names_what_diagnose_names(recordings, capsys):
-    """The board's own discovery (`calibrate --discover`, device/acal/discover.py) on the
+    """The board's own discovery (`calibrate --discover`, device/acal/discover/search.py) on the
     recordings diagnose names temp_offset on and nothing on (the tests above): the same, the
     effect better in >= 70 % of >= 12 held-out blocks; `--json` carries it; bad options are one
     line, exit 2, before the file is read."""

@@ -2,7 +2,7 @@
 shock that moves the offsets once (step), hidden in simulated wear.  The discovery loop names them
 (the curve after the linear part it hides behind) and ends within 1.5x of what the true sensor
 model achieves on the same held-out points; the step's time is found, by the host's float search
-and by the device's integer one (acal/changepoint.py); both are calibrated (lsq on every rest
+and by the device's integer one (acal/core/changepoint.py); both are calibrated (lsq on every rest
 point, and the device), saved and applied; an effect the device has no form for is refused by
 the device in one line."""
 import json
@@ -106,7 +106,7 @@ def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     """The wear profile's pipeline on the shock recording: the change-point search on the held
     points puts ts after the last held point before the true shock, and the integer fit's error
     on every rest point is within 1.12x of the float fit of all of them (1.08x until the bins
-    kept a time effect's early points, acal.bins; 1.11x since on this shock at 44 h of 72, which
+    kept a time effect's early points, acal.core.bins; 1.11x since on this shock at 44 h of 72, which
     leaves fewer held points after it; a shock at 19 h had 8 of 110 before it, 1.57x held out:
     tests/studies/test_composed_points.py).  (The search and the
     step's fit run bit-identical and heap-locked on the 32-bit port: tests/device/test_heap.py.)"""
@@ -164,8 +164,9 @@ def test_a_stored_step_or_supply_resumes_after_a_reboot(tmp_path, kind):
     """The app's calibration store keeps a step's time (or a supply_offset's reference supply,
     mV) in its EFFECT record's time field, beside a drift's reference time; a reboot takes them
     back, a time relative to the restarted clock."""
-    from acal import effects as deff, log
-    from acal.app import Processor
+    from acal.core import effects as deff
+    from acal.logger import log
+    from acal.logger.app import Processor
     rate = 25
     unit = deff.DT_UNIT_S * rate
     store = log.CalStore(str(tmp_path / "a.bin"), str(tmp_path / "b.bin"))
@@ -330,7 +331,7 @@ def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(
     base+temp_offset as the curve's chord.  diagnose judges the curve again as the device fits it,
     in both folds of its split (pipeline/foldjudge.py), and names it: the effect the simulation
     hid."""
-    from acal import discovery
+    from acal.discover import rule as discovery
     out = diagnose(recordings["curve4"], "base+temp_offset")
     assert out["missing_effect"] == "temp_offset2", out["explanation"]
     c = next(x for x in out["candidates"] if x["effect"] == "temp_offset2")

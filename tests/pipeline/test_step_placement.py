@@ -1,5 +1,5 @@
 """The two placements of a step's time among the held-out points of its gap are one rule: the
-host's (pipeline/diagnose.py place_step, floats) and the board's (device/acal/stepplace.py,
+host's (pipeline/diagnose.py place_step, floats) and the board's (device/acal/discover/stepplace.py,
 integers), fed the same simulated points and the same model, split the gap's points alike and
 score them leave-one-out alike.
 
@@ -16,7 +16,7 @@ What they are expected to differ in, by design: the placed time's convention (th
 first stepped gap point's time, as its change-point search places the fitted time; the host's
 halfway between the split's neighbours, as its search does), compared here as the split (the gap
 points before it); and the per-point error: the host's | |a| - 1 g |, diagnose's metric, the
-board's | |a|^2 - 1 g^2 | (heldscore.py).  So the errors are compared with the host's rule fed the
+board's | |a|^2 - 1 g^2 | (score.py).  So the errors are compared with the host's rule fed the
 board's per-point error (diagnose.residuals returning |a|^2 - 1): then they differ only by the
 board's fixed point.  Tolerance, from its formats: the residual is computed in Q22 g^2
 (model.residual: allowed 8 Q22 LSB of truncation) and taken to Q16 g^2 by a floor
@@ -26,11 +26,11 @@ here differ by 2-9.4 Q16 LSB over 46-70 points, the board's below: its floor).""
 import numpy as np
 import pytest
 
-from acal import effects
-from acal.bins import COND
-from acal.heldout import HeldOut, block_of
-from acal.heldscore import HeldScore
-from acal.stepplace import GAP_MAX, StepPlace
+from acal.core import effects
+from acal.core.bins import COND
+from acal.discover.heldout import HeldOut, block_of
+from acal.discover.score import HeldScore
+from acal.discover.stepplace import GAP_MAX, StepPlace
 from accelcal import simulate
 from accelcal.model.effects import ModelSpec
 from accelcal.pipeline import diagnose
@@ -83,7 +83,7 @@ def scored_at(xyz, t, p_int, ts):
 
 def board(xyz, t, p_int, weight=None):
     """The board's placement (StepPlace on a HeldOut holding these points, weight 1 each unless
-    given, the model scored at the fitted time HI, as discover.py drives it)."""
+    given, the model scored at the fitted time HI, as search.py drives it)."""
     from array import array
     h = held(xyz, t, weight)
     p = array("i", p_int)

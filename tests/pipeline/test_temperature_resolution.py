@@ -1,4 +1,4 @@
-"""The device's temperature condition is finer than a degree (Q2 degC, acal.fixed.TEMP_Q): a
+"""The device's temperature condition is finer than a degree (Q2 degC, acal.core.fixed.TEMP_Q): a
 recording's sub-degree temperatures reach the bins, the fit and its reference as quarter degrees,
 and a curved temperature response fitted on them lands closer to the simulated truth than the
 same points read in whole degrees (docs/model-discovery.md "Curves")."""
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import accelcal
-from acal.fixed import TEMP_Q
+from acal.core.fixed import TEMP_Q
 from accelcal import simulate
 from accelcal.fixedpoint import device_conditions, physical
 from accelcal.model.effects import CATALOGUE, ModelSpec

@@ -8,7 +8,7 @@ import pytest
 
 from accelcal.simulate import wearer
 from accelcal.simulate.stimulus import read_stimulus
-from acal.fixed import PARAM_NAMES
+from acal.core.fixed import PARAM_NAMES
 from conftest import run_cli
 
 STILL = ("sleep", "awake_rest", "off_wrist")

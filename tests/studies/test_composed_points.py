@@ -1,11 +1,11 @@
-"""A composed model's points (acal.profile.WEAR_COMPOSED_MAX_COUNT, 14 per subset): on the
+"""A composed model's points (acal.core.profile.WEAR_COMPOSED_MAX_COUNT, 14 per subset): on the
 held-out wrist benchmark's temperature-gain seed 4 (accelcal.studies.heldout: fitted on 3 days,
 scored on the next 2 days' strict still windows), the device's base+temp_scale fit on its 126
 points comes within 1.25x the true sensor model's error, where the 72 points (8 per subset) it
 had left it above (1.34x, docs/model-discovery.md "Points for a composed model")."""
-from acal import profile
-from acal.gaussnewton import MAX_POINTS
-from acal.bins import N_SUBSETS
+from acal.core import profile
+from acal.core.gaussnewton import MAX_POINTS
+from acal.core.bins import N_SUBSETS
 from accelcal.simulate import wearer
 from accelcal.studies import heldout
 
@@ -35,7 +35,7 @@ def test_the_points_of_a_composed_model_bring_a_hard_seed_within_1_25x_the_true_
 def test_a_step_early_in_the_fit_days_keeps_points_on_both_sides(tmp_path):
     """The benchmark's step seed 4 (a shock 19.4 h into the 3 fit days): the device's base+step
     fit comes within 1.25x the true model.  Its bins keep early points for a time effect
-    (acal.bins: a spread slot's tie goes to the newest); when they kept the oldest point and the
+    (acal.core.bins: a spread slot's tie goes to the newest); when they kept the oldest point and the
     latest hours, 8 of 110 fit points were before the shock, the step search placed it 3.5 h
     late, the base fit was kept and scored 1.57x the true model."""
     whole, fit, test = (tmp_path / f"s.{x}csv" for x in ("", "fit.", "test."))

@@ -7,8 +7,9 @@ steps and placements; and bench_chip turns the lines into its keys."""
 from accelcal.bridge import runtime
 from accelcal.locations import script
 from accelcal.studies import bench_chip
-from acal import discover, effects, profile
-from acal.pipeline import Pipeline
+from acal.discover import search as discover
+from acal.core import effects, profile
+from acal.core.pipeline import Pipeline
 
 
 def _run(tmp_path, call):
@@ -83,7 +84,7 @@ def test_the_rounds_count_what_steps_allocate_across_collections(tmp_path):
     when its clock's garbage fills the heap: the same bytes counted; and with each step made to
     allocate a 100-byte array (dropped at the next, so collected), at least those bytes."""
     every = "LOW_FREE = 1 << 40\n"
-    control = ("from acal import discover\nKEPT = [None]\n_step = discover.Discover.step\n"
+    control = ("from acal.discover import search as discover\nKEPT = [None]\n_step = discover.Discover.step\n"
                "def _allocating(self):\n    KEPT[0] = bytearray(100)\n    return _step(self)\n"
                "discover.Discover.step = _allocating\n")
     plain = bench_chip._kv(_run(tmp_path, "rounds(PTS)"))

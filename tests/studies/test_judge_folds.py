@@ -4,7 +4,7 @@ bins' spread slots keep each subset's temperature extremes, so a rare cold spell
 beyond its share of the rest points: the chord that makes a straight line misfit a curve."""
 import numpy as np
 
-from acal import profile
+from acal.core import profile
 from accelcal.model.effects import ModelSpec
 from accelcal.pipeline.restpoints import RestPoints
 from accelcal.simulate.scenarios import unit_points

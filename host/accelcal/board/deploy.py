@@ -14,15 +14,24 @@ from accelcal.bridge import boardlog, rp2040
 from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
-from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
+from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG, device_modules
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
-# The device modules an app needs: every module of the device package but the CircuitPython
-# driver, which goes only to CircuitPython boards.
-CIRCUITPYTHON_ONLY = ("lis3dh_cp",)
-APP_MODULES = tuple(sorted(p.stem for p in DEVICE_PKG.glob("*.py")
-                           if p.stem not in CIRCUITPYTHON_ONLY))
+# The device modules an app needs (paths in the package): every module of the device package but
+# the CircuitPython driver, which goes only to CircuitPython boards.
+CIRCUITPYTHON_ONLY = ("logger/lis3dh_cp.py",)
+APP_MODULES = tuple(m for m in device_modules() if m not in CIRCUITPYTHON_ONLY)
+# The install units every board gets; the others where the app's settings run them.
+BASE_UNITS = ("core", "logger")
+
+
+def units_run(settings: dict) -> tuple[str, ...]:
+    """The install units an app with these settings loads (docs/method-and-formats.md
+    "The device package"): core and logger, paper for the paper profile, discover for --discover."""
+    from acal.core import profile
+    return BASE_UNITS + (("paper",) if settings.get("profile", profile.DEFAULT) == profile.PAPER
+                         else ()) + (("discover",) if settings.get("discover") else ())
 
 
 def boards() -> list[str]:
@@ -113,6 +122,22 @@ class Remote:
 BOOT_PY_HEAD = "# Written by `accelcal deploy`: the app logs to this drive."
 
 
+# MicroPython code defining rm(path): a file or a folder and all it holds, gone (none: nothing).
+REMOVE_TREE = """import os
+def rm(p):
+    try:
+        st = os.stat(p)[0]
+    except OSError:
+        return
+    if st & 0x4000:
+        for f in os.listdir(p):
+            rm(p + '/' + f)
+        os.rmdir(p)
+    else:
+        os.remove(p)
+"""
+
+
 def boot_py() -> str:
     return (BOOT_PY_HEAD + "\n"
             "# From power-up the drive is writable to code and read-only to the computer (two\n"
@@ -125,12 +150,14 @@ def boot_py() -> str:
 def main_py(settings: dict) -> str:
     args = ", ".join(f"{k}={v!r}" for k, v in settings.items())
     return ("# Written by `accelcal deploy`: start logging and self-calibration at power-up.\n"
-            "import acal.app\n"
-            f"acal.app.main({args})\n")
+            "import acal.logger.app\n"
+            f"acal.logger.app.main({args})\n")
 
 
 def deploy(port: str, board: str | None = None, settings: dict | None = None,
-           write_main: bool = True, say=lambda m: None) -> dict:
+           write_main: bool = True, say=lambda m: None, units: str = "all") -> dict:
+    """units: "all" (every install unit of the package) or "run" (those the settings run:
+    units_run; an acquire with other settings then needs a deploy with them)."""
     r = Remote(port, timeout=600)
     ident = r.identify()
     if board is None:
@@ -142,7 +169,9 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
-    modules = list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+    wanted = units_run(settings or {}) if units == "run" else None
+    modules = [m for m in list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
+               if wanted is None or m == "__init__.py" or m.split("/")[0] in wanted]
     head = None
     if circuitpython:
         head = circuitpython_drive(r, "boot.py" in ident["files"])
@@ -155,19 +184,25 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
         if circuitpython and "boot.py" not in [remote for _, remote in others]:
             say("boot.py: the board's own kept; the app needs it to remount the drive writable "
                 "(storage.remount(\"/\", readonly=False))")
-        # Stale modules of the other kind (.py beside .mpy) would shadow or confuse: remove both.
-        names = " ".join(repr(f"lib/acal/{m}.{ext}") for m in modules for ext in ("py", "mpy"))
-        r.exec("import os\nfor d in ('lib', 'lib/acal'):\n    try:\n        os.mkdir(d)\n"
-               "    except OSError:\n        pass\n"
-               f"for f in ({names},):\n    try:\n        os.remove(f)\n    except OSError:\n        pass\n")
-        cmd = ["fs", "cp", *map(str, files), ":lib/acal/"]
+        # The package installed before (stale modules of the other kind, .py beside .mpy, or of
+        # an older layout would shadow or confuse): removed whole, then its folders made.
+        folders = sorted({f"lib/acal/{m.rpartition('/')[0]}".rstrip("/") for m in modules})
+        r.exec(REMOVE_TREE + "rm('lib/acal')\nimport os\n"
+               f"for d in ('lib', {', '.join(map(repr, folders))}):\n    try:\n        os.mkdir(d)\n"
+               "    except OSError:\n        pass\n")
+        cmd = []
+        for folder in folders:
+            cmd += [*(["+"] if cmd else []), "fs", "cp",
+                    *(str(f) for f, m in zip(files, modules)
+                      if f"lib/acal/{m.rpartition('/')[0]}".rstrip("/") == folder), f":{folder}/"]
         for local, remote in others:
             cmd += ["+", "fs", "cp", str(local), f":{remote}"]
         r.run(*cmd)
-    check = r.exec("import acal.app, acal_board\nprint('ACAL_OK', acal.app.VERSION)")
+    check = r.exec("import acal.logger.app, acal_board\nprint('ACAL_OK', acal.logger.app.VERSION)")
     if "ACAL_OK" not in check:
-        raise InputError(f"{port}: deployed, but `import acal.app` failed: {check.strip()[-200:]}")
+        raise InputError(f"{port}: deployed, but `import acal.logger.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
+            "units": list(wanted or BASE_UNITS + ("paper", "discover")),
             "format": files[0].suffix[1:], "main_py": write_main,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 
@@ -225,8 +260,9 @@ def package_files(info: dict, modules: list[str], pkg: Path) -> tuple[list[Path]
             what = f"sources: no CircuitPython mpy-cross here ({e})"
     files = []
     for m in modules:
-        src = DEVICE_PKG / f"{m}.py"
-        dst = pkg / f"{m}.{'mpy' if fw else 'py'}"
+        src = DEVICE_PKG / m
+        dst = pkg / f"{m[:-3]}.{'mpy' if fw else 'py'}"
+        dst.parent.mkdir(parents=True, exist_ok=True)
         if fw:
             mpy_cross(src, dst, info["ARCH"], fw)
         else:
@@ -242,7 +278,7 @@ def acquire(port: str, seconds: int, settings: dict, say=lambda m: None) -> str:
     if "lib" not in ident["files"] or "acal_board.py" not in ident["files"]:
         raise InputError(f"{port}: accelcal is not deployed there (run `accelcal deploy --port {port}`)")
     args = ", ".join(f"{k}={v!r}" for k, v in {"seconds": seconds, **settings}.items())
-    code = (f"import acal.app\napp = acal.app.main({args})\n"
+    code = (f"import acal.logger.app\napp = acal.logger.app.main({args})\n"
             "print('ACAL_DONE', app.samples, app.lost, app.proc.calibrations)")
     out = r.exec(code, stream=say)
     if "ACAL_DONE" not in out:

@@ -1,5 +1,5 @@
 """Power cuts on the emulated Pico's real littlefs: the device's log and calibration store
-(device/acal/log.py) written by MicroPython's own firmware, the power cut at pseudo-random cycles
+(device/acal/logger/log.py) written by MicroPython's own firmware, the power cut at pseudo-random cycles
 (rp2040.mjs's stopAt), the chip powered up again on the flash as the cut left it.
 
 Two workloads, each run once uncut (its length in cycles) and then cut:
@@ -7,7 +7,7 @@ Two workloads, each run once uncut (its length in cycles) and then cut:
           each acknowledged on the console once write() has returned;
   store - calibrations saved one after the other into the two-slot CalStore, each acknowledged.
 After each cut a second chip boots on the cut flash image; there the files are read before
-anything else runs, then the app starts (acal.app.main on boards/pico.py, with the LIS3DH on
+anything else runs, then the app starts (acal.logger.app.main on boards/pico.py, with the LIS3DH on
 its bus: it opens its log, resumes the stored calibration, logs BOOT and COUNTERS) and the files
 are read again.  Checked: the chip boots and littlefs holds the files; every acknowledged log record is there, and every record there is the one written
 at its place (the records decode to a prefix of the workload's); the store gives the last
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import log
-from acal.fixed import PARAM_ONE
+from acal.logger import log
+from acal.core.fixed import PARAM_ONE
 from accelcal.board import emulated
 from accelcal.bridge import rp2040
 from accelcal.errors import InterpreterFailed
@@ -46,14 +46,14 @@ def cal_values(k: int) -> tuple:
 
 
 WORKLOADS = {
-    "log": f"""from acal import log
+    "log": f"""from acal.logger import log
 lg = log.Log('log.bin', 1 << 20)
 for i in range({LOG_RECORDS}):
     lg.write(log.REST, 100 * i, 640 * i - 30000, -11 * i, 65536 - 7 * i, 25, i % 10 - 1, i)
     print('W', i)
 """,
-    "store": f"""from acal import log
-from acal.fixed import PARAM_ONE
+    "store": f"""from acal.logger import log
+from acal.core.fixed import PARAM_ONE
 st = log.CalStore('cal_a.bin', 'cal_b.bin')
 for k in range(1, {STORE_SAVES + 1}):
     st.save((100 * k, k, 0, 50, 18, 1000 + k, 10 + k, PARAM_ONE + 100 * k, PARAM_ONE - 50 * k,
@@ -62,8 +62,8 @@ for k in range(1, {STORE_SAVES + 1}):
 """,
 }
 
-RESUME = """import acal.app
-app = acal.app.main(seconds=0, verbose=False, rate_hz=100, fifo=True, profile=0)
+RESUME = """import acal.logger.app
+app = acal.logger.app.main(seconds=0, verbose=False, rate_hz=100, fifo=True, profile=0)
 print('ACAL_RESUMED', app.samples, app.proc.calibrations)
 """
 

@@ -1,4 +1,4 @@
-"""Board logs on the host: decode pulled files (with device/acal/log.py, the board's own codec),
+"""Board logs on the host: decode pulled files (with device/acal/logger/log.py, the board's own codec),
 and replay a raw capture through the current device modules to diff against what the board
 logged - the check a firmware developer runs after changing device code."""
 from __future__ import annotations
@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import bins as dbins
-from acal import effects as deff
-from acal import fixed, log, optimiser
-from acal.app import Processor
+from acal.core import bins as dbins
+from acal.core import effects as deff
+from acal.core import fixed
+from acal.logger import log
+from acal.paper import optimiser
+from acal.logger.app import Processor
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular, note_input
 from accelcal.fixedpoint import seconds
@@ -169,7 +171,7 @@ def _processor(lg, b: dict, profile: str | None):
                          max_count=b["max_count"], differ=b["differ"], iterations=b["iterations"],
                          model=model, fit=b["fit"], range_g=b["range_g"],
                          discover=bool(b["discover"]))
-    from acal import profile as dprofile
+    from acal.core import profile as dprofile
     return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                      model=model, profile=dprofile.parse(profile), range_g=b["range_g"],
                      discover=bool(b["discover"]) and profile == "wear")

@@ -1,4 +1,4 @@
-"""Rest points offered to the device's bins in bulk, under CPython: the same bins (acal/bins.py),
+"""Rest points offered to the device's bins in bulk, under CPython: the same bins (acal/core/bins.py),
 fewer calls.  A points group's rest means go to `Bins.offer` one at a time on a board; here a
 numpy judge first finds every point that `offer` is certain to refuse, given what the bins hold,
 and only the others are offered.  A refusal changes nothing but the `offered` count, so the
@@ -19,15 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from acal import bins as dbins
-from acal.heldout import held_out
+from acal.core import bins as dbins
+from acal.discover.heldout import held_out
 from accelcal.fixedpoint import QUANTITIES
 
 BLOCK = 256     # points judged against one snapshot of the bins
 
 
 def subset_of_vec(c: np.ndarray, axis: int, lo_out: int) -> np.ndarray:
-    """acal.bins.subset_of for an array of components (Q16 g ints): subset index or -1."""
+    """acal.core.bins.subset_of for an array of components (Q16 g ints): subset index or -1."""
     s = np.full(c.shape, -1, np.int64)
     s[(-dbins._HI_OUT <= c) & (c <= -lo_out)] = 3 * axis
     s[(lo_out <= c) & (c <= dbins._HI_OUT)] = 3 * axis + 2
@@ -36,7 +36,7 @@ def subset_of_vec(c: np.ndarray, axis: int, lo_out: int) -> np.ndarray:
 
 
 def badness_vec(q: np.ndarray, axis: int, middle: bool) -> np.ndarray:
-    """acal.bins.badness of points q (n, 3) Q16 g for the subset of `axis` (its 0 subset when
+    """acal.core.bins.badness of points q (n, 3) Q16 g for the subset of `axis` (its 0 subset when
     `middle`, else n or p: the same formula for both)."""
     c = np.abs(q[:, axis])
     if not middle:

@@ -9,9 +9,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from acal import bins as dbins
-from acal import fixed, gaussnewton, objective, optimiser, rest
-from acal import profile as dprofile
+from acal.core import bins as dbins
+from acal.core import fixed, gaussnewton, rest
+from acal.paper import objective, optimiser
+from acal.core import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
 from accelcal.errors import InputError
 # the groups and the conditions' conversion, re-exported: what the protocol carries
@@ -20,7 +21,7 @@ from accelcal.bridge.groups import (Group, PointsGroup, RestMeans, SamplesGroup,
 from accelcal.fixedpoint import device_conditions  # noqa: F401
 
 # points per subset the fits take: the nine subsets under the 128 points both fits' integer
-# sums are proven for (acal.gaussnewton.MAX_POINTS, acal.objective.MAX_POINTS): 14
+# sums are proven for (acal.core.gaussnewton.MAX_POINTS, acal.paper.objective.MAX_POINTS): 14
 MAX_PER_SUBSET = min(gaussnewton.MAX_POINTS, objective.MAX_POINTS) // dbins.N_SUBSETS
 
 BATCH = 200  # samples per B record: its ints split on the board (CircuitPython has ~110 kB free)
@@ -29,19 +30,19 @@ BATCH = 200  # samples per B record: its ints split on the board (CircuitPython 
 @dataclass(frozen=True)
 class Config:
     """Pipeline settings in physical units; `line()` gives the device's integers.  The defaults
-    are the paper profile's; Config.for_profile() gives a profile's (acal/profile.py).  Immutable:
+    are the paper profile's; Config.for_profile() gives a profile's (acal/core/profile.py).  Immutable:
     a step that needs other settings makes them with dataclasses.replace."""
     rate_hz: int = 100
     seconds: int = rest.DEFAULT_SECONDS
-    threshold_g: float | None = 0.12   # None: from the measured noise (acal.rest.AUTO)
-    axis: int = 0                      # 3: all axes (acal.rest.ALL_AXES)
+    threshold_g: float | None = 0.12   # None: from the measured noise (acal.core.rest.AUTO)
+    axis: int = 0                      # 3: all axes (acal.core.rest.ALL_AXES)
     min_count: int = 2
     max_count: int = 2
     differ_g: float = 0.1
     policy: str = "centre"
     iterations: int = optimiser.DEFAULT_ITERATIONS
     rates_tenths: tuple[int, int, int] = (fixed.ALPHA_SCALE, fixed.ALPHA_MISALIGN, fixed.ALPHA_OFFSET)
-    kinds: tuple[int, ...] = ()  # a composed model's effects (acal.effects ids)
+    kinds: tuple[int, ...] = ()  # a composed model's effects (acal.core.effects ids)
     conditions: bool = False     # hand the device each point's temperature and time even without
     # kinds: a model whose effects the host fits (ModelSpec.host_only) needs them on the points
     fit: int = dprofile.GRADIENT
@@ -58,13 +59,13 @@ class Config:
 
     @classmethod
     def for_profile(cls, name: str, composed: bool = False, **overrides) -> "Config":
-        """A profile's settings (acal.profile.settings), then any overrides (None: not given).
+        """A profile's settings (acal.core.profile.settings), then any overrides (None: not given).
         composed: a composed model's defaults (more points and iterations for the paper's fit)."""
         s = dprofile.settings(dprofile.parse(name), composed)
         thr = s["threshold"]
         fit = s["fit"]
         if fit == dprofile.NEWTON:
-            from acal.gaussnewton import DEFAULT_ITERATIONS as iterations
+            from acal.core.gaussnewton import DEFAULT_ITERATIONS as iterations
         else:
             iterations = optimiser.COMPOSED_ITERATIONS if composed else optimiser.DEFAULT_ITERATIONS
         cfg = cls(threshold_g=None if thr == rest.AUTO else thr / fixed.SAMPLE_ONE_G,
@@ -107,7 +108,7 @@ class DeviceResult:
     step_time: int = 0       # a step's time, 64 s units from ref_time
     ref_supply: int = 0      # mV
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
-    temp_span: int = 0       # of the held points: Q2 degC (acal.fixed.TEMP_Q)
+    temp_span: int = 0       # of the held points: Q2 degC (acal.core.fixed.TEMP_Q)
     time_span: int = 0       # 64 s units
     supply_span: int = 0     # mV
     covered: bool = False    # the held points cover every axis (bins.covered())

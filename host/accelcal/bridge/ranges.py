@@ -6,7 +6,7 @@ ranges of the device code) and the bench (how many optimiser values would be lon
 board: none)."""
 from __future__ import annotations
 
-from acal import fixed
+from acal.core import fixed
 
 SMALL_INT_LIMIT = 1 << 30
 
@@ -67,7 +67,7 @@ class TracedArray(list):
 def traced_optimiser(T, n, alphas=None):
     """The paper profile's Optimiser for n points with its int32 arrays as TracedArrays, so that
     its viper functions' values are traced too: run it inside `with viper_casts():`."""
-    from acal.optimiser import Optimiser
+    from acal.paper.optimiser import Optimiser
     o = Optimiser(n)
     for name in ("u", "f", "pa", "alpha", "cache"):
         setattr(o, name, TracedArray(T, len(getattr(o, name))))
@@ -75,9 +75,9 @@ def traced_optimiser(T, n, alphas=None):
     return o
 
 
-# the device modules whose viper functions cast with int() (acal/emit.py)
-VIPER_MODULES = ("objective", "normal_sums", "gaussnewton", "model", "effects", "solve",
-                 "calibration")
+# the device modules whose viper functions cast with int() (acal/core/emit.py)
+VIPER_MODULES = ("paper.objective", "core.normal_sums", "core.gaussnewton", "core.model",
+                 "core.effects", "core.solve", "core.calibration")
 
 
 class viper_casts:
@@ -108,7 +108,7 @@ GAUSS_NEWTON_ARRAYS = ("aux", "d", "a", "b", "bl", "u", "p", "pt", "sh", "grown"
 def traced_gauss_newton(T, n, kinds=()):
     """The default profile's GaussNewton for n points with its int32 arrays as traced lists:
     run it inside `with viper_casts():` on Int32s of traced points (and conditions)."""
-    from acal.gaussnewton import GaussNewton
+    from acal.core.gaussnewton import GaussNewton
     gn = GaussNewton(n, kinds)
     for name in GAUSS_NEWTON_ARRAYS:
         setattr(gn, name, [T(0)] * len(getattr(gn, name)))

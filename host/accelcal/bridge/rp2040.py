@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from accelcal.errors import InputError, InterpreterFailed
-from accelcal.locations import DEVICE_PACKAGE, checkout, script
+from accelcal.locations import DEVICE_PACKAGE, checkout, device_modules, script
 
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
@@ -108,7 +108,7 @@ def check(fw: Firmware = MICROPYTHON) -> None:
 
 
 # Targets whose MicroPython has the native emitters (mpy-cross -march); the device's hot loops
-# are compiled there as viper (acal/emit.py, docs/method-and-formats.md "Emitters").
+# are compiled there as viper (acal/core/emit.py, docs/method-and-formats.md "Emitters").
 EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x64", "x86")
 VIPER_MARKER = re.compile(r"^([ \t]*)@viper[ \t]*$", re.M)
 
@@ -120,7 +120,7 @@ SIGN_EXTENSION = " << w >> w"
 
 
 def emitted_source(text: str, arch: str = "x64") -> str:
-    """A device module's source for a port with emitters: each `@viper` marker line (acal/emit.py's
+    """A device module's source for a port with emitters: each `@viper` marker line (acal/core/emit.py's
     no-op decorator) becomes `@micropython.viper`, which the compiler recognises by name; for a
     32-bit arch the sign extensions of 64-bit ports go (the same ints: w is 0 there; ~1/4 of the
     hot loops' code and time).  Lines keep their numbers, so a traceback points into the one
@@ -181,7 +181,7 @@ def installed_sources() -> list[tuple[Path, str]]:
     """What a deployment puts on the board, as (source, remote .mpy): the device package under
     /lib/acal and the runner scripts (bridge/scripts) under /lib."""
     scripts = [Path(script(n)) for n in ("mp_runner.py", "mp_stream.py")]
-    return [*((p, f"/lib/acal/{p.stem}.mpy") for p in sorted(DEVICE_PACKAGE.glob("*.py"))),
+    return [*((DEVICE_PACKAGE / f, f"/lib/acal/{f[:-3]}.mpy") for f in device_modules()),
             *((p, f"/lib/{p.stem}.mpy") for p in scripts)]
 
 
@@ -190,7 +190,7 @@ def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         for src, remote in installed_sources():
-            dst = Path(tmp) / (src.stem + ".mpy")
+            dst = Path(tmp) / (remote.strip("/").replace("/", "_"))
             mpy_cross(src, dst, fw.arch, fw)
             out.append((dst.read_bytes(), remote))
     return out

@@ -19,7 +19,7 @@ from accelcal.bridge.protocol import (Collector, Config, DeviceResult, Group, Po
 from accelcal.bridge.feed import offer_points
 from accelcal.bridge.scripts import mp_runner
 from accelcal.errors import InputError, InterpreterFailed
-from accelcal.locations import DEVICE_PATH as DEVICE_DIR, checkout, script
+from accelcal.locations import DEVICE_PACKAGE, DEVICE_PATH as DEVICE_DIR, checkout, device_modules, script
 
 __all__ = ["Config", "DeviceResult", "Group", "PointsGroup", "RUNTIMES", "RestMeans",
            "SamplesGroup", "condition_changes", "device_conditions", "parse", "protocol_lines",
@@ -64,14 +64,16 @@ def emitted_device_dir() -> str:
     so its identity tests exercise the viper code; the WebAssembly port (no emitters) runs device/
     itself, the plain Python."""
     from accelcal.bridge import rp2040
-    files = sorted((DEVICE_DIR / "acal").glob("*.py"))
-    key = hashlib.sha256(b"".join(f.name.encode() + b"\0" + f.read_bytes() for f in files))
+    files = device_modules()
+    key = hashlib.sha256(b"".join(f.encode() + b"\0" + (DEVICE_PACKAGE / f).read_bytes()
+                                  for f in files))
     root = Path(tempfile.gettempdir()) / f"accelcal-emitted-{key.hexdigest()[:16]}"
     if not root.exists():
         part = Path(tempfile.mkdtemp(prefix="accelcal-emitted-"))
-        (part / "acal").mkdir()
         for f in files:
-            (part / "acal" / f.name).write_text(rp2040.emitted_source(f.read_text()))
+            dst = part / "acal" / f
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            dst.write_text(rp2040.emitted_source((DEVICE_PACKAGE / f).read_text()))
         try:
             part.rename(root)
         except OSError:   # another process made it first

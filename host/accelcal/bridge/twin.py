@@ -1,12 +1,12 @@
 """The vectorised numpy twin of the device's per-sample stages, for files of weeks at 100 Hz.
 
-Not a second implementation of the method: the twin of acal.rest.RestDetector (segmenting, the
-max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.calibration.Calibration.apply_samples for
+Not a second implementation of the method: the twin of acal.core.rest.RestDetector (segmenting, the
+max - min rest test on one axis or all, the noise gauge's threshold, per-axis sums, Q16 means) and of acal.core.calibration.Calibration.apply_samples for
 the paper's model and composed ones, on int64 arrays, tied to those modules by bit-exact tests
 (tests/bridge/test_vector.py, property-based).  The bins and the optimiser are not per-sample: the rest
 means go to the device's own Pipeline.offer in stream order.
 
-Integer formats as the device's (device/acal/fixed.py): samples Q10 g, sums < 2^30 (segments of
+Integer formats as the device's (device/acal/core/fixed.py): samples Q10 g, sums < 2^30 (segments of
 <= 65 535 samples), means Q16 = floor(sum * 2^6 / n) (the device computes the same floor in two
 steps to stay below 2^30; int64 needs no such care), parameters Q24 -> the apply's (K Q14,
 offsets Q(14 - e)), calibrated samples Q(13 - e) g at the full scale's shift e.
@@ -22,10 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from acal import effects as deff
-from acal import fixed
-from acal import rest as drest
-from acal.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
+from acal.core import effects as deff
+from acal.core import fixed
+from acal.core import rest as drest
+from acal.core.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 
 
 @dataclass
@@ -64,7 +64,7 @@ class Segments:
 
 
 class NoiseGaugeTwin:
-    """The twin of acal.rest.NoiseGauge over arrays of spreads: the threshold each segment is
+    """The twin of acal.core.rest.NoiseGauge over arrays of spreads: the threshold each segment is
     judged by, the gauge's state carried from call to call (bit-exact: tests/bridge/test_vector.py)."""
 
     def __init__(self):
@@ -318,9 +318,9 @@ def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_tim
 
 def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
                       dV: np.ndarray | int = 0) -> np.ndarray:
-    """The twin of acal.effects.regressor >> 4 (Q12, the apply's), vectorised: a step's
+    """The twin of acal.core.effects.regressor >> 4 (Q12, the apply's), vectorised: a step's
     indicator, the board's supply (clamped), or the clamped temperature or time to its power
-    (each an exact floor in Q16, as acal/wide.py's mul_shift gives it)."""
+    (each an exact floor in Q16, as acal/core/wide.py's mul_shift gives it)."""
     source, power = deff.SHAPES[kind]
     if source == deff.SOURCE_STEP:
         return np.where(dt >= step_time, 4096, 0).astype(np.int64)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from acal.fixed import PARAM_NAMES
+from acal.core.fixed import PARAM_NAMES
 from accelcal.cli.options import COMMANDS, add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 
@@ -29,7 +29,7 @@ def cmd_board_virtual(args) -> int:
 
 
 def _app_settings(args) -> dict:
-    from acal import profile as dprofile
+    from acal.core import profile as dprofile
     s = {"rate_hz": args.rate, "profile": dprofile.parse(args.profile)}
     if args.capture_kb:
         s["capture_bytes"] = args.capture_kb * 1024
@@ -48,7 +48,7 @@ def _app_settings(args) -> dict:
         try:
             spec = ModelSpec.parse(args.model)
             s["model"] = spec.device_model   # ValueError: an effect the board does not have
-            from acal import effects as deff
+            from acal.core import effects as deff
             if deff.STEP in spec.kinds and args.profile != "wear":
                 raise ValueError(f"model {spec}: a step's time is found by the wear profile's "
                                  "fit; the paper profile has no search for it")
@@ -60,10 +60,11 @@ def _app_settings(args) -> dict:
 def cmd_deploy(args) -> int:
     from accelcal.board import deploy
     r = deploy.deploy(args.port, args.board, _app_settings(args), write_main=not args.no_main,
-                          say=lambda m: print(m, file=sys.stderr))
+                      say=lambda m: print(m, file=sys.stderr), units=args.units)
     print(json.dumps(r) if args.json else
           f"deployed to {r['port']}: board {r['board']} ({r['platform']}), {r['modules']} modules as "
-          f".{r['format']}" + (", main.py starts logging at power-up" if r["main_py"] else "")
+          f".{r['format']} ({', '.join(r['units'])})"
+          + (", main.py starts logging at power-up" if r["main_py"] else "")
           + ("; boot.py makes the drive writable to the app and read-only to the computer from "
              "the next power-up" if r["boot_py"] else ""))
     return 0
@@ -204,12 +205,17 @@ def add_parsers(sub) -> None:
     p.add_argument("--port", required=True, help="serial port (or the virtual board's pty)")
     p.add_argument("--board", help="board file name (default: from the board's sys.platform)")
     p.add_argument("--no-main", action="store_true", help="do not write main.py")
+    p.add_argument("--units", choices=["all", "run"], default="all",
+                   help="the device package's install units to copy: all (default: core, logger, "
+                        "paper, discover) or run: those the app settings given here run (core and "
+                        "logger; paper with --profile paper; discover with --discover), so the "
+                        "board holds no code it does not load (acquire then needs the same settings)")
     p.add_argument("--json", action="store_true")
     app_args(p)
     p.set_defaults(func=cmd_deploy)
 
     p = sub.add_parser("acquire", help=COMMANDS["acquire"][1],
-                       description="Runs acal.app.main(seconds=...) on the board with mpremote exec and "
+                       description="Runs acal.logger.app.main(seconds=...) on the board with mpremote exec and "
                                    "shows its hourly progress lines.")
     p.add_argument("--port", required=True)
     p.add_argument("--hours", type=float_in(0, 87600, lo_open=True), required=True, help="hours of board time")

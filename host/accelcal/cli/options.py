@@ -140,7 +140,7 @@ def threshold(s):
     return v
 
 
-AXES = {"x": 0, "y": 1, "z": 2, "all": 3}  # 3: acal.rest.ALL_AXES
+AXES = {"x": 0, "y": 1, "z": 2, "all": 3}  # 3: acal.core.rest.ALL_AXES
 
 
 def add_pipeline_args(p):

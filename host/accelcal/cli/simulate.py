@@ -14,7 +14,7 @@ from accelcal.files.outputs import FORCE_HELP, atomic, check_output, write_text
 
 def cmd_simulate_paper(args) -> int:
     from accelcal import simulate
-    from acal.fixed import PARAM_NAMES
+    from acal.core.fixed import PARAM_NAMES
     out = check_output(args.output, (), args.force, "-o/--output")
     check_output(out.with_suffix(".truth.json"), (), args.force, "its truth file")
     rng = np.random.default_rng(args.seed)

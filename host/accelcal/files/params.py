@@ -6,8 +6,8 @@ import json
 import math
 from pathlib import Path
 
-from acal import fixed
-from acal import model as dmodel
+from acal.core import fixed
+from acal.core import model as dmodel
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular, write_text
 from accelcal.fixedpoint import params_to_float

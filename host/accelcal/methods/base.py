@@ -87,7 +87,7 @@ def check_points(v, need: int, name: str) -> np.ndarray:
 
 
 # what the coverage rule says of one-sided points, here and for the device's bins (whose test is
-# acal/hemisphere.py, the same rule in integers)
+# acal/core/hemisphere.py, the same rule in integers)
 ONE_HEMISPHERE = ("cover one hemisphere only (all lie on one side of a plane through 0 g: one "
                   "orientation, or a device that never turned over); the other side is needed")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from acal import fixed
+from acal.core import fixed
 from accelcal.methods.base import P0, check_points, correct
 
 

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from acal import bins as dbins
-from acal import effects as deff
-from acal.fixed import PARAM_NAMES, TEMP_Q
+from acal.core import bins as dbins
+from acal.core import effects as deff
+from acal.core.fixed import PARAM_NAMES, TEMP_Q
 from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
@@ -42,7 +42,7 @@ AXES = "xyz"
 # Recording columns an effect may follow (files/recordings.py reads them after t,x,y,z[,temp]):
 # lower-case names, not the recording's own (`device` stays a points file's group column).
 # supply_mv is the board's own supply in mV, the one column the device reads itself
-# (acal.effects.SUPPLY_OFFSET, its third condition).
+# (acal.core.effects.SUPPLY_OFFSET, its third condition).
 COLUMN_NAME = re.compile(r"[a-z][a-z0-9_]{0,23}")
 RESERVED = ("t", "x", "y", "z", "temp", "device")
 SUPPLY_COLUMN = "supply_mv"   # the board's supply (fixedpoint.QUANTITIES)
@@ -54,7 +54,7 @@ SIM_BATTERY_V = 3.9     # the simulator's battery (simulate/wearer.py) is referr
 class Effect:
     """One physical effect: per axis, a parameter theta times a regressor x, entering the reading
     as an offset (v + theta x) or a gain (v (1 + theta x)).  Its float maths (measure, correct),
-    its device integers (kind, int_scale: Q24 per normalised regressor, device/acal/effects.py)
+    its device integers (kind, int_scale: Q24 per normalised regressor, device/acal/core/effects.py)
     and its bound live here; tests/device/test_effects.py holds the bound equal to the device's."""
     name: str
     symbol: str             # parameter prefix: c -> cx cy cz
@@ -109,11 +109,11 @@ class Effect:
 
     def correct(self, v, theta, temp, t, ref, cols=None):
         """Remove the effect from measurements (fits, apply): first order, exactly the form the
-        device applies in integers (device/acal/effects.py)."""
+        device applies in integers (device/acal/core/effects.py)."""
         dx = np.asarray(theta) * self.x(v, temp, t, ref, cols)
         return v - dx * v if self.form == "gain" else v - dx
 
-    # Device integers (device/acal/effects.py): Q24 per normalised regressor.
+    # Device integers (device/acal/core/effects.py): Q24 per normalised regressor.
     @property
     def kind(self) -> int | None:
         """The device's id for the effect's shape, None for an effect fitted and applied on the
@@ -125,7 +125,7 @@ class Effect:
 
     @property
     def int_scale(self) -> float:
-        """The device's Q24 per normalised regressor (device/acal/effects.py): temperature per
+        """The device's Q24 per normalised regressor (device/acal/core/effects.py): temperature per
         16 degC (temp_offset2: per 64 degC^2), time per 2048 units of 64 s (drift) or, for the
         generic powers, per 2**13 units; the board's supply per SUPPLY_MAX mV; a step, the
         reading and other columns per 1."""
@@ -169,7 +169,7 @@ class Effect:
 
 
 def model_name(code: int) -> str | None:
-    """A model code of the board's (acal.effects.model_code: one effect, or a pair such as the
+    """A model code of the board's (acal.core.effects.model_code: one effect, or a pair such as the
     curve) as its effects' names joined by '+'; None for 0 (no effect)."""
     return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
 
@@ -184,7 +184,7 @@ _TIME_KINDS = {1: deff.DRIFT, 2: deff.TIME_OFFSET2, 3: deff.TIME_OFFSET3, 4: def
 
 
 def device_kind(needs: str | None, power: int, form: str, change_point: bool) -> int | None:
-    """The device kind (acal.effects) that computes an effect of this shape, None when the
+    """The device kind (acal.core.effects) that computes an effect of this shape, None when the
     device has none: offsets in a power of temperature or time (1..4) or a step in time, a gain
     linear in temperature, an offset in the squared reading.  Gains in time, higher gains in
     temperature and other powers of the reading run on the host only."""
@@ -261,7 +261,7 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
 
 
 def device_effects() -> list[str]:
-    """The catalogue's effects the device has a form for (acal.effects), in catalogue order."""
+    """The catalogue's effects the device has a form for (acal.core.effects), in catalogue order."""
     return [n for n, e in CATALOGUE.items() if e.kind is not None]
 
 
@@ -333,7 +333,7 @@ class ModelSpec:
 
     @property
     def kinds(self) -> tuple[int, ...]:
-        """The device's effect ids (acal.effects), in order; ValueError for a model with an
+        """The device's effect ids (acal.core.effects), in order; ValueError for a model with an
         effect the device does not have."""
         if self.host_only:
             raise ValueError(f"model {self}: {', '.join(self.host_only)} has no device form yet; "
@@ -343,7 +343,7 @@ class ModelSpec:
 
     @property
     def device_model(self) -> str:
-        """The model as the device names it (acal.effects.NAMES): a declared effect by the
+        """The model as the device names it (acal.core.effects.NAMES): a declared effect by the
         device kind of its shape."""
         return "+".join(("base",) + tuple(deff.NAMES[k] for k in self.kinds))
 
@@ -378,7 +378,7 @@ class ModelSpec:
         """ValueError, one line, when the data cannot support the model: a temperature effect
         without temperatures or with too little spread, a drift over too short a span, a column
         effect without its column or with a column that does not vary.  The thresholds are the
-        device bins' (acal.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC (12 in Q2), 12 h)."""
+        device bins' (acal.core.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC (12 in Q2), 12 h)."""
         need_temp = dbins.TEMP_DIFFER / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
         need_h = hours(dbins.TIME_DIFFER)
         cols = cols or {}

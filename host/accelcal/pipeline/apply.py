@@ -1,13 +1,13 @@
 """`accelcal apply`: saved parameters applied to every sample of a recording with the device's
-per-sample code - its vectorised twin (bridge/twin.py, bit-exact with acal.calibration.Calibration) -
+per-sample code - its vectorised twin (bridge/twin.py, bit-exact with acal.core.calibration.Calibration) -
 or, for a model with an effect the device has no form for, the fit's own float correction."""
 from __future__ import annotations
 
 import numpy as np
 
-from acal import effects as deff
-from acal import fixed
-from acal.calibration import Calibration
+from acal.core import effects as deff
+from acal.core import fixed
+from acal.core.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic

@@ -7,9 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
-from acal import bins as dbins, effects as deff
-from acal import fixed, hemisphere, optimiser
-from acal import profile as dprofile
+from acal.core import bins as dbins, effects as deff
+from acal.core import fixed, hemisphere
+from acal.paper import optimiser
+from acal.core import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.model.effects import ModelSpec, column_ref
@@ -53,7 +54,7 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
     return " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts)) + f" (need >= {min_count} each)"
 
 
-# a subset (acal.bins.SUBSET_NAMES: axis, then n/0/p) as the orientation a person holds still:
+# a subset (acal.core.bins.SUBSET_NAMES: axis, then n/0/p) as the orientation a person holds still:
 # an axis pointing up reads +1 g at rest, level 0 g, down -1 g
 _SIDE = {"n": "down", "0": "level", "p": "up"}
 
@@ -262,8 +263,8 @@ class Fit:
                 pts = RestPoints(v, seen.time, seen.temp, np.zeros(len(v)), "points", cols)
                 if spec.host_only:   # the host's references, as diagnose takes them
                     ref = refs(pts, spec)
-                else:   # the device's references (acal.reference.references)
-                    from acal.reference import references
+                else:   # the device's references (acal.core.reference.references)
+                    from acal.core.reference import references
                     c = cond[ok]
                     ref = self._reference(references([int(x) for x in c.ravel()], len(c),
                                                      spec.kinds))
@@ -297,7 +298,7 @@ class Fit:
                 if spec.change_point:
                     ref["ts"] = ref["t0"] + seconds(r.step_time)
             rec.update(model=str(spec), method=self.method,
-                       scale="Q24 per normalised regressor (device/acal/effects.py); decoded in "
+                       scale="Q24 per normalised regressor (device/acal/core/effects.py); decoded in "
                              "g, 1/degC, g/day, 1/g",
                        params_int=dict(zip(spec.param_names, map(int, p_int))),
                        params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())),

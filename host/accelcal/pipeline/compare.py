@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import fixed, optimiser
+from acal.core import fixed
+from acal.paper import optimiser
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.bridge.runtime import Config

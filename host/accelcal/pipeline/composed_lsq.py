@@ -1,12 +1,12 @@
 """The composed model in float: least squares of | |a| - 1 g | over rest points for base+effects
 (scipy), the reference the effects are measured from, and `calibrate --method lsq` of a composed
-model.  The float twin of the device's composed fit (device/acal/gaussnewton.py), and the fit
+model.  The float twin of the device's composed fit (device/acal/core/gaussnewton.py), and the fit
 diagnose scores its candidates with."""
 from __future__ import annotations
 
 import numpy as np
 
-from acal.fixed import TEMP_Q
+from acal.core.fixed import TEMP_Q
 
 from accelcal.errors import InputError
 from accelcal.methods import calibration_error_mg
@@ -37,7 +37,7 @@ def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:
 
 def refs(p: RestPoints, spec: ModelSpec | None = None) -> dict:
     """The effects' reference: mean temperature rounded to the device's resolution (Q2 degC,
-    acal.fixed.TEMP_Q: a saved lsq model applies there exactly), first time, and the mean of each
+    acal.core.fixed.TEMP_Q: a saved lsq model applies there exactly), first time, and the mean of each
     recording column spec's effects follow."""
     one = 1 << TEMP_Q
     out = {"T0": float(np.round(np.mean(p.temp) * one) / one) if p.temp is not None else 0.0,
@@ -127,7 +127,7 @@ def calibrate_model(path: str, model: str) -> CalibrationResult:
     spec, p = prepare(path, model)
     theta, ref = fit_with_reference(spec, p, refs(p, spec))
     a, r = residuals(spec, theta, p, ref)
-    p_int = spec.to_int(theta)  # the device's integers (device/acal/effects.py)
+    p_int = spec.to_int(theta)  # the device's integers (device/acal/core/effects.py)
     return CalibrationResult(model=str(spec), method="lsq", status="calibrated",
                              params=dict(zip(spec.param_names, theta.tolist())),
                              params_int=dict(zip(spec.param_names, p_int)), reference=ref,

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import discovery
+from acal.discover import rule as discovery
 
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
@@ -42,7 +42,7 @@ from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
 from accelcal.vocabulary import documented
 
-# the acceptance rule, shared with the board's own discovery (acal/discovery.py)
+# the acceptance rule, shared with the board's own discovery (acal/discover/rule.py)
 MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
 MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
 # A share of few blocks is weak evidence (3 of 3 better: one time in eight by chance alone):
@@ -265,7 +265,7 @@ def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
     bracket the fitted one (the fit cannot tell where the shock lies between them): at the split
     of those points, between distinct times, whose | |a| - 1 | sums the lowest (of equal sums the
     later), halfway between its neighbours, as change_point places a time; as the board does
-    (acal/discover.py, docs/model-discovery.md "Against the true sensor model").  Its held-out
+    (acal/discover/search.py, docs/model-discovery.md "Against the true sensor model").  Its held-out
     error leave-one-out (each gap point at the time the other gap points place) and in-sample;
     {} when no held-out point lies in the gap.  The step is chosen and named on the
     leave-one-out error (the points that place the time must not judge it); its blocks stay the

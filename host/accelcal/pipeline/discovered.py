@@ -1,20 +1,20 @@
-"""The board's own discovery as `calibrate --discover` reports it (acal/discover.py, the runner's
+"""The board's own discovery as `calibrate --discover` reports it (acal/discover/search.py, the runner's
 V, W and H records; docs/model-discovery.md "Discovery on the board"): each round's effect
 adopted or closest candidate, the held-out error before and after, its blocks and candidates."""
 from __future__ import annotations
 
 import numpy as np
 
-from acal import effects as deff
-from acal import fixed
-from acal.discover import MIN_BLOCKS, MIN_HELD, N_ALL
+from acal.core import effects as deff
+from acal.core import fixed
+from acal.discover.search import MIN_BLOCKS, MIN_HELD, N_ALL
 from accelcal.bridge import runtime
 from accelcal.fixedpoint import physical, seconds
 from accelcal.model.effects import ModelSpec, model_name
 
 
 def heldout_mg(err: int, weight: int) -> float | None:
-    """A held-out error of the board (heldscore.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2, each
+    """A held-out error of the board (score.py: the sum of | |a|^2 - 1 g^2 |, Q16 g^2, each
     point's weighted by the rest means it stands for, `weight` in all) as mean | |a| - 1 g | in mg,
     near 1 g: |a|^2 - 1 ~ 2 (|a| - 1)."""
     return err / weight / (2 * fixed.POINT_ONE_G) * 1e3 if weight and err >= 0 else None
@@ -31,7 +31,7 @@ def heldout_set(r: runtime.DeviceResult, t_first: float) -> dict:
 
 
 def discovery_record(r: runtime.DeviceResult, t_first: float = 0.0) -> dict:
-    """The board's own discovery (acal/discover.py, the runner's V and W records): the effect
+    """The board's own discovery (acal/discover/search.py, the runner's V and W records): the effect
     adopted (None: none) or the closest candidate, the held-out error before and after (the
     board's integers and in mg), its blocks, each candidate, and the adopted model's parameters;
     `heldout_set`; `rounds`, each later round (after an adoption, from the adopted model, up to
@@ -76,7 +76,7 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
         if deff.STEP in deff.model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
             if placed_insample >= 0:
-                # the step's time placed in its gap (acal/stepplace.py): its error (after) the
+                # the step's time placed in its gap (acal/discover/stepplace.py): its error (after) the
                 # placed one's, leave-one-out; the fit's time's and in-sample beside it
                 out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
                 out["step_gap_points"] = gap_n

@@ -1,9 +1,9 @@
 """What `diagnose` says in words: an effect named (and why), a second step due, or no effect
 named and how far what remains stands above the floors (pipeline/diagnose.py builds the
-figures; the rule is acal/discovery.py's)."""
+figures; the rule is acal/discover/rule.py's)."""
 from __future__ import annotations
 
-from acal import discovery
+from acal.discover import rule as discovery
 from accelcal.files.recordings import sensor_of
 from accelcal.model.effects import ModelSpec
 

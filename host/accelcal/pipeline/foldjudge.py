@@ -2,7 +2,7 @@
 
 diagnose fits each candidate by least squares on every training rest point and scores it on the
 held-out blocks.  The device fits fewer points: what its bins keep, and the wear profile's bins
-keep each posture's extremes of temperature and time (acal/bins.py, spread slots).  For a curve
+keep each posture's extremes of temperature and time (acal/core/bins.py, spread slots).  For a curve
 whose straight part is in the model this matters: the model without the curve, fitted on those
 extremes, is the curve's chord, off where the wrist mostly is, and when the rare extremes (a
 shower, the first hour) all fall in the held-out blocks neither fit on the training blocks sees
@@ -13,14 +13,15 @@ device fits them, on the bins' selection of the training half, and each half is 
     fold 2  the reverse (split() has checked that both halves cover the sphere);
 
 the folds' held-out errors pooled (every rest point scored once) and their blocks counted
-together, under the same rule (acal.discovery.names).
+together, under the same rule (acal.discover.rule.names).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from acal import discovery, fixed
-from acal.bins import COND
+from acal.discover import rule as discovery
+from acal.core import fixed
+from acal.core.bins import COND
 from accelcal.fixedpoint import physical
 from accelcal.model.effects import ModelSpec
 from accelcal.pipeline.composed_lsq import fit_with_reference, refs, residuals

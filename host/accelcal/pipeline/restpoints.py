@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from acal import fixed
+from acal.core import fixed
 from accelcal.errors import InputError
 from accelcal.files.readers import is_recording
 from accelcal.files.recordings import open_recording

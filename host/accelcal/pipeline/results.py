@@ -15,7 +15,7 @@ import csv
 import json
 import os
 
-from acal.fixed import PARAM_NAMES
+from acal.core.fixed import PARAM_NAMES
 from accelcal.errors import InputError, printable
 from accelcal.files.outputs import atomic
 from accelcal.pipeline.record import Params, Record

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from acal import fixed
+from acal.core import fixed
 from accelcal.bridge import twin
 from accelcal.errors import InputError
 from accelcal.files.checks import check_units

@@ -101,7 +101,7 @@ def diagnose_page(out: dict, pngs: dict[str, bytes], steps: list[dict] | None = 
         share = _num(c["blocks_improved_pct"], ".0f")
         if c["blocks_improved_pct"] is not None and c.get("blocks"):   # the count beside the share
             share = f"{c['blocks_improved']} of {c['blocks']} ({share} %)"
-        if c.get("evidence") == "weak":   # few blocks (acal/discovery.py clear)
+        if c.get("evidence") == "weak":   # few blocks (acal/discover/rule.py clear)
             share += ", weak evidence"
         rows.append([_e("+" + c["effect"]), _num(c["heldout_error_mg"]),
                      _num(c["improvement_pct"], ".1f"), share,

@@ -127,7 +127,7 @@ class Sensor:
         return v + rng.normal(scale=self.noise_g, size=v.shape)
 
     def truth(self) -> dict:
-        from acal.fixed import PARAM_NAMES
+        from acal.core.fixed import PARAM_NAMES
         return {"params": dict(zip(PARAM_NAMES, map(float, self.params))),
                 "noise_mg": float(self.noise_g * 1e3),
                 "effects": [e.truth() for e in self.effects]}

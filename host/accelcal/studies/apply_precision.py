@@ -6,7 +6,7 @@ the fit part (composed_lsq.calibrate_model) - is scored on the test part's stric
 windows (heldout.STRICT_G), mean | |a| - 1 g | in mg, with a each window's mean of the calibrated
 samples, written three ways: the samples as read corrected in floats; the device's samples (Q10
 g, what the apply takes in) corrected in floats, the yardstick; and those through the device's
-apply as `accelcal apply` writes it (pipeline/apply.py, the twin of acal.calibration, in the
+apply as `accelcal apply` writes it (pipeline/apply.py, the twin of acal.core.calibration, in the
 apply's output format, fixed.py).  The last two differ by what the apply's formats cost.
 
     python -m accelcal.studies.apply_precision [--seeds 1,2,3] [--ranges 2,8] [--json]
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import fixed
+from acal.core import fixed
 
 FIT_DAYS, TEST_DAYS, RATE, SECONDS = 3, 2, 10, 5
 

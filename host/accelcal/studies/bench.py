@@ -16,7 +16,7 @@ bytes_per_sample: heap bytes per sample (MicroPython mem_total), the slope betwe
   for a call with many locals (freed on return; on the C stack when the heap is locked, which
   rest_heap_locked_ok proves over the whole stream).
 bytes_per_optimiser_run: the same per-call frames, of the run's Python calls (a few per step of
-the descent: its nine gradient objectives are one viper call, acal/objective.py).
+the descent: its nine gradient objectives are one viper call, acal/paper/objective.py).
 long_ints_per_optimiser_run_32bit: optimiser values >= 2**30 in one run (its viper functions'
 too), counted under CPython with traced ints: each would be a heap-allocated long on a 32-bit
 port (RP2040, ESP32): 0, its objectives being kept in limbs; _wear_fit:
@@ -48,8 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
-from acal.bins import Bins
-from acal.optimiser import Optimiser
+from acal.core.bins import Bins
+from acal.paper.optimiser import Optimiser
 from accelcal.bridge import runtime
 from accelcal.errors import InputError
 from accelcal import simulate
@@ -123,7 +123,7 @@ def _kv(out: str) -> dict:
 
 def measure_app(tmp: Path) -> dict:
     from accelcal.simulate import wearer
-    from acal import app as dapp, log as dlog
+    from acal.logger import app as dapp, log as dlog
     script = mp_script("mp_app_bench.py")
     sim_path = [str(CHIP_DIR)]
     stim100, stim10 = tmp / "w100.bin", tmp / "w10.bin"
@@ -202,7 +202,7 @@ def _fit_rows(runs, suffix) -> dict:
         res[f"rp2040_fit_{name}_worst_slice_ms{suffix}"] = worst * RP2040_SLOWDOWN[1] / 1000.0
         res[f"fit_{name}_bytes{suffix}"] = min(int(r[5]) for r in rows)
         if not suffix:
-            from acal.app import FIT_STEPS_PER_FEED, BLOCK
+            from acal.logger.app import FIT_STEPS_PER_FEED, BLOCK
             # the whole fit on an RP2040 (its compute, small ints), and the data it spans while
             # sliced: FIT_STEPS_PER_FEED slices a block of BLOCK samples, at 100 Hz
             res[f"rp2040_fit_{name}_compute_s"] = res[f"fit_{name}_total_ms_unix"] * RP2040_SLOWDOWN[1] / 1000.0

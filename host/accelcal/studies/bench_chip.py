@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from accelcal.bridge import rp2040, runtime
-from accelcal.locations import DEVICE_PACKAGE, script as mp_script
+from accelcal.locations import DEVICE_PACKAGE, device_modules, script as mp_script
 
 FIT_CASES = ("paper_base", "wear_base", "wear_temp_offset", "wear_four_effects")
 CHIP_SAMPLES = 2000   # the rest detectors' stream on the chip: 24 kB of its 245 kB heap
@@ -81,9 +81,9 @@ def _unix_paths() -> dict:
     chip, so that import times compare loading with loading, not compiling."""
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "lib" / "acal"
-        pkg.mkdir(parents=True)
-        for src in sorted(DEVICE_PACKAGE.glob("*.py")):
-            rp2040.mpy_cross(src, pkg / (src.stem + ".mpy"), "x64")
+        for f in device_modules():
+            (pkg / f).parent.mkdir(parents=True, exist_ok=True)
+            rp2040.mpy_cross(DEVICE_PACKAGE / f, pkg / (f[:-3] + ".mpy"), "x64")
         work = Path(tmp) / "work"
         work.mkdir()
         return {**_kv(runtime.run_micropython_script(mp_script("mp_paths_bench.py"), str(work),
@@ -149,6 +149,28 @@ def discovery_rounds(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
     return res
 
 
+# A board's install units (mp_units_bench.py): the wear profile's base model (core + logger), the
+# paper profile (+ paper), a discovering board (+ discover), every module of every unit imported.
+UNIT_CASES = ("base", "paper", "discover", "all")
+
+
+def install_units(fw: rp2040.Firmware, e: str) -> dict:
+    """mp_units_bench.py on a fresh boot per case of UNIT_CASES: keys e + units_{case}_
+    import_app_ms, _free_after_import_bytes, _free_with_processor_bytes, _modules,
+    _discover_modules, _paper_modules."""
+    res = {}
+    for case in UNIT_CASES:
+        out = _on_chip("mp_units_bench.py", f"main({case!r})", fw)
+        kv = {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines()
+                                      if line.startswith("units_"))}
+        p = f"units_{case}_"
+        res[e + p + "import_app_ms"] = kv[p + "import_app_us"] / 1000
+        for k in ("free_after_import_bytes", "free_with_processor_bytes", "modules",
+                  "discover_modules", "paper_modules"):
+            res[e + p + k] = kv[p + k]
+    return res
+
+
 def round_keys(out: str, e: str) -> dict:
     """rounds()'s printed lines as the bench's keys (prefix e): µs to ms, bytes named so."""
     res = {}
@@ -178,6 +200,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         e + "rest_heap_locked_ok": bool(chip["rest_heap_locked_ok"] and chip["rest_wear_heap_locked_ok"]),
         **paths_and_fits(rp2040.MICROPYTHON, e),
         **discovery_rounds(rp2040.MICROPYTHON, e),
+        **install_units(rp2040.MICROPYTHON, e),
     }
     res.update(unix_figures())
     return res
@@ -231,13 +254,13 @@ def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, s
         paths += [(f"fit {name}, whole", m.get(f"fit_{name}_total_ms_unix"), f"fit_{name}_total_ms", "ms"),
                   (f"fit {name}, worst slice", None if worst is None else worst / 1000,
                    f"fit_{name}_worst_slice_ms", "ms")]
-    paths.append(("import acal.app (.mpy)", m.get("unix_import_app_mpy_ms"), "import_app_ms", "ms"))
+    paths.append(("import acal.logger.app (.mpy)", m.get("unix_import_app_mpy_ms"), "import_app_ms", "ms"))
     return [(name, unix, on(MP, key), on(CP, key), unit) for name, unix, key, unit in paths
             if on(MP, key) is not None or on(CP, key) is not None]
 
 
 # The figures the ROMFS build is shown for beside the littlefs one: (label, key, unit)
-ROMFS_ROWS = (("import acal.app (.mpy)", "import_app_ms", "ms"),
+ROMFS_ROWS = (("import acal.logger.app (.mpy)", "import_app_ms", "ms"),
               ("apply, base, per sample", "apply_base_us_per_sample", "us"),
               ("apply, four effects, per sample", "apply_largest_us_per_sample", "us"),
               ("app after acquisition, per sample", "processor_us_per_sample", "us"),
@@ -311,10 +334,18 @@ def format_chip(m: dict) -> str:
                  f"{m[r + 'adopt_heap_free_before_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_taken_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_after_bytes']:,} bytes; {m[r + 'adopt_max_count']}")
+    if MP + "units_base_modules" in m:
+        line("install units, MicroPython: import acal.logger.app / heap free after it / with its "
+             "Processor; acal modules loaded (discover, paper)", "")
+        for case in UNIT_CASES:
+            u = MP + f"units_{case}_"
+            line(f"  {case}", f"{m[u + 'import_app_ms']:.4g} ms / {m[u + 'free_after_import_bytes']:,} / "
+                 f"{m[u + 'free_with_processor_bytes']:,} bytes; {m[u + 'modules']} "
+                 f"({m[u + 'discover_modules']}, {m[u + 'paper_modules']})")
     if MP + "rest_heap_locked_ok" in m:
         line("rest detectors allocate nothing (heap_lock)", str(m[MP + "rest_heap_locked_ok"]))
     if CP + "bytes_per_sample_and_fit" in m:
-        line("CircuitPython heap: free after import acal.app / with Processor(four effects)",
+        line("CircuitPython heap: free after import acal.logger.app / with Processor(four effects)",
              f"{m[CP + 'free_after_import_app_bytes']:,} / {m[CP + 'free_with_processor_largest_bytes']:,} bytes")
         line("CircuitPython, default fit (72 points): status / slices",
              f"{m[CP + 'default_fit_status']} / {m[CP + 'default_fit_slices']}")

@@ -8,7 +8,7 @@ From bridge/scripts/cp_bench.py (run(), cp_figures()): rest_*us_per_sample, a re
 sample (paper: one axis; wear: every axis with the noise gauge), 1000 samples; default_fit_*, the
 wear profile's Gauss-Newton fit of 72 points with two outliers, slice by slice as the app runs it
 (status, iterations, rejected, slices, bytes in its worst slice); free_after_import_app_bytes and
-free_with_processor_largest_bytes, gc.mem_free() after a collection, after `import acal.app` and
+free_with_processor_largest_bytes, gc.mem_free() after a collection, after `import acal.logger.app` and
 with a Processor (the app's pipeline, bins, calibration) of the larger of the largest models (four
 effects); bytes_per_sample_and_fit, allocated with the collector off (CircuitPython has no
 heap_lock) over the detectors' stream, the apply at every full scale and the fit: 0 where nothing

@@ -21,8 +21,9 @@ import numpy as np
 from accelcal.bridge import boardlog
 from accelcal import methods
 from accelcal.board import virtual
-from acal.fixed import PARAM_NAMES, PARAM_ONE, POINT_ONE_G
-from acal import log, optimiser
+from acal.core.fixed import PARAM_NAMES, PARAM_ONE, POINT_ONE_G
+from acal.logger import log
+from acal.paper import optimiser
 
 DAYS = 1
 RATE = 10

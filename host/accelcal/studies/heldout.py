@@ -13,7 +13,7 @@ fits base+EFFECT, up to two steps); float least squares with the loop's model on
 device's bins selected and its fit kept (lsq_bins: what separates the device's fit from its
 choice of points); on every rest point of the fit part (lsq_all); the same with every point's
 temperature in whole degC, as the LIS3DH's OUT_ADC3 gives it (lsq_degc: what that resolution
-leaves the model; the device's conditions hold quarter degrees, acal.fixed.TEMP_Q);
+leaves the model; the device's conditions hold quarter degrees, acal.core.fixed.TEMP_Q);
 scikit-digital-health and actipy (offset and scale per axis, and a temperature term where the
 file has temperature) fitted by their own functions on the fit part (--others);
 the true sensor model; and wear_loop / true.
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import fixed
+from acal.core import fixed
 from accelcal.model.effects import CATALOGUE, ModelSpec
 
 FIT_DAYS, TEST_DAYS, RATE = 3, 2, 10

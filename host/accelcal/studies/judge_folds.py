@@ -11,7 +11,7 @@ model and the model with the candidate are fitted by float least squares on
           from the training rest points and its fit keeps (what the device will fit),
 
 and scored on the other fold's rest points: the held-out error (mg), how many blocks improve,
-and whether acal.discovery.names would name the candidate.  "both" pools the two folds (every
+and whether acal.discover.rule.names would name the candidate.  "both" pools the two folds (every
 rest point scored once, the blocks of both).  diagnose judges a curve on its straight part so
 ("bins", both folds: pipeline/foldjudge.py) when its fit on every point does not name it.
 
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acal import discovery
+from acal.discover import rule as discovery
 from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.foldjudge import fold_gain
 from accelcal.pipeline.restpoints import BLOCK_S

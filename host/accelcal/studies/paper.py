@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from acal import fixed, optimiser
+from acal.core import fixed
+from acal.paper import optimiser
 from accelcal import methods, simulate
 from accelcal.bridge import runtime
 from accelcal.fixedpoint import params_to_float

@@ -10,14 +10,14 @@ import time
 
 gc.collect()
 _t0 = time.monotonic_ns()
-import acal.app  # noqa: E402
+import acal.logger.app  # noqa: E402
 _import_ns = time.monotonic_ns() - _t0
 
 from array import array  # noqa: E402
-from acal.app import Processor  # noqa: E402
-from acal.gaussnewton import GaussNewton  # noqa: E402
-from acal.calibration import Calibration  # noqa: E402
-from acal.rest import RestDetector, ALL_AXES, AUTO  # noqa: E402
+from acal.logger.app import Processor  # noqa: E402
+from acal.core.gaussnewton import GaussNewton  # noqa: E402
+from acal.core.calibration import Calibration  # noqa: E402
+from acal.core.rest import RestDetector, ALL_AXES, AUTO  # noqa: E402
 
 PTS = None
 WHOLE = True

@@ -5,7 +5,7 @@
 //
 //   node mp32.mjs MICROPYTHON_MJS HEAP_BYTES PATH_DIRS SCRIPT [ARGS...]
 //
-// PATH_DIRS: folders joined by ":" whose .py files (and packages one level down) are copied
+// PATH_DIRS: folders joined by ":" whose .py files (and their folders' and packages') are copied
 // into the interpreter's filesystem and put on sys.path (device/ first).  SCRIPT and every
 // argument that names an existing file are copied in at the same absolute path, an existing
 // folder is made (empty) there; files the script writes stay inside.  stdout and stderr are the script's; exit status 1 on an exception.
@@ -35,20 +35,24 @@ function copyIn(src, dst) {
   mp.FS.writeFile(dst, fs.readFileSync(src));
 }
 
-const lib = [];
-dirs.split(":").filter(Boolean).forEach((d, i) => {
-  const root = `/lib${i}`;
-  mkdirs(root);
+// A folder's .py files and its folders', at any depth (packages, with an __init__.py or without:
+// the device package's feature folders have none), but for caches and hidden folders.
+function copyTree(d, root) {
   for (const entry of fs.readdirSync(d, { withFileTypes: true })) {
     const p = path.join(d, entry.name);
     if (entry.isFile() && entry.name.endsWith(".py")) {
       copyIn(p, `${root}/${entry.name}`);
-    } else if (entry.isDirectory()) {
-      for (const f of fs.readdirSync(p)) {
-        if (f.endsWith(".py")) copyIn(path.join(p, f), `${root}/${entry.name}/${f}`);
-      }
+    } else if (entry.isDirectory() && entry.name !== "__pycache__" && !entry.name.startsWith(".")) {
+      copyTree(p, `${root}/${entry.name}`);
     }
   }
+}
+
+const lib = [];
+dirs.split(":").filter(Boolean).forEach((d, i) => {
+  const root = `/lib${i}`;
+  mkdirs(root);
+  copyTree(d, root);
   lib.push(root);
 });
 

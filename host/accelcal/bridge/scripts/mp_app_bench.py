@@ -22,7 +22,7 @@ def sim_only(board, n, period):
 
 
 def main():
-    from acal.app import App
+    from acal.logger.app import App
     stim, work, rate, n, seconds = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
     os.chdir(work)
     for fifo in (0, 1):

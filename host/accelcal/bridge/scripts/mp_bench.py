@@ -8,8 +8,8 @@ import time
 import micropython
 from array import array
 
-from acal.optimiser import Optimiser
-from acal.rest import RestDetector, ALL_AXES, AUTO
+from acal.paper.optimiser import Optimiser
+from acal.core.rest import RestDetector, ALL_AXES, AUTO
 
 
 def samples(n):

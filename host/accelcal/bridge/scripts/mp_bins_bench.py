@@ -39,7 +39,7 @@ def rest_means(n):
 
 
 def main(repeat):
-    from acal import bins
+    from acal.core import bins
     b = bins.Bins(2, 8, policy=bins.CENTRE, coverage=True, temp_differ=bins.TEMP_DIFFER,
                   time_differ=bins.TIME_DIFFER, supply_differ=bins.SUPPLY_DIFFER)
     pts = rest_means(2 * N_OFFER)

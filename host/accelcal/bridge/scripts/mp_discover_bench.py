@@ -1,8 +1,8 @@
 # `accelcal bench` (studies/bench_chip.py, on the emulated RP2040): the longest step of the board
-# discovery's block marking and block comparing (acal/discover.py's _BLOCKS and _BETTER phases)
+# discovery's block marking and block comparing (acal/discover/search.py's _BLOCKS and _BETTER phases)
 # on a full held-out set: 144 points, 8 postures in each of 18 odd 2-hour blocks, a candidate
 # better in a third of them; and (place()) an adopted step's placement among the held-out points
-# of its gap at its largest (acal/stepplace.py's gathering and placing), place(True) the same
+# of its gap at its largest (acal/discover/stepplace.py's gathering and placing), place(True) the same
 # with the heap locked around each step; and (rounds()) a whole discovery, its first round and
 # its second from the adopted effect, on a pipeline fed simulated rest means: each phase's
 # longest step and the heap.  Prints "key value" lines (us, bytes, and the steps taken).
@@ -15,8 +15,8 @@
 # while gc.mem_alloc() is the same after it.
 import gc
 import time
-from acal import discover
-from acal.heldout import HeldOut
+from acal.discover import search as discover
+from acal.discover.heldout import HeldOut
 
 # CircuitPython has no ticks_us: monotonic_ns (as mp_paths_bench.py)
 ticks = getattr(time, "ticks_us", None) or (lambda: time.monotonic_ns() // 1000)
@@ -73,12 +73,13 @@ def main():
 
 
 def place(lock=False):
-    """An adopted step's placement (acal/stepplace.py, which discover.py's _PLACE phase drives)
+    """An adopted step's placement (acal/discover/stepplace.py, which search.py's _PLACE phase drives)
     at its largest: every held-out point of a full set in the step's gap, so GAP_MAX are kept
     (each insertion shifting the sorted gap), then each scored leave-one-out.  lock: each step
     under heap_lock (its calls' frames on the C stack; keys with _locked)."""
     import micropython
-    from acal import effects, stepplace
+    from acal.core import effects
+    from acal.discover import stepplace
     if lock and not hasattr(micropython, "heap_lock"):
         return
     tag = "_locked" if lock else ""
@@ -147,8 +148,9 @@ def rounds(pts, lock=False):
     and the longest (_round).  lock: each step under heap_lock (keys with _locked; nothing on
     CircuitPython, which has no heap_lock)."""
     import micropython
-    from acal import discover, profile
-    from acal.pipeline import Pipeline
+    from acal.discover import search as discover
+    from acal.core import profile
+    from acal.core.pipeline import Pipeline
     if lock and not hasattr(micropython, "heap_lock"):
         return
     tag = "_locked" if lock else ""
@@ -237,7 +239,7 @@ def adopt(pipe, r):
     """pipe.adopt() and what it costs the heap: the free heap before it (collected), right after
     it (what it took, unless it had to collect) and after a collection (what it keeps: its
     calibration's start; the bins grow to a composed model's points in the room they have from
-    boot, acal/grow.py), the points per subset after it."""
+    boot, acal/discover/grow.py), the points per subset after it."""
     gc.collect()
     free_before = gc.mem_free()
     pipe.adopt()

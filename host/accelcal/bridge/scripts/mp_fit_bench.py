@@ -14,9 +14,9 @@ import sys
 import time
 from array import array
 
-from acal import effects
-from acal.pipeline import Pipeline
-from acal.profile import PAPER, WEAR, settings
+from acal.core import effects
+from acal.core.pipeline import Pipeline
+from acal.core.profile import PAPER, WEAR, settings
 
 try:
     ticks = time.ticks_us

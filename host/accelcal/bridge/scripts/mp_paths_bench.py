@@ -51,7 +51,7 @@ class Board:
         self.bus = RegisterBus()
         if not hasattr(time, "ticks_us"):   # CircuitPython: the Feather board file's clock
             import supervisor
-            from acal.app import MsTicksClock
+            from acal.logger.app import MsTicksClock
             self.clock = MsTicksClock(supervisor.ticks_ms, None)
 
     def i2c(self):
@@ -112,10 +112,11 @@ def processor_us(log, Processor, repeat):
 def main(work, repeat):
     gc.collect()
     t0 = ticks()
-    from acal import app
+    from acal.logger import app
     print("import_app_us", us(t0))
-    from acal import effects, log
-    from acal.calibration import Calibration
+    from acal.core import effects
+    from acal.logger import log
+    from acal.core.calibration import Calibration
     print("apply_base_us_per_1000", apply_us(Calibration(()), N_APPLY, repeat) * 1000 // N_APPLY)
     cal = Calibration(effects.parse_model(LARGEST))
     cal.temp = 5

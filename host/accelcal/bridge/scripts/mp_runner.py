@@ -7,9 +7,9 @@
 # Input lines (integers, space separated):
 #   C rate seconds threshold axis min_count max_count differ policy iterations fit discover
 #     a_s a_m a_o [kind ...]   the settings, in SETTINGS order; threshold 0: from the noise
-#                          (acal.rest.AUTO); axis 3: all axes; fit: acal.profile.GRADIENT or
+#                          (acal.core.rest.AUTO); axis 3: all axes; fit: acal.core.profile.GRADIENT or
 #                          NEWTON; discover 1: the board's own discovery after the fit
-#                          (acal/discover.py); the effects of a composed model (acal.effects
+#                          (acal/discover/search.py); the effects of a composed model (acal.core.effects
 #                          ids), if any
 #   G name                 start a group (a device): a fresh pipeline
 #   T temp time supply     conditions of what follows: Q2 degC, 64 s units, mV (composed models)
@@ -34,12 +34,12 @@
 #   N threshold level          the rest threshold in force at the end and the noise level it
 #                              came from (Q10 g; AUTO only)
 #   V adopted closest before after betters blocks held weight step_time p0 .. p14 fitted_time
-#     step_unplaced placed_insample gap_n   discover: the DISCOVERY record's fields (acal/log.py),
+#     step_unplaced placed_insample gap_n   discover: the DISCOVERY record's fields (acal/logger/log.py),
 #                              the held-out points and the rest means they stand for (their
 #                              weights' sum), a step's time (placed), the closest candidate's 15
 #                              parameters, and the step's fitted time, held-out error at it
 #                              and placed in-sample (-1: not placed; after: leave-one-out), gap points
-#   H x y z temp time supply weight   discover: each held-out point (acal/heldout.py)
+#   H x y z temp time supply weight   discover: each held-out point (acal/discover/heldout.py)
 #   W kind err betters         discover: each candidate (err -1: not testable)
 #                              After an adoption with room for another effect (discover.more)
 #                              the discovery runs again from the adopted model on the same fit
@@ -47,9 +47,9 @@
 import sys
 from array import array
 
-from acal.bins import COND
-from acal.pipeline import Pipeline
-from acal.profile import NEWTON
+from acal.core.bins import COND
+from acal.core.pipeline import Pipeline
+from acal.core.profile import NEWTON
 
 # The C line's fields, in order: the one place the settings' order is written (the host's
 # Config.line() builds the line from it).  The learning rates (a_*) and the effect ids follow.
@@ -122,8 +122,8 @@ class Runner:
         d = pipe.discovery
         first = True
         if d is not None:
-            from acal.discover import more   # a discovering runner's module only
-        while d is not None and status == 0:   # acal.status.OK: a base fit to start from
+            from acal.discover.search import more   # a discovering runner's module only
+        while d is not None and status == 0:   # acal.core.status.OK: a base fit to start from
             d.run(pipe)
             i = d.chosen
             emit("V", [d.kind, d.kind_ids[i] if i >= 0 else 0, d.before,

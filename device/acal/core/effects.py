@@ -1,0 +1,442 @@
+# Physical effects beyond the paper's 9 parameters, in integers: their application on the device.
+# host/accelcal/model/effects.py declares each effect once for the host (names, units, bounds,
+# physics, plots) and converts its parameters to and from the integers here.
+#
+# An effect is removed from a reading v (g) before the 9-parameter correction a = K (w + o):
+#   TEMP_OFFSET  w = v - c dT          dT: degC from the model's reference temperature
+#   TEMP_OFFSET2 w = v - e dT^2        the zero-g level's curvature in temperature
+#   TEMP_SCALE   w = v - s dT v        (first order: (s dT)^2 < 1e-4 of the reading)
+#   DRIFT        w = v - d dt          dt: time from the model's reference time
+#   NONLINEAR    w = v - q v^2         per axis, v^2 with its sign lost (a quadratic response)
+# and the generic offsets, w = v - p x with a regressor x the device computes (SHAPES below):
+#   STEP         x = [dt >= ts]        the offsets jump once, at ts (a shock); ts is found by
+#                                      acal/core/changepoint.py and kept beside the parameters
+#   TIME_OFFSET2..4   x = (dt / 2**13)^2..4     the offset ageing along a curve in time
+#   TEMP_OFFSET3..4   x = (dT / 16)^3..4        higher powers of temperature
+#   SUPPLY_OFFSET     x = dV / 1024             an integer the board supplies (its supply in mV:
+#                                               the zero-g level following the battery)
+# Three parameters per effect (x, y, z), in this order.
+#
+# Formats.  dT: Q2 degC (fixed.TEMP_Q: quarter degrees).  dt: int, units of 64 s (DT_UNIT_S).
+#   dV: int mV from the reference.
+#   Fit (Q24 g readings u, model.objective): every parameter in Q24 per its normalised regressor -
+#   c and s per 16 degC, e per 64 degC^2, d per 2048 dt units (131 072 s, 1.52 days), q per g - so
+#   that each is of the size of an offset and takes the offsets' learning rate (the parameters
+#   keep these per-degC units whatever the temperature's format: dT's two fraction bits enter
+#   the shifts, 2 more per power of dT).
+#     c: (c * dT) >> 6;  e: (e * dT^2) >> 10;  s: (((s * dT) >> 6) * u) >> 24;  d: (d * dt) >> 11;
+#     q: (q * ((u*u) >> 24)) >> 24
+#   With whole degrees fed as dT << 2 every form equals the whole-degree one it replaced.
+#   Apply (per sample, Q(14 - e) g readings at range shift e, fixed.py "apply",
+#   calibration.Calibration): c, e and d in Q14 (param >> 10), s and q in Q18 (param >> 6), each
+#   product shifted e bits further (q's v^2 e bits before it), so that at +-2.048 * 2**e g, |dT| <= 32
+#   degC (128 in Q2) and |dt| < 2**20 units (776 days; both clamped) and inside BOUNDS every product stays
+#   below 2**30 at every full scale (tests/device/test_effects.py runs the worst case).
+#   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (dT / 16 is
+#   dT << 10 in Q16 from Q2; x <= 2**20 for (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
+#   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
+#   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
+#   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> (14 + e), k x < 2**28 at the bound.
+#   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
+#   port): for readings |u| <= 2.048 g (model.FIT_W_MAX, clamped), |dT| <= 32 degC, |dt| <=
+#   FIT_TIME_MAX and parameters within 4x BOUNDS (the fit region: c dT <= 5.4e6 * 128 < 2**30) - or, for the Jacobian rows of
+#   gaussnewton.py, parameters below 2**22 - the wide products go through acal/core/wide.py, whose
+#   floors equal the plain (a * b) >> s.
+from acal.core.wide import mul_shift
+from acal.core.fixed import TEMP_DT_MAX
+from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
+try:
+    from micropython import const
+except ImportError:
+    def const(x):
+        return x
+
+TEMP_OFFSET = const(1)
+TEMP_SCALE = const(2)
+DRIFT = const(3)
+NONLINEAR = const(4)
+TEMP_OFFSET2 = const(5)
+STEP = const(6)
+TIME_OFFSET2 = const(7)
+TIME_OFFSET3 = const(8)
+TIME_OFFSET4 = const(9)
+TEMP_OFFSET3 = const(10)
+TEMP_OFFSET4 = const(11)
+SUPPLY_OFFSET = const(12)
+NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear",
+         TEMP_OFFSET2: "temp_offset2", STEP: "step", TIME_OFFSET2: "time_offset2",
+         TIME_OFFSET3: "time_offset3", TIME_OFFSET4: "time_offset4", TEMP_OFFSET3: "temp_offset3",
+         TEMP_OFFSET4: "temp_offset4", SUPPLY_OFFSET: "supply_offset"}
+# The generic offsets' regressors: (source, power).  A declared effect of one of these shapes
+# runs on the board as this kind (host: model/effects.py device_kind).
+SOURCE_TEMP = const(1)
+SOURCE_TIME = const(2)
+SOURCE_STEP = const(3)
+SOURCE_SUPPLY = const(4)
+SHAPES = {STEP: (SOURCE_STEP, 1), TIME_OFFSET2: (SOURCE_TIME, 2), TIME_OFFSET3: (SOURCE_TIME, 3),
+          TIME_OFFSET4: (SOURCE_TIME, 4), TEMP_OFFSET3: (SOURCE_TEMP, 3),
+          TEMP_OFFSET4: (SOURCE_TEMP, 4), SUPPLY_OFFSET: (SOURCE_SUPPLY, 1)}
+# The log packs a model as KIND_BITS per effect into BOOT's 16-bit model field (model_code):
+# ids 1..KIND_MAX (three are left after SUPPLY_OFFSET) and at most MODEL_EFFECTS_MAX effects.
+KIND_BITS = const(4)
+KIND_MAX = const(15)
+MODEL_EFFECTS_MAX = const(4)
+X_Q = const(12)                   # the generic regressor's format
+GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
+GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
+GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
+SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
+DT_UNIT_S = const(64)
+APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the reference
+APPLY_TIME_MAX = const(1048575)   # dt units
+FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
+# |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
+# d 20 mg/day, q 5 %/g, e 1 mg/degC^2.
+BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
+          TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
+          DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
+          NONLINEAR: const(838861),      # 0.05 * 2**24
+          TEMP_OFFSET2: const(1073742),  # 0.001 * 64 * 2**24
+          STEP: GENERIC_BOUND, TIME_OFFSET2: GENERIC_BOUND, TIME_OFFSET3: GENERIC_BOUND,
+          TIME_OFFSET4: GENERIC_BOUND, TEMP_OFFSET3: GENERIC_BOUND, TEMP_OFFSET4: GENERIC_BOUND,
+          SUPPLY_OFFSET: GENERIC_BOUND}
+
+
+def is_generic(kind):
+    """True for a generic offset (SHAPES: a regressor from a source, to a power), the kinds
+    regressor() serves; the one test of it (a new kind is generic by its entry in SHAPES)."""
+    return kind in SHAPES
+
+
+def condition_of(kind):
+    """The condition an effect's regressor reads, as bins.COND orders a point's conditions
+    (0 temperature, 1 time: a step's too, 2 supply; -1 none, NONLINEAR): with bins.DIFFERS,
+    the threshold question that pipeline.spanned asks of the bins' points and discover.testable
+    of the fit points."""
+    source = source_of(kind)
+    if source == SOURCE_TEMP:
+        return 0
+    if source == SOURCE_TIME:
+        return 1
+    return 2 if source == SOURCE_SUPPLY else -1
+
+
+def source_of(kind):
+    """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
+    SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""
+    if is_generic(kind):
+        source = SHAPES[kind][0]
+        return SOURCE_TIME if source == SOURCE_STEP else source
+    if kind == DRIFT:
+        return SOURCE_TIME
+    if kind == NONLINEAR:
+        return 0
+    return SOURCE_TEMP           # TEMP_OFFSET, TEMP_OFFSET2, TEMP_SCALE
+
+
+def uses_source(kinds, source):
+    """True when a model has a generic offset whose regressor comes from `source`."""
+    for k in kinds:
+        if is_generic(k) and SHAPES[k][0] == source:
+            return True
+    return False
+
+
+def time_from_first(kinds):
+    """True when a model's reference time is its earliest point's rather than the middle of
+    their range: a power of time above 1 has an origin (ageing since the recording began) that
+    moving the reference would turn into a linear part the model may lack."""
+    return uses_source(kinds, SOURCE_TIME)
+
+
+def parse_model(spec):
+    """'base' or 'base+NAME+...' (NAMES) -> the effect ids in order; ValueError otherwise."""
+    parts = spec.split("+")
+    if parts[0] != "base":
+        raise ValueError("a model is 'base' or 'base+EFFECT+...': " + spec)
+    kinds = []
+    for name in parts[1:]:
+        kind = 0
+        for k in NAMES:
+            if NAMES[k] == name:
+                kind = k
+        if not kind or kind in kinds:
+            raise ValueError("unknown or repeated effect in " + spec + ": " + name)
+        kinds.append(kind)
+    return tuple(kinds)
+
+
+def model_code(kinds):
+    """The effect ids as one int for the log: kinds[i] in bits 4i..4i+3; ValueError past
+    MODEL_EFFECTS_MAX effects or an id past KIND_MAX (the log's field would wrap)."""
+    if len(kinds) > MODEL_EFFECTS_MAX:
+        raise ValueError("the log holds a model of at most 4 effects")
+    code = 0
+    for i in range(len(kinds)):
+        if not 0 < kinds[i] <= KIND_MAX:
+            raise ValueError("an effect id the log cannot hold")
+        code |= kinds[i] << (KIND_BITS * i)
+    return code
+
+
+def model_kinds(code):
+    """model_code's inverse."""
+    kinds = []
+    while code:
+        kinds.append(code & KIND_MAX)
+        code >>= KIND_BITS
+    return tuple(kinds)
+
+
+def regressor(kind, dT, dt, ts, dV=0):
+    """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (Q2 degC), dt (64 s units), with a
+    step at ts (64 s units, as dt), and the board's integer dV (mV from its reference): SHAPES,
+    clamped as the formats above say; each power an exact floor (acal/core/wide.py)."""
+    source, power = SHAPES[kind]
+    if source == SOURCE_STEP:
+        return 65536 if dt >= ts else 0
+    if source == SOURCE_SUPPLY:
+        if dV > SUPPLY_MAX:
+            dV = SUPPLY_MAX
+        elif dV < -SUPPLY_MAX:
+            dV = -SUPPLY_MAX
+        return dV << 6                    # dV / 1024 in Q16, <= 2**16
+    if source == SOURCE_TEMP:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+        base = dT << 10                   # dT / 16 in Q16 from Q2 degC, <= 2**17
+    else:
+        if dt > GENERIC_TIME_MAX:
+            dt = GENERIC_TIME_MAX
+        elif dt < -GENERIC_TIME_MAX:
+            dt = -GENERIC_TIME_MAX
+        base = dt << 3                    # dt / 2**13 in Q16, <= 2**17
+    x = base
+    for _ in range(power - 1):
+        x = mul_shift(x, base, 16)        # <= 2**20
+    return x
+
+
+def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
+    """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
+    place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
+    see the formats above); ts: a step's time (as dt); dV: the board's integer (mV from its
+    reference).  Every intermediate stays below 2**30 (acal/core/wide.py)."""
+    if kind in SHAPES:   # is_generic(), inline: per point / per sample
+        x = regressor(kind, dT, dt, ts, dV)
+        for i in range(3):
+            u[at + i] -= mul_shift(p[j + i], x, 16)
+        return
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+    if kind == TEMP_OFFSET:
+        for i in range(3):
+            u[at + i] -= (p[j + i] * dT) >> 6
+    elif kind == TEMP_SCALE:
+        for i in range(3):
+            u[at + i] -= mul_shift((p[j + i] * dT) >> 6, u[at + i], 24)
+    elif kind == DRIFT:
+        if dt > FIT_TIME_MAX:
+            dt = FIT_TIME_MAX
+        elif dt < -FIT_TIME_MAX:
+            dt = -FIT_TIME_MAX
+        for i in range(3):
+            u[at + i] -= mul_shift(p[j + i] << 5, dt, 16)   # (p dt) >> 11
+    elif kind == NONLINEAR:
+        for i in range(3):
+            v = u[at + i]
+            u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
+    elif kind == TEMP_OFFSET2:
+        sq = (dT * dT) << 6      # <= 2**20: (e dT^2) >> 10 as an exact wide floor
+        for i in range(3):
+            u[at + i] -= mul_shift(p[j + i], sq, 16)
+
+
+def apply_params(kind, p, j, k, m):
+    """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
+    if is_generic(kind):
+        shift = 8
+    elif kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2:
+        shift = 10
+    else:
+        shift = 6
+    half = 1 << (shift - 1)
+    for i in range(3):
+        k[m + i] = (p[j + i] + half) >> shift
+
+
+def offset_sample(k, m, w, r, e=0):
+    """A generic offset's per-sample form: w -= k r, r its regressor >> 4 (Q12, <= 2**16), k in
+    Q16 (apply_params), w in Q(14 - e) g (e: the full scale's shift, fixed.py)."""
+    s = 14 + e
+    for i in range(3):
+        w[i] -= (k[m + i] * r) >> s
+
+
+def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
+    """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
+    within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
+    shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result); ts: a step's
+    time (as dt); dV: the board's integer (mV from its reference)."""
+    if kind in SHAPES:   # is_generic(), inline: per point / per sample
+        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4, e)
+        return
+    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+    if kind == TEMP_OFFSET:
+        for i in range(3):
+            w[i] -= (k[m + i] * dT) >> (6 + e)
+    elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
+        for i in range(3):
+            w[i] -= (((k[m + i] * dT) >> 6) * w[i]) >> 18
+    elif kind == DRIFT:
+        if dt > APPLY_TIME_MAX:
+            dt = APPLY_TIME_MAX
+        elif dt < -APPLY_TIME_MAX:
+            dt = -APPLY_TIME_MAX
+        for i in range(3):
+            w[i] -= (k[m + i] * dt) >> (11 + e)
+    elif kind == NONLINEAR:      # v^2 in Q(10 - e) g^2: <= 2**16 at +-16 g, k v^2 < 2**30
+        s = x
+        for i in range(3):
+            if i == 1:
+                s = y
+            elif i == 2:
+                s = z
+            w[i] -= (k[m + i] * ((s * s) >> (10 + e))) >> 14
+    elif kind == TEMP_OFFSET2:
+        sq = dT * dT             # <= 2**14; |k| <= 2**11 at 2x the bound: the product < 2**26
+        for i in range(3):
+            w[i] -= (k[m + i] * sq) >> (10 + e)
+
+
+# correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
+# generic kinds' (source, power) as one int each (source << 3 | power), indexed by kind.
+_SHAPE_CODES = bytearray(KIND_MAX + 1)
+for _k in SHAPES:
+    _SHAPE_CODES[_k] = (SHAPES[_k][0] << 3) | SHAPES[_k][1]
+del _k
+
+
+@viper
+def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, dt: int,
+                  ts: int, dV: int, clamp: int):
+    # Remove the effects kind_ids[k-1], ..., kind_ids[k0] (an int32 array of ids: the last
+    # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
+    # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array); after
+    # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
+    # integers of correct_u (tests/device/test_effects.py checks them against it), each wide.mul_shift
+    # written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9); every value below
+    # 2**30 as correct_u's (tests/device/test_ranges.py).
+    ids = ptr32(kind_ids)
+    p = ptr32(params)
+    u = ptr32(reading)
+    shapes = ptr8(_SHAPE_CODES)
+    w = int(SIGN_SHIFT)
+    while k > k0:
+        k -= 1
+        kind = int(ids[k]) << w >> w
+        at = j + 3 * (k - k0)
+        code = int(shapes[kind])
+        x = 0
+        if code:
+            source = code >> 3
+            if source == 3:                  # SOURCE_STEP
+                x = 65536 if dt >= ts else 0
+            elif source == 4:                # SOURCE_SUPPLY
+                v = dV
+                if v > 1024:
+                    v = 1024
+                elif v < -1024:
+                    v = -1024
+                x = v << 6
+            else:
+                if source == 1:              # SOURCE_TEMP (Q2 degC)
+                    v = dT
+                    if v > 128:
+                        v = 128
+                    elif v < -128:
+                        v = -128
+                    base = v << 10
+                else:                        # SOURCE_TIME
+                    v = dt
+                    if v > 16384:
+                        v = 16384
+                    elif v < -16384:
+                        v = -16384
+                    base = v << 3
+                x = base
+                bh = base >> 15
+                bl = base & 0x7FFF
+                n = (code & 7) - 1
+                while n > 0:
+                    ah = x >> 15
+                    al = x & 0x7FFF
+                    m = ah * bl + al * bh
+                    x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                    n -= 1
+        elif kind == 3:                      # DRIFT: (p << 5) dt 2**-16
+            v = dt
+            if v > 262143:
+                v = 262143
+            elif v < -262143:
+                v = -262143
+            x = v
+        elif kind != 4:                      # TEMP_OFFSET, TEMP_SCALE, TEMP_OFFSET2: dT (Q2)
+            v = dT
+            if v > 128:
+                v = 128
+            elif v < -128:
+                v = -128
+            x = v
+            if kind == 5:                    # TEMP_OFFSET2: dT^2 << 6
+                x = (v * v) << 6
+        bh = x >> 15
+        bl = x & 0x7FFF
+        c = 0
+        while c < 3:
+            a = int(p[at + c]) << w >> w
+            r = int(u[c]) << w >> w
+            if kind == 1:                    # TEMP_OFFSET
+                r -= (a * x) >> 6
+            elif kind == 2:                  # TEMP_SCALE: P24((a dT) >> 6, r)
+                a = (a * x) >> 6
+                ah = a >> 15
+                al = a & 0x7FFF
+                rh = r >> 15
+                rl = r & 0x7FFF
+                m = ah * rl + al * rh
+                r -= ((ah * rh) << 6) + (m >> 9) + (((m & 511) + ((al * rl) >> 15)) >> 9)
+            elif kind == 4:                  # NONLINEAR: r - P24(a, P24(r, r))
+                rh = r >> 15
+                rl = r & 0x7FFF
+                m = rh * rl + rl * rh
+                s = ((rh * rh) << 6) + (m >> 9) + (((m & 511) + ((rl * rl) >> 15)) >> 9)
+                ah = a >> 15
+                al = a & 0x7FFF
+                sh = s >> 15
+                sl = s & 0x7FFF
+                m = ah * sl + al * sh
+                r -= ((ah * sh) << 6) + (m >> 9) + (((m & 511) + ((al * sl) >> 15)) >> 9)
+            else:                            # P16(a', x): DRIFT a' = a << 5, the rest a
+                if kind == 3:
+                    a = a << 5
+                ah = a >> 15
+                al = a & 0x7FFF
+                m = ah * bl + al * bh
+                r -= ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+            if clamp:
+                if r > clamp:
+                    r = clamp
+                elif r < 0 - clamp:
+                    r = 0 - clamp
+            u[c] = r
+            c += 1

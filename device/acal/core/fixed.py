@@ -1,0 +1,154 @@
+# Fixed-point formats of the device core: the one place where they are defined.
+#
+# Notation: "Qn g" means an int whose least significant bit is 2**-n g.
+# Small ints: 32-bit MicroPython ports keep |int| < 2**30 unboxed; past that an int is a
+# heap-allocated long.  The per-sample path (rest detector, apply) and the default profile's fit
+# (gaussnewton.py, solve.py; its wide products through wide.py) stay inside 2**30 for every
+# in-range input (tests/device/test_ranges.py proves it at the worst case, tests/device/test_heap.py under
+# heap_lock on the 32-bit MicroPython).  So does the paper profile's gradient descent: its
+# objective (below) is defined by ~50-bit products and values to ~2**62, and computed exactly in
+# 14-bit limbs (objective.py) inside a domain it checks - parameters in the fit region (below)
+# widened by H_PARAM, points within +-16 g per axis (|u| < 2**28 in Q24), at most 128 points;
+# outside it model.objective takes the long-int formula and the optimiser refuses the points
+# (docs/method-and-formats.md "Integer ranges").
+try:
+    from micropython import const
+except ImportError:  # CPython without Blinka
+    def const(x):
+        return x
+
+# --- samples ------------------------------------------------------------------------------
+# SAMPLE: Q10 g (1 LSB = 0.977 mg).  The LIS3DH at +-2 g in high-resolution mode gives 1 mg/digit,
+# so one digit is one LSB to within 2.4 %, a scale error the calibration removes anyway.
+# Range: |sample| <= SAMPLE_MAX (+-16 g, the LIS3DH's largest full scale).
+SAMPLE_Q = const(10)
+SAMPLE_ONE_G = const(1024)
+SAMPLE_MAX = const(16383)
+
+# --- temperature ------------------------------------------------------------------------------
+# TEMP: Q2 degC (1 LSB = 0.25 degC), the device's temperature condition everywhere past the
+# feeder: the bins' conditions and thresholds, the effects' dT, the apply's temperature, the fit's
+# reference (EFFECT/STORE records).  Whole degrees are too coarse: a curve about 25 degC read at
+# 33 degC has a slope of 16 e per degC, so a half-degree rounding is a real offset error
+# (docs/model-discovery.md "Curves").  The LIS3DH's OUT_ADC3 gives whole degC: the Processor
+# scales it (temp << TEMP_Q); a recording's temperatures are rounded to Q2 on the host
+# (fixedpoint.device_conditions).  Range: |temp| <= 125 degC -> 500 (absolute, with a board's
+# TEMP_REF_C; relative otherwise); dT is clamped to +-TEMP_DT_MAX (effects.py) before any product.
+TEMP_Q = const(2)
+TEMP_ONE = const(4)      # 1 degC
+TEMP_DT_MAX = const(128)  # 32 degC: dT's clamp either side of the reference (effects.py)
+
+# --- segments -----------------------------------------------------------------------------
+# Segment sums: sum of <= SEGMENT_MAX_SAMPLES samples, so |sum| <= 16383 * 65535 < 2**30.
+SEGMENT_MAX_SAMPLES = const(65535)
+
+# --- points (rest means) --------------------------------------------------------------------
+# POINT: Q16 g (1 LSB = 15.3 ug).  A segment mean is floor(sum * 2**6 / n), computed without
+# leaving 2**30 (rest.py).  Range: |point| <= 16 g -> 2**20.
+POINT_Q = const(16)
+POINT_ONE_G = const(65536)
+POINT_FROM_SAMPLE_SHIFT = const(6)  # POINT_Q - SAMPLE_Q
+
+# --- optimiser (the paper profile's gradient descent; the default profile's fit reads its
+# own formats, written in model.py and gaussnewton.py) -------------------------------------
+# PARAM: every parameter in Q24: scales and misalignments dimensionless (1.0 = 2**24), offsets
+# in g (1 g = 2**24).  Points enter as u = (v << 8) + o, in Q24 g.
+PARAM_Q = const(24)
+PARAM_ONE = const(16777216)  # 2**24
+POINT_TO_PARAM_SHIFT = const(8)  # PARAM_Q - POINT_Q
+# Corrected point a = K u: the Q48 product is kept in Q28 g (shift 20), so the change that a
+# gradient step h makes in a (h * |u| ~ 2**11 LSB at 1 g) is resolved to ~0.05 %.
+A_Q = const(28)
+A_SHIFT = const(20)  # 2 * PARAM_Q - A_Q
+# Gradient step h = 2**-17 (7.6e-6; the paper recommends 1e-5 for 32-bit fixed point) in every
+# parameter, a power of two so that dividing by h is a shift.
+H_SHIFT = const(17)
+H_PARAM = const(128)  # 2**(PARAM_Q - H_SHIFT)
+# Residual r = |a|^2 - 1 g^2: |a|^2 is Q56 g^2, r is kept in Q30 g^2 (shift 26).
+R_SHIFT = const(26)
+# Objective term r^2: Q60 g^4 -> Q40 g^4 (shift 20).  1 LSB of the objective = 2**-40 g^4.
+F_SHIFT = const(20)
+OBJ_Q = const(40)
+# Update: p -= alpha * (f(p+h e_i) - f(p)) / h / N, where f is the *sum* over the N points and the
+# division by N makes it the paper's objective averaged over the points (the scaling under which
+# the paper's learning rates converge; docs/method-and-formats.md "Learning-rate scaling").  In
+# integers:
+#   dp[LSB of Q24] = alpha * df[LSB of Q40] * 2**(PARAM_Q + H_SHIFT - OBJ_Q) / N
+#                  = alpha_tenths * df * 2 // (10 * N)
+UPDATE_MUL = const(2)  # 2**(PARAM_Q + H_SHIFT - OBJ_Q)
+ALPHA_DEN = const(10)  # learning rates are given in tenths: 0.3 -> 3
+# Learning rates of the paper (alpha_s, alpha_m, alpha_o) for the square-root-free objective.
+ALPHA_SCALE = const(3)
+ALPHA_MISALIGN = const(8)
+ALPHA_OFFSET = const(2)
+
+# Calibration bounds.  A result must lie inside them; a calibration inside them keeps the
+# per-sample apply below 2**30 at every full scale (calibration.Calibration).  They hold every
+# real LIS3DH (offset +-40 mg typ., sensitivity within a few %) with a wide margin.
+K_DIAG_MIN = const(12582912)   # 0.75
+K_DIAG_MAX = const(20971520)   # 1.25
+K_OFF_MAX = const(2097152)     # |misalignment| <= 0.125
+O_MAX = const(4194304)         # |offset| <= 0.25 g
+# Fit region, wider: the first steps may overshoot (alpha_m = 0.8 against large initial
+# residuals) and come back.  Leaving this region means the fit diverged.
+FIT_K_DIAG_MIN = const(8388608)  # 0.5
+FIT_K_DIAG_MAX = const(33554432) # 2.0
+FIT_K_OFF_MAX = const(8388608)   # 0.5
+FIT_O_MAX = const(8388608)       # 0.5 g
+
+# --- apply (per sample) -----------------------------------------------------------------------
+# Calibrated sample = K (v + o), with K in Q14 and o in Q14 g:
+#   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 15 (APPLY_OUT: Q13 g, 0.12 mg).
+# At +-2.048 g (the LIS3DH's 12-bit +-2 g range) and inside the parameter bounds:
+# |u| <= (2.048 + 0.25) * 2**14 = 37650 and |k14| row sum <= (1.25 + 2 * 0.125) * 2**14 = 24576,
+# so every product and sum is <= 9.3e8 < 2**30 (tests/device/test_ranges.py runs the worst case).
+# The output keeps the sub-LSB resolution a still sensor's mean has (its noise is below one Q10
+# step, so a Q10 output's rounding would not average out): |a| <= 9.3e8 >> 15 = 28 236, an int16
+# word, as the log's samples are.
+APPLY_Q = const(14)
+APPLY_FROM_SAMPLE_SHIFT = const(4)  # APPLY_Q - SAMPLE_Q
+APPLY_PARAM_SHIFT = const(10)       # PARAM_Q - APPLY_Q
+APPLY_OUT_Q = const(13)             # the calibrated sample at +-2 g (APPLY_OUT_Q - e: below)
+APPLY_OUT_SHIFT = const(15)         # 2 * APPLY_Q - APPLY_OUT_Q, at every full scale
+# Larger full scales (+-4, 8, 16 g: range shift e = 1, 2, 3; apply_range_shift()) keep the same
+# bound by giving up e bits of the reading and offset formats, as the readings span 2**e times
+# more: u = (x << (4 - e)) + o in Q(14 - e) g (o = param >> (10 + e)), K still in Q14,
+# a = sum(k u) >> 15 in Q(13 - e) g (APPLY_OUT_Q - e: 0.24, 0.49, 0.98 mg), the reading first
+# clamped to the range's full scale, +-(APPLY_IN_MAX << e) in Q10.  Then |u| <=
+# (2.048 + 0.25 / 2**e) 2**(14 - e) <= 37650 and the row sums <= 24576 again, so the products stay
+# <= 9.3e8 and |a| <= 28 236 (an int16) at every range (tests/device/test_ranges.py; on the
+# 32-bit MicroPython under heap_lock, test_heap.py).
+APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
+# A composed model first removes its effects (acal/core/effects.py) from the reading in Q(14 - e) g;
+# the result is clamped to the range a reading can have, +-2.048 * 2**e g, so the bound above
+# still holds (a correction that would go beyond full scale is clipped, as the sensor itself
+# clips).
+APPLY_W_MAX = const(33552)          # 2097 << 4: 2.048 * 2**e g in Q(14 - e)
+
+
+def apply_range_shift(range_g):
+    """The apply format's shift e for a full scale of range_g (2, 4, 8 or 16 g)."""
+    for e in range(4):
+        if range_g == 2 << e:
+            return e
+    raise ValueError("full scale must be 2, 4, 8 or 16 g")
+
+
+def apply_out_q(range_g):
+    """The calibrated sample's format at a full scale of range_g: Q(APPLY_OUT_Q - e) g."""
+    return APPLY_OUT_Q - apply_range_shift(range_g)
+
+
+# Parameter order (paper eq. 6).
+KXX = const(0)
+KYY = const(1)
+KZZ = const(2)
+KXY = const(3)
+KXZ = const(4)
+KYZ = const(5)
+OX = const(6)
+OY = const(7)
+OZ = const(8)
+N_PARAMS = const(9)
+PARAM_NAMES = ("kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz")
+

@@ -1,0 +1,418 @@
+# The calibration pipeline: samples -> rest detection -> bins -> optimiser.
+# One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
+from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
+from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
+                       gravity, int32s)
+from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
+from acal.core.fixed import N_PARAMS
+from acal.core.gaussnewton import GaussNewton
+from acal.core import gaussnewton
+from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
+from acal.core.profile import GRADIENT, NEWTON, adopted_max_count
+from acal.core import effects
+from acal.core.reference import centre, lowest
+
+
+class Pipeline:
+    """rate_hz, seconds, threshold (Q10 g or rest.AUTO), axis (or rest.ALL_AXES): rest
+    detection; min_count, max_count, differ (Q16 g), policy: bins; fit (profile.GRADIENT: the
+    paper's, with iterations and alphas, learning rates in tenths; profile.NEWTON: Gauss-Newton
+    with outlier rejection, and bins that are also ready on coverage): the optimiser.  A
+    profile's settings: acal.core.profile.settings().
+
+    on_rest, if given, is called as on_rest(x, y, z, subset) for every rest mean (Q16 g), with
+    the subset it was kept in or -1 (the app logs these; the host collects them).
+
+    kinds: the effects of a composed model (acal.core.effects ids; () is the paper's model).  Their
+    bins track temperature, time and the board's supply (bins.py), and the feeder keeps `temp`
+    (Q2 degC, fixed.TEMP_Q), `time` (64 s units) and `supply` (mV, effects.SUPPLY_OFFSET) current; a fit takes
+    each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
+    ref_supply), which the calibration keeps.  iterations None: 50 for the
+    paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
+    NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
+
+    A model with a step (effects.STEP; NEWTON only): the model without the step is fitted
+    first, acal/core/changepoint.py finds the step's time on its residuals (step_time, 64 s units
+    from ref_time, which the calibration keeps), and the whole model is fitted from there.
+
+    The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
+    between FIFO reads), or calibrate() at once; the same integers either way.
+
+    worn: the feeder's wear signal.  A rest segment that closes while it is False (a device off
+    the wrist, on a table; imputed or idle-sleep stretches) is counted in `excluded` but not
+    offered: it is still, but not what the wearer's data looks like.  The app leaves it True;
+    the host sets it from its non-wear and quality masks.
+
+    discover (NEWTON, the paper's model only): the board finds its own missing effect
+    (acal/discover/search.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
+    held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
+    condition a candidate needs (but are ready without their spread) and the fit's points carry
+    them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
+    runs (begin, step); adopt() then makes its chosen effect the model, its bins grown to a
+    composed model's points per subset (profile.adopted_max_count), for which the bins, the fit
+    points and the fits have room from the start."""
+
+    def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
+                 min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
+                 iterations=None, on_rest=None,
+                 alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT,
+                 discover=False):
+        self.kinds = tuple(kinds)
+        self.fit = fit
+        self.rest = RestDetector(rate_hz, seconds, threshold, axis)
+        if discover and (self.kinds or fit != NEWTON):
+            raise ValueError("discovery starts from the paper's model with the wear fit (NEWTON)")
+        base_kinds = []
+        for k in self.kinds:
+            if k != effects.STEP:
+                base_kinds.append(k)
+        # points per subset once the discovery adopts an effect (a composed model's), for which
+        # a discovering pipeline has room from the start (adopt(), acal/discover/grow.py)
+        self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
+        capacity = N_SUBSETS * self.adopted_count   # points the fits take
+        self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON,
+                         room=self.adopted_count)
+        # the spread each effect's regressor needs in the held points (discovery: all of them)
+        track(self.bins, self.kinds, discover)
+        self.held = None
+        self.discovery = None
+        if discover:
+            from acal.discover.heldout import HeldOut   # a discovering board's modules only
+            from acal.discover.search import Discover
+            import acal.discover.grow   # noqa: F401  loaded now, so that adopt() allocates no code
+            self.bins.need_span = False
+            self.held = HeldOut()
+            self.discovery = Discover(capacity, self.held)
+        self.base_fit = None
+        self.search = None
+        self.step_time = 0
+        # the base fit: the paper's model, or for a model with a step the model without it
+        self.base_kinds = tuple(base_kinds) if len(base_kinds) < len(self.kinds) else ()
+        if fit == NEWTON:
+            self.optimiser = GaussNewton(capacity, self.kinds, True)
+            if self.kinds:  # the base fit of the same points: kept when the composed one fails
+                self.base_fit = GaussNewton(capacity, self.base_kinds, True)
+                self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
+            if len(base_kinds) < len(self.kinds):
+                from acal.core.changepoint import ChangePoint   # a step's models only
+                self.search = ChangePoint()
+        elif len(base_kinds) < len(self.kinds):
+            raise ValueError("a step is found by the wear profile's fit (NEWTON)")
+        else:
+            # the paper's gradient descent, imported here: a wear-profile board never loads it
+            # (nor acal/paper/objective.py), whose code would sit in its RAM
+            from acal.paper import optimiser
+            self.optimiser = optimiser.Optimiser(capacity, alphas, self.kinds)
+            if iterations is None:
+                iterations = (optimiser.COMPOSED_ITERATIONS if self.kinds
+                              else optimiser.DEFAULT_ITERATIONS)
+        if iterations is None:
+            iterations = gaussnewton.DEFAULT_ITERATIONS
+        self.iterations = iterations
+        self.points = int32s(3 * capacity)
+        self.aux = conditions(capacity)  # dT, dt, dV per point (composed models)
+        self.temp = 0
+        self.time = 0
+        self.supply = 0
+        self.ref_temp = 0
+        self.ref_time = 0
+        self.ref_supply = 0
+        self.on_rest = on_rest
+        self.rest_count = 0
+        self.worn = True
+        self.excluded = 0
+        self.position = 0  # samples of the current add_samples call consumed so far
+        self.stage = 0     # of a fit: 5 its points' conditions centred, 6 its optimiser begun,
+        # 0 the base fit (composed, NEWTON), 2 its end, 3 a step's search, 4 the model's own
+        # loading its points, 1 the model's own
+        self.from_base = False   # the model's own fit starts from the base fit's parameters
+        self.n_fit = 0     # points gathered for the fit
+        # A discovering app's bins also take the held-out blocks' rest means until its first
+        # calibration (the Processor sets this; leave_early() ends it): held out from the start,
+        # a wearer's bins filled 29 h later (docs/model-discovery.md "Discovery on the board").
+        self.early = False
+        # a discovering board's adopted effects, whose spread alone its bins wait for (the
+        # bins track every condition for the next round: adopt()); None: the bins' own rule
+        self.wait = None
+        self.wait_at = -1
+        self.wait_ok = False
+
+    def offer(self, x, y, z):
+        """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
+        subset it was kept in or -1."""
+        self.rest_count += 1
+        held = self.held
+        if held is not None and held.takes(self.time):
+            if gravity(x, y, z):
+                self.held.offer(x, y, z, self.temp, self.time, self.supply)
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply) if self.early else -1
+        else:
+            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
+        if self.on_rest is not None:
+            self.on_rest(x, y, z, s)
+        return s
+
+    def leave_early(self):
+        """The first calibration has ended: the held-out blocks' points leave the bins (the
+        next fit, the discovery's, never sees a point the held-out set may hold) and from now
+        on go to the held-out set only."""
+        self.early = False
+        held = self.held
+        b = self.bins
+        m = b.max_count
+        for s in range(N_SUBSETS):
+            k = 0
+            while k < b.counts[s]:
+                j = s * m + k
+                if held.takes(b.cond[COND * j + 1]):
+                    b.remove(b.xyz[3 * j], b.xyz[3 * j + 1], b.xyz[3 * j + 2])
+                else:
+                    k += 1
+
+    def add_samples(self, buf, start, n):
+        """Feed n interleaved samples (Q10 g) from sample index start."""
+        rest = self.rest
+        while n > 0:
+            used = rest.add_samples(buf, start, n)
+            start += used
+            n -= used
+            self.position = start
+            if rest.ended:
+                rest.ended = False
+                if rest.still:
+                    if self.worn:
+                        self.offer(rest.mean_x, rest.mean_y, rest.mean_z)
+                    else:
+                        self.excluded += 1
+
+    def ready(self):
+        b = self.bins
+        if not b.ready():
+            return False
+        if self.wait is None:
+            return True
+        if self.wait_at != b.changes:   # asked once a block: spans only when the points change
+            self.wait_at = b.changes
+            self.wait_ok = spanned(b, self.wait)
+        return self.wait_ok
+
+    def calibrate(self):
+        """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
+        The parameters are in self.optimiser.p (Q24; 9, then 3 per effect)."""
+        self.begin_fit()
+        while not self.fit_step():
+            pass
+        return self.optimiser.status
+
+    def begin_fit(self):
+        """Gather the held points (the fit's own copy: the bins go on taking points while it
+        runs); the rest of the fit's start runs in fit_step's slices (docs/method-and-formats.md
+        "Sliced fit"): a composed model's points' dT, dt, dV centred on the middle of their
+        ranges (stage 5), then the optimiser started on them (stage 6; a composed model with
+        the wear profile's fit: the base fit of the same points first)."""
+        self.step_time = 0
+        if self._bare():
+            self.n_fit = self.bins.gather(self.points)
+            self.stage = 6
+        else:
+            self.n_fit = self.bins.gather(self.points, self.aux)
+            self.stage = 5
+
+    def _bare(self):
+        # the base model, not discovering: its fit takes no conditions (no aux, no centring)
+        return not self.kinds and self.held is None
+
+    def _centre(self):
+        # the references, one at a time (a tuple of the three would be the fit's only
+        # allocation), and each point's conditions relative to them
+        aux = self.aux
+        n = self.n_fit
+        kinds = self.kinds
+        self.ref_temp = centre(aux, n, 0, lowest(kinds, 0))
+        self.ref_time = centre(aux, n, 1, lowest(kinds, 1))
+        self.ref_supply = centre(aux, n, 2, lowest(kinds, 2))
+        self.stage = 6
+
+    def _begin(self):
+        # the optimiser (or the base fit) started on the gathered points
+        if self._bare():
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations)
+        elif self.base_fit is not None:
+            self.stage = 0
+            self.base_fit.begin(self.points, self.n_fit, self.iterations, self.aux)
+        else:
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux)
+
+    def fit_step(self):
+        """One slice of the fit; True when it has ended (the status is the optimiser's).  The
+        points the fit rejected as outliers leave the bins then (by value: the bins may have
+        taken or replaced points while the fit ran on its own copy).  A composed model whose
+        fit failed or ended worse than the base fit keeps the base fit's parameters (effects
+        zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
+        st = self.stage   # the optimisers' own slices first: they are nearly all of them
+        if st == 1:
+            if not self.optimiser.step():
+                return False
+            self._ended()
+            return True
+        if st == 0:
+            if self.base_fit.step():
+                self.stage = 2   # the model's own fit begins in a slice of its own
+            return False
+        if st == 5:
+            self._centre()
+        elif st == 6:
+            self._begin()
+        elif st == 2:
+            b = self.base_fit
+            if self.search is not None:
+                if b.status != OK:   # nothing to search the step on
+                    self._keep_base(b.status)
+                    return True
+                self.search.begin(b)
+                self.stage = 3
+                return False
+            self._begin_model(b.status == OK)
+        elif st == 4:
+            self.stage = 1
+            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
+                                 self.start if self.from_base else None)
+        elif st == 3:
+            if not self.search.step():
+                return False
+            if not self.search.found:   # no split pins a step: the model without it stays
+                self._keep_base(BASE_KEPT_FAILED)
+                return True
+            self.step_time = self.search.ts
+            self._begin_model(True)
+        return False
+
+    def _ended(self):
+        # the model's own fit has ended: the base fit's parameters kept if it did better, the
+        # points it rejected out of the bins
+        o = self.optimiser
+        b = self.base_fit
+        if b is not None and b.status == OK:
+            if o.status != OK:
+                self._keep_base(BASE_KEPT_FAILED)
+            elif _mean_above(o.objective, o.n, b.objective, b.n):
+                self._keep_base(BASE_KEPT_WORSE)
+        if self.fit == NEWTON and o.rejected:
+            pts = self.points
+            for i in range(o.n_given):
+                if not o.keep[i]:
+                    self.bins.remove(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2])
+
+    def _begin_model(self, from_base):
+        # the model's own fit, from the base fit's parameters (the step's at zero); it loads its
+        # points in the next slice (stage 4): both in one slice took 2.2 ms on an RP2040 at 126
+        # points, four effects (docs/method-and-formats.md "Sliced fit")
+        b = self.base_fit
+        self.stage = 4
+        self.from_base = from_base
+        self.optimiser.ts = self.step_time
+        if from_base:
+            copy_params(b.p, self.base_kinds, self.start, self.kinds)
+
+    def adopt(self):
+        """The discovery's adopted effect becomes the model (its fit, re-kinded, the model's
+        optimiser; the paper's fit stays its base fit; the bins then wait for the spread of
+        that model's effects only, and track every condition while the discovery goes on: a
+        second round judges its candidates testable on the fit points' spread, as the first);
+        the parameters are the discovery's.  While the
+        model has room for another effect (discover.more) the discovery goes on after each
+        calibration, from this model; else no further discovery: the held-out blocks' rest
+        means go to the bins again.  The bins grow to adopted_count points per subset (a composed
+        model's: the next calibration fits on up to 126), every held point and its conditions
+        kept, in the room they have (acal/discover/grow.py: nothing allocated)."""
+        d = self.discovery
+        fit = d.take()
+        kinds = fit.kinds
+        if not self.kinds:
+            self.base_fit = self.optimiser
+        self.optimiser = fit
+        self.kinds = kinds
+        self.base_kinds = ()
+        self.start = [0] * fit.n_params
+        self.step_time = d.step_time
+        if effects.STEP in kinds:
+            self.search = d.search
+        from acal.discover.search import more
+        again = more(kinds)
+        b = self.bins
+        track(b, kinds, again)   # going on: every condition, for the next round's candidates
+        b.need_span = not again
+        b.changes += 1
+        self.wait = kinds if again else None
+        if not again:
+            self.held = None
+            self.discovery = None
+        from acal.discover.grow import grow_bins   # a discovering board's module only
+        grow_bins(b, self.adopted_count)
+
+    def _keep_base(self, why):
+        o = self.optimiser
+        b = self.base_fit
+        copy_params(b.p, self.base_kinds, o.p, self.kinds)
+        o.n_given = b.n_given
+        for i in range(o.n_given):
+            o.keep[i] = b.keep[i]
+        o.rejected = b.rejected
+        o.n = b.n
+        o.iterations = b.iterations
+        o.objective = b.objective
+        o.status = why
+
+
+def track(bins, kinds, every=False):
+    """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
+    all three conditions, for a discovering board's candidates), and the spread weights with
+    them (bins.set_differ)."""
+    bins.set_differ(_needed(kinds, 0, every), _needed(kinds, 1, every), _needed(kinds, 2, every))
+
+
+def _needed(kinds, c, every):
+    # condition c's threshold (DIFFERS) when tracked: every, or an effect of kinds reads it
+    # (effects.condition_of, as spanned and discover.testable ask); else 0
+    if every:
+        return DIFFERS[c]
+    for k in kinds:
+        if effects.condition_of(k) == c:
+            return DIFFERS[c]
+    return 0
+
+
+def spanned(bins, kinds):
+    """True when the bins' points span what each effect's regressor needs (track's thresholds;
+    discover.testable asks the same of the fit points, through the same effects.condition_of
+    and DIFFERS: only the points' storage differs)."""
+    for k in kinds:
+        c = effects.condition_of(k)
+        if c >= 0 and bins.span(c) < DIFFERS[c]:
+            return False
+    return True
+
+
+def _mean_above(f1, n1, f2, n2):
+    # f1 / n1 > f2 / n2 (objectives, the mean over the points each kept), without a long:
+    # both shifted alike to 22 bits, times n <= 128.
+    s = 0
+    while (f1 >> s) >= (1 << 22) or (f2 >> s) >= (1 << 22):
+        s += 1
+    return (f1 >> s) * n2 > (f2 >> s) * n1
+
+
+def copy_params(src, src_kinds, dst, dst_kinds):
+    """A fit's parameters (9, then 3 per effect of src_kinds) into a composed model's (dst_kinds):
+    the nine, each effect both hold, and zero for the others (the step the search adds)."""
+    for i in range(N_PARAMS):
+        dst[i] = src[i]
+    for k in range(len(dst_kinds)):
+        j = -1
+        for m in range(len(src_kinds)):
+            if src_kinds[m] == dst_kinds[k]:
+                j = m
+        for c in range(3):
+            dst[N_PARAMS + 3 * k + c] = src[N_PARAMS + 3 * j + c] if j >= 0 else 0

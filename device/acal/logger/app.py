@@ -1,0 +1,297 @@
+# The logger app: acquisition -> rest detection -> bins -> calibration when the bins fill (and
+# again later, so drift is tracked) -> applying the current calibration; logs on flash.
+#
+# Processor (acal/logger/processor.py) is everything after acquisition and is deterministic in the
+# samples it is fed: the host's `accelcal replay` feeds it a pulled capture and must log the same
+# records.
+# App reads the LIS3DH (output registers by default; see lis3dh.py for why not the FIFO),
+# retries bus errors, counts what is lost, and feeds the Processor in blocks of 41 samples
+# (one capture record each).
+import gc
+from array import array
+
+from acal.core import effects
+from acal.logger import log
+# the Processor and its settings, here too for the app's callers (boards, host scripts)
+from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
+                            REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
+                            REST_RESERVE_BYTES, COUNTERS_SECONDS, CAPTURE_FLUSH_RECORDS,
+                            FIT_STEPS_PER_FEED)
+
+
+class RealClock:
+    """A board's own time: time.ticks_us and friends (they wrap; only differences are used)."""
+
+    def __init__(self):
+        import time
+        self.time = time
+
+    def ticks_us(self):
+        return self.time.ticks_us()
+
+    def ticks_diff(self, a, b):
+        return self.time.ticks_diff(a, b)
+
+    def sleep_us(self, us):
+        self.time.sleep_us(us)
+
+
+_TICKS_HALF = 1 << 29   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
+
+
+class MsTicksClock:
+    """A board's time from a millisecond counter that wraps at 2^bits, with a sleep (both from
+    the board file; CircuitPython: supervisor.ticks_ms(), which wraps at 2^29 ms, 6.2 days).
+    ticks_us() is kept from the counter's differences and wraps at 2^30 as time.ticks_us does,
+    so the app's rules stay as they are, in whole milliseconds.  Only small ints (< 2^30),
+    nothing allocated: it must be read at least every 2^29 us (8.9 min; the app reads it at
+    every sample or FIFO drain)."""
+
+    def __init__(self, ticks_ms, sleep_us, bits=29):
+        self._ms = ticks_ms
+        self.sleep_us = sleep_us
+        self._mask = (1 << bits) - 1
+        self._last = ticks_ms()
+        self._us = 0
+
+    def ticks_us(self):
+        ms = self._ms()
+        d = ((ms - self._last) & self._mask) * 1000
+        self._last = ms
+        w = self._us - _TICKS_HALF + d - _TICKS_HALF   # (us + d) mod 2^30, below 2^30 throughout
+        self._us = w + _TICKS_HALF + _TICKS_HALF if w < 0 else w
+        return self._us
+
+    def ticks_diff(self, a, b):
+        d = a - b
+        if d >= _TICKS_HALF:
+            return d - _TICKS_HALF - _TICKS_HALF
+        return d + _TICKS_HALF + _TICKS_HALF if d < -_TICKS_HALF else d
+
+
+class App:
+    """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
+    range_g, fifo, capture_bytes, log_budget, plus Processor settings."""
+
+    def __init__(self, board, rate_hz=100, range_g=2, fifo=False, capture_bytes=0,
+                 log_budget=1 << 20, prefix="", **processor_settings):
+        from acal.logger.lis3dh import LIS3DH, LIS3DHError
+        self.board = board
+        self.clock = getattr(board, "clock", None) or RealClock()
+        self.rate_hz = rate_hz
+        self.period_us = 1000000 // rate_hz
+        self.fifo = fifo
+        self.samples = 0
+        self.lost = 0
+        self.fifo_overruns = 0
+        self.bus_errors = 0
+        self.bus_retries = 0
+        # int arrays: the hot loops read them through typed pointers (acal/core/emit.py)
+        self.buf = array("i", bytearray(12 * (32 if fifo else BLOCK)))
+        self.block = array("i", bytearray(12 * BLOCK))
+        self.fill = 0
+        self.log = log.Log(prefix + "log.bin", log_budget)
+        cap = None
+        if capture_bytes:  # a capture is one session's samples: it starts afresh at each boot
+            open(prefix + "capture.bin", "wb").close()
+            cap = log.Log(prefix + "capture.bin", capture_bytes, CAPTURE_FLUSH_RECORDS)
+        store = log.CalStore(prefix + "cal_a.bin", prefix + "cal_b.bin")
+        self.proc = Processor(self.log, rate_hz, capture=cap, store=store, range_g=range_g,
+                              **processor_settings)
+        self.sensor = None
+        for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
+            try:
+                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo)
+                break
+            except (OSError, LIS3DHError) as e:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    raise LIS3DHError("LIS3DH setup failed %d times: %s" % (RETRIES, e))
+                self.bus_retries += 1
+        self.progress = None        # called after each counters record (main: report)
+        self.t_last = self.clock.ticks_us()
+        self.acc_us = 0
+        self.expected = 0
+        self.next_counters = COUNTERS_SECONDS * rate_hz
+        # OUT_ADC3 is relative to a reference that differs from chip to chip: with the board
+        # file's TEMP_REF_C (an int, from one thermometer reading) temperatures are absolute.
+        ref = getattr(board, "TEMP_REF_C", None)
+        self.temp_ref = 0 if ref is None else ref
+        # the board's supply in mV (an optional supply_mv() in its board file), read once per
+        # block: what a supply_offset model follows
+        self.supply_mv = getattr(board, "supply_mv", None)
+        if self.proc.uses_supply and self.supply_mv is None:
+            raise ValueError("model follows the board's supply: its board file needs supply_mv()")
+        p = self.proc.pipe
+        self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
+                       p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
+                       p.bins.max_count, p.bins.differ, p.iterations,
+                       self.proc.recal_samples // rate_hz, -128 if ref is None else ref,
+                       effects.model_code(self.proc.kinds), p.fit,
+                       0 if p.discovery is None else 1)
+
+    def _retry(self, fn):
+        for attempt in range(RETRIES):
+            try:
+                return fn()
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 < RETRIES:
+                    self.bus_retries += 1
+        return None
+
+    def _elapsed(self):
+        # Samples the chip has produced since it was configured (exact while both clocks agree).
+        now = self.clock.ticks_us()
+        self.acc_us += self.clock.ticks_diff(now, self.t_last)
+        self.t_last = now
+        k = self.acc_us // self.period_us
+        self.acc_us -= k * self.period_us
+        self.expected += k
+
+    def _push(self, x, y, z):
+        b = self.block
+        i = 3 * self.fill
+        b[i] = x
+        b[i + 1] = y
+        b[i + 2] = z
+        self.fill += 1
+        if self.fill == BLOCK:
+            self._flush()
+
+    def _flush(self):
+        if self.fill:
+            try:  # one try: a failed temperature read keeps the last value
+                self.proc.temp = self.sensor.temperature() + self.temp_ref
+            except OSError:
+                self.bus_errors += 1
+            if self.supply_mv is not None:
+                try:  # as the temperature: a failed read keeps the last value
+                    mv = self.supply_mv()
+                    self.proc.supply = 0 if mv < 0 else (65535 if mv > 65535 else mv)
+                except OSError:
+                    self.bus_errors += 1
+            self.proc.feed(self.block, self.fill)
+            self.fill = 0
+
+    def _account(self, got):
+        # got samples were just read; anything the chip produced before them (by the clock
+        # read just before, _elapsed) and we never saw is lost, and lies before them in the
+        # stream.
+        missing = self.expected - (self.samples + self.lost + got)
+        if missing > 0:
+            self._flush()
+            self.proc.gap(missing)
+            self.lost += missing
+
+    def step(self):
+        """Sleep until data is due, read it, feed it. Returns samples read."""
+        n = self._step_fifo() if self.fifo else self._step_register()
+        if self.samples + self.lost >= self.next_counters:
+            self.write_counters()
+            self.next_counters += COUNTERS_SECONDS * self.rate_hz
+        return n
+
+    # Both readers retry inline and hold no closures: a lambda here would make its captured
+    # variables heap cells, allocated on every call.
+    def _step_register(self):
+        s = self.sensor
+        self.clock.sleep_us(self.period_us)
+        for attempt in range(RETRIES):
+            try:
+                s.read_sample()
+                break
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    return 0  # lost; _account finds it on the next read
+                self.bus_retries += 1
+        self._elapsed()
+        self._account(1)
+        self._push(s.x, s.y, s.z)
+        self.samples += 1
+        return 1
+
+    def _step_fifo(self):
+        s = self.sensor
+        buf = self.buf
+        # 25 of the FIFO's 32 levels after the last drain's clock reading, not after this
+        # drain's work: the fit's slices (up to ~100 ms a block on CircuitPython) would
+        # otherwise push the next read past the 32 the FIFO holds
+        c = self.clock
+        wait = self.period_us * 25 - c.ticks_diff(c.ticks_us(), self.t_last)
+        if wait > 0:
+            c.sleep_us(wait)
+        n = 0
+        over = False
+        for attempt in range(RETRIES):
+            try:
+                # The clock before the level: every sample it says is due is then in the FIFO
+                # or overwritten.  Read after, it would count as lost the samples converted
+                # during the FIFO read (3.4 ms at 400 kHz, 18 ms on CircuitPython's 100 kHz),
+                # though they wait in the FIFO (docs/boards-and-logs.md "Lost samples").
+                self._elapsed()
+                n = s.fifo_level()
+                over = s.overrun  # counted once, however many retries
+                if n:
+                    s.read_fifo(buf, 0, n)
+                break
+            except OSError:
+                self.bus_errors += 1
+                if attempt + 1 == RETRIES:
+                    return 0
+                self.bus_retries += 1
+        if over:
+            self.fifo_overruns += 1
+        if not n:
+            return 0
+        self._account(n)
+        for i in range(n):
+            self._push(buf[3 * i], buf[3 * i + 1], buf[3 * i + 2])
+        self.samples += n
+        return n
+
+    def write_counters(self):
+        p = self.proc
+        self.log.write(log.COUNTERS, p.index, self.samples, self.lost, self.fifo_overruns,
+                       self.bus_errors, self.bus_retries, p.pipe.rest.segments, p.rest_logged,
+                       p.rest_skipped)
+        if self.progress is not None:
+            self.progress(self)
+        # Hourly, at a quiet moment: a collection now keeps the heap from filling with the
+        # few records' garbage (unix port: a day at 10 Hz took 95 s without it, 19 s with it).
+        gc.collect()
+
+    def run(self, seconds=None):
+        """Acquire for `seconds` of the board's time (None: for ever), then write counters and
+        flush."""
+        end = -1 if seconds is None else self.samples + self.lost + seconds * self.rate_hz
+        done = getattr(self.board, "exhausted", None)  # the virtual board's stimulus can end
+        while end < 0 or self.samples + self.lost < end:
+            self.step()
+            if done is not None and done():
+                break
+        self._flush()
+        if self.proc.capture is not None:
+            self.proc.capture.flush()
+        self.write_counters()
+
+
+def report(app):
+    """One console line per counters record (hourly), for whoever watches the board's REPL."""
+    p = app.proc
+    print("acal: %d s, %d samples, %d lost, %d bus errors, %d rest logged, %d calibrations" % (
+        (app.samples + app.lost) // app.rate_hz, app.samples, app.lost, app.bus_errors,
+        p.rest_logged, p.calibrations))
+
+
+def main(seconds=None, verbose=True, **settings):
+    """Entry point on a board: `import acal.logger.app; acal.logger.app.main(...)` (deploy writes it into
+    main.py).  seconds=None runs for ever.  The board file (boards/NAME.py) is deployed as
+    acal_board.py: CircuitPython's built-in `board` module owns that name."""
+    import acal_board
+    app = App(acal_board, **settings)
+    if verbose:
+        app.progress = report
+    app.run(seconds)
+    return app

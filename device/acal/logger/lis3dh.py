@@ -1,0 +1,164 @@
+# ST LIS3DH driver over a machine.I2C-style bus (readfrom_mem_into / writeto_mem), integer-only.
+# Register names follow the datasheet (DocID17530).  Samples come out in Q10 g (fixed.py).
+#
+# Two ways to read, chosen knowingly:
+#   read_sample()  - the output registers: 12 bits in high-resolution mode (1 mg/digit at +-2 g).
+#   read_fifo()    - the 32-level FIFO in stream mode: fewer wake-ups, but it keeps 10 bits
+#                    (4 mg steps at +-2 g, truncated).  With ~1-2 mg of noise that quantisation
+#                    biases rest means (docs/boards-and-logs.md "Acquisition"), so the app reads
+#                    the registers.
+# Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
+# value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
+try:
+    from micropython import const
+except ImportError:
+    def const(x):
+        return x
+
+from acal.core.fixed import SAMPLE_MAX
+
+ADDRESS = const(0x18)        # SDO/SA0 low; 0x19 when high
+WHO_AM_I_VALUE = const(0x33)
+
+_STATUS_REG_AUX = const(0x07)
+_OUT_ADC3_L = const(0x0C)
+_WHO_AM_I = const(0x0F)
+_TEMP_CFG_REG = const(0x1F)
+_CTRL_REG1 = const(0x20)
+_CTRL_REG4 = const(0x23)
+_CTRL_REG5 = const(0x24)
+_STATUS_REG = const(0x27)
+_OUT_X_L = const(0x28)
+_FIFO_CTRL_REG = const(0x2E)
+_FIFO_SRC_REG = const(0x2F)
+_AUTO_INC = const(0x80)
+
+# CTRL_REG1 ODR codes by rate in Hz.
+ODR_CODES = {1: 1, 10: 2, 25: 3, 50: 4, 100: 5, 200: 6, 400: 7}
+RANGES_G = (2, 4, 8, 16)
+_SO_MG = (1, 2, 4, 12)       # mg/digit at 12 bits, by range
+# mg -> Q10 g: x 1.024 = 16777 / 16384 (error 1.4e-5); mg <= 24 576 keeps the product < 2**30.
+_MG_Q10_MUL = const(16777)
+_MG_Q10_SHIFT = const(14)
+
+
+class LIS3DHError(Exception):
+    pass
+
+
+class LIS3DH:
+    """rate_hz: output data rate (1..400); range_g: 2, 4, 8 or 16; high_res: 12-bit outputs;
+    fifo: stream-mode FIFO.  After read_sample() the sample is in x, y, z (Q10 g)."""
+
+    def __init__(self, i2c, address=ADDRESS, rate_hz=100, range_g=2, high_res=True, fifo=False):
+        if rate_hz not in ODR_CODES:
+            raise ValueError("rate_hz must be one of 1, 10, 25, 50, 100, 200, 400")
+        if range_g not in RANGES_G:
+            raise ValueError("range_g must be 2, 4, 8 or 16")
+        self.i2c = i2c
+        self.address = address
+        self.rate_hz = rate_hz
+        self.range_g = range_g
+        self.high_res = high_res
+        self.fifo = fifo
+        self._one = bytearray(1)
+        self._two = bytearray(2)
+        self._xyz = bytearray(6)
+        self._fifo_buf = bytearray(6 * 32)
+        # Preallocated views: slicing a memoryview allocates, so take all 33 lengths once.
+        mv = memoryview(self._fifo_buf)
+        self._fifo_views = [mv[0:6 * n] for n in range(33)]
+        self.x = 0
+        self.y = 0
+        self.z = 0
+        self.overrun = False
+        bits = 12 if high_res else 10
+        self._shift = 16 - bits
+        self._so_mg = _SO_MG[RANGES_G.index(range_g)] << (12 - bits)
+        self._fifo_shift = 6  # the FIFO keeps 10 bits whatever the mode
+        self._fifo_so_mg = _SO_MG[RANGES_G.index(range_g)] << 2
+        self.check()
+        self.configure()
+
+    # --- registers --------------------------------------------------------------------------
+    def _read_u8(self, reg):
+        self.i2c.readfrom_mem_into(self.address, reg, self._one)
+        return self._one[0]
+
+    def _write_u8(self, reg, value):
+        self._one[0] = value
+        self.i2c.writeto_mem(self.address, reg, self._one)
+
+    def check(self):
+        """Raise LIS3DHError unless WHO_AM_I answers 0x33."""
+        try:
+            who = self._read_u8(_WHO_AM_I)
+        except OSError as e:
+            raise LIS3DHError("no LIS3DH at 0x%02x (%s)" % (self.address, e))
+        if who != WHO_AM_I_VALUE:
+            raise LIS3DHError("WHO_AM_I at 0x%02x is 0x%02x, not 0x33" % (self.address, who))
+
+    def configure(self):
+        """Reboot the chip's registers, then set rate, range, resolution, BDU, FIFO, temperature."""
+        self._write_u8(_CTRL_REG5, 0x80)  # BOOT
+        self._write_u8(_CTRL_REG1, (ODR_CODES[self.rate_hz] << 4) | 0x07)
+        self._write_u8(_CTRL_REG4, 0x80 | (RANGES_G.index(self.range_g) << 4) | (0x08 if self.high_res else 0))
+        self._write_u8(_TEMP_CFG_REG, 0xC0)  # ADC_EN, TEMP_EN (needs BDU, set above)
+        if self.fifo:
+            self._write_u8(_CTRL_REG5, 0x40)        # FIFO_EN
+            self._write_u8(_FIFO_CTRL_REG, 0x80)    # stream mode
+
+    # --- samples ----------------------------------------------------------------------------
+    @staticmethod
+    def _s16(lo, hi):
+        v = lo | (hi << 8)
+        return v - 0x10000 if v & 0x8000 else v
+
+    def _to_q10(self, raw, shift, so_mg):
+        mg = (raw >> shift) * so_mg
+        v = (mg * _MG_Q10_MUL + (1 << (_MG_Q10_SHIFT - 1))) >> _MG_Q10_SHIFT  # rounded
+        if v > SAMPLE_MAX:
+            return SAMPLE_MAX
+        if v < -SAMPLE_MAX:
+            return -SAMPLE_MAX
+        return v
+
+    def data_ready(self):
+        """True when the output registers hold a sample not read yet (STATUS_REG ZYXDA);
+        overrun tells whether one was missed (ZYXOR)."""
+        s = self._read_u8(_STATUS_REG)
+        self.overrun = bool(s & 0x80)
+        return bool(s & 0x08)
+
+    def read_sample(self):
+        """Read the output registers into x, y, z (Q10 g)."""
+        b = self._xyz
+        self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, b)
+        sh = self._shift
+        so = self._so_mg
+        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so)
+        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so)
+        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so)
+
+    def fifo_level(self):
+        """Samples waiting in the FIFO (0..32); overrun: the FIFO overwrote samples."""
+        s = self._read_u8(_FIFO_SRC_REG)
+        self.overrun = bool(s & 0x40)
+        return 32 if s & 0x80 else s & 0x1F
+
+    def read_fifo(self, out, start, n):
+        """Pop n <= 32 samples into the int array out (x y z ..., Q10 g) from sample index start,
+        with one bus transaction (the FIFO rolls over OUT_Z_H -> OUT_X_L)."""
+        self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
+        b = self._fifo_buf
+        sh = self._fifo_shift
+        so = self._fifo_so_mg
+        j = 3 * start
+        for i in range(0, 6 * n, 2):
+            out[j] = self._to_q10(self._s16(b[i], b[i + 1]), sh, so)
+            j += 1
+
+    def temperature(self):
+        """Temperature change from the chip's reference, whole degC (OUT_ADC3, 8 bits)."""
+        self.i2c.readfrom_mem_into(self.address, _OUT_ADC3_L | _AUTO_INC, self._two)
+        return self._s16(self._two[0], self._two[1]) >> 8
