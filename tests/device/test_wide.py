@@ -13,13 +13,13 @@ def mul_cases(n, seed=1):
     rnd = random.Random(seed)
     edges = [0, 1, -1, LIM - 1, -(LIM - 1), 0x7FFF, -0x8000, 1 << 15, -(1 << 15)]
     out = []
-    for s in (16, 17, 24, 26, 29, 30, 31, 40, 58):
+    for s in (16, 17, 24, 26, 29, 30, 31, 40, 58, 62, 63, 64, 100):   # s >= 62: a shift by 32+
         for a in edges:
             for b in edges:
                 if abs((a * b) >> s) < LIM:
                     out.append((a, b, s))
     while len(out) < n:
-        s = rnd.randint(16, 60)
+        s = rnd.randint(16, 70)
         a = rnd.randint(-LIM + 1, LIM - 1)
         lim = min(LIM - 1, ((LIM - 1) << s) // max(1, abs(a)))
         b = rnd.randint(-lim, lim)

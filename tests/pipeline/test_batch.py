@@ -51,7 +51,7 @@ def test_batch_reports_each_file_and_never_stops(files):
     assert recs["short.csv"]["status"] == "not_enough_data"
     assert recs["short.csv"]["hours"] == pytest.approx(3000 / 10 / 3600, abs=1e-3)
     assert recs["corrupt.csv"]["status"] == "failed" and "zz" in recs["corrupt.csv"]["reason"]
-    assert recs["ax6.cwa"]["status"] == "not_enough_data" and recs["ax6.cwa"]["rate_hz"] == 100
+    assert recs["ax6.cwa"]["status"] == "not_enough_data" and recs["ax6.cwa"]["rate_hz_device"] == 100
     assert recs["missing.csv"]["status"] == "failed" and "No such file" in recs["missing.csv"]["reason"]
     rows = list(csv.DictReader(open(summary)))
     assert [Path(x["file"]).name for x in rows] == ["s3.csv", "short.csv", "corrupt.csv", "s1.csv",

@@ -3,7 +3,7 @@
 # A hot loop is written once, as plain Python marked `@viper` (this module's no-op decorator),
 # with its arrays read through ptr32() (here: the array itself).  CPython, the WebAssembly port
 # and CircuitPython (no emitters) run it as it stands.  The .mpy build for a port with emitters
-# (armv6m, xtensawin: accelcal/bridge/rp2040.py emitted_source) rewrites the marker line into
+# (armv6m, xtensawin, rv32imc: accelcal/bridge/rp2040.py emitted_source) rewrites the marker line into
 # `@micropython.viper`, which MicroPython's compiler recognises by name; inside a viper function
 # ptr32(...) is then its typed pointer, the name this module defines is not called.
 # Viper ints are machine words that wrap at 32 bits: every value in a marked function is proven

@@ -251,7 +251,12 @@ def grow_columns(sums, high, low, grown, n: int, w: int):
                 elif j > k:
                     a[j * n + k] = (int(a[j * n + k]) << w >> w) >> g
                 j += 1
-            a[k * n + k] = (int(a[k * n + k]) << w >> w) >> (2 * g)
+            # the diagonal by 2g: at most 31, what any larger shift of an int32 gives (0 or
+            # -1), as every architecture shifts (Xtensa and RV32 take the amount mod 32)
+            g2 = 2 * g
+            if g2 > 31:
+                g2 = 31
+            a[k * n + k] = (int(a[k * n + k]) << w >> w) >> g2
             hi = int(b[k]) << w >> w
             h = hi >> g
             b[k] = h

@@ -294,7 +294,7 @@ def _diagonal_scales(sums, scales, n: int, w: int) -> int:
 @viper
 def _rhs_shift(rhs, scales, n: int, w: int) -> int:
     # e: max_k |b_k| 2**-s_k 2**-e in [2**(RHS_BITS-1), 2**RHS_BITS) (RHS_BITS 19), from bit
-    # lengths, never forming a long; 0 when b is 0.  rhs: an int32 array.  Viper on ports with
+    # lengths, never forming a long; 0 when b is 0.  rhs: an int32 array, |b_k| < 2**31.  Viper on ports with
     # emitters.
     b = ptr32(rhs)
     s = ptr32(scales)
@@ -306,10 +306,12 @@ def _rhs_shift(rhs, scales, n: int, w: int) -> int:
         if v < 0:
             v = 0 - v
         if v:
+            # the bit length of v, every shift amount in 0..31 (a viper shift of 32 or more
+            # is v itself on Xtensa and RV32: without the bounds v >= 2**28 never ends there)
             bits = 0
-            while (v >> (bits + 4)):
+            while bits < 28 and (v >> (bits + 4)):
                 bits += 4
-            while (v >> bits):
+            while bits < 31 and (v >> bits):
                 bits += 1
             ek = bits - (int(s[k]) << w >> w) - 19
             if not found or ek > e:

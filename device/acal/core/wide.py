@@ -18,8 +18,8 @@ from acal.core.emit import viper
 
 @viper
 def mul_shift(a: int, b: int, s: int) -> int:
-    """floor(a * b / 2**s), exactly, for |a|, |b| < 2**29 and s >= 16, when the caller knows
-    the result lies below 2**29 in magnitude."""
+    """floor(a * b / 2**s), exactly, for |a|, |b| < 2**29 and s >= 16 (any s: from 58 on the
+    result is 0 or -1), when the caller knows the result lies below 2**29 in magnitude."""
     ah = a >> 15
     al = a & 0x7FFF
     bh = b >> 15
@@ -28,8 +28,14 @@ def mul_shift(a: int, b: int, s: int) -> int:
     c = (al * bl) >> 15               # < 2**15
     t = s - 15
     if t >= 15:
-        # floor((ah bh 2**15 + m + c) / 2**t) = floor((ah bh + floor((m + c) / 2**15)) / 2**(t-15))
-        return (ah * bh + (m >> 15) + (((m & 0x7FFF) + c) >> 15)) >> (t - 15)
+        # floor((ah bh 2**15 + m + c) / 2**t) = floor((ah bh + floor((m + c) / 2**15)) / 2**(t-15));
+        # that sum is below 2**30 in magnitude, so a shift by 31 gives what any larger one would
+        # (0 or -1): the amount kept in 0..31, where every architecture shifts as Python does
+        # (Xtensa and RV32 take it mod 32; s >= 62 would be s - 32 there)
+        t -= 15
+        if t > 31:
+            t = 31
+        return (ah * bh + (m >> 15) + (((m & 0x7FFF) + c) >> 15)) >> t
     # 1 <= t < 15: ah bh 2**(15-t) is the result less m 2**-t (< 2**29) and c: below 2**30
     return ((ah * bh) << (15 - t)) + (m >> t) + (((m & ((1 << t) - 1)) + c) >> t)
 

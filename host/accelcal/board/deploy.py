@@ -32,6 +32,27 @@ def units_run(settings: dict) -> tuple[str, ...]:
     from acal.core import profile
     return BASE_UNITS + (("paper",) if settings.get("profile", profile.DEFAULT) == profile.PAPER
                          else ()) + (("discover",) if settings.get("discover") else ())
+# sys.implementation._mpy >> 10: the native code a MicroPython port loads (MicroPython's
+# py/persistentcode.h MP_NATIVE_ARCH_*; 0: none).  An ESP32 says xtensawin, an ESP32-C3/C6 rv32imc.
+MPY_ARCHS = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "armv7emsp", "armv7emdp",
+             "xtensa", "xtensawin", "rv32imc", "rv64imc")
+
+
+def mpy_arch(mpy: int) -> str | None:
+    """The architecture in a sys.implementation._mpy (None: bytecode only)."""
+    a = (mpy >> 10) & 0xF
+    return MPY_ARCHS[a] if a < len(MPY_ARCHS) else None
+
+
+def board_arch(info: dict, ident: dict) -> str | None:
+    """The arch deploy compiles for: a board file that wants native .mpy (its ARCH) gets the
+    arch the board itself reports, when it reports one with the viper emitter (one esp32.py
+    serves the Xtensa ESP32/S3 and the RISC-V C3/C6); reporting none (a port built without
+    emitters) it gets the sources; a board file without ARCH keeps it."""
+    if not info["ARCH"] or ident.get("arch", info["ARCH"]) == info["ARCH"]:
+        return info["ARCH"]
+    arch = ident.get("arch")
+    return arch if arch in rp2040.EMITTER_ARCHS else None
 
 
 def boards() -> list[str]:
@@ -100,13 +121,16 @@ class Remote:
         probe = float(os.environ.get("ACCELCAL_REPL_TIMEOUT", "20"))
         out = self.exec(timeout=probe, code="import sys, os\n"
                         "print('ACAL', sys.implementation.name, sys.platform, "
-                        "getattr(sys.implementation, '_mpy', 0) & 0xff)\n"
+                        "getattr(sys.implementation, '_mpy', -1))\n"
                         "print('FILES', ' '.join('%s:%d' % (f, os.stat(f)[6]) for f in os.listdir()))")
         info = {"implementation": None, "platform": None, "mpy": 0, "files": [], "sizes": {}}
         for line in out.splitlines():
             parts = line.split()
             if parts[:1] == ["ACAL"] and len(parts) >= 4:
-                info.update(implementation=parts[1], platform=parts[2], mpy=int(parts[3]))
+                mpy = int(parts[3])
+                info.update(implementation=parts[1], platform=parts[2], mpy=max(mpy, 0) & 0xff)
+                if mpy >= 0:       # the port says which native code it loads
+                    info["arch"] = mpy_arch(mpy)
             elif parts[:1] == ["FILES"]:
                 for item in parts[1:]:
                     name, _, size = item.rpartition(":")
@@ -166,6 +190,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
             raise InputError(f"{port}: unknown platform {ident['platform']!r}; say which board with "
                              f"--board ({', '.join(boards())})")
     info = board_info(board)
+    info["ARCH"] = board_arch(info, ident)
     if info["RUNTIME"] == "circuitpython" and ident["implementation"] != "circuitpython":
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
@@ -203,7 +228,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
         raise InputError(f"{port}: deployed, but `import acal.logger.app` failed: {check.strip()[-200:]}")
     return {"port": port, "board": board, "platform": ident["platform"], "modules": len(files),
             "units": list(wanted or BASE_UNITS + ("paper", "discover")),
-            "format": files[0].suffix[1:], "main_py": write_main,
+            "format": files[0].suffix[1:], "arch": info["ARCH"], "main_py": write_main,
             "boot_py": "boot.py" in [remote for _, remote in others]}
 
 

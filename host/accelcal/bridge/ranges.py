@@ -3,19 +3,58 @@
 TracedInt behaves as an int; each arithmetic result is again a TracedInt and is checked against
 the small-int limit of 32-bit MicroPython ports (|v| < 2**30).  Used by the tests (worst-case
 ranges of the device code) and the bench (how many optimiser values would be longs on a 32-bit
-board: none)."""
+board: none).
+
+It also records the amount of every shift made inside a `@viper` function (acal/core/emit.py): a viper
+shift is one machine instruction, and the architectures disagree past 31 (ARMv6-M gives Python's
+answer, Xtensa and RV32 take the amount mod 32: `1000 >> 32` is 1000 there), so an amount the
+worst cases drive outside 0..31 is a defect on some board (Tracer.wild_shifts)."""
 from __future__ import annotations
 
+import ast
+import importlib
+import sys
+from pathlib import Path
+
 from acal.core import fixed
+from accelcal.locations import DEVICE_PACKAGE
 
 SMALL_INT_LIMIT = 1 << 30
+SHIFT_MAX = 31                  # a viper shift amount every architecture takes as Python does
+
+
+def viper_functions(path: Path, module: str) -> dict:
+    """{code object: name} of the functions marked `@viper` in one device module's source."""
+    mod = importlib.import_module(module)
+    out = {}
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.FunctionDef) and any(
+                isinstance(d, ast.Name) and d.id == "viper" for d in node.decorator_list):
+            out[getattr(mod, node.name).__code__] = f"{module}.{node.name}"
+    return out
+
+
+_DEVICE_VIPER: dict = {}
+
+
+def device_viper_functions() -> dict:
+    """viper_functions of every module of the device package (found by walking it)."""
+    if not _DEVICE_VIPER:
+        for path in sorted(DEVICE_PACKAGE.rglob("*.py")):
+            rel = path.relative_to(DEVICE_PACKAGE.parent).with_suffix("")
+            parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+            _DEVICE_VIPER.update(viper_functions(path, ".".join(parts)))
+    return _DEVICE_VIPER
 
 
 class Tracer:
-    def __init__(self):
+    def __init__(self, viper: dict | None = None):
         self.max_abs = 0
         self.ops = 0
         self.big = 0
+        # shifts inside viper functions: {(function, line): [min amount, max amount, count]}
+        self.viper = device_viper_functions() if viper is None else viper
+        self.shifts: dict = {}
 
     def see(self, v: int) -> None:
         self.ops += 1
@@ -24,6 +63,25 @@ class Tracer:
             self.max_abs = a
         if a >= SMALL_INT_LIMIT:
             self.big += 1
+
+    def see_shift(self, amount: int, frame) -> None:
+        name = self.viper.get(frame.f_code)
+        if name is None:          # bytecode (not viper): Python's shift on every port
+            return
+        key = (name, frame.f_lineno)
+        r = self.shifts.get(key)
+        if r is None:
+            self.shifts[key] = [amount, amount, 1]
+        else:
+            r[0] = min(r[0], amount)
+            r[1] = max(r[1], amount)
+            r[2] += 1
+
+    def wild_shifts(self) -> list[str]:
+        """The viper shift sites whose amount left 0..SHIFT_MAX, as 'function line N: lo..hi'."""
+        return [f"{name} line {line}: {lo}..{hi}"
+                for (name, line), (lo, hi, _) in sorted(self.shifts.items())
+                if lo < 0 or hi > SHIFT_MAX]
 
 
 def traced(tracer: Tracer):
@@ -38,8 +96,14 @@ def traced(tracer: Tracer):
 
     def binop(name):
         base = getattr(int, name)
+        shift = name in ("__lshift__", "__rshift__")
+        rshift = name in ("__rlshift__", "__rrshift__")
 
         def f(self, other):
+            if shift and isinstance(other, int):       # self << other: the amount is other
+                tracer.see_shift(int(other), sys._getframe(1))
+            elif rshift:                                # other << self
+                tracer.see_shift(int(self), sys._getframe(1))
             r = base(int(self), int(other) if isinstance(other, int) else other)
             return self._wrap(r) if r is not NotImplemented else r
         return f

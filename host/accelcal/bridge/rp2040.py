@@ -109,13 +109,18 @@ def check(fw: Firmware = MICROPYTHON) -> None:
 
 # Targets whose MicroPython has the native emitters (mpy-cross -march); the device's hot loops
 # are compiled there as viper (acal/core/emit.py, docs/method-and-formats.md "Emitters").
-EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x64", "x86")
+# rv32imc: the ESP32-C3/C6 (the esp32 port's emitter there is RV32IMC without Zba, which is
+# also what mpy-cross emits unless -march-flags asks for more).
+EMITTER_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "rv32imc", "x64", "x86")
+# What `make build` writes and `deploy` picks from: the RP2040, the ESP32 (Xtensa: ESP32, S2, S3)
+# and the ESP32-C3/C6 (RISC-V).
+BUILD_ARCHS = ("armv6m", "xtensawin", "rv32imc")
 VIPER_MARKER = re.compile(r"^([ \t]*)@viper[ \t]*$", re.M)
 
 
 # Of those, the 32-bit ones: a viper int is the ptr32 load's own word there, so the sign
 # extension `<< w >> w` (w = emit.SIGN_SHIFT, 0 on them) is dropped from their code.
-WORD32_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "x86")
+WORD32_ARCHS = ("armv6m", "armv7m", "armv7emsp", "armv7emdp", "xtensawin", "rv32imc", "x86")
 SIGN_EXTENSION = " << w >> w"
 
 

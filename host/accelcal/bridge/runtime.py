@@ -1,7 +1,8 @@
 """Run the device pipeline on host data, under CPython (in-process), under the real MicroPython
 unix port (a subprocess; 64-bit: small ints to 2**62), under the 32-bit MicroPython
 (WebAssembly under Node, bridge/scripts/mp32.mjs: small ints to 2**30 as on an RP2040 or ESP32),
-or on the emulated RP2040 running MicroPython (rp2040) or CircuitPython (circuitpython) firmware.
+on the emulated RP2040 running MicroPython (rp2040) or CircuitPython (circuitpython) firmware,
+or on an ESP32-C3-class RISC-V MicroPython under qemu (rv32: bridge/rv32.py).
 All execute bridge/scripts/mp_runner.py on the same integers (bridge/protocol.py), so their
 answers can be compared bit for bit."""
 from __future__ import annotations
@@ -28,7 +29,8 @@ __all__ = ["Config", "DeviceResult", "Group", "PointsGroup", "RUNTIMES", "RestMe
 RUNNER = script("mp_runner.py")
 MP32_DRIVER = script("mp32.mjs")
 MP32_PACKAGE = "@micropython/micropython-webassembly-pyscript"
-RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "rp2040-romfs", "circuitpython")
+RUNTIMES = ("cpython", "micropython", "micropython32", "rp2040", "rp2040-romfs", "circuitpython",
+            "rv32")
 # The runtimes on the emulated chip, by the firmware they boot: MicroPython's RPI_PICO (the
 # package on littlefs, or in ROMFS on the same firmware built with a ROMFS partition) and
 # CircuitPython's Feather RP2040
@@ -135,6 +137,9 @@ def check(runtime: str) -> None:
     elif runtime in CHIP_FIRMWARES:
         chip, firmware = chip_firmware(runtime)
         chip.check(firmware)
+    elif runtime == "rv32":
+        from accelcal.bridge import rv32
+        rv32.check()
 
 
 def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[DeviceResult]:
@@ -160,4 +165,8 @@ def run(groups: list[Group], cfg: Config, runtime: str = "cpython") -> list[Devi
         chip, firmware = chip_firmware(runtime)
         lines = protocol_lines(groups, cfg, chip.SAMPLES_PER_LINE)
         return parse(chip.run_protocol(list(lines), firmware).out.splitlines())
+    if runtime == "rv32":
+        from accelcal.bridge import rv32
+        lines = protocol_lines(groups, cfg, rv32.SAMPLES_PER_LINE)
+        return parse(rv32.run_protocol(list(lines)).splitlines())
     raise InputError(f"unknown runtime {runtime!r}: one of {', '.join(RUNTIMES)}")

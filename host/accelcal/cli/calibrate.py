@@ -136,7 +136,9 @@ def add_parsers(sub) -> None:
                    help="recording (CSV t,x,y,z[,temp][,NAME...]; Axivity .cwa, GENEActiv .bin, ActiGraph "
                         ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default="base",
-                   help="model spec: base (the paper's 9 parameters) or base+EFFECT[+EFFECT...] "
+                   help="model spec: base (the paper's 9 parameters), auto (base+temp_offset where "
+                        "the data has temperature and that fit calibrates, else base: the GGIR "
+                        "family's choice; docs/real-recordings.md) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
                         "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "
@@ -158,8 +160,8 @@ def add_parsers(sub) -> None:
                         "(64-bit); micropython32, the 32-bit MicroPython (WebAssembly under Node, "
                         "ints past 2^30 allocate as on an RP2040); rp2040, MicroPython's own "
                         "Pico firmware on the emulated RP2040 (rp2040js), the package as .mpy; "
-                        "rp2040-romfs, the same firmware built with a ROMFS partition, the package "
-                        "run in place from /rom")
+                        "rp2040-romfs, the same with a ROMFS partition, the package run from /rom; "
+                        "rv32, an ESP32-C3-class RISC-V MicroPython under qemu, rv32imc .mpy")
     p.add_argument("--engine", choices=["vector", "device"], default=None,
                    help="recordings: vector (default under cpython) finds rest segments with the "
                         "numpy twin of the device's detector, bit-exact with it, and offers them "

@@ -54,7 +54,7 @@ def cmd_compare(args) -> int:
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = args.json or not sys.stderr.isatty()
     out = compare(args.input, methods=args.methods, model=args.model, train=args.train,
-                  cfg=pipeline_config(args, args.model != "base"), runtime=args.runtime,
+                  cfg=pipeline_config(args), runtime=args.runtime,
                   plots=args.plots, split=args.split, progress=None if quiet else say)
     if args.json:
         print(out.to_json())

@@ -65,8 +65,11 @@ class Chunk:
         return self._xyz
 
 
-def gap_limit(rate_hz: int) -> float:
-    return max(1.5 / rate_hz, GAP_S)
+def gap_limit(rate_hz: float) -> float:
+    """A gap: a step in time over 1 s and over 2.5 sample periods (at rates under 2.5 Hz a
+    block's timestamps place samples up to a period off: an AX3 at 1.5625 Hz steps 0.44-1.08 s
+    where a block's whole-second timestamp falls between two samples)."""
+    return max(2.5 / rate_hz, GAP_S)
 
 
 class Recording:
@@ -82,6 +85,7 @@ class Recording:
         self.has_temp = False
         self.columns: list[str] = []    # further named columns (CSV only), Chunk.cols
         self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
+        self.overlapping_pages: int | None = None   # a paged format's (GENEActiv), resolved
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         raise NotImplementedError
@@ -174,13 +178,18 @@ def _group(timeseries: dict, key: str) -> dict | None:
     return None
 
 
-def _columns(data: dict):
-    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None)."""
+def _columns(data: dict, paged: bool = False):
+    """actfast's dict -> (t s, xyz (n, 3) g float32, temp degC held per reading or None).
+    paged: a GENEActiv file, whose overlapping page times are resolved first (files/pagetimes.py;
+    the count in data["overlapping_pages"])."""
     ts = data.get("timeseries", {})
     hf = _group(ts, "acceleration")
     if hf is None:
         return None
     t = hf["datetime"].astype(np.float64) / 1e9
+    if paged:
+        from accelcal.files.pagetimes import resolve_overlaps
+        data["overlapping_pages"] = resolve_overlaps(t)
     lf = _group(ts, "temperature")
     temp = None
     if lf is not None:
@@ -268,7 +277,7 @@ class ActigraphyRecording(Recording):
                     raise
                 why = str(e).removeprefix(f"{path}: ")   # an old NHANES-format .gt3x, say
             self.format = data.get("format", self.format)
-            cols = _columns(data) if data else None
+            cols = _columns(data, ext == ".bin") if data else None
             if data and cols is None:
                 why = "actfast reads no samples from this ActiGraph file (a GT9X Link?)"
         if cols is None and ext in (".gt3x", ".agdc"):
@@ -284,6 +293,8 @@ class ActigraphyRecording(Recording):
         self.meta = data.get("metadata", {})
         self.warnings = [" ".join(str(w).split()) for w in data.get("warnings", [])]
         self.range_g = _declared_range(self.meta)
+        if ext == ".bin":   # pages whose times overlapped, placed as the maker's readers place them
+            self.overlapping_pages = data.get("overlapping_pages", 0)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         n = len(self.t)

@@ -19,7 +19,7 @@ from accelcal.files.table import Table
 from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
                                  params_to_float, params_to_int, physical, seconds, span_reason)
 from accelcal.files.params import params_record
-from accelcal.pipeline.discovered import discovery_record
+from accelcal.pipeline.discovered import discovered_model, discovery_record
 from accelcal.pipeline.results import CalibrationResult
 
 
@@ -223,6 +223,24 @@ class Fit:
         rec = self._params_record(rec, r.params_int)
         if cfg.discover:
             rec["discovery"] = discovery_record(r, self.group.t_first)
+            found = discovered_model(rec["discovery"])
+            if found:
+                rec = self._discovered_record(rec, *found)
+        return rec
+
+    def _discovered_record(self, rec, model: str, p_int: list[int], step_time_s) -> dict:
+        """What is found is what is saved: the record's model, parameters, reference and error
+        after are the model the discovery ended with (relative to the device fit's references,
+        as the board scored it); the base fit's beside them (`base_fit`), and model_from says
+        so.  `--save`, `apply` and `--json` then carry the discovered model."""
+        base = {k: rec[k] for k in ("model", "scale", "params_int", "params", "error_after_mg")}
+        fit = replace(self, spec=ModelSpec.parse(model))
+        ref = fit._reference([getattr(self.result, f"ref_{q.name}") for q in QUANTITIES])
+        if step_time_s is not None:
+            ref["ts"] = float(step_time_s)
+        rec = fit._params_record(rec, p_int, ref)
+        rec["model_from"] = "discovery"
+        rec["base_fit"] = base
         return rec
 
     def rest_columns(self) -> dict:
@@ -366,6 +384,8 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec = CalibrationResult(file=str(path), format=sc.format, model=str(spec), method=method,
                             runtime=runtime_name)
     rec.update(quality(sc, m))
+    if rec_in.overlapping_pages is not None:   # files/pagetimes.py
+        rec["overlapping_pages"] = rec_in.overlapping_pages
     if rec_in.warnings:
         rec["reader_warnings"] = rec_in.warnings
     rec = Fit(g, r, cfg, spec, method, points).record(rec)
@@ -377,10 +397,12 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
 
 def quality(sc, m: dict) -> dict:
     """The per-file figures researchers' tools report (GGIR, actipy, scikit-digital-health)."""
-    seg_h = sc.length / sc.rate_hz / 3600.0
+    rate = sc.measured_rate_hz
+    seg_h = sc.length / rate / 3600.0
     nonwear_h = float(m["nonwear"].sum() * seg_h)
     return {
-        "rate_hz": sc.rate_hz,
+        "rate_hz": round(rate, 4),   # as measured (a float); the device's segments: rate_hz_device
+        "rate_hz_device": sc.rate_hz,
         "hours": round(sc.hours, 4),
         "hours_used": round(sc.hours - nonwear_h, 4),
         "gaps": len(sc.gap_starts),

@@ -15,12 +15,15 @@ are measured in this run, one fit each.
 With a composed model (--model base+EFFECT..., effects of the catalogue or declared with
 --effects), two more rows fit it on the same training part: the device's integer pipeline (where
 the device has every effect's form) and float least squares on every training rest point; both
-are scored on the same held-out points, each at its conditions.
+are scored on the same held-out points, each at its conditions.  The base rows are the same with
+or without a composed model (the composed device row takes the profile's composed settings:
+composed_config).  A method whose held-out error is above no calibration's is not "calibrated"
+but worse_than_none (WORSE), its figures kept.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -118,10 +121,34 @@ def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str,
     return p, time.perf_counter() - t0, None
 
 
+WORSE = "worse_than_none"   # a row's status: fitted, but its held-out error is above no calibration's
+
+
+def scored(row: dict, after: float, before: float) -> dict:
+    """row with its held-out error after: status calibrated, or worse_than_none when the
+    method leaves the held-out points worse than no calibration (the reason says how much)."""
+    worse = after > before
+    row.update(status=WORSE if worse else "calibrated",
+               reason=f"{after / before:.2f}x the error with no calibration ({before:.2f} mg)"
+               if worse else None, error_after_mg=after,
+               improvement_pct=100 * before / after if after > 0 else None)
+    return row
+
+
+def composed_config(cfg: runtime.Config) -> runtime.Config:
+    """The settings a composed model's device row runs with: the profile's composed defaults
+    (more points a subset; the paper profile's longer fit) where cfg holds the base model's
+    defaults, and every setting the user gave as given.  The base rows keep cfg, so `--model`
+    adds rows and changes none."""
+    base = runtime.Config.for_profile(cfg.profile, False)
+    comp = runtime.Config.for_profile(cfg.profile, True)
+    return replace(cfg, **{k: getattr(comp, k) for k in ("min_count", "max_count", "iterations")
+                           if getattr(cfg, k) == getattr(base, k)})
+
+
 def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, before: float) -> list:
     """The composed model's rows: the device pipeline on the training points (in stream order,
     with their conditions) and lsq on every training point, scored on the held-out points."""
-    from dataclasses import replace
     from accelcal.pipeline.calibrate import Fit
     from accelcal.pipeline.composed_lsq import fit_with_reference, refs
     rows = []
@@ -136,7 +163,7 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
                     raise methods.FitError(f"{', '.join(spec.host_only)} has no device form")
                 g = runtime.PointsGroup("train", points=sp.train.v, temp=sp.train.temp,
                                         t=sp.train.t, cols=sp.train.cols)
-                c = replace(cfg, kinds=spec.kinds)
+                c = replace(composed_config(cfg), kinds=spec.kinds)
                 r = runtime.run([g], c, runtime_name)[0]
                 rec = Fit(g, r, c, spec, "device").record({})
                 if rec.get("status") != "calibrated":
@@ -160,9 +187,8 @@ def composed_rows(spec, sp: Split, cfg: runtime.Config, runtime_name: str, befor
         temp = test.temp if test.temp is not None else np.zeros(len(test))
         a = spec.correct(theta, test.v, temp, test.t, ref, test.cols)
         after = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
-        row.update(status="calibrated", reason=None, error_after_mg=after,
-                   improvement_pct=100 * before / after if after > 0 else None,
-                   params=dict(zip(spec.param_names, np.round(theta, 9).tolist())),
+        scored(row, after, before)
+        row.update(params=dict(zip(spec.param_names, np.round(theta, 9).tolist())),
                    reference=ref)
         rows.append(row)
     return rows
@@ -200,9 +226,8 @@ def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str =
                        params=None)
         else:
             after = methods.calibration_error_mg(p, sp.test.v)
-            row.update(status="calibrated", reason=None, error_after_mg=after,
-                       improvement_pct=100 * before / after if after > 0 else None,
-                       params=dict(zip(fixed.PARAM_NAMES, np.round(p, 7).tolist())))
+            scored(row, after, before)
+            row["params"] = dict(zip(fixed.PARAM_NAMES, np.round(p, 7).tolist()))
         rows.append(row)
     if spec is not None and spec.effects:
         say(f"  fitting {spec} (device, lsq)")
@@ -303,8 +328,8 @@ def compare(path, *, methods: str | list[str] | None = None, model: str = "base"
         spec = ModelSpec.parse(model)
     except ValueError as e:
         raise InputError(str(e)) from None
-    if cfg is None:
-        cfg = Config.for_profile(profile, bool(spec.effects))
+    if cfg is None:   # the base model's settings; a composed model's rows: composed_config
+        cfg = Config.for_profile(profile)
     if plots:
         check_output_dir(plots, [path_of(path)], "--plots")
     out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec, split)

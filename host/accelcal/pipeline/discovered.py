@@ -86,3 +86,16 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
     return out
 
 
+
+
+def discovered_model(d: dict) -> tuple[str, list[int], float | None] | None:
+    """The model a discovery ended with (the last round that adopted an effect): its name, its
+    integer parameters (Q24, relative to the device fit's references) and, for a step, the
+    step's time (s on the recording's clock); None when nothing was adopted."""
+    adopted = [x for x in [d] + list(d.get("rounds", ())) if x.get("effect")]
+    if not adopted:
+        return None
+    last = adopted[-1]
+    spec = ModelSpec.parse(last["model"])
+    return str(spec), [int(last["params_int"][n]) for n in spec.param_names], \
+        last.get("step_time_s")

@@ -45,12 +45,15 @@ class Job:
 
     def spec(self):
         """The job's model, its options checked (bad options are bad input, before any file is
-        read)."""
+        read).  AUTO: the paper's model is checked here; calibrate_file chooses."""
         from accelcal.model.declared import register
         from accelcal.model.effects import ModelSpec
         register(self.effects)   # a worker process starts with the built-in catalogue
+        if self.model == AUTO and (self.method not in ("device", "lsq") or self.cfg.discover):
+            raise InputError(f"--model {AUTO} chooses between base and {AUTO_MODEL}, fitted by "
+                             "--method device or lsq, without --discover")
         try:
-            spec = ModelSpec.parse(self.model)
+            spec = ModelSpec.parse("base" if self.model == AUTO else self.model)
         except ValueError as e:
             raise InputError(str(e)) from None
         if spec.effects and self.method not in ("device", "lsq"):
@@ -67,6 +70,34 @@ class Job:
         return spec
 
 
+AUTO = "auto"
+AUTO_MODEL = "base+temp_offset"
+
+
+def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
+    """`--model auto`: the GGIR family's default, a temperature offset beside the paper's model
+    where the data has temperature (base+temp_offset, fitted with the composed model's settings:
+    pipeline/compare.py composed_config), the paper's model where it has none or the composed
+    fit does not calibrate (its spread not reached: too short, too little temperature range).
+    The record says which (`model`, and `auto` with the reason); docs/real-recordings.md
+    "Temperature in the default" gives the held-out figures it was chosen by."""
+    from dataclasses import replace
+    from accelcal.pipeline.compare import composed_config
+    composed = replace(job, model=AUTO_MODEL, cfg=composed_config(job.cfg),
+                       points="all" if job.method == "lsq" else job.points)
+    try:
+        rec = calibrate_file(path, composed, progress)
+        if rec.ok:
+            rec["auto"] = "temperature in the data: the paper's model and a temperature offset"
+            return rec
+        why = f"{AUTO_MODEL} did not calibrate ({rec.get('reason')})"
+    except InputError as e:   # no temperature column, say
+        why = f"{AUTO_MODEL} does not apply ({str(e).removeprefix(f'{path}: ')})"
+    rec = calibrate_file(path, replace(job, model="base"), progress)
+    rec["auto"] = f"the paper's model: {why}"
+    return rec
+
+
 @documented
 def calibrate_file(path, job: Job, progress=None) -> CalibrationResult:
     """One file's record, a recording or a points file (one device): status calibrated,
@@ -76,6 +107,8 @@ def calibrate_file(path, job: Job, progress=None) -> CalibrationResult:
     from accelcal.files.arrays import as_input
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    if job.model == AUTO:
+        return calibrate_auto(path, job, progress)
     spec = job.spec()
     path = as_input(path)   # a file, or samples in memory (with their times: a frame's own)
     if is_recording(path):
@@ -99,6 +132,9 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
     if job.fallback:
         raise InputError("--fallback is one device's calibration; --by calibrates each device "
                          "of the file")
+    if job.model == AUTO:
+        raise InputError(f"--model {AUTO} chooses per file; with --by name the model (base or "
+                         f"{AUTO_MODEL})")
     spec = job.spec()
     if is_recording(path):
         raise InputError(f"{path}: --by applies to points files; this is a recording")
@@ -113,8 +149,8 @@ def calibrate(path, *, model: str = "base", method: str = "device", profile: str
               time=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
-    and after (mg) and, for a recording, its quality.  settings: Job.of's (engine, cfg, or
-    runtime.Config fields)."""
+    and after (mg) and, for a recording, its quality.  model: a spec, or "auto"
+    (calibrate_auto).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
     from accelcal.files.arrays import as_input
     path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,

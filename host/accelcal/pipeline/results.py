@@ -108,7 +108,7 @@ class CalibrationResult(Record):
             ex = r["excluded"]
             tr = r["temp_range_c"]
             lines.append(
-                f"{head}{r['file']} ({r['format']}, {r['rate_hz']} Hz): {r['hours']:.2f} h, "
+                f"{head}{r['file']} ({r['format']}, {r['rate_hz']:g} Hz): {r['hours']:.2f} h, "
                 f"{r['gaps']} gaps, {r['still_windows']} still windows kept (excluded: "
                 f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
                 f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
@@ -134,6 +134,11 @@ class CalibrationResult(Record):
             lines.append(f"  reference: {ref['T0']:g} degC, t = {ref['t0']:g} s{more}")
         lines.append(f"  calibration error: {r['error_before_mg']:.2f} mg before -> "
                      f"{r['error_after_mg']:.2f} mg after")
+        if "auto" in r:   # --model auto (pipeline/job.py calibrate_auto)
+            lines.append(f"  model auto: {r['auto']}")
+        if r.get("model_from") == "discovery":
+            lines.append(f"  the model the discovery ended with (saved and applied as such); the "
+                         f"base fit: {r['base_fit']['error_after_mg']:.2f} mg after")
         if "discovery" in r:
             lines.append("  " + discovery_line(r["discovery"]))
         return "\n".join(lines)
@@ -249,7 +254,8 @@ class CompareResult(Record):
 
     @property
     def any_calibrated(self) -> bool:
-        return any(r["status"] == "calibrated" for r in self["rows"])
+        """Any method fitted (a row worse than no calibration was fitted too, and says so)."""
+        return any(r["status"] in ("calibrated", "worse_than_none") for r in self["rows"])
 
     def table(self) -> str:
         """The table `compare` prints."""
@@ -266,9 +272,11 @@ class CompareResult(Record):
                  hdr, "-" * (len(hdr) + 20)]
         for r, name in zip(self["rows"], names):
             head = f"{name:<{w}}{r['points']:>7}{r['fit_ms']:9.1f}{r['error_before_mg']:11.2f}"
-            if r["status"] == "calibrated":
+            if r["status"] in ("calibrated", "worse_than_none"):
                 imp = f"{r['improvement_pct']:.0f} %" if r["improvement_pct"] is not None else "-"
-                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  ok")
+                verdict = "ok" if r["status"] == "calibrated" else \
+                    f"WORSE than no calibration ({r['error_after_mg'] / r['error_before_mg']:.1f}x)"
+                lines.append(f"{head}{r['error_after_mg']:10.3f}{imp:>11}  {verdict}")
             else:
                 lines.append(f"{head}{'-':>10}{'-':>11}  FAILED: {r['reason']}")
         return "\n".join(lines)

@@ -68,14 +68,27 @@ class Scan:
     # threshold AUTO: the noise gauge at the end (Q10 g): its threshold and the noise level
     noise_threshold: int | None = None
     noise_level: int | None = None
+    # the time the samples span within their contiguous runs (s, the steps between samples that
+    # are not gaps): the measured rate is the steps over it, kept as measured (a float)
+    run_seconds: float = 0.0
 
     def seg_column(self, name: str) -> np.ndarray:
         """Per segment, the mean of a further recording column (scan(extras=True))."""
         return self.seg_means[:, 4 + self.columns.index(name)]
 
     @property
+    def measured_rate_hz(self) -> float:
+        """The sample rate as the file's clock measured it over every contiguous run: the steps
+        between samples within runs over the time they span (66.67 Hz, 1.5625 Hz, a drifting
+        rate's mean); rate_hz, the nearest whole rate, is what the device's segments count in."""
+        steps = self.n_samples - 1 - len(self.gap_starts)
+        return steps / self.run_seconds if steps > 0 and self.run_seconds > 0 \
+            else float(self.rate_hz)
+
+    @property
     def hours(self) -> float:
-        return self.n_samples / self.rate_hz / 3600.0
+        """The hours the samples stand for (gaps left out), at the measured rate."""
+        return self.n_samples / self.measured_rate_hz / 3600.0
 
     # -- quality -----------------------------------------------------------------------------
     @property
@@ -173,14 +186,14 @@ def prefetched(chunks, depth: int = 2, prepare=None):
         stop.set()
 
 
-def _gaps(rec: Recording, ch, last_t: float | None, limit: float) -> np.ndarray:
-    """Where in ch a new contiguous run starts (a step in time over limit); InputError where
-    time does not increase.  steps[i]: t[i] minus the sample before it (the first sample of
-    all: no step, so neither a gap nor a fault); the checks are reductions, with a pass more
-    only for a find."""
+def _gaps(rec: Recording, ch, last_t: float | None, limit: float) -> tuple[np.ndarray, float]:
+    """Where in ch a new contiguous run starts (a step in time over limit), and the seconds the
+    steps within runs span; InputError where time does not increase.  steps[i]: t[i] minus the
+    sample before it (the first sample of all: no step, so neither a gap nor a fault, nor
+    time); the checks are reductions, with a pass more only for a find."""
     t = ch.t
     if not len(t):
-        return np.zeros(0, np.int64)
+        return np.zeros(0, np.int64), 0.0
     steps = np.empty(len(t))
     steps[0] = limit if last_t is None else t[0] - last_t
     np.subtract(t[1:], t[:-1], out=steps[1:])
@@ -190,7 +203,11 @@ def _gaps(rec: Recording, ch, last_t: float | None, limit: float) -> np.ndarray:
             f"{rec.path}: sample {ch.first + i}"
         prev = t[i - 1] if i > 0 else last_t
         raise InputError(f"{where}: time does not increase (t={t[i]!r} after {prev!r})")
-    return np.flatnonzero(steps > limit) if steps.max() > limit else np.zeros(0, np.int64)
+    span = float(t[-1] - t[0]) + (0.0 if last_t is None else float(steps[0]))
+    if steps.max() <= limit:
+        return np.zeros(0, np.int64), span
+    gaps = np.flatnonzero(steps > limit)
+    return gaps, span - float(steps[gaps].sum())
 
 
 def _count_clipping(sc, p: np.ndarray) -> None:
@@ -227,6 +244,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
             if len(t) < 2:
                 raise InputError(f"{rec.path}: a recording needs at least 2 samples")
             check_units(rec.path, ch.axes)   # m/s^2 or counts: the fix, before any work
+            given = rate_hz
             if rate_hz is None:
                 d = np.diff(t[: 1 << 16])
                 med = median(d)
@@ -243,8 +261,9 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
                       length=length, threshold=threshold, columns=list(rec.columns))
             sc.clip_counts = {float(r): 0 for r in STANDARD_RANGES_G}
             stream = twin.RestStream(rate_hz, seconds, threshold, axis)
-            limit = gap_limit(rate_hz)
-        gaps = _gaps(rec, ch, last_t, limit)
+            limit = gap_limit(rate_hz if given else 1.0 / med)   # the rate as measured
+        gaps, span = _gaps(rec, ch, last_t, limit)
+        sc.run_seconds += span
         sc.gap_starts.extend((gaps + ch.first).tolist())
         p = ch.planar if ch.planar is not None else twin.planar_of(ch.axes)
         extra = None

@@ -19,7 +19,7 @@ import numpy as np
 
 from accelcal.bridge import runtime
 from accelcal.simulate import wearer
-from accelcal.pipeline.compare import compare_split
+from accelcal.pipeline.compare import WORSE, compare_split
 
 METHODS = ["device", "linauto", "lsq", "de"]
 LABELS = {"device": "Our method (device)", "linauto": "Non-iterative (linauto)",
@@ -48,9 +48,10 @@ def run_table3(devices: int = 10, days: float = 3.0, rate: int = 10, seed: int =
     # a recording where the device's bins did not fill (so there is no selection) or any method
     # failed is left out of every row, and listed.
     rows = {m: [next(x for x in o["rows"] if x["method"] == m) for o in per_device] for m in METHODS}
-    used = [i for i in range(devices) if all(rows[m][i]["status"] == "calibrated" for m in METHODS)]
+    fitted = ("calibrated", WORSE)   # a method worse than no calibration still has its figures
+    used = [i for i in range(devices) if all(rows[m][i]["status"] in fitted for m in METHODS)]
     left_out = {f"wrist{i:02d}": [f"{m}: {rows[m][i]['reason']}" for m in METHODS
-                                  if rows[m][i]["status"] != "calibrated"]
+                                  if rows[m][i]["status"] not in fitted]
                 for i in range(devices) if i not in used}
     table = {}
     for m in METHODS:
