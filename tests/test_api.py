@@ -71,3 +71,27 @@ def test_a_model_spec_and_its_settings_from_the_public_names():
     cfg = accelcal.Config.for_profile("paper")
     job = accelcal.Job.of(profile="paper")
     assert job.cfg == cfg and job.engine == "vector"
+
+
+def test_a_result_reads_as_lmfit_s_model_result(day):
+    import accelcal
+    from importlib import metadata
+    d, rec_path, truth = day
+    rec = accelcal.calibrate(str(rec_path))
+    assert rec.status == rec["status"] == "calibrated" and rec.error_after_mg == rec["error_after_mg"]
+    p = rec.params          # names, units, the device's Q24 integers beside the values
+    assert list(p) == list(truth["params"]) == list(rec["params"])
+    assert [p[k].unit for k in ("kxx", "kxy", "ox")] == ["1", "1", "g"]
+    for k, par in p.items():
+        assert par.value == rec["params"][k] and par.int == rec["params_int"][k]
+        assert abs(par.int / 2 ** 24 - par.value) <= 2 ** -24
+    assert p.valuesdict() == rec["params"]
+    assert rec.to_dict() == json.loads(rec.to_json()) and type(rec.to_dict()) is dict
+    assert repr(rec).startswith(f"<CalibrationResult {rec_path} calibrated") and len(repr(rec)) < 200
+    text = rec.summary()
+    assert text.startswith(rec.report()) and f"{p['ox'].int:>12}" in text and "Q24 int" in text
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        rec.nope
+    assert accelcal.__version__ == metadata.version("accelcal")
+    units = accelcal.Params.of({"cx": 1e-4}, {"cx": 5}, "base+temp_offset")["cx"]
+    assert units.unit == accelcal.CATALOGUE["temp_offset"].unit

@@ -4,7 +4,8 @@ The public API, what the commands do, callable from Python (docs/command-line.md
 
     import accelcal
     rec = accelcal.calibrate("wrist.csv", model="base+temp_offset")   # a CalibrationResult
-    rec["status"], rec["params"], rec["error_after_mg"]
+    rec.status, rec.params["kxx"].value, rec.error_after_mg   # or rec["status"], as the JSON
+    print(rec.summary())
     accelcal.diagnose("wrist.csv").report()                            # a DiagnoseResult
 
 Each name is imported on first use, so `import accelcal` (and the `accelcal` command) stays fast.
@@ -26,6 +27,8 @@ _WHERE = {
     "DiagnoseResult": "accelcal.pipeline.results",
     "CompareResult": "accelcal.pipeline.results",
     "ApplyResult": "accelcal.pipeline.results",
+    "Params": "accelcal.pipeline.record",
+    "Param": "accelcal.pipeline.record",
     "ModelSpec": "accelcal.model.effects",
     "CATALOGUE": "accelcal.model.effects",
     "Config": "accelcal.bridge.protocol",
@@ -36,6 +39,9 @@ __all__ = sorted(_WHERE)
 
 
 def __getattr__(name: str):
+    if name == "__version__":   # the project's one version number (device/acal/__init__.py)
+        from acal import __version__
+        return __version__
     if name not in _WHERE:
         raise AttributeError(f"module 'accelcal' has no attribute {name!r}")
     value = getattr(importlib.import_module(_WHERE[name]), name)

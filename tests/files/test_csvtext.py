@@ -25,7 +25,7 @@ def test_simulated_recording_rows_are_savetxts(tmp_path, monkeypatch):
         seen.append((len(columns[0]), got == savetxt(columns, decimals)))
         return got
     monkeypatch.setattr(wearer, "fixed_rows", both)
-    wearer.simulate_wrist(tmp_path / "w.csv", 0.05, 100, 7, effects=("supply_offset",), range_g=4)
+    wearer.simulate_wrist(tmp_path / "w.csv", 0.05, 100, 7, effect=("supply_offset",), range_g=4)
     assert seen and all(same for _, same in seen) and sum(n for n, _ in seen) == 432_000
     head = (tmp_path / "w.csv").read_bytes()[:60].split(b"\n")
     assert head[0] == b"t,x,y,z,temp,supply_mv" and head[1].startswith(b"0.0000,")

@@ -67,7 +67,7 @@ def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
     def scores(seed, effects):
         whole, fit, test = (tmp_path / f"{seed}{x}.csv" for x in ("", ".fit", ".test"))
         truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE,
-                                      seed, effects=effects)
+                                      seed, effect=effects)
         heldout.split(whole, fit, test)
         win = heldout.strict_windows(test)
         out = {"true": heldout.true_score_mg(truth, win)}

@@ -19,7 +19,7 @@ def test_a_composed_model_holds_as_many_points_as_its_fit_is_proven_for():
 def test_the_points_of_a_composed_model_bring_a_hard_seed_within_1_25x_the_true_model(tmp_path):
     whole, fit, test = (tmp_path / f"w.{x}csv" for x in ("", "fit.", "test."))
     truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE, 4,
-                                  effects=["temp_scale"])
+                                  effect=["temp_scale"])
     heldout.split(whole, fit, test)
     win = heldout.strict_windows(test)
     true = heldout.true_score_mg(truth, win)
@@ -40,7 +40,7 @@ def test_a_step_early_in_the_fit_days_keeps_points_on_both_sides(tmp_path):
     late, the base fit was kept and scored 1.57x the true model."""
     whole, fit, test = (tmp_path / f"s.{x}csv" for x in ("", "fit.", "test."))
     truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE, 4,
-                                  effects=["step"], events_within_days=heldout.FIT_DAYS)
+                                  effect=["step"], events_within_days=heldout.FIT_DAYS)
     heldout.split(whole, fit, test)
     win = heldout.strict_windows(test)
     got, why = heldout.device_fit(fit, "wear", "base+step")

@@ -6,7 +6,7 @@ import json
 import sys
 
 from acal.core.fixed import PARAM_NAMES
-from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
+from accelcal.cli.options import COMMANDS, add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 
 
@@ -215,7 +215,7 @@ def _add_virtual(bsub) -> None:
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("board", help="boards: the virtual board", description="Board tools.")
+    p = sub.add_parser("board", help=COMMANDS["board"][1], description="Board tools.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     _add_virtual(bsub)
 
@@ -252,7 +252,7 @@ def add_parsers(sub) -> None:
             for a in acts:
                 a.default = None
 
-    p = sub.add_parser("deploy", help="copy the device package and a board file to a board",
+    p = sub.add_parser("deploy", help=COMMANDS["deploy"][1],
                        description="With mpremote: the device package into :lib/acal (as .mpy built by "
                                    "mpy-cross where the board's architecture is known), the board file "
                                    "as :acal_board.py, and a main.py that starts the app at power-up "
@@ -271,7 +271,7 @@ def add_parsers(sub) -> None:
     app_args(p)
     p.set_defaults(func=cmd_deploy)
 
-    p = sub.add_parser("acquire", help="run the deployed app for a while (virtual board: simulated time)",
+    p = sub.add_parser("acquire", help=COMMANDS["acquire"][1],
                        description="Runs acal.logger.app.main(seconds=...) on the board with mpremote exec and "
                                    "shows its hourly progress lines.")
     p.add_argument("--port", required=True)
@@ -279,7 +279,7 @@ def add_parsers(sub) -> None:
     app_args(p, recorded=True)
     p.set_defaults(func=cmd_acquire)
 
-    p = sub.add_parser("pull", help="copy a board's logs off and decode them",
+    p = sub.add_parser("pull", help=COMMANDS["pull"][1],
                        description="Copies log.bin, capture.bin, cal_a.bin, cal_b.bin into DIR, decodes "
                                    "them (records dropped by a power cut are reported) and writes "
                                    "DIR/summary.json.")
@@ -291,7 +291,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_pull)
 
-    p = sub.add_parser("replay", help="re-run a pulled capture through the current device modules",
+    p = sub.add_parser("replay", help=COMMANDS["replay"][1],
                        description="Feeds DIR/capture.bin through the device Processor under CPython with "
                                    "the settings of the board's BOOT record and diffs every rest point "
                                    "and calibration against DIR/log.bin.  Exit 0 identical, 1 different, "

@@ -6,7 +6,7 @@ import os
 import sys
 
 from accelcal.bridge.runtime import RUNTIMES
-from accelcal.cli.options import (add_effects_arg, add_pipeline_args, dask_address, int_in,
+from accelcal.cli.options import (COMMANDS, add_effects_arg, add_pipeline_args, dask_address, int_in,
                                   pipeline_config, register_effects)
 from accelcal.errors import InputError, one_line, printable
 from accelcal.files.outputs import FORCE_HELP, check_output
@@ -45,7 +45,7 @@ def cmd_calibrate(args) -> int:
         from dataclasses import replace
         cfg = replace(cfg, discover=True)
     job = Job.of(cfg=cfg, model=args.model,
-                 method=args.method, runtime_name=args.runtime, engine=args.engine,
+                 method=args.method, runtime=args.runtime, engine=args.engine,
                  fallback=args.fallback, points=args.points or "bins", effects=args.effects)
     job.spec()   # bad options are bad input, before any file is read or written
     if args.save:
@@ -128,7 +128,7 @@ def cmd_apply(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("calibrate", help="calibrate a recording or points file",
+    p = sub.add_parser("calibrate", help=COMMANDS["calibrate"][1],
                        description="Run the device pipeline (or a reference method on the points "
                                    "it selects) and report parameters and calibration error.",
                        epilog=EPILOG_CAL, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -198,7 +198,7 @@ def add_parsers(sub) -> None:
     add_pipeline_args(p)
     p.set_defaults(func=cmd_calibrate)
 
-    p = sub.add_parser("apply", help="calibrate a recording with saved parameters",
+    p = sub.add_parser("apply", help=COMMANDS["apply"][1],
                        description="Apply saved parameters to every sample with the device's "
                                    "integer per-sample code (the paper's model through its numpy "
                                    "twin, bit-exact); writes t,x,y,z[,temp] in g, then the "

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from accelcal.bridge.runtime import RUNTIMES
-from accelcal.cli.options import add_effects_arg, add_pipeline_args, pipeline_config, register_effects
+from accelcal.cli.options import COMMANDS, add_effects_arg, add_pipeline_args, pipeline_config, register_effects
 from accelcal.files.outputs import FORCE_HELP, check_figure_name, check_output
 from accelcal.files.readers import RULE
 
@@ -54,8 +54,8 @@ def cmd_compare(args) -> int:
     # progress for a person watching (a terminal); errors stay one line for scripts
     quiet = args.json or not sys.stderr.isatty()
     out = compare(args.input, methods=args.methods, model=args.model, train=args.train,
-                  cfg=pipeline_config(args), runtime_name=args.runtime,
-                  plots=args.plots, split=args.split, say=(lambda m: None) if quiet else say)
+                  cfg=pipeline_config(args), runtime=args.runtime,
+                  plots=args.plots, split=args.split, progress=None if quiet else say)
     if args.json:
         print(out.to_json())
     else:
@@ -72,7 +72,7 @@ def say(message: str) -> None:
 def add_parsers(sub) -> None:
     from accelcal.methods import METHODS
     from accelcal.pipeline.restpoints import SPLIT_RULES
-    p = sub.add_parser("diagnose", help="where the model fails, and which effect is missing",
+    p = sub.add_parser("diagnose", help=COMMANDS["diagnose"][1],
                        description="Fits the model on even 2-hour blocks of the rest points and "
                                    "measures on the odd ones: held-out calibration error beside the "
                                    "noise floor, residuals against time, temperature, each axis and "
@@ -96,7 +96,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_diagnose)
 
-    p = sub.add_parser("report", help="the model steps of a diagnose --history file",
+    p = sub.add_parser("report", help=COMMANDS["report"][1],
                        description="A table of each model step with its held-out error and noise floor, "
                                    "and with --plot a PNG of the error per step.")
     p.add_argument("history", help="file written by diagnose --history, or a folder `pull` "
@@ -109,7 +109,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 
-    p = sub.add_parser("compare", help="every calibration method on the same data, one table",
+    p = sub.add_parser("compare", help=COMMANDS["compare"][1],
                        description="Rest points (the device's detector) split into training and "
                                    "held-out parts (recordings: 2-hour blocks, even/odd; points "
                                    "files without t: alternate points; --split: the halves of "

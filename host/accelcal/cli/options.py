@@ -13,10 +13,59 @@ from accelcal.files.arguments import AXES, CHOICES, FLOATS, INTS, outside_float,
 
 class Parser(argparse.ArgumentParser):
     """An option error is one line (and exit 2) like every other bad input, with the command's
-    --help named for the details."""
+    --help named for the details.  A long option is taken only as spelled in full: argparse's
+    prefix matching (allow_abbrev) is off here and in every subcommand's parser (add_parser
+    makes them of this class), so `--effect` is an unknown option, never `--effects`."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"accelcal: error: {one_line(message)} (see `{self.prog} --help`)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an unknown option is named beside the nearest the command has
+        (`--effect`: did you mean --effects?) and the command's own --help."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            parser = self._chosen(ns)
+            known = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+            import difflib
+            near = [m for e in extras if e.startswith("-")
+                    for m in difflib.get_close_matches(e.split("=")[0], known, 1, 0.75)]
+            parser.error(f"unrecognized arguments: {' '.join(extras)}"
+                         + (f"; did you mean {' or '.join(dict.fromkeys(near))}?" if near else ""))
+        return ns
+
+    def _chosen(self, ns) -> "Parser":
+        """The (sub)command's parser the parsed namespace ns went through, deepest first."""
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                name = getattr(ns, a.dest, None)
+                if name in a.choices:
+                    return a.choices[name]._chosen(ns)
+        return self
+
+
+# Every command, in `accelcal --help`'s order: name -> (the module of accelcal.cli that builds its
+# parser and runs it, its one-line help).  `accelcal --help` is made from this table alone, and a
+# command imports only its own module (cli/__init__.py): the help without numpy or the device code.
+COMMANDS = {
+    "calibrate": ("calibrate", "calibrate a recording or points file"),
+    "apply": ("calibrate", "calibrate a recording with saved parameters"),
+    "simulate": ("simulate", "simulate data with known truth"),
+    "board": ("board", "boards: the virtual board"),
+    "deploy": ("board", "copy the device package and a board file to a board"),
+    "acquire": ("board", "run the deployed app for a while (virtual board: simulated time)"),
+    "pull": ("board", "copy a board's logs off and decode them"),
+    "replay": ("board", "re-run a pulled capture through the current device modules"),
+    "diagnose": ("diagnose", "where the model fails, and which effect is missing"),
+    "report": ("diagnose", "the model steps of a diagnose --history file"),
+    "compare": ("diagnose", "every calibration method on the same data, one table"),
+    "paper": ("studies", "reproduce the paper's results"),
+    "bench": ("studies", "timings and allocations under MicroPython and CPython"),
+}
 
 
 # points per subset the fits take (bridge.protocol.MAX_PER_SUBSET, derived there from the

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from accelcal.cli.options import add_effects_arg, float_in, int_in, register_effects
+from accelcal.cli.options import COMMANDS, add_effects_arg, float_in, int_in, register_effects
 from accelcal.errors import InputError
 from accelcal.files.arguments import CHOICES, FLOATS
 from accelcal.files.outputs import FORCE_HELP, atomic, check_output, write_text
@@ -58,7 +58,7 @@ def cmd_simulate_wrist(args) -> int:
     def progress(done, total):
         print(f"\rsimulated {done / (86400 * args.rate):5.2f} of {args.days:g} days", end="",
               file=sys.stderr, flush=True)
-    truth = public.simulate_wrist(out, args.days, args.rate, args.seed, effects=args.effect,
+    truth = public.simulate_wrist(out, args.days, args.rate, args.seed, effect=args.effect,
                                   stimulus=args.stimulus, range_g=args.range, progress=progress,
                                   force=args.force)
     print(file=sys.stderr)
@@ -69,7 +69,7 @@ def cmd_simulate_wrist(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate data with known truth")
+    p = sub.add_parser("simulate", help=COMMANDS["simulate"][1])
     ssub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     q = ssub.add_parser("paper", help="the paper's simulation (eqs. 17-20): rest means per device",
                         description="Random 9-parameter sensors (eq. 17), unit points turned into "

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from accelcal.bridge.runtime import RUNTIMES
-from accelcal.cli.options import float_in, int_in
+from accelcal.cli.options import COMMANDS, float_in, int_in
 
 
 def cmd_table2(args) -> int:
@@ -34,7 +34,7 @@ def cmd_bench(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("paper", help="reproduce the paper's results")
+    p = sub.add_parser("paper", help=COMMANDS["paper"][1])
     psub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     q = psub.add_parser("table2", help="Farago 2024 Table 2 (simulation) beside ours",
                         description="Runs the simulation at 1 mg and 5 mg through the device bins and "
@@ -85,7 +85,7 @@ def add_parsers(sub) -> None:
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_table3)
 
-    p = sub.add_parser("bench", help="timings and allocations under MicroPython and CPython",
+    p = sub.add_parser("bench", help=COMMANDS["bench"][1],
                        description="Measured in one run: optimiser time (N=18, M=50) under both "
                                    "runtimes, rest-detector cost per sample as a ratio to a bare "
                                    "loop, bytes allocated per sample and per optimiser run, "

@@ -74,10 +74,11 @@ def choice(name: str, v, choices=None):
 
 def paths(*, required=(), **named) -> None:
     """Each named argument a path (a str or os.PathLike, not empty); None passes (not given)
-    unless its name is in required."""
+    unless its name is in required, and so do samples already taken in memory (files/arrays.py
+    as_input: an array or frame, not a file)."""
     import os
     for name, v in named.items():
-        if v is None and name not in required:
+        if (v is None and name not in required) or getattr(v, "in_memory", False):
             continue
         if not isinstance(v, (str, os.PathLike)) or str(v) == "":
             raise InputError(f"{name}={v!r:.60}: not a path (a str or os.PathLike)")

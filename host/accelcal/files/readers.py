@@ -138,5 +138,19 @@ def layout(path) -> Layout:
 
 
 def is_recording(path) -> bool:
-    """A recording (streamed) rather than a points file, by RULE."""
+    """A recording (streamed) rather than a points file, by RULE; samples in memory
+    (files/arrays.py ArrayRecording) are one."""
+    if in_memory(path):
+        return True
     return layout(path).kind == "recording"
+
+
+def in_memory(source) -> bool:
+    """Samples given as an array or frame (files/arrays.py), not a file."""
+    return getattr(source, "in_memory", False)
+
+
+def path_of(source) -> str | None:
+    """The file a source reads (for the output checks: never write over it); None for samples
+    in memory."""
+    return None if source is None or in_memory(source) else str(source)

@@ -94,7 +94,10 @@ class Recording:
 
 def open_recording(path: str | Path) -> Recording:
     """The reader for a file, by the rule of files/readers.py: .cwa/.bin/.gt3x are actigraphy
-    files, a CSV is a recording by its header (a points file or anything else: InputError)."""
+    files, a CSV is a recording by its header (a points file or anything else: InputError).
+    A Recording already open (samples in memory: files/arrays.py) is itself."""
+    if isinstance(path, Recording):
+        return path
     path = str(path)
     lay = layout(path)
     ext = Path(path).suffix.lower()
@@ -415,7 +418,9 @@ def read_whole(path: str | Path):
 def sensor_of(path: str | Path) -> str | None:
     """The accelerometer a file's figures may be worded for: the LIS3DH of accelcal's boards
     and simulator for a recording CSV; a device file's format name (whose sensor is not the
-    LIS3DH); None for anything else (a points file)."""
+    LIS3DH); None for anything else (a points file; samples in memory, their sensor unknown)."""
+    if isinstance(path, Recording):
+        return None
     try:
         lay = layout(path)
     except InputError:

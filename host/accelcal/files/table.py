@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from accelcal.errors import InputError
-from accelcal.files.checks import check_values
+from accelcal.files.checks import check_units, check_values
 from accelcal.files.readers import ACTIGRAPHY, layout
 from accelcal.files.recordings import read_whole
 
@@ -123,6 +123,8 @@ def _checked(table: "Table") -> "Table":
     c = table.columns
     xyz = np.column_stack([c["x"], c["y"], c["z"]])
     check_values(table.path, c.get("t", np.empty(0)), xyz, c.get("temp"), 0)
+    if table.kind == "points":
+        check_units(table.path, xyz)   # rest means in m/s^2 or counts: the fix, in one line
     if table.kind == "points" and "t" in c and len(c["t"]) > 2:
         step = median(np.diff(c["t"]))
         if step < MIN_POINT_STEP_S:   # rest means lie a segment (>= 1 s) apart: samples do not

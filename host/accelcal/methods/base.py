@@ -26,8 +26,9 @@ class Method:
     n_params: int          # parameters it estimates (6: eq. 1; 9: the full ellipsoid)
     role: str              # where it comes from, one line for tables and --help
 
-    def __call__(self, v):
-        return self.fit(v)
+    def __call__(self, v, **kw):
+        """The fit; kw: what the fit takes beyond the points (de: progress)."""
+        return self.fit(v, **kw)
 
 
 REGISTRY: dict[str, Method] = {}

@@ -14,6 +14,7 @@ from accelcal.files.outputs import atomic
 from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample
 from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
+from accelcal.vocabulary import documented
 
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
@@ -120,26 +121,56 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
     return n, clipped, rng
 
 
-def apply(params: str, path: str, output: str, *, device: str | None = None,
-          range_g: int | None = None, force: bool = False, effects: str | None = None) -> ApplyResult:
-    """`accelcal apply`: the parameters saved at params (calibrate --save; device: which device
-    of a --by file) applied to the recording at path, written to output (never one of the
-    inputs; force: replace it).  effects: a file of declared effects the model uses."""
-    from accelcal.files.arguments import choice, paths
-    from accelcal.files.outputs import check_output
+def params_of(params, device: str | None = None) -> tuple[str, list[int], dict]:
+    """(model, Q24 parameters, reference) from a parameters file (files/params.load_params) or
+    a CalibrationResult that calibrated."""
     from accelcal.files.params import load_params
-    from accelcal.files.readers import is_recording
+    if isinstance(params, dict):
+        if params.get("status") != "calibrated" or "params_int" not in params:
+            raise InputError(f"{params.get('file', 'the result')}: not calibrated "
+                             f"({params.get('status')}); no parameters to apply")
+        return params["model"], [int(v) for v in params["params_int"].values()], \
+            dict(params.get("reference") or {})
+    return load_params(params, device)
+
+
+@documented
+def apply(params, path, output: str | None = None, *, device: str | None = None,
+          range_g: int | None = None, force: bool = False, effects: str | None = None,
+          rate: float | None = None, temp=None, time=None):
+    """`accelcal apply`: the parameters saved at params (calibrate --save; device: which device
+    of a --by file; or a CalibrationResult) applied to the recording at path, written to output
+    (never one of the inputs; force: replace it): an ApplyResult.  Samples given in memory (a
+    numpy array (n, 3) in g with rate (Hz) or time (s), temp (degC); a pandas or polars frame:
+    files/arrays.py) come back calibrated as the same kind, in g (and are written to output
+    too, if one is named).  range_g: the device's full scale, g (2, 4, 8, 16).  effects: a file
+    of declared effects the model uses."""
+    from accelcal.files.arguments import choice, paths
+    from accelcal.files.arrays import as_input
+    from accelcal.files.outputs import check_output
+    from accelcal.files.readers import in_memory, is_recording, path_of
     from accelcal.model.declared import register
-    paths(required=("params", "path", "output"), params=params, path=path, output=output,
-          effects=effects)
+    path = as_input(path, rate, temp, time)
+    paths(required=("path",), path=path, output=output, effects=effects)
+    if not isinstance(params, dict):
+        paths(required=("params",), params=params)
     if range_g is not None:
         choice("range", range_g)
     register(effects)
-    model, p_int, ref = load_params(params, device)
+    model, p_int, ref = params_of(params, device)
+    pfile = None if isinstance(params, dict) else path_of(params)
+    if in_memory(path):
+        if output is not None:
+            check_output(output, [pfile, effects], force, "-o/--output")
+            apply_file(p_int, model, ref, path, output, range_g)
+        return path.like(apply_to_samples(p_int, path.xyz, model, path.temp, path.t, ref,
+                                          str(path), apply_range(None, range_g), path.cols))
+    if output is None:
+        raise InputError("apply: name the output file (-o) for a recording read from a file")
     if not is_recording(path):
         raise InputError(f"{path}: apply needs a recording (header t,x,y,z[,temp][,NAME...], "
                          "or .cwa/.bin/.gt3x)")
-    check_output(output, [params, path, effects], force, "-o/--output")
+    check_output(output, [pfile, path, effects], force, "-o/--output")
     n, clipped, rng = apply_file(p_int, model, ref, path, output, range_g)
     return ApplyResult(output=str(output), model=model, samples=n, clipped=clipped, range_g=rng,
                        host_only=list(ModelSpec.parse(model).host_only))

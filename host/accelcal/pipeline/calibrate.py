@@ -54,6 +54,23 @@ def fill_report(r: runtime.DeviceResult, min_count: int) -> str:
     return " ".join(f"{n}={c}" for n, c in zip(dbins.SUBSET_NAMES, r.counts)) + f" (need >= {min_count} each)"
 
 
+# a subset (acal.core.bins.SUBSET_NAMES: axis, then n/0/p) as the orientation a person holds still:
+# an axis pointing up reads +1 g at rest, level 0 g, down -1 g
+_SIDE = {"n": "down", "0": "level", "p": "up"}
+
+
+def missing_orientations(counts, cfg: runtime.Config) -> str:
+    """The subsets short of min_count in words, with the rests each still needs, and how long a
+    rest must be held: a still spell of twice cfg.seconds holds one whole rest segment wherever
+    the segments fall, and a subset's points must differ by cfg.differ_g to count twice."""
+    short = [f"{n[0]}-{_SIDE[n[1]]} {cfg.min_count - c}"
+             for n, c in zip(dbins.SUBSET_NAMES, counts) if c < cfg.min_count]
+    if not short:
+        return ""
+    return (f"; missing rests: {', '.join(short)} (up: the axis reads +1 g), each held still "
+            f">= {2 * cfg.seconds} s, moved > {cfg.differ_g:g} g between repeats")
+
+
 def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
     """Why the bins are not ready by their counts (the wear profile: nor by coverage, and never
     on one hemisphere's points: the coverage rule every fit shares), or None."""
@@ -72,7 +89,9 @@ def fill_reason(r: runtime.DeviceResult, cfg: runtime.Config) -> str | None:
              f"+-0.3 g on each side, >= {dbins.COVER_POINTS} points)"
              + (" or lie on one side of a plane through 0 g" if one_sided and
                 len(r.selected_int) >= dbins.COVER_POINTS else "") if newton else "")
-    return f"bins did not fill: {fill_report(r, cfg.min_count)}{cover}"
+    missing = missing_orientations(r.counts, cfg)
+    return f"bins did not fill: {fill_report(r, cfg.min_count)}{missing}" \
+        f"{';' if missing and cover else ''}{cover}"
 
 
 def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
@@ -362,7 +381,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     r = runtime.run([g], cfg, runtime_name)[0]
     if r.threshold is None and sc.noise_threshold is not None:  # the twin's gauge
         r.threshold, r.noise_level = sc.noise_threshold, sc.noise_level
-    rec = CalibrationResult(file=path, format=sc.format, model=str(spec), method=method,
+    rec = CalibrationResult(file=str(path), format=sc.format, model=str(spec), method=method,
                             runtime=runtime_name)
     rec.update(quality(sc, m))
     if rec_in.overlapping_pages is not None:   # files/pagetimes.py

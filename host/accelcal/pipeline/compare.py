@@ -32,10 +32,12 @@ from acal.core import fixed
 from acal.paper import optimiser
 from accelcal import methods
 from accelcal.bridge import runtime
+from accelcal.bridge.runtime import Config
 from accelcal.pipeline.results import CompareResult
 from accelcal.pipeline.restpoints import (RestPoints, check_coverage, check_rule, rest_points,
                                           split, usable)
 from accelcal.errors import InputError
+from accelcal.vocabulary import documented
 from accelcal.fixedpoint import params_to_float
 from accelcal.files.table import read_table
 from accelcal.files.outputs import check_output_dir, save_figure
@@ -104,14 +106,16 @@ def device_fit(v: np.ndarray, cfg: runtime.Config, runtime_name: str = "cpython"
     return params_to_float(r.params_int), sel, None
 
 
-def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str):
-    """(params or None, seconds, reason or None)."""
+def fit_method(name: str, v: np.ndarray, cfg: runtime.Config, runtime_name: str, say=None):
+    """(params or None, seconds, reason or None).  say(message): a slow method's progress and
+    estimate (de)."""
     t0 = time.perf_counter()
     if name == "device":
         p, _, why = device_fit(v, cfg, runtime_name)
         return p, time.perf_counter() - t0, why
     try:
-        p = methods.METHODS[name](v)
+        p = methods.METHODS[name](v, progress=say) if say and name == "de" else \
+            methods.METHODS[name](v)
     except methods.FitError as e:
         return None, time.perf_counter() - t0, str(e)
     return p, time.perf_counter() - t0, None
@@ -211,7 +215,7 @@ def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str =
     for name in names:
         say(f"  fitting {name}")
         v = sp.train.v if name == "device" else fit_on
-        p, secs, why = fit_method(name, v, cfg, runtime_name)
+        p, secs, why = fit_method(name, v, cfg, runtime_name, say)
         row = {"method": name,
                "role": "the integer device method (Farago 2024)" if name == "device"
                else methods.METHODS[name].role,
@@ -232,7 +236,7 @@ def compare_split(path: str, names: list[str], cfg: runtime.Config, train: str =
         except ValueError as e:
             raise InputError(str(e)) from None
         rows += composed_rows(spec, sp, cfg, runtime_name, before)
-    return CompareResult(input=path, profile=cfg.profile, split=sp.how, training=training,
+    return CompareResult(input=str(path), profile=cfg.profile, split=sp.how, training=training,
                          rest_points={"train": len(sp.train), "heldout": len(sp.test)},
                          heldout="every held-out rest point",
                          metric="mean | |a| - 1 g |, mg (Farago Table 3)", rows=rows), sp
@@ -298,25 +302,33 @@ def plot_curve(curve: dict, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def compare(path: str, *, methods: str | list[str] | None = None, model: str = "base",
+@documented
+def compare(path, *, methods: str | list[str] | None = None, model: str = "base",
             cfg: runtime.Config | None = None, profile: str = "wear", train: str = "selected",
-            runtime_name: str = "cpython", plots: str | None = None, effects: str | None = None,
-            split: str = "blocks", say=lambda m: None) -> CompareResult:
+            runtime: str = "cpython", plots: str | None = None, effects: str | None = None,
+            split: str = "blocks", progress=None, rate: float | None = None, temp=None,
+            time=None) -> CompareResult:
     """`accelcal compare`: every method (or those named: a list, or "lsq,device") fitted on the
     same training points and scored on the same held-out ones; with a composed model two more
     rows.  cfg: the pipeline settings (None: the profile's).  plots: a folder for the training
     curve (Gietzelt figure 3).  effects: a file of declared effects (registered).  split: how
     the rest points are split (restpoints.SPLIT_RULES: "blocks", the default, or "first-half" /
-    "second-half", the half of their time span that trains).  say(message): progress."""
+    "second-half", the half of their time span that trains).  progress(message): what is
+    being done, with an estimate for the slow methods (de)."""
+    from accelcal.bridge.runtime import RUNTIMES
     from accelcal.files import arguments as a
+    from accelcal.files.arrays import as_input
+    from accelcal.files.readers import path_of
     from accelcal.model.declared import register
     from accelcal.model.effects import ModelSpec
+    path = as_input(path, rate, temp, time)
+    runtime_name, say = runtime, progress or (lambda m: None)
     a.paths(required=("path",), path=path, plots=plots, effects=effects)
     a.choice("train", train)
-    a.choice("runtime", runtime_name, runtime.RUNTIMES)
+    a.choice("runtime", runtime_name, RUNTIMES)
     if cfg is None:
         a.choice("profile", profile)
-    elif not isinstance(cfg, runtime.Config):
+    elif not isinstance(cfg, Config):
         raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
     if methods is not None and not isinstance(methods, (str, list)):
         raise InputError(f"methods {methods!r:.60}: a list of names or a string \"lsq,device\"")
@@ -328,15 +340,15 @@ def compare(path: str, *, methods: str | list[str] | None = None, model: str = "
     except ValueError as e:
         raise InputError(str(e)) from None
     if cfg is None:   # the base model's settings; a composed model's rows: composed_config
-        cfg = runtime.Config.for_profile(profile)
+        cfg = Config.for_profile(profile)
     if plots:
-        check_output_dir(plots, [path], "--plots")
+        check_output_dir(plots, [path_of(path)], "--plots")
     out, sp = compare_split(path, names, cfg, train, runtime_name, say, spec, split)
     if plots:
         say("training curve: every method on growing training sets (Gietzelt figure 3)")
         curve = training_curve(sp, names, cfg, runtime_name)
         png = Path(plots) / "training_curve.png"
-        plot_curve(curve, png, f"{Path(path).name}: held-out error against training vectors "
+        plot_curve(curve, png, f"{Path(str(path)).name}: held-out error against training vectors "
                                "(first n in time order)")
         out["training_curve"] = curve
         out["plots"] = [str(png)]

@@ -40,6 +40,7 @@ from accelcal.pipeline.history import append_history, check_history, read_histor
 from accelcal.pipeline.remains import what_remains, wrist_floor
 from accelcal.pipeline.restpoints import rest_points, split, usable
 from accelcal.pipeline.results import DiagnoseResult
+from accelcal.vocabulary import documented
 
 # the acceptance rule, shared with the board's own discovery (acal/discover/rule.py)
 MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
@@ -55,16 +56,21 @@ STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
 
 
 
-def diagnose(path: str, model: str = "base", plots: str | None = None, *,
+@documented
+def diagnose(path, model: str = "base", plots: str | None = None, *,
              history: str | None = None, report: str | None = None, force: bool = False,
-             effects: str | None = None) -> DiagnoseResult:
+             effects: str | None = None, rate: float | None = None, temp=None,
+             time=None) -> DiagnoseResult:
     """`accelcal diagnose`: the model's held-out error beside the noise floor, where it fails,
     and the missing effect named (or none).  plots: a folder for its figures; history: a file
     this step is appended to; report: a folder for report.html (force: replace it); effects: a
     file of declared effects (registered; never written over).  Every output is checked before
     the analysis."""
     from accelcal.files.arguments import paths
+    from accelcal.files.arrays import as_input
+    from accelcal.files.readers import path_of
     from accelcal.model.declared import register
+    path = as_input(path, rate, temp, time)
     paths(required=("path",), path=path, plots=plots, history=history, report=report, effects=effects)
     if not isinstance(model, str):
         raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
@@ -75,7 +81,7 @@ def diagnose(path: str, model: str = "base", plots: str | None = None, *,
         ModelSpec.parse(model)   # before any output is checked or the file read
     except ValueError as e:
         raise InputError(str(e)) from None
-    reads = [path, effects]
+    reads = [path_of(path), effects]
     if history:   # appended to, only if a history: checked here, before the analysis
         check_output(history, reads, True, "--history")
         check_history(history)
@@ -174,7 +180,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
                                test_block)
         explanation += " " + (remains["text"] if remains else
                               complete_text(err, said, wrist["floor_mg"]))
-    out = DiagnoseResult(model=str(spec), input=path, split=halves.how,
+    out = DiagnoseResult(model=str(spec), input=str(path), split=halves.how,
                          rest_points={"train": len(train), "heldout": len(test)},
                          heldout_error_mg=err, noise_floor_mg=floor, noise_floor_measured=measured,
                          wrist_floor_mg=wrist["floor_mg"], wrist_floor_pairs=wrist["pairs"],

@@ -8,6 +8,10 @@ from dataclasses import dataclass
 from accelcal.bridge import runtime
 from accelcal.errors import InputError
 from accelcal.pipeline.results import CalibrationResult
+from accelcal.vocabulary import documented
+
+Config = runtime.Config
+RUNTIMES = runtime.RUNTIMES
 
 
 @dataclass
@@ -16,7 +20,7 @@ class Job:
     the pool and for Dask)."""
     cfg: runtime.Config
     method: str = "device"
-    runtime_name: str = "cpython"
+    runtime: str = "cpython"
     model: str = "base"
     engine: str = "vector"
     fallback: str | None = None
@@ -24,8 +28,9 @@ class Job:
     effects: str | None = None     # a user's effects file, registered in each worker
 
     @classmethod
+    @documented
     def of(cls, *, model: str = "base", method: str = "device", profile: str = "wear",
-           runtime_name: str = "cpython", engine: str | None = None, fallback: str | None = None,
+           runtime: str = "cpython", engine: str | None = None, fallback: str | None = None,
            points: str = "bins", effects: str | None = None, cfg: runtime.Config | None = None,
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
@@ -36,21 +41,21 @@ class Job:
         from accelcal.methods import METHODS
         a.paths(fallback=fallback, effects=effects)
         a.choice("method", method, ["device", *METHODS])
-        a.choice("runtime", runtime_name, runtime.RUNTIMES)
+        a.choice("runtime", runtime, RUNTIMES)
         a.choice("points", points)
         if engine is not None:
             a.choice("engine", engine)
         if not isinstance(model, str):
             raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
         if cfg is None:
-            cfg = runtime.Config.for_profile(a.choice("profile", profile), "+" in model,
-                                             **a.pipeline_settings(settings))
+            cfg = Config.for_profile(a.choice("profile", profile), "+" in model,
+                                     **a.pipeline_settings(settings))
         elif settings:
             raise InputError(f"settings {', '.join(settings)} given with cfg: give one or the other")
-        elif not isinstance(cfg, runtime.Config):
+        elif not isinstance(cfg, Config):
             raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
-        return cls(cfg, method, runtime_name, model,
-                   engine or ("vector" if runtime_name == "cpython" else "device"),
+        return cls(cfg, method, runtime, model,
+                   engine or ("vector" if runtime == "cpython" else "device"),
                    fallback, points, effects)
 
     def spec(self):
@@ -108,14 +113,17 @@ def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     return rec
 
 
-def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
+@documented
+def calibrate_file(path, job: Job, progress=None) -> CalibrationResult:
     """One file's record, a recording or a points file (one device): status calibrated,
     not_enough_data or failed; with job.fallback a file that did not calibrate takes it, said so.
     Bad input (an unreadable file, bad options) raises InputError; a batch makes it the file's
     record (pipeline/batch.py).  progress(samples read): a recording's reading."""
     from accelcal.files.arguments import paths
+    from accelcal.files.arrays import as_input
     from accelcal.files.readers import is_recording
     from accelcal.pipeline.calibrate import calibrate_groups, calibrate_recording, use_fallback
+    path = as_input(path)   # a file, or samples in memory (with their times: a frame's own)
     paths(path=path, required=("path",))
     if not isinstance(job, Job):
         raise InputError(f"job={job!r:.60}: a Job (accelcal.Job.of(...))")
@@ -123,11 +131,11 @@ def calibrate_file(path: str, job: Job, progress=None) -> CalibrationResult:
         return calibrate_auto(path, job, progress)
     spec = job.spec()
     if is_recording(path):
-        return calibrate_recording(path, job.cfg, job.method, job.runtime_name, spec, job.engine,
+        return calibrate_recording(path, job.cfg, job.method, job.runtime, spec, job.engine,
                                    progress=progress, fallback=job.fallback, points=job.points)
     from accelcal.files.table import read_table
     rec = CalibrationResult(file=path, format="points", **calibrate_groups(
-        read_table(path), None, job.cfg, job.method, job.runtime_name, spec, job.points)[0])
+        read_table(path), None, job.cfg, job.method, job.runtime, spec, job.points)[0])
     rec["calibration"] = "new" if rec.ok else "none"
     if not rec.ok and job.fallback:
         import numpy as np
@@ -149,17 +157,21 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
     spec = job.spec()
     if is_recording(path):
         raise InputError(f"{path}: --by applies to points files; this is a recording")
-    return calibrate_groups(read_table(path), by, job.cfg, job.method, job.runtime_name, spec,
+    return calibrate_groups(read_table(path), by, job.cfg, job.method, job.runtime, spec,
                             job.points)
 
 
-def calibrate(path: str, *, model: str = "base", method: str = "device", profile: str = "wear",
+@documented
+def calibrate(path, *, model: str = "base", method: str = "device", profile: str = "wear",
               runtime: str = "cpython", fallback: str | None = None, points: str = "bins",
-              effects: str | None = None, progress=None, **settings) -> CalibrationResult:
+              effects: str | None = None, progress=None, rate: float | None = None, temp=None,
+              time=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
     and after (mg) and, for a recording, its quality.  model: a spec, or "auto"
     (calibrate_auto).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
+    from accelcal.files.arrays import as_input
+    path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
-                                       runtime_name=runtime, fallback=fallback, points=points,
+                                       runtime=runtime, fallback=fallback, points=points,
                                        effects=effects, **settings), progress)

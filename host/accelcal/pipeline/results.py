@@ -18,6 +18,7 @@ import os
 from acal.core.fixed import PARAM_NAMES
 from accelcal.errors import InputError, printable
 from accelcal.files.outputs import atomic
+from accelcal.pipeline.record import Params, Record
 
 SUMMARY_COLUMNS = ("file", "status", "calibration", "reason", "profile", "format", "rate_hz", "hours",
                    "hours_used", "gaps", "still_windows", "nonwear_excluded", "imputed_excluded",
@@ -46,8 +47,11 @@ def discovery_line(d: dict) -> str:
     return line
 
 
-class CalibrationResult(dict):
-    """One device's (or file's) calibration: its JSON record, and how it reads."""
+class CalibrationResult(Record):
+    """One device's (or file's) calibration: its JSON record (keys and attributes: status,
+    params, error_before_mg, error_after_mg, ...), and how it reads (report(), summary()).
+    `params` is a Params mapping (name -> value, unit, Q24 int); `r["params"]` the JSON's
+    {name: value}."""
 
     @classmethod
     def failed(cls, path: str, reason: str) -> "CalibrationResult":
@@ -59,12 +63,30 @@ class CalibrationResult(dict):
         return self["status"] == "calibrated"
 
     @property
+    def params(self) -> Params:
+        """The parameters by name, each with its value, unit and the device's integer (empty
+        when there are none)."""
+        return Params.of(self.get("params"), self.get("params_int"), self.get("model"))
+
+    def _repr_fields(self) -> str:
+        head = f"{self.get('file') or ''} {self['status']}".strip()
+        if self.get("error_after_mg") is not None and self.get("error_before_mg") is not None:
+            head += (f" {self.get('model', 'base')} by {self.get('method', '?')}: "
+                     f"{self['error_before_mg']:.2f} -> {self['error_after_mg']:.2f} mg")
+        elif self.get("reason"):
+            why = self["reason"]
+            head += f": {why[:80]}" + ("..." if len(why) > 80 else "")
+        return head
+
+    def summary(self) -> str:
+        """report()'s lines, then the parameters with their units and Q24 integers."""
+        text = self.report()
+        return text + ("\n" + self.params.table() if self.get("params") else "")
+
+    @property
     def usable(self) -> bool:
         """Calibrated, or given its fallback calibration (said so in the record)."""
         return self.ok or self.get("calibration") == "fallback"
-
-    def to_json(self) -> str:
-        return json.dumps(self)
 
     def save(self, path: str, force: bool = False) -> None:
         """The parameters file `calibrate --save` writes (for apply, --fallback, a board),
@@ -165,15 +187,16 @@ def summary_table(results: list[CalibrationResult]) -> str:
     return "\n".join(lines)
 
 
-class DiagnoseResult(dict):
+class DiagnoseResult(Record):
     """`diagnose`'s finding on one file (docs/model-discovery.md): the model's held-out error
     beside the noise floor, where it fails, each catalogue candidate's held-out error and the
     effect named (or none), with why."""
 
     HISTORY_FIELDS = ("model", "input", "heldout_error_mg", "noise_floor_mg", "missing_effect")
 
-    def to_json(self) -> str:
-        return json.dumps(self)
+    def _repr_fields(self) -> str:
+        return (f"{self['input']} model {self['model']}: held-out {self['heldout_error_mg']:.2f} mg, "
+                f"missing effect {self['missing_effect'] or 'none'}")
 
     def history_step(self) -> dict:
         """The line `diagnose --history` appends (pipeline/history.py)."""
@@ -220,12 +243,14 @@ class DiagnoseResult(dict):
         return "\n".join(lines)
 
 
-class CompareResult(dict):
+class CompareResult(Record):
     """`compare`'s table: every method fitted on the same training points and scored on the same
     held-out ones (rows: method, points, fit time, error before and after, status)."""
 
-    def to_json(self) -> str:
-        return json.dumps(self)
+    def _repr_fields(self) -> str:
+        return f"{self['input']}: " + ", ".join(
+            f"{r['method']} {r['error_after_mg']:.2f} mg" if r["error_after_mg"] is not None
+            else f"{r['method']} {r['status']}" for r in self["rows"])
 
     @property
     def any_calibrated(self) -> bool:
@@ -257,7 +282,7 @@ class CompareResult(dict):
         return "\n".join(lines)
 
 
-class StepsResult(dict):
+class StepsResult(Record):
     """`report HISTORY`: the model steps of a diagnose history (steps), and the figure (plot)
     and page (report) written, if any."""
 
@@ -278,7 +303,7 @@ class StepsResult(dict):
         return "\n".join(lines)
 
 
-class BoardReport(dict):
+class BoardReport(Record):
     """`report PULLED_DIR`: a pulled board's summary (boardlog.summary), the sample rate it
     logged at (None: no boot record) and the page written (report), if any."""
 
@@ -331,9 +356,13 @@ def board_discovery_line(d: dict, rate_hz: int | None = None) -> str:
     return f"discovery at {when}: nothing adopted; closest {d['closest']} ({change}, {blocks})"
 
 
-class ApplyResult(dict):
+class ApplyResult(Record):
     """`apply`: the file written (output), samples calibrated, how many were past the device's
-    full scale (clipped, range_g), and the effects applied on the host (host_only)."""
+    full scale (clipped, range_g), and the effects applied on the host (host_only).  (Samples
+    given as an array or frame come back calibrated as the same kind instead.)"""
+
+    def _repr_fields(self) -> str:
+        return f"{self['samples']} samples -> {self['output']}, {self['clipped']} clipped"
 
     def report(self) -> str:
         """The line `apply` says."""

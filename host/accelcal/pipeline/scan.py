@@ -23,6 +23,7 @@ import numpy as np
 from acal.core import fixed
 from accelcal.bridge import twin
 from accelcal.errors import InputError
+from accelcal.files.checks import check_units
 from accelcal.files.recordings import STANDARD_RANGES_G, Recording, gap_limit
 from accelcal.files.table import median
 
@@ -242,6 +243,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
         if sc is None:
             if len(t) < 2:
                 raise InputError(f"{rec.path}: a recording needs at least 2 samples")
+            check_units(rec.path, ch.axes)   # m/s^2 or counts: the fix, before any work
             given = rate_hz
             if rate_hz is None:
                 d = np.diff(t[: 1 << 16])

@@ -12,20 +12,21 @@ from accelcal.files import arguments as a
 from accelcal.files.outputs import check_output
 
 
-def simulate_wrist(out_csv: str | Path, days: float = 1.0, rate_hz: int = 25, seed: int = 0,
-                   effects=(), stimulus: str | Path | None = None, range_g: int = 2,
+def simulate_wrist(output: str | Path, days: float = 1.0, rate: int = 25, seed: int = 0,
+                   effect=(), stimulus: str | Path | None = None, range_g: int = 2,
                    progress=None, events_within_days: float | None = None, *,
                    force: bool = False) -> dict:
     """Write a simulated wrist recording CSV and its truth (NAME.truth.json) as `accelcal
-    simulate wrist -o out_csv` does; returns the truth (simulate/wearer.py simulate_wrist).
+    simulate wrist -o output` does; returns the truth (simulate/wearer.py simulate_wrist).
     force: replace files that exist (else InputError, as the CLI without --force)."""
     from accelcal.model.effects import CATALOGUE
     from accelcal.simulate import wearer
-    a.paths(required=("out_csv",), out_csv=out_csv, stimulus=stimulus)
+    a.paths(required=("output",), output=output, stimulus=stimulus)
     days = a.number("days", days)
-    rate_hz = a.choice("rate", rate_hz)
+    rate = a.choice("rate", rate)
     range_g = a.choice("range", range_g)
     seed = a.whole("seed", seed)
+    effects = effect
     if isinstance(effects, str) or not all(isinstance(e, str) for e in effects):
         raise InputError(f"argument --effect: {effects!r:.60}: a list of effect names")
     for name in effects:
@@ -38,10 +39,10 @@ def simulate_wrist(out_csv: str | Path, days: float = 1.0, rate_hz: int = 25, se
         events_within_days = a.number("days", events_within_days)
     if not isinstance(force, bool):
         raise InputError(f"force={force!r:.40}: True or False")
-    out = check_output(out_csv, (), force, "-o/--output")
+    out = check_output(output, (), force, "-o/--output")
     check_output(out.with_suffix(".truth.json"), (), force, "its truth file")
     if stimulus is not None:
         check_output(stimulus, [out], force, "--stimulus")
-    return wearer.simulate_wrist(out, days, rate_hz, seed, effects=tuple(effects),
+    return wearer.simulate_wrist(out, days, rate, seed, effect=tuple(effects),
                                  stimulus=stimulus, range_g=range_g, progress=progress,
                                  events_within_days=events_within_days)

@@ -41,6 +41,7 @@ from accelcal.files.csvtext import fixed_rows
 from accelcal.files.outputs import atomic, write_text
 from accelcal.model.effects import SUPPLY_COLUMN
 from accelcal.simulate.stimulus import StimulusWriter
+from accelcal.vocabulary import documented
 
 NOISE_DENSITY_G = 220e-6      # LIS3DH: 220 ug/sqrt(Hz)
 TEMP_TAU_S = 900.0            # chip temperature follows its target with this time constant
@@ -340,8 +341,9 @@ def _write_days(out_csv, stim, wearer, sensor, rng, n_days, total, rate_hz, rang
     return hours, segs_all, clipped
 
 
-def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
-                   effects=(), stimulus: str | Path | None = None, range_g: int = 2,
+@documented
+def simulate_wrist(output: str | Path, days: float, rate: int, seed: int,
+                   effect=(), stimulus: str | Path | None = None, range_g: int = 2,
                    progress=None, events_within_days: float | None = None) -> dict:
     """Write a recording CSV (t,x,y,z,temp, then any column a hidden effect follows: battery
     voltage) and its truth beside it (NAME.truth.json); with stimulus, also the stimulus file
@@ -350,6 +352,7 @@ def simulate_wrist(out_csv: str | Path, days: float, rate_hz: int, seed: int,
     first events_within_days (a held-out study's fit days: a shock in the scored days is one no
     fit of the days before can know).  Returns the truth."""
     from accelcal.model.effects import CATALOGUE, TrueEffect
+    out_csv, rate_hz, effects = output, rate, effect
     rng = np.random.default_rng(seed)
     sensor = Sensor.lis3dh(rng, rate_hz)
     # Effects draw from their own stream: the same seed gives the same day with or without them.

@@ -79,7 +79,7 @@ def run_case(case: tuple[int, int], workdir: str) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.apply_precision",
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.apply_precision",
                                  description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", default="1,2,3")

@@ -42,6 +42,7 @@ import json
 import struct
 import sys
 import tempfile
+import time
 import timeit
 from pathlib import Path
 
@@ -234,6 +235,65 @@ def chip_firmwares(runtime_name: str) -> tuple[list, str | None]:
     return chips, missing
 
 
+STARTUP_RUNS = 5
+STARTUP = {   # what a user waits for before anything is done: fresh interpreters, best of runs
+    "python_startup_ms": "pass",
+    "import_accelcal_ms": "import accelcal",
+    "help_wall_ms": "import sys\nfrom accelcal.cli import main\ntry:\n    main(['--help'])\n"
+                    "except SystemExit:\n    pass",
+}
+
+
+def measure_startup(runs: int = STARTUP_RUNS) -> dict:
+    """Wall time of a fresh interpreter doing nothing, `import accelcal`, and `accelcal --help`
+    (what the installed command runs), ms, the best of runs each (issue 51: under 300 ms).  The
+    interpreter's own start is in each; the editable install's path hook too, a wheel's not."""
+    import subprocess
+    out = {}
+    for key, code in STARTUP.items():
+        best = float("inf")
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", code], check=True, stdout=subprocess.DEVNULL)
+            best = min(best, time.perf_counter() - t0)
+        out[key] = best * 1e3
+    return out
+
+
+# each figure's goal, printed beside it (a goal, not a test: the figures are measured)
+TARGETS = {"optimiser_ms_micropython": "<= 10 ms", "per_sample_ratio": "<= 4x",
+           "per_sample_ratio_wear": "<= 4x", "rp2040_fit_wear_base_worst_slice_ms": "< 5 ms",
+           "rp2040_fit_wear_temp_offset_worst_slice_ms": "< 5 ms",
+           "rp2040_fit_wear_four_effects_worst_slice_ms": "< 5 ms",
+           # issue 26's goals on the chip
+           "rp2040_emulated_fit_wear_base_total_ms": "<= 100 ms",
+           "rp2040_emulated_fit_wear_four_effects_total_ms": "<= 500 ms",
+           "rp2040_emulated_fit_wear_base_worst_slice_ms": "<= 2 ms",
+           "rp2040_emulated_fit_wear_temp_offset_worst_slice_ms": "<= 2 ms",
+           "rp2040_emulated_fit_wear_four_effects_worst_slice_ms": "<= 2 ms",
+           "rp2040_emulated_discover_mark_worst_step_ms": "<= 2 ms",
+           "rp2040_emulated_discover_compare_worst_step_ms": "<= 2 ms",
+           "rp2040_emulated_discover_gap_worst_step_ms": "<= 2 ms",
+           "rp2040_emulated_discover_place_worst_step_ms": "<= 2 ms",
+           "rp2040_emulated_app_and_apply_us_per_sample": "<= 5 us",
+           "rp2040_emulated_awake_pct_100hz": "<= 2 %", "rp2040_emulated_lost_10hz": "0",
+           "rp2040_emulated_lost_100hz": "0", "rp2040_emulated_lost_400hz": "0",
+           "rp2040_emulated_import_app_ms": "<= 300 ms",
+           "rp2040_emulated_heap_free_app_largest_bytes": ">= 150 000",
+           "rp2040_emulated_optimiser_ms": "paper's C: < 40 ms (Cortex-M3, 80 MHz)",
+           "rp2040_emulated_fit_paper_base_total_ms": "<= 100 ms",
+           "rp2040_emulated_fit_paper_base_worst_slice_ms": "<= 2 ms",
+           "rp2040_emulated_fit_paper_base_bytes": "0", "fit_paper_base_bytes_mp32": "0",
+           "long_ints_per_optimiser_run_32bit": "0",
+           "fit_wear_base_bytes_mp32": "0", "fit_wear_temp_offset_bytes_mp32": "0",
+           "fit_wear_four_effects_bytes_mp32": "0", "long_ints_per_wear_fit_32bit": "0",
+           "bytes_per_sample": "0", "rp2040_core_share_100hz_register_pct": "far below 100 %",
+           "log_days_per_mb": ">= 14", "log_worst_case_days_per_mb": ">= 14",
+           "pull_virtual_speedup": ">= 3x mpremote fs cp",
+           "pull_rp2040_emulated_speedup": ">= 3x mpremote fs cp",
+           "import_accelcal_ms": "< 300 ms", "help_wall_ms": "< 300 ms"}
+
+
 def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> int:
     """runtime_name: micropython (the unix port, the 32-bit port, CPython), rp2040 (those and the
     emulated RP2040 under MicroPython and, where its firmware is here, CircuitPython:
@@ -244,6 +304,7 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     chips, cp_missing = chip_firmwares(runtime_name)
     print("measuring (MicroPython unix port and CPython)...", file=sys.stderr)
     m = measure(pts)
+    m.update(measure_startup())
     print("timing the fit's slices...", file=sys.stderr)
     m.update(measure_fit_slices())
     print("measuring the app on the simulated LIS3DH (about a minute)...", file=sys.stderr)
@@ -284,36 +345,7 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
     if as_json:
         print(json.dumps(m))
         return 0
-    targets = {"optimiser_ms_micropython": "<= 10 ms", "per_sample_ratio": "<= 4x",
-               "per_sample_ratio_wear": "<= 4x", "rp2040_fit_wear_base_worst_slice_ms": "< 5 ms",
-               "rp2040_fit_wear_temp_offset_worst_slice_ms": "< 5 ms",
-               "rp2040_fit_wear_four_effects_worst_slice_ms": "< 5 ms",
-               # issue 26's goals on the chip
-               "rp2040_emulated_fit_wear_base_total_ms": "<= 100 ms",
-               "rp2040_emulated_fit_wear_four_effects_total_ms": "<= 500 ms",
-               "rp2040_emulated_fit_wear_base_worst_slice_ms": "<= 2 ms",
-               "rp2040_emulated_fit_wear_temp_offset_worst_slice_ms": "<= 2 ms",
-               "rp2040_emulated_fit_wear_four_effects_worst_slice_ms": "<= 2 ms",
-               "rp2040_emulated_discover_mark_worst_step_ms": "<= 2 ms",
-               "rp2040_emulated_discover_compare_worst_step_ms": "<= 2 ms",
-               "rp2040_emulated_discover_gap_worst_step_ms": "<= 2 ms",
-               "rp2040_emulated_discover_place_worst_step_ms": "<= 2 ms",
-               "rp2040_emulated_app_and_apply_us_per_sample": "<= 5 us",
-               "rp2040_emulated_awake_pct_100hz": "<= 2 %", "rp2040_emulated_lost_10hz": "0",
-               "rp2040_emulated_lost_100hz": "0", "rp2040_emulated_lost_400hz": "0",
-               "rp2040_emulated_import_app_ms": "<= 300 ms",
-               "rp2040_emulated_heap_free_app_largest_bytes": ">= 150 000",
-               "rp2040_emulated_optimiser_ms": "paper's C: < 40 ms (Cortex-M3, 80 MHz)",
-               "rp2040_emulated_fit_paper_base_total_ms": "<= 100 ms",
-               "rp2040_emulated_fit_paper_base_worst_slice_ms": "<= 2 ms",
-               "rp2040_emulated_fit_paper_base_bytes": "0", "fit_paper_base_bytes_mp32": "0",
-               "long_ints_per_optimiser_run_32bit": "0",
-               "fit_wear_base_bytes_mp32": "0", "fit_wear_temp_offset_bytes_mp32": "0",
-               "fit_wear_four_effects_bytes_mp32": "0", "long_ints_per_wear_fit_32bit": "0",
-               "bytes_per_sample": "0", "rp2040_core_share_100hz_register_pct": "far below 100 %",
-               "log_days_per_mb": ">= 14", "log_worst_case_days_per_mb": ">= 14",
-               "pull_virtual_speedup": ">= 3x mpremote fs cp",
-               "pull_rp2040_emulated_speedup": ">= 3x mpremote fs cp"}
+    targets = dict(TARGETS)
     for k in m:   # every discovery step on the chip: the placement's locked too, both rounds'
         if k.startswith("rp2040_emulated_discover_") and k.endswith(("_worst_step_ms", "_end_step_ms")):
             targets.setdefault(k, "<= 2 ms")

@@ -258,7 +258,7 @@ def still_windows(path: Path, folder: Path) -> Path:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.bench_files", description=__doc__,
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.bench_files", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--days", type=float, default=14)
     ap.add_argument("--rate", type=int, default=100)

@@ -143,7 +143,7 @@ def run_case(case: tuple[str, int], workdir: str, others_python: str | None = No
     name = f"{effect}_{seed}"
     whole, fit, test = d / f"{name}.csv", d / f"{name}.fit.csv", d / f"{name}.test.csv"
     truth = wearer.simulate_wrist(whole, FIT_DAYS + TEST_DAYS, RATE, seed,
-                                  effects=[] if effect == "clean" else [effect],
+                                  effect=[] if effect == "clean" else [effect],
                                   events_within_days=FIT_DAYS)
     split(whole, fit, test)
     whole.unlink()
@@ -202,7 +202,7 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.heldout", description=__doc__,
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.heldout", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--effects", default=",".join(CASES))

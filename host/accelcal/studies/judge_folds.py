@@ -65,7 +65,7 @@ def row(how, fold, points, r0, rc, better, blocks) -> dict:
 def main(argv=None) -> int:
     from accelcal.simulate import wearer
     from accelcal.studies.heldout import FIT_DAYS, RATE
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.judge_folds", description=__doc__,
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.judge_folds", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("case", help="clean or a catalogue effect hidden in the wrist")
     ap.add_argument("seed", type=int)
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"{a.case}_{a.seed}.csv"
         wearer.simulate_wrist(path, FIT_DAYS, RATE, a.seed,
-                              effects=[] if a.case == "clean" else [a.case])
+                              effect=[] if a.case == "clean" else [a.case])
         rows = judge(str(path), a.model, a.candidate)
     for r in rows:
         print(f"{a.case} seed {a.seed}: {a.model} +{a.candidate}, fit on {r['fit']:<4} train "

@@ -12,7 +12,7 @@ from accelcal.errors import InputError, one_line
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m accelcal.studies.powercut",
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.powercut",
                                  description="Cut the emulated Pico's power at pseudo-random cycles "
                                  "while the app appends to its log and while it writes its "
                                  "calibration store; reboot from the flash and count what was "
