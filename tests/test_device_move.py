@@ -31,7 +31,7 @@ CASES = [
      "import acal.logger.app; acal.logger.app.main(rate_hz=10)"),
     ("from acal.discover import more", "from acal.discover.search import more"),
     ("x = acal.discover.Discover", "x = acal.discover.search.Discover"),
-    ("import acal.grow   # loaded now", "import acal.discover.grow   # loaded now"),
+    ("import acal.grow   # loaded now", "import acal.discover.plug   # loaded now"),
     ('"/lib/acal/fixed.mpy", device/acal/discover.py', '"/lib/acal/core/fixed.mpy", device/acal/discover/search.py'),
     ("scored by heldscore.py (discovery.py's rule)", "scored by score.py (rule.py's rule)"),
     # not device modules, or already new: left alone

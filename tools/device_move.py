@@ -43,7 +43,7 @@ MOVES = {
     "discover": ("discover", "search"), "discovery": ("discover", "rule"),
     "heldout": ("discover", "heldout"), "heldscore": ("discover", "score"),
     "candidates": ("discover", "candidates"), "stepplace": ("discover", "stepplace"),
-    "grow": ("discover", "grow"),
+    "grow": ("discover", "plug"),
     # logger: the sensor drivers, the log on flash, the app and its processor
     "lis3dh": ("logger", "lis3dh"), "lis3dh_cp": ("logger", "lis3dh_cp"),
     "log": ("logger", "log"), "app": ("logger", "app"), "processor": ("logger", "processor"),

@@ -1,4 +1,4 @@
-"""A discovering board's adoption gives its bins a composed model's points (device/acal/discover/grow.py,
+"""A discovering board's adoption gives its bins a composed model's points (device/acal/discover/plug.py,
 Pipeline.adopt; docs/model-discovery.md "Points for a composed model"): the wear bins go from 8 to
 14 points per subset in the room they have from the start (the fit points and fits take 126
 from the start too), every held point and its conditions kept in its subset and slot; fed the
@@ -17,7 +17,7 @@ from accelcal.bridge import boardlog, runtime
 from acal.core import effects, profile
 from acal.logger import log
 from acal.core.bins import Bins
-from acal.discover.grow import grow_bins
+from acal.discover.plug import grow_bins
 from acal.core.pipeline import Pipeline
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])

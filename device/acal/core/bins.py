@@ -130,7 +130,7 @@ class Bins:
     2 and 2 -> 18 points); differ: minimum max-norm distance to every held point, Q16 g (default
     0.1 g); policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units),
     supply_differ (mV): 0, or the spreads a composed model needs (see above); room: slots a
-    subset has, when more than max_count (a discovering board's: acal/discover/grow.py)."""
+    subset has, when more than max_count (a discovering board's: acal/discover/plug.py)."""
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  temp_differ=0, time_differ=0, coverage=False, supply_differ=0, room=0):

@@ -1,7 +1,7 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
+from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
                        gravity, int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.core.fixed import N_PARAMS
@@ -67,7 +67,7 @@ class Pipeline:
             if k != effects.STEP:
                 base_kinds.append(k)
         # points per subset once the discovery adopts an effect (a composed model's), for which
-        # a discovering pipeline has room from the start (adopt(), acal/discover/grow.py)
+        # a discovering pipeline has room from the start (adopt(), acal/discover/plug.py)
         self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
         capacity = N_SUBSETS * self.adopted_count   # points the fits take
         self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON,
@@ -76,13 +76,9 @@ class Pipeline:
         track(self.bins, self.kinds, discover)
         self.held = None
         self.discovery = None
-        if discover:
-            from acal.discover.heldout import HeldOut   # a discovering board's modules only
-            from acal.discover.search import Discover
-            import acal.discover.grow   # noqa: F401  loaded now, so that adopt() allocates no code
-            self.bins.need_span = False
-            self.held = HeldOut()
-            self.discovery = Discover(capacity, self.held)
+        if discover:   # a discovering board's modules only, all loaded now (adopt() loads none)
+            from acal.discover import plug
+            plug.attach(self, capacity)
         self.base_fit = None
         self.search = None
         self.step_time = 0
@@ -155,19 +151,9 @@ class Pipeline:
     def leave_early(self):
         """The first calibration has ended: the held-out blocks' points leave the bins (the
         next fit, the discovery's, never sees a point the held-out set may hold) and from now
-        on go to the held-out set only."""
-        self.early = False
-        held = self.held
-        b = self.bins
-        m = b.max_count
-        for s in range(N_SUBSETS):
-            k = 0
-            while k < b.counts[s]:
-                j = s * m + k
-                if held.takes(b.cond[COND * j + 1]):
-                    b.remove(b.xyz[3 * j], b.xyz[3 * j + 1], b.xyz[3 * j + 2])
-                else:
-                    k += 1
+        on go to the held-out set only (acal/discover/plug.py)."""
+        from acal.discover import plug
+        plug.leave_early(self)
 
     def add_samples(self, buf, start, n):
         """Feed n interleaved samples (Q10 g) from sample index start."""
@@ -326,31 +312,9 @@ class Pipeline:
         calibration, from this model; else no further discovery: the held-out blocks' rest
         means go to the bins again.  The bins grow to adopted_count points per subset (a composed
         model's: the next calibration fits on up to 126), every held point and its conditions
-        kept, in the room they have (acal/discover/grow.py: nothing allocated)."""
-        d = self.discovery
-        fit = d.take()
-        kinds = fit.kinds
-        if not self.kinds:
-            self.base_fit = self.optimiser
-        self.optimiser = fit
-        self.kinds = kinds
-        self.base_kinds = ()
-        self.start = [0] * fit.n_params
-        self.step_time = d.step_time
-        if effects.STEP in kinds:
-            self.search = d.search
-        from acal.discover.search import more
-        again = more(kinds)
-        b = self.bins
-        track(b, kinds, again)   # going on: every condition, for the next round's candidates
-        b.need_span = not again
-        b.changes += 1
-        self.wait = kinds if again else None
-        if not again:
-            self.held = None
-            self.discovery = None
-        from acal.discover.grow import grow_bins   # a discovering board's module only
-        grow_bins(b, self.adopted_count)
+        kept, in the room they have (acal/discover/plug.py: nothing allocated)."""
+        from acal.discover import plug
+        plug.adopt(self)
 
     def _keep_base(self, why):
         o = self.optimiser

@@ -239,7 +239,7 @@ def adopt(pipe, r):
     """pipe.adopt() and what it costs the heap: the free heap before it (collected), right after
     it (what it took, unless it had to collect) and after a collection (what it keeps: its
     calibration's start; the bins grow to a composed model's points in the room they have from
-    boot, acal/discover/grow.py), the points per subset after it."""
+    boot, acal/discover/plug.py), the points per subset after it."""
     gc.collect()
     free_before = gc.mem_free()
     pipe.adopt()
