@@ -16,15 +16,16 @@ from accelcal.bridge.rp2040 import mpy_cross
 from accelcal.errors import InputError, require_tool
 from accelcal.files.outputs import check_output_dir, pid_running, write_text
 from accelcal.board import settings as bsettings, tree
-from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG, device_modules
+from accelcal.locations import BOARDS_DIR, DEVICE_PACKAGE as DEVICE_PKG
 
 # sys.platform of a MicroPython port -> our board file (when --board is not given).
 PLATFORM_BOARDS = {"rp2": "pico", "esp32": "esp32", "linux": "virtual"}
 PULLED = (*boardlog.LOG_FILES, bsettings.SETTINGS_FILE, "summary.json")   # what a pull writes
-# The device modules an app needs (paths in the package): every module of the device package but
-# the CircuitPython driver, which goes only to CircuitPython boards.
-CIRCUITPYTHON_ONLY = ("logger/lis3dh_cp.py",)
-APP_MODULES = tuple(m for m in device_modules() if m not in CIRCUITPYTHON_ONLY)
+# The device modules an app needs (paths in the package), as board/tree.py walks the package:
+# every module but the CircuitPython driver, which goes only to CircuitPython boards.
+APP_MODULES = tuple(p.as_posix() for p in tree.package_sources(False))
+CIRCUITPYTHON_ONLY = tuple(p.as_posix() for p in tree.package_sources(True)
+                           if p.as_posix() not in APP_MODULES)
 # The install units every board gets; the others where the app's settings run them.
 BASE_UNITS = ("core", "logger")
 
