@@ -241,3 +241,21 @@ def emulated_chip(firmware=None):
     except InputError as e:
         pytest.skip(f"emulated RP2040 not available: {e}")
     return rp2040
+
+
+def good_inputs(d: Path):
+    """Small valid inputs in folder d (a points file, a recording, saved parameters), so that
+    in a bad-input case the bad part is the one reported: the CLI's and the API's corpora."""
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(300, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    pts = d / "pts.csv"
+    pts.write_text("x,y,z\n" + "\n".join(",".join(f"{c:.6f}" for c in r) for r in v) + "\n")
+    rec = d / "rec.csv"
+    rec.write_text("t,x,y,z,temp\n" + "\n".join(
+        f"{i / 10:.1f},0.01,0.02,0.99,25.0" for i in range(3000)) + "\n")
+    params = d / "p.json"
+    params.write_text(json.dumps({"model": "base", "params_int": {
+        n: (1 << 24 if i < 3 else 0) for i, n in enumerate(
+            ["kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"])}}))
+    return pts, rec, params

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import run_main
+from conftest import good_inputs, run_main
 
 NAN = math.nan
 
@@ -17,19 +17,7 @@ NAN = math.nan
 @pytest.fixture(scope="module")
 def good(tmp_path_factory):
     d = tmp_path_factory.mktemp("apigood")
-    rng = np.random.default_rng(5)
-    v = rng.normal(size=(300, 3))
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    pts = d / "pts.csv"
-    pts.write_text("x,y,z\n" + "\n".join(",".join(f"{c:.6f}" for c in r) for r in v) + "\n")
-    rec = d / "rec.csv"
-    rec.write_text("t,x,y,z,temp\n" + "\n".join(
-        f"{i / 10:.1f},0.01,0.02,0.99,25.0" for i in range(3000)) + "\n")
-    params = d / "p.json"
-    params.write_text(json.dumps({"model": "base", "params_int": {
-        n: (1 << 24 if i < 3 else 0) for i, n in enumerate(
-            ["kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"])}}))
-    return d, str(pts), str(rec), str(params)
+    return d, *map(str, good_inputs(d))
 
 
 CALIBRATE = [dict(method="nope"), dict(model="nope"), dict(model=3), dict(profile="nope"),

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from accelcal.errors import InputError
-from conftest import run_main
+from conftest import good_inputs, run_main
 
 BAD_NUMBERS = ["nan", "inf", "-inf", "1e300", "-1", "abc", "", "0x10", "1e400", "10000000000"]
 
@@ -21,20 +21,7 @@ BAD_NUMBERS = ["nan", "inf", "-inf", "1e300", "-1", "abc", "", "0x10", "1e400", 
 def good(tmp_path_factory):
     """Small valid inputs, so that the bad part of each case is the one that is reported."""
     d = tmp_path_factory.mktemp("good")
-    rng = np.random.default_rng(5)
-    v = rng.normal(size=(300, 3))
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    pts = d / "pts.csv"
-    pts.write_text("x,y,z\n" + "\n".join(",".join(f"{c:.6f}" for c in r) for r in v) + "\n")
-    rec = d / "rec.csv"
-    t = np.arange(3000) / 10.0
-    rec.write_text("t,x,y,z,temp\n" + "\n".join(
-        f"{ti:.1f},0.01,0.02,0.99,25.0" for ti in t) + "\n")
-    params = d / "p.json"
-    params.write_text(json.dumps({"model": "base", "params_int": {
-        n: (1 << 24 if i < 3 else 0) for i, n in enumerate(
-            ["kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"])}}))
-    return d, pts, rec, params
+    return d, *good_inputs(d)
 
 
 def option_cases(good):
