@@ -101,7 +101,7 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
     script = test_discover._stream(tmp_path, "hidden", test_discover.C_TRUE)
     text = script.read_text()
     variants = {"discover": text, "plain": text.replace("discover=True", "discover=False"),
-                "held_from_start": text.replace("    buf = array(", "    p.pipe.early = False\n    buf = array(", 1)}
+                "held_from_start": text.replace("    buf = array(", "    p.pipe.plug.early = False\n    buf = array(", 1)}
     assert len({variants[k] for k in variants}) == 3
     first = {}
     for name, t in variants.items():
@@ -122,8 +122,9 @@ def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
     from acal.core.bins import N_SUBSETS
     from acal.discover.heldout import held_out
     from acal.core.pipeline import Pipeline
-    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR, False))
-    pipe.early = True
+    from acal.discover.plug import Plug
+    pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR, False))
+    pipe.plug.early = True
     rng = np.random.default_rng(3)
     for i in range(600):          # 600 rest means over 40 h, in every direction
         v = rng.normal(size=3)
@@ -136,5 +137,5 @@ def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
         return [b.condition(s, k)[1] for s in range(N_SUBSETS) for k in range(b.counts[s])]
     assert any(held_out(t) for t in times())           # early: the bins took them too
     kept = [t for t in times() if not held_out(t)]
-    pipe.leave_early()
-    assert sorted(times()) == sorted(kept) and not pipe.early
+    pipe.plug.leave_early(pipe)
+    assert sorted(times()) == sorted(kept) and not pipe.plug.early

@@ -19,6 +19,7 @@ from acal.logger import log
 from acal.core.bins import Bins
 from acal.discover.plug import grow_bins
 from acal.core.pipeline import Pipeline
+from acal.discover.plug import Plug
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
 C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset
@@ -48,6 +49,7 @@ SCRIPT = r'''
 from acal.core import profile
 from acal.core.bins import N_SUBSETS
 from acal.core.pipeline import Pipeline
+from acal.discover.plug import Plug
 try:
     from micropython import heap_lock, heap_unlock
 except ImportError:   # CPython
@@ -100,15 +102,15 @@ def show(tag, pipe, status):
     print(tag, status, o.n_given, o.n, " ".join(str(v) for v in o.p[:o.n_params]))
 
 
-pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
 feed(pipe, PTS)
 print("BASE", pipe.calibrate(), pipe.n_fit, max(pipe.bins.counts))
-d = pipe.discovery
+d = pipe.plug.discovery
 for rnd in range(ROUNDS):
     d.run(pipe)
     before = held(pipe.bins)
     if d.adopted:
-        pipe.adopt()
+        pipe.plug.adopt(pipe)
     print("ADOPTED", d.kind, pipe.bins.max_count, pipe.optimiser.max_points,
           pipe.base_fit.max_points, 1 if held(pipe.bins) == before else 0)
 fresh = Pipeline(10, kinds=pipe.kinds, **profile.settings(profile.WEAR, True))
@@ -284,14 +286,14 @@ def test_a_discovering_pipeline_has_the_room_from_the_start():
     """Made with discover=True, a wear-profile pipeline's bins take 8 points a subset (what its
     BOOT record says) in room for 14, and its fit points and fits (the model's, the
     discovery's two) take 126: nothing is allocated when it adopts."""
-    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
-    assert pipe.bins.max_count == 8 and pipe.adopted_count == 14
+    pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
+    assert pipe.bins.max_count == 8 and pipe.plug.count == 14
     assert len(pipe.bins.xyz) == len(pipe.bins.cond) == 3 * 126
     assert len(pipe.points) == len(pipe.aux) == 3 * 126
-    d = pipe.discovery
+    d = pipe.plug.discovery
     assert pipe.optimiser.max_points == d.fit.max_points == d.spare.max_points == 126
     plain = Pipeline(10, **profile.settings(profile.WEAR))   # not discovering: as it was
-    assert plain.adopted_count == 8 and len(plain.bins.xyz) == len(plain.points) == 3 * 72
+    assert plain.plug is None and len(plain.bins.xyz) == len(plain.points) == 3 * 72
     assert plain.optimiser.max_points == 72
 
 
@@ -304,4 +306,18 @@ def test_the_paper_profiles_fit_keeps_its_counts():
     assert profile.adopted_max_count(profile.NEWTON, 14) == 14
     paper = profile.settings(profile.PAPER)
     assert profile.adopted_max_count(paper["fit"], paper["max_count"]) == paper["max_count"]
-    assert Pipeline(10, **paper).adopted_count == paper["max_count"]
+    assert len(Pipeline(10, **paper).bins.xyz) == 3 * 9 * paper["max_count"]
+
+
+def test_the_core_pipeline_holds_no_discovery_state():
+    """Discovery plugs in through one reference (Pipeline's plug, acal/discover/plug.py): a
+    discovering pipeline has the same attributes as a base one, and no module of acal.core
+    imports acal.discover (a board without discovery loads none of it: test_install_units)."""
+    import pathlib
+    settings = profile.settings(profile.WEAR)
+    plain = Pipeline(10, **settings)
+    found = Pipeline(10, plug=Plug(), **settings)
+    assert sorted(vars(plain)) == sorted(vars(found))
+    assert plain.plug is None and isinstance(found.plug, Plug)
+    core = pathlib.Path(__file__).parents[2] / "device" / "acal" / "core"
+    assert [p.name for p in core.glob("*.py") if "acal.discover" in p.read_text()] == []

@@ -64,7 +64,7 @@ def run(path):
                 buf[3 * i + c] = REST[4 * s + c] + (300 if (i + c) & 1 else -300)
         p.feed(buf, 20)
         p.gap(GAP)
-    while p.discovering:   # its last slices: the gaps, most of the stream's time, feed nothing
+    while p.pipe.plug is not None and p.pipe.plug.running:   # its last slices: the gaps, most of the stream's time, feed nothing
         p.feed(buf, 20)
     lg.close()
     print(p.calibrations, p.kinds)
@@ -116,7 +116,7 @@ def test_processor_adopts_the_hidden_effect_and_micropython_logs_the_same(tmp_pa
     for f in ("cpython.bin", "mp.bin"):
         store = log.CalStore(str(tmp_path / f) + ".a", str(tmp_path / f) + ".b")
         again = Processor(log.Log(str(tmp_path / f"again-{f}")), 10, discover=True, store=store)
-        assert again.kinds == (effects.TEMP_OFFSET,) and again.pipe.discovery is None
+        assert again.kinds == (effects.TEMP_OFFSET,) and again.pipe.plug is None
         assert again.calibrations == cal["number"] and again.params[:9] == \
             [cal[n] for n in PARAM_NAMES] and again.params[9:] == [eff[-1][f"p{i}"] for i in range(3)]
 
@@ -150,7 +150,7 @@ def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
     from acal.logger.processor import Processor
     store = log.CalStore(str(tmp_path / "cpython.bin") + ".a", str(tmp_path / "cpython.bin") + ".b")
     again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
-    assert again.kinds == both and again.pipe.discovery is None
+    assert again.kinds == both and again.pipe.plug is None
 
 
 def test_processor_adopts_nothing_without_an_effect(tmp_path):
@@ -163,7 +163,7 @@ def test_processor_adopts_nothing_without_an_effect(tmp_path):
     from acal.logger.processor import Processor
     store = log.CalStore(str(tmp_path / "clean.bin") + ".a", str(tmp_path / "clean.bin") + ".b")
     again = Processor(log.Log(str(tmp_path / "again.bin")), 10, discover=True, store=store)
-    assert again.kinds == () and again.pipe.discovery is not None and again.calibrations >= 1
+    assert again.kinds == () and again.pipe.plug is not None and again.calibrations >= 1
 
 
 def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
@@ -178,15 +178,15 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
                   (effects.DRIFT, effects.DRIFT)):
         store.save(cal, [(100, k, 28, 0, 0, 0, 0) for k in kinds])
         p = Processor(log.Log(str(tmp_path / "l.bin")), 10, discover=True, store=store)
-        assert p.kinds == () and p.pipe.discovery is not None and p.calibrations == 3
+        assert p.kinds == () and p.pipe.plug is not None and p.calibrations == 3
     cal = cal[:1] + (4,) + cal[2:]
     store.save(cal, [(100, effects.TEMP_OFFSET, 28, 0, 0, 0, 0), (100, effects.DRIFT, 28, 0, 0, 0, 0)])
     p = Processor(log.Log(str(tmp_path / "t.bin")), 10, discover=True, store=store)
-    assert p.kinds == (effects.TEMP_OFFSET, effects.DRIFT) and p.pipe.discovery is None
+    assert p.kinds == (effects.TEMP_OFFSET, effects.DRIFT) and p.pipe.plug is None
     cal = cal[:1] + (5,) + cal[2:]
     store.save(cal, [(100, effects.DRIFT, 28, 0, 0, 0, 0)])   # drift alone: a candidate
     p = Processor(log.Log(str(tmp_path / "m.bin")), 10, discover=True, store=store)
-    assert p.kinds == (effects.DRIFT,) and p.pipe.discovery is None and p.calibrations == 5
+    assert p.kinds == (effects.DRIFT,) and p.pipe.plug is None and p.calibrations == 5
     assert p.params[:9] == list(cal[7:]) and p.calibration.kinds == (effects.DRIFT,)
 
 
@@ -194,13 +194,13 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
 # time per rest mean (a string: a list literal this long exhausts the 32-bit port's pystack)
 FEED = r'''
 PTS = [int(v) for v in "%s".split()]
-pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
 for i in range(len(PTS) // 5):
     pipe.temp = PTS[5 * i + 3]
     pipe.time = PTS[5 * i + 4]
     pipe.offer(PTS[5 * i], PTS[5 * i + 1], PTS[5 * i + 2])
 status = pipe.calibrate()
-d = pipe.discovery
+d = pipe.plug.discovery
 d.begin(pipe)
 '''
 
@@ -208,6 +208,7 @@ d.begin(pipe)
 HEAP = r'''
 import micropython
 from acal.core.pipeline import Pipeline
+from acal.discover.plug import Plug
 from acal.core import profile
 from acal.discover import candidates, search as discover
 from acal.core.bins import int32s
@@ -296,7 +297,7 @@ def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path,
 # makes the round's effect tuples, once).
 ROUND2 = r'''
 if d.adopted and discover.more(d.kinds[d.chosen]):
-    pipe.adopt()
+    pipe.plug.adopt(pipe)
     d.begin(pipe)
     micropython.heap_lock()
     try:
@@ -352,6 +353,7 @@ SHOCK = 1760                # 64 s units: inside held-out block 15 (1687.5 .. 18
 STEP_HEAP = r'''
 import micropython
 from acal.core.pipeline import Pipeline
+from acal.discover.plug import Plug
 from acal.core import profile
 from acal.core.bins import COND
 

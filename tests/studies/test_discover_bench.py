@@ -10,6 +10,7 @@ from accelcal.studies import bench_chip
 from acal.discover import search as discover
 from acal.core import effects, profile
 from acal.core.pipeline import Pipeline
+from acal.discover.plug import Plug
 
 
 def _run(tmp_path, call):
@@ -24,20 +25,20 @@ def _cpython_kinds():
     ns = {}
     exec(bench_chip.discovery_points(), ns)
     pts = ns["PTS"]
-    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+    pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
     for i in range(len(pts) // 5):
         pipe.temp = pts[5 * i + 3]
         pipe.time = pts[5 * i + 4]
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
     pipe.calibrate()
-    d = pipe.discovery
+    d = pipe.plug.discovery
     kinds = []
     for _ in range(2):
         d.run(pipe)
         kinds.append(d.kind)
         if not (d.adopted and discover.more(d.kinds[d.chosen])):
             break
-        pipe.adopt()
+        pipe.plug.adopt(pipe)
     return kinds
 
 

@@ -2,13 +2,13 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
-                       gravity, int32s)
+                       int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.core.fixed import N_PARAMS
 from acal.core.gaussnewton import GaussNewton
 from acal.core import gaussnewton
 from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
-from acal.core.profile import GRADIENT, NEWTON, adopted_max_count
+from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
 from acal.core.reference import centre, lowest
 
@@ -43,42 +43,34 @@ class Pipeline:
     offered: it is still, but not what the wearer's data looks like.  The app leaves it True;
     the host sets it from its non-wear and quality masks.
 
-    discover (NEWTON, the paper's model only): the board finds its own missing effect
-    (acal/discover/search.py; docs/model-discovery.md "Discovery on the board").  Rest means of the
-    held-out 2-hour blocks go to `held` (heldout.py) instead of the bins; the bins track every
-    condition a candidate needs (but are ready without their spread) and the fit's points carry
-    them, relative to ref_temp, ref_time and ref_supply.  After a usable fit, `discovery`
-    runs (begin, step); adopt() then makes its chosen effect the model, its bins grown to a
-    composed model's points per subset (profile.adopted_max_count), for which the bins, the fit
-    points and the fits have room from the start."""
+    plug: None, or what plugs in around the fit (acal/discover/plug.py's Plug: the board's own
+    discovery of its missing effect; docs/model-discovery.md "Discovery on the board").  The
+    pipeline holds nothing of it but this reference and calls it at four named points: room()
+    (the points per subset its bins and fits make room for), attach() (once, the pipeline
+    made), offer() (each rest mean: True when the bins take it too) and ready() (once the
+    bins' own rule is met: True when the plug's is too).  After a fit the feeder hands the
+    plug the pipeline (Plug.fitted)."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  iterations=None, on_rest=None,
                  alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT,
-                 discover=False):
+                 plug=None):
         self.kinds = tuple(kinds)
         self.fit = fit
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
-        if discover and (self.kinds or fit != NEWTON):
-            raise ValueError("discovery starts from the paper's model with the wear fit (NEWTON)")
         base_kinds = []
         for k in self.kinds:
             if k != effects.STEP:
                 base_kinds.append(k)
-        # points per subset once the discovery adopts an effect (a composed model's), for which
-        # a discovering pipeline has room from the start (adopt(), acal/discover/plug.py)
-        self.adopted_count = adopted_max_count(fit, max_count) if discover else max_count
-        capacity = N_SUBSETS * self.adopted_count   # points the fits take
+        # points per subset the bins and the fits have room for (a plug's may be more)
+        room = max_count if plug is None else plug.room(self.kinds, fit, max_count)
+        capacity = N_SUBSETS * room   # points the fits take
         self.bins = Bins(min_count, max_count, differ, policy, coverage=fit == NEWTON,
-                         room=self.adopted_count)
-        # the spread each effect's regressor needs in the held points (discovery: all of them)
-        track(self.bins, self.kinds, discover)
-        self.held = None
-        self.discovery = None
-        if discover:   # a discovering board's modules only, all loaded now (adopt() loads none)
-            from acal.discover import plug
-            plug.attach(self, capacity)
+                         room=room)
+        # the spread each effect's regressor needs in the held points
+        track(self.bins, self.kinds)
+        self.plug = plug
         self.base_fit = None
         self.search = None
         self.step_time = 0
@@ -123,37 +115,21 @@ class Pipeline:
         # loading its points, 1 the model's own
         self.from_base = False   # the model's own fit starts from the base fit's parameters
         self.n_fit = 0     # points gathered for the fit
-        # A discovering app's bins also take the held-out blocks' rest means until its first
-        # calibration (the Processor sets this; leave_early() ends it): held out from the start,
-        # a wearer's bins filled 29 h later (docs/model-discovery.md "Discovery on the board").
-        self.early = False
-        # a discovering board's adopted effects, whose spread alone its bins wait for (the
-        # bins track every condition for the next round: adopt()); None: the bins' own rule
-        self.wait = None
-        self.wait_at = -1
-        self.wait_ok = False
+        if plug is not None:
+            plug.attach(self, capacity)
 
     def offer(self, x, y, z):
         """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
         subset it was kept in or -1."""
         self.rest_count += 1
-        held = self.held
-        if held is not None and held.takes(self.time):
-            if gravity(x, y, z):
-                self.held.offer(x, y, z, self.temp, self.time, self.supply)
-            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply) if self.early else -1
-        else:
+        plug = self.plug
+        if plug is None or plug.offer(self, x, y, z):
             s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
+        else:
+            s = -1
         if self.on_rest is not None:
             self.on_rest(x, y, z, s)
         return s
-
-    def leave_early(self):
-        """The first calibration has ended: the held-out blocks' points leave the bins (the
-        next fit, the discovery's, never sees a point the held-out set may hold) and from now
-        on go to the held-out set only (acal/discover/plug.py)."""
-        from acal.discover import plug
-        plug.leave_early(self)
 
     def add_samples(self, buf, start, n):
         """Feed n interleaved samples (Q10 g) from sample index start."""
@@ -175,12 +151,7 @@ class Pipeline:
         b = self.bins
         if not b.ready():
             return False
-        if self.wait is None:
-            return True
-        if self.wait_at != b.changes:   # asked once a block: spans only when the points change
-            self.wait_at = b.changes
-            self.wait_ok = spanned(b, self.wait)
-        return self.wait_ok
+        return self.plug is None or self.plug.ready(b)
 
     def calibrate(self):
         """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
@@ -205,8 +176,8 @@ class Pipeline:
             self.stage = 5
 
     def _bare(self):
-        # the base model, not discovering: its fit takes no conditions (no aux, no centring)
-        return not self.kinds and self.held is None
+        # the base model, no plug: its fit takes no conditions (no aux, no centring)
+        return not self.kinds and self.plug is None
 
     def _centre(self):
         # the references, one at a time (a tuple of the three would be the fit's only
@@ -302,20 +273,6 @@ class Pipeline:
         if from_base:
             copy_params(b.p, self.base_kinds, self.start, self.kinds)
 
-    def adopt(self):
-        """The discovery's adopted effect becomes the model (its fit, re-kinded, the model's
-        optimiser; the paper's fit stays its base fit; the bins then wait for the spread of
-        that model's effects only, and track every condition while the discovery goes on: a
-        second round judges its candidates testable on the fit points' spread, as the first);
-        the parameters are the discovery's.  While the
-        model has room for another effect (discover.more) the discovery goes on after each
-        calibration, from this model; else no further discovery: the held-out blocks' rest
-        means go to the bins again.  The bins grow to adopted_count points per subset (a composed
-        model's: the next calibration fits on up to 126), every held point and its conditions
-        kept, in the room they have (acal/discover/plug.py: nothing allocated)."""
-        from acal.discover import plug
-        plug.adopt(self)
-
     def _keep_base(self, why):
         o = self.optimiser
         b = self.base_fit
@@ -332,8 +289,8 @@ class Pipeline:
 
 def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
-    all three conditions, for a discovering board's candidates), and the spread weights with
-    them (bins.set_differ)."""
+    all three conditions, e.g. for a plug's candidates), and the spread weights with them
+    (bins.set_differ)."""
     bins.set_differ(_needed(kinds, 0, every), _needed(kinds, 1, every), _needed(kinds, 2, every))
 
 

@@ -138,7 +138,7 @@ class App:
                        p.bins.max_count, p.bins.differ, p.iterations,
                        self.proc.recal_samples // rate_hz, -128 if ref is None else ref,
                        effects.model_code(self.proc.kinds), p.fit,
-                       0 if p.discovery is None else 1)
+                       0 if p.plug is None else 1)
 
     def _retry(self, fn):
         for attempt in range(RETRIES):

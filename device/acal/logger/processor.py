@@ -51,8 +51,8 @@ class Processor:
     at boot as if the board had not been off.
 
     discover (model 'base', the wear profile; any full scale): after a usable calibration the board
-    looks for its own missing effect (Pipeline's discover, sliced as the fit;
-    docs/model-discovery.md "Discovery on the board"), and logs a DISCOVERY record; when an
+    looks for its own missing effect (the pipeline's plug, acal/discover/plug.py, sliced as the
+    fit; docs/model-discovery.md "Discovery on the board"), and logs a DISCOVERY record; when an
     effect is adopted, the calibration (and the store) switch to the composed model at once, logged as a CAL and
     its EFFECT record.  Powered up again with a stored calibration of a model the discovery
     adopts, the board goes on with that model, not discovering (as if flashed with it)."""
@@ -74,12 +74,10 @@ class Processor:
         settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
-        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds, discover=discover,
-                             **settings)
-        self.pipe.early = discover   # calibrated as early as without discovery (Pipeline.early)
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds,
+                             plug=_plug() if discover else None, **settings)
         self.tracks = bool(self.kinds) or discover   # the feeder's conditions reach the bins
         self.fitting = False
-        self.discovering = False
         self.recal_samples = recal_seconds * rate_hz
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
@@ -203,9 +201,9 @@ class Processor:
                 if pipe.fit_step():
                     self._fitted()
                     break
-        elif self.discovering:
+        elif pipe.plug is not None and pipe.plug.running:
             for _ in range(FIT_STEPS_PER_FEED):
-                if pipe.discovery.step():
+                if pipe.plug.step():
                     self._discovered()
                     break
         elif pipe.ready() and (self.last_cal_index < 0 or
@@ -244,8 +242,9 @@ class Processor:
         while not self.pipe.fit_step():
             pass
         status = self._fitted()
-        if self.discovering:
-            while not self.pipe.discovery.step():
+        plug = self.pipe.plug
+        if plug is not None and plug.running:
+            while not plug.step():
                 pass
             self._discovered()
         return status
@@ -263,11 +262,8 @@ class Processor:
                                               o.objective_start, o.objective)
         if usable(status):
             self._take(values, extra)
-            if pipe.early:
-                pipe.leave_early()   # this fit saw held-out blocks: discovery from the next one
-            elif pipe.discovery is not None:
-                pipe.discovery.begin(pipe)
-                self.discovering = True
+            if pipe.plug is not None:
+                pipe.plug.fitted(pipe)   # the discovery's start (the first fit's: from the next)
         if not self.kinds and pipe.fit == profiles.GRADIENT:
             pipe.bins.clear()
         return status
@@ -305,9 +301,9 @@ class Processor:
 
     def _discovered(self):
         # The discovery has chosen: logged; an adopted effect becomes the model at once.
-        self.discovering = False
         pipe = self.pipe
-        d = pipe.discovery
+        plug = pipe.plug
+        d = plug.discovery
         i = d.chosen
         # the effect this round added and its parameters (a second round's follow the first's)
         a = d.new_at
@@ -318,7 +314,7 @@ class Processor:
         if not d.adopted:
             return
         f = d.fits
-        pipe.adopt()
+        plug.adopt(pipe)
         self.kinds = pipe.kinds
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
         self.calibration = Calibration(self.kinds, self.range_g)
@@ -326,6 +322,12 @@ class Processor:
         values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
                                               f[4 * i + 3])
         self._take(values, extra)
+
+
+def _plug():
+    # a discovering board's plug, early: calibrated as early as without discovery (Plug.early)
+    from acal.discover.plug import Plug   # only a discovering board loads the discovery
+    return Plug(early=True)
 
 
 def _adopted_before(store):

@@ -150,7 +150,8 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
                 runner.conditions(*last)
                 now = _conditions_now(pipe)
             # a discovering pipeline's held-out blocks take points the bins would refuse
-            if skip[i] and not (pipe.held is not None and held_out(pipe.time)):
+            if skip[i] and not (pipe.plug is not None and pipe.plug.held is not None
+                                and held_out(pipe.time)):
                 # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1

@@ -151,16 +151,17 @@ def rounds(pts, lock=False):
     from acal.discover import search as discover
     from acal.core import profile
     from acal.core.pipeline import Pipeline
+    from acal.discover.plug import Plug
     if lock and not hasattr(micropython, "heap_lock"):
         return
     tag = "_locked" if lock else ""
-    pipe = Pipeline(10, discover=True, **profile.settings(profile.WEAR))
+    pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
     for i in range(len(pts) // 5):
         pipe.temp = pts[5 * i + 3]
         pipe.time = pts[5 * i + 4]
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
     print("discover_calibrate_status", pipe.calibrate())
-    d = pipe.discovery
+    d = pipe.plug.discovery
     for rnd in (1, 2):
         r = "discover_round%d%s_" % (rnd, tag)
         _round(d, pipe, lock, r)
@@ -236,13 +237,13 @@ def _round(d, pipe, lock, r):
 
 
 def adopt(pipe, r):
-    """pipe.adopt() and what it costs the heap: the free heap before it (collected), right after
+    """pipe.plug.adopt(pipe) and what it costs the heap: the free heap before it (collected), right after
     it (what it took, unless it had to collect) and after a collection (what it keeps: its
     calibration's start; the bins grow to a composed model's points in the room they have from
     boot, acal/discover/plug.py), the points per subset after it."""
     gc.collect()
     free_before = gc.mem_free()
-    pipe.adopt()
+    pipe.plug.adopt(pipe)
     free_taken = gc.mem_free()
     gc.collect()
     print(r + "adopt_heap_free_before", free_before)

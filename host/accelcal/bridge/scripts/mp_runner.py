@@ -80,7 +80,7 @@ class Runner:
         pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
                         max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
                         on_rest=on_rest, alphas=(v[n], v[n + 1], v[n + 2]), kinds=v[n + 3:],
-                        discover=v[10] == 1)
+                        plug=_plug() if v[10] == 1 else None)
         self.pipe = pipe
 
     def conditions(self, temp, time, supply):
@@ -119,7 +119,7 @@ class Runner:
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:
             emit("D", [o.n_given] + [o.keep[i] for i in range(o.n_given)])
-        d = pipe.discovery
+        d = None if pipe.plug is None else pipe.plug.discovery
         first = True
         if d is not None:
             from acal.discover.search import more   # a discovering runner's module only
@@ -141,9 +141,14 @@ class Runner:
             first = False
             if not (d.adopted and more(d.kinds[i])):
                 break
-            pipe.adopt()
+            pipe.plug.adopt(pipe)
         if pipe.rest.auto and pipe.rest.segments:
             emit("N", [pipe.rest.threshold, pipe.rest.gauge.level])
+
+
+def _plug():
+    from acal.discover.plug import Plug   # a discovering runner's module only
+    return Plug()
 
 
 def run(lines, emit):
