@@ -39,6 +39,7 @@ except ImportError:  # CPython
         return x
 from acal.core.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.core.solve import Solver
+from acal.core.slices import Sliced
 from acal.core.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
                                insert_abs, q24, above, rhs_from_limbs, point_residual)
 
@@ -62,7 +63,7 @@ REJECT_MUL = 6
 REJECT_MIN = (8 << model.GN_R_Q) // 1000
 REJECT_ROUNDS = 3
 
-# the phases (const: compiled in by MicroPython, no look-up a slice)
+# the phases: their slices' places in the table (acal/core/slices.py; const: compiled in)
 _ACCUM = const(0)   # residuals and Jacobian rows at p, point by point
 _SOLVE = const(1)   # the damped normal equations, scaled (solve.Solver.begin)
 _ELIM = const(2)    # ... and solved, a few rows a step -> a trial step
@@ -72,7 +73,7 @@ _REJECT = const(5)  # the points above the limit dropped
 _DONE = const(6)
 
 
-class GaussNewton:
+class GaussNewton(Sliced):
     """Integer Gauss-Newton on the 9 model parameters, plus 3 per effect of `kinds` (a composed
     model, acal/core/effects.py; aux holds each point's dT, dt and dV, COND apiece).  reject: outlier
     rejection after the fit.  Buffers for up to max_points (<= MAX_POINTS) points are allocated once.
@@ -122,7 +123,8 @@ class GaussNewton:
             self.kind_ids[k] = self.kinds[k]
         self.solver = Solver(np_)
         self.status = OK
-        self.phase = _DONE
+        # the phases' slices, in their order (acal/core/slices.py; _DONE is their count)
+        self.sliced((self._accum, self._solve, self._elim, self._trial, self._sort, self._reject))
         self.iterations = 0
         self.max_iterations = DEFAULT_ITERATIONS
         self.objective = 0
@@ -148,8 +150,7 @@ class GaussNewton:
     def run(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Fit n points (flat x y z, Q16 g) from p0 in one go; returns the status."""
         self.begin(pts, n, iterations, aux)
-        while not self.step():
-            pass
+        self.finish()
         return self.status
 
     def begin(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None, start=None):
@@ -202,23 +203,6 @@ class GaussNewton:
         self.f = 0
         self.pos = 0
         self.phase = _ACCUM
-
-    def step(self):
-        """One slice of the fit; True when it has ended (status set)."""
-        ph = self.phase
-        if ph == _ACCUM:
-            self._accum()
-        elif ph == _SOLVE:
-            self._solve()
-        elif ph == _ELIM:
-            self._elim()
-        elif ph == _TRIAL:
-            self._trial()
-        elif ph == _SORT:
-            self._sort()
-        elif ph == _REJECT:
-            self._reject()
-        return self.phase == _DONE
 
     def _accum(self):
         # Up to ACCUM_POINTS points (a composed model's: ACCUM_POINTS_COMPOSED) at once; a point
