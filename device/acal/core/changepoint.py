@@ -32,6 +32,7 @@
 # (docs/model-discovery.md "Discovery on the board").  The same operations in the same
 # order as whole passes: the result is the same to the bit.
 from acal.core.bins import COND
+from acal.core.slices import Sliced
 
 MIN_SIDE_SHIFT = 3
 READ_SLICE = 8
@@ -44,13 +45,13 @@ SCALE_BITS = 9
 GUARD_SHIFT = 8
 NONE = -1 << 29      # a split not scored
 
-_READ = 0    # the kept points
+_READ = 0    # the kept points (the phases: their slices' places, acal/core/slices.py)
 _SORT = 1    # their order in time
 _SCAN = 2    # the backward pass
 _DONE = 3
 
 
-class ChangePoint:
+class ChangePoint(Sliced):
     """After the search: found (True when a split was scored), ts (the time of the first point
     after the best split, as the points' dt), at (the number of points before it)."""
 
@@ -64,7 +65,7 @@ class ChangePoint:
         self.j = -1               # where a paused insertion stands (-1: none under way)
         self.v = 0                # the point it inserts, and its time
         self.tv = 0
-        self.phase = _DONE
+        self.sliced((self._read, self._sort, self._scan))
         self.fit = None
         self.found = False
         self.ts = 0
@@ -85,20 +86,9 @@ class ChangePoint:
         self.best_e = NONE
         self.phase = _READ
 
-    def step(self):
-        """One slice; True when the search has ended."""
-        if self.phase == _READ:
-            self._read()
-        elif self.phase == _SORT:
-            self._sort()
-        elif self.phase == _SCAN:
-            self._scan()
-        return self.phase == _DONE
-
     def run(self, fit):
         self.begin(fit)
-        while not self.step():
-            pass
+        self.finish()
         return self.found
 
     def time_before(self):
