@@ -10,6 +10,7 @@
 # them < 2**27, and the step's error (<= discover.ERR_MAX < 2**23) less and plus such sums
 # stays within +-2**28 (search.py saturates the placed errors as its others).
 from acal.core.bins import COND, int32s
+from acal.core.slices import Sliced
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -27,7 +28,7 @@ _PLACE = 1      # the step's time placed among them, and each scored leave-one-o
 _DONE = 2
 
 
-class StepPlace:
+class StepPlace(Sliced):
     """After begin() and step() until True: step_time (the placed time; the fitted time when
     no gap point moved it), n (the gap's points), placed_loo (the held-out error with each gap
     point scored at the time the others place: the points that place a time must not judge
@@ -46,7 +47,7 @@ class StepPlace:
         self.score = None
         self.held = None
         self.ref_time = 0
-        self.phase = _DONE
+        self.sliced((self._gather, self._place))   # the phases' slices (acal/core/slices.py)
         self.pos = 0
         self.scan = 0          # held-out slots scanned a gathering step
         self.loo = 0           # the gap's leave-one-out errors summed so far
@@ -80,14 +81,6 @@ class StepPlace:
         self.step_time = hi
         self.pos = 0
         self.phase = _GATHER
-
-    def step(self):
-        """One slice; True when placed."""
-        if self.phase == _GATHER:
-            self._gather()
-        elif self.phase == _PLACE:
-            self._place()
-        return self.phase == _DONE
 
     def _gather(self):
         # the held-out points in the gap (lo < time < hi), kept sorted by time, each scored
