@@ -21,6 +21,7 @@ from acal.core.gaussnewton import GaussNewton
 from acal.discover.score import HeldScore
 from acal.discover.stepplace import StepPlace
 from acal.core.status import OK
+from acal.core.slices import Sliced
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -58,16 +59,17 @@ SCORE_POINTS = const(1)      # held-out points scored (2 took 2.23-2.42 ms as ru
 BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slot's block (a
 # whole pass of CAPACITY took 2.35 and 2.45 ms)
 
+# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
 _SEARCH = 2     # a step's change-point search on the base fit
 _SCORE = 3      # candidate i scored
-_DONE = 4
-_BLOCKS = 5     # the held-out blocks counted
-_BETTER = 6     # candidate i's blocks compared with the base model's
-_PLACE = 7      # the step: its time placed among its gap's held-out points (stepplace)
-_NEXT = 8       # candidate i's testability (a pass over the fit points' conditions) a step
-_BEGIN = 9      # candidate i's fit begun (a step of its own: 1.3 ms on an RP2040, as testable)
+_BLOCKS = 4     # the held-out blocks counted
+_BETTER = 5     # candidate i's blocks compared with the base model's
+_PLACE = 6      # the step: its time placed among its gap's held-out points (stepplace)
+_NEXT = 7       # candidate i's testability (a pass over the fit points' conditions) a step
+_BEGIN = 8      # candidate i's fit begun (a step of its own: 1.3 ms on an RP2040, as testable)
+_DONE = 9
 
 
 def adoptable(kinds):
@@ -94,7 +96,7 @@ def testable(kind, cond, n):
     return c < 0 or _range(cond, n, c) >= DIFFERS[c]
 
 
-class Discover:
+class Discover(Sliced):
     """After a run (begin(), step() until True): before (the base model's held-out error),
     errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
     candidates.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
@@ -134,7 +136,9 @@ class Discover:
         self.all_params = int32s(N_CANDIDATES * N_ALL)
         self.ts = int32s(N_CANDIDATES)
         self.params = int32s(N_ALL)
-        self.phase = _DONE
+        self.sliced((self._score_base, self._fit_slice, self._search_slice,
+                     self._score_candidate, self._count_blocks, self._compare_blocks,
+                     self._place, self._try, self._begin_fit))   # the phases' slices
         self.i = 0
         self.pos = 0           # where a sliced score or block comparison stands
         self.pipe = None
@@ -196,30 +200,13 @@ class Discover:
             self.kind_ids[i] = 0 if k is None else effects.model_code(k)
             self.new_ids[i] = 0 if k is None else k[len(base)]
 
-    def step(self):
-        """One slice; True when the choice is made."""
-        ph = self.phase
-        if ph == _BASE:
-            self._score_base()
-        elif ph == _FIT:
-            if self.fit.step():
-                self._fitted()
-        elif ph == _SEARCH:
-            if self.search.step():
-                self._searched()
-        elif ph == _SCORE:
-            self._score_candidate()
-        elif ph == _BLOCKS:
-            self._count_blocks()
-        elif ph == _BETTER:
-            self._compare_blocks()
-        elif ph == _PLACE:
-            self._place()
-        elif ph == _NEXT:
-            self._try()
-        elif ph == _BEGIN:
-            self._begin_fit()
-        return self.phase == _DONE
+    def _fit_slice(self):
+        if self.fit.step():
+            self._fitted()
+
+    def _search_slice(self):
+        if self.search.step():
+            self._searched()
 
     def _score_base(self):
         # the base model's held-out error, SCORE_POINTS a step
@@ -419,8 +406,7 @@ class Discover:
     def run(self, pipe):
         """begin() and every step at once."""
         self.begin(pipe)
-        while not self.step():
-            pass
+        self.finish()
 
 
 def _rekind(fit, kinds):
