@@ -11,9 +11,20 @@ from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
 from acal.core.reference import centre, lowest
+from acal.core.slices import Sliced
+
+# the fit's phases: their slices' places in the table (acal/core/slices.py; _DONE their count)
+_BASE = 0       # the base fit (a composed model's, NEWTON), a slice a step
+_MODEL = 1      # the model's own fit, a slice a step
+_BASE_END = 2   # the base fit ended: a step's search begun, or the model's own fit
+_SEARCH = 3     # a step's change-point search on the base fit
+_LOAD = 4       # the model's own fit loading its points
+_CENTRE = 5     # a composed model's points' conditions centred
+_BEGIN = 6      # the optimiser (or the base fit) begun on the gathered points
+_DONE = 7
 
 
-class Pipeline:
+class Pipeline(Sliced):
     """rate_hz, seconds, threshold (Q10 g or rest.AUTO), axis (or rest.ALL_AXES): rest
     detection; min_count, max_count, differ (Q16 g), policy: bins; fit (profile.GRADIENT: the
     paper's, with iterations and alphas, learning rates in tenths; profile.NEWTON: Gauss-Newton
@@ -110,9 +121,9 @@ class Pipeline:
         self.worn = True
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
-        self.stage = 0     # of a fit: 5 its points' conditions centred, 6 its optimiser begun,
-        # 0 the base fit (composed, NEWTON), 2 its end, 3 a step's search, 4 the model's own
-        # loading its points, 1 the model's own
+        # the fit's phases (_BASE ... above), in their order
+        self.sliced((self._base, self._model, self._base_end, self._search, self._load,
+                     self._centre, self._begin))
         self.from_base = False   # the model's own fit starts from the base fit's parameters
         self.n_fit = 0     # points gathered for the fit
         if plug is not None:
@@ -157,23 +168,22 @@ class Pipeline:
         """Run the optimiser on the held points; returns its status (optimiser.OK, ...).
         The parameters are in self.optimiser.p (Q24; 9, then 3 per effect)."""
         self.begin_fit()
-        while not self.fit_step():
-            pass
+        self.finish()
         return self.optimiser.status
 
     def begin_fit(self):
         """Gather the held points (the fit's own copy: the bins go on taking points while it
         runs); the rest of the fit's start runs in fit_step's slices (docs/method-and-formats.md
         "Sliced fit"): a composed model's points' dT, dt, dV centred on the middle of their
-        ranges (stage 5), then the optimiser started on them (stage 6; a composed model with
+        ranges (_CENTRE), then the optimiser started on them (_BEGIN; a composed model with
         the wear profile's fit: the base fit of the same points first)."""
         self.step_time = 0
         if self._bare():
             self.n_fit = self.bins.gather(self.points)
-            self.stage = 6
+            self.phase = _BEGIN
         else:
             self.n_fit = self.bins.gather(self.points, self.aux)
-            self.stage = 5
+            self.phase = _CENTRE
 
     def _bare(self):
         # the base model, no plug: its fit takes no conditions (no aux, no centring)
@@ -188,63 +198,60 @@ class Pipeline:
         self.ref_temp = centre(aux, n, 0, lowest(kinds, 0))
         self.ref_time = centre(aux, n, 1, lowest(kinds, 1))
         self.ref_supply = centre(aux, n, 2, lowest(kinds, 2))
-        self.stage = 6
+        self.phase = _BEGIN
 
     def _begin(self):
         # the optimiser (or the base fit) started on the gathered points
         if self._bare():
-            self.stage = 1
+            self.phase = _MODEL
             self.optimiser.begin(self.points, self.n_fit, self.iterations)
         elif self.base_fit is not None:
-            self.stage = 0
+            self.phase = _BASE
             self.base_fit.begin(self.points, self.n_fit, self.iterations, self.aux)
         else:
-            self.stage = 1
+            self.phase = _MODEL
             self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux)
 
-    def fit_step(self):
-        """One slice of the fit; True when it has ended (the status is the optimiser's).  The
-        points the fit rejected as outliers leave the bins then (by value: the bins may have
-        taken or replaced points while the fit ran on its own copy).  A composed model whose
-        fit failed or ended worse than the base fit keeps the base fit's parameters (effects
-        zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
-        st = self.stage   # the optimisers' own slices first: they are nearly all of them
-        if st == 1:
-            if not self.optimiser.step():
-                return False
+    # fit_step(): one slice of the fit (Sliced.step); True when it has ended (the status is
+    # the optimiser's).  The points the fit rejected as outliers leave the bins then (by value:
+    # the bins may have taken or replaced points while the fit ran on its own copy).  A
+    # composed model whose fit failed or ended worse than the base fit keeps the base fit's
+    # parameters (effects zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE.
+    fit_step = Sliced.step
+
+    def _model(self):
+        if self.optimiser.step():
             self._ended()
-            return True
-        if st == 0:
-            if self.base_fit.step():
-                self.stage = 2   # the model's own fit begins in a slice of its own
-            return False
-        if st == 5:
-            self._centre()
-        elif st == 6:
-            self._begin()
-        elif st == 2:
-            b = self.base_fit
-            if self.search is not None:
-                if b.status != OK:   # nothing to search the step on
-                    self._keep_base(b.status)
-                    return True
-                self.search.begin(b)
-                self.stage = 3
-                return False
-            self._begin_model(b.status == OK)
-        elif st == 4:
-            self.stage = 1
-            self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
-                                 self.start if self.from_base else None)
-        elif st == 3:
-            if not self.search.step():
-                return False
-            if not self.search.found:   # no split pins a step: the model without it stays
-                self._keep_base(BASE_KEPT_FAILED)
-                return True
-            self.step_time = self.search.ts
-            self._begin_model(True)
-        return False
+            self.phase = _DONE
+
+    def _base(self):
+        if self.base_fit.step():
+            self.phase = _BASE_END   # the model's own fit begins in a slice of its own
+
+    def _base_end(self):
+        b = self.base_fit
+        if self.search is not None:
+            if b.status != OK:   # nothing to search the step on
+                self._keep_base(b.status)
+                return
+            self.search.begin(b)
+            self.phase = _SEARCH
+            return
+        self._begin_model(b.status == OK)
+
+    def _load(self):
+        self.phase = _MODEL
+        self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux,
+                             self.start if self.from_base else None)
+
+    def _search(self):
+        if not self.search.step():
+            return
+        if not self.search.found:   # no split pins a step: the model without it stays
+            self._keep_base(BASE_KEPT_FAILED)
+            return
+        self.step_time = self.search.ts
+        self._begin_model(True)
 
     def _ended(self):
         # the model's own fit has ended: the base fit's parameters kept if it did better, the
@@ -264,16 +271,18 @@ class Pipeline:
 
     def _begin_model(self, from_base):
         # the model's own fit, from the base fit's parameters (the step's at zero); it loads its
-        # points in the next slice (stage 4): both in one slice took 2.2 ms on an RP2040 at 126
+        # points in the next slice (_LOAD): both in one slice took 2.2 ms on an RP2040 at 126
         # points, four effects (docs/method-and-formats.md "Sliced fit")
         b = self.base_fit
-        self.stage = 4
+        self.phase = _LOAD
         self.from_base = from_base
         self.optimiser.ts = self.step_time
         if from_base:
             copy_params(b.p, self.base_kinds, self.start, self.kinds)
 
     def _keep_base(self, why):
+        # the fit ends with the base fit's parameters
+        self.phase = _DONE
         o = self.optimiser
         b = self.base_fit
         copy_params(b.p, self.base_kinds, o.p, self.kinds)

@@ -2,7 +2,7 @@
 # measured from (dT, dt, dV), the middle of the fit points' ranges, so that the effect terms do
 # not trade with the offsets.  Conditions are flat int32 arrays, bins.COND per point (Q2 degC,
 # 64 s units, mV); the references are the same units.  Pipeline centres its fit points with
-# centre() (stage 5); the host reads references() for a fit it reports.
+# centre() (its phase _CENTRE); the host reads references() for a fit it reports.
 from acal.core import effects
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 
@@ -53,7 +53,7 @@ def middle(cond, n: int, c: int, lowest: int) -> int:
 @viper
 def centre(cond, n: int, c: int, lowest: int) -> int:
     # Condition c of n points (as middle's) made relative to their middle (references()); returns
-    # it: the fit's centring (Pipeline stage 5), viper on ports with emitters
+    # it: the fit's centring (Pipeline phase _CENTRE), viper on ports with emitters
     ref = int(middle(cond, n, c, lowest))
     p = ptr32(cond)
     w = int(SIGN_SHIFT)
