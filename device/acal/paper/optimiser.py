@@ -14,10 +14,17 @@
 # port either.
 from array import array
 
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
+
 from acal.core.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal.core import model
 from acal.core.emit import SIGN_SHIFT
+from acal.core.slices import Sliced
 from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
                             CACHE, PLAIN, BASE, GRADIENT)
 
@@ -31,7 +38,14 @@ DEFAULT_ITERATIONS = 50
 COMPOSED_ITERATIONS = 200  # composed models: the effect terms converge more slowly
 
 
-class Optimiser:
+# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
+_START = const(0)      # the objective at p0
+_GRADIENT = const(1)   # the gradient's objectives (a composed model's: one a slice)
+_UPDATE = const(2)     # the update and the objective at the new parameters
+_DONE = const(3)
+
+
+class Optimiser(Sliced):
     """Integer gradient descent on the 9 model parameters, plus 3 per effect of `kinds`
     (acal.core.effects ids: a composed model; their parameters take the offsets' rate, their
     regressors being normalised to an offset's size - acal/core/effects.py).
@@ -72,8 +86,9 @@ class Optimiser:
         self.aux = None
         self.max_iterations = 0
         self.den = 1
-        self.i = 0
-        self.done = True
+        self.i = 0           # the gradient's next parameter
+        # the phases' slices (acal/core/slices.py): the objective at p0, the gradient, the update
+        self.sliced((self._start, self._gradient, self._update))
 
     def __getattr__(self, name):
         # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
@@ -113,15 +128,14 @@ class Optimiser:
         each point's dT, dt and dV, acal/core/bins.COND apiece, acal/core/effects.py) from p0; return the
         status."""
         self.begin(pts, n, iterations, aux)
-        while not self.step():
-            pass
+        self.finish()
         return self.status
 
     def begin(self, pts, n, iterations=DEFAULT_ITERATIONS, aux=None):
         """Load the points and start from p0 (run() without the iterations; the objective at p0
         is the first step)."""
         self.iterations = 0
-        self.done = True
+        self.phase = _DONE
         if n < self.n_params:
             self.status = TOO_FEW
             return
@@ -141,46 +155,48 @@ class Optimiser:
         self.max_iterations = iterations
         self.den = ALPHA_DEN * n
         self.status = OK
-        self.i = -1          # the objective at p0 first, in a slice of its own (step)
-        self.done = False
+        self.phase = _START   # the objective at p0 first, in a slice of its own
 
-    def step(self):
-        """One slice: the gradient (the nine objectives at p + h e_k, from the one at p, in one
-        call; a composed model's, one objective a slice), or the update and the objective at
-        the new parameters.  True when the fit has ended."""
-        if self.done:
-            return True
+    # step() (Sliced): one slice: the gradient (the nine objectives at p + h e_k, from the one
+    # at p, in one call; a composed model's, one objective a slice), or the update and the
+    # objective at the new parameters.  True when the fit has ended.
+
+    def _start(self):
+        # the objective at p0 (on an RP2040 begin's loading and it took 1.9 ms)
+        f = self.f
+        base = self.base
+        if self._f(base, BASE):
+            self.status = DIVERGED
+            self.phase = _DONE
+            return
+        for j in range(LIMBS):
+            f[base + LIMBS + j] = f[base + j]
+        self.i = 0
+        self.phase = _GRADIENT
+        if self.max_iterations <= 0:
+            self._finish()
+
+    def _gradient(self):
         i = self.i
-        if i < 0:   # the objective at p0 (on an RP2040 begin's loading and it took 1.9 ms)
-            f = self.f
-            base = self.base
-            if self._f(base, BASE):
-                self.status = DIVERGED
-                self.done = True
-                return True
-            for j in range(LIMBS):
-                f[base + LIMBS + j] = f[base + j]
-            self.i = 0
-            if self.max_iterations <= 0:
-                self._finish()
-            return self.done
-        if i < self.n_params:
-            if self.kinds:
-                p = self.p
-                pa = self.pa
-                p[i] += H_PARAM
-                pa[i] += H_PARAM
-                bad = self._f(LIMBS * i, PLAIN)
-                p[i] -= H_PARAM
-                pa[i] -= H_PARAM
-                self.i = i + 1
-            else:
-                bad = objective_limbs(self.u, self.n, self.f, 0, self.pa, GRADIENT, self.cache,
-                                      SIGN_SHIFT)
-                self.i = N_PARAMS
-            if bad:
-                return self._diverged()
-            return False
+        if self.kinds:
+            p = self.p
+            pa = self.pa
+            p[i] += H_PARAM
+            pa[i] += H_PARAM
+            bad = self._f(LIMBS * i, PLAIN)
+            p[i] -= H_PARAM
+            pa[i] -= H_PARAM
+            self.i = i + 1
+        else:
+            bad = objective_limbs(self.u, self.n, self.f, 0, self.pa, GRADIENT, self.cache,
+                                  SIGN_SHIFT)
+            self.i = N_PARAMS
+        if bad:
+            self._diverged()
+        elif self.i >= self.n_params:
+            self.phase = _UPDATE
+
+    def _update(self):
         # p[k] -= (alpha[k] * UPDATE_MUL * df[k]) // den, df[k] = f(p + h e_k) - f(p)
         out = update(self.f, self.base, self.pa, self.alpha, self.n_params, self.den, SIGN_SHIFT)
         self.iterations += 1
@@ -189,21 +205,21 @@ class Optimiser:
             if not model.effects_within(self.p, self.kinds, 4):
                 out = 1
         if out or self._f(self.base, BASE):
-            return self._diverged()
+            self._diverged()
+            return
         self.i = 0
+        self.phase = _GRADIENT
         if self.iterations >= self.max_iterations:
             self._finish()
-        return self.done
 
     def _diverged(self):
         self._sync()
         self.status = DIVERGED
-        self.done = True
-        return True
+        self.phase = _DONE
 
     def _finish(self):
         self._sync()
-        self.done = True
+        self.phase = _DONE
         f = self.f
         base = self.base
         for j in range(LIMBS):
