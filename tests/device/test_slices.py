@@ -75,3 +75,16 @@ def test_no_module_hand_rolls_a_phase_machine():
         if "self.phase = " in text:
             assert "(Sliced):" in text, p
         assert not re.search(r"\bph == _[A-Z]", text), p
+
+
+def test_the_discovery_bench_names_each_phase_by_its_place():
+    """mp_discover_bench.py times Discover's steps per phase, by phase number: its names in
+    search.py's order (_BASE ... _DONE)."""
+    import ast
+    from accelcal.locations import SCRIPTS_DIR
+    from acal.discover import search
+    tree = ast.parse((SCRIPTS_DIR / "mp_discover_bench.py").read_text())
+    names = [ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+             and getattr(n.targets[0], "id", "") == "PHASES"][0]
+    assert [getattr(search, "_" + name.upper()) for name in names] == list(range(len(names)))
+    assert len(names) == search._DONE + 1

@@ -118,8 +118,8 @@ def place(lock=False):
     print("discover_place%s_heap_free" % tag, gc.mem_free())
 
 
-PHASES = ("base", "fit", "search", "score", "done", "blocks", "better", "place", "next",
-          "begin")   # discover's
+PHASES = ("base", "fit", "search", "score", "blocks", "better", "place", "next", "begin",
+          "done")   # discover's, in its phases' order (search.py: _BASE ... _DONE)
 
 # rounds() keeps the collector off over a round and counts what each step allocates from the
 # free heap before and after it, less what its timing allocates (clock_bytes); between steps it
