@@ -151,6 +151,15 @@ def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):
     return json.loads(r.stdout), out
 
 
+def mpremote(port, *args, timeout=300, cwd=None):
+    """The real mpremote on a board's port (`connect PORT ARGS...`), as a user runs it; its
+    stdout, the test failing with its stderr when it fails."""
+    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
+                       capture_output=True, text=True, timeout=timeout, cwd=cwd)
+    assert p.returncode == 0, p.stderr
+    return p.stdout
+
+
 def run_cli(*args, cwd=None):
     """Run the installed CLI as a user does; returns CompletedProcess."""
     return subprocess.run([sys.executable, "-m", "accelcal.cli", *map(str, args)],
