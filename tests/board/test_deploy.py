@@ -5,7 +5,6 @@ board-side swap also on a package with subfolders (issue 48's layout), under Mic
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np

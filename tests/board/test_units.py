@@ -1,7 +1,7 @@
 """The install units (issue 48 part 1): device/UNIT.json for mip, device/manifests/UNIT for a
 firmware that freezes only what its board runs, and package.json, all as the one walk of the
 package gives them (tools/units.py --check); what a firmware build would freeze from each unit,
-read by MicroPython's own manifest code (tests/data/micropython/manifestfile.py, v1.28.0)."""
+read by MicroPython's own manifest code (tests/data/third_party/micropython/manifestfile.py, v1.28.0)."""
 import importlib.util
 import subprocess
 import sys
@@ -19,7 +19,7 @@ def frozen(manifest: Path, tmp: Path) -> list[str]:
     the firmware, e.g. acal/core/bins.py), as its build reads the manifest (a port whose own
     boards/manifest.py freezes nothing)."""
     spec = importlib.util.spec_from_file_location(
-        "manifestfile", ROOT / "tests" / "data" / "micropython" / "manifestfile.py")
+        "manifestfile", ROOT / "tests" / "data" / "third_party" / "micropython" / "manifestfile.py")
     mf = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mf)
     port = tmp / "port"
