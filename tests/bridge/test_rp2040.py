@@ -4,6 +4,7 @@ point set, a composed model on a simulated wrist recording's rest points, and a 
 fed sample by sample over the emulated USB.  The emulator runs ~20-70 M cycles a wall second, so
 each case is kept to a few emulated seconds."""
 
+import numpy as np
 import pytest
 
 from accelcal.bridge import rp2040, runtime
