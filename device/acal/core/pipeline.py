@@ -212,17 +212,26 @@ class Pipeline(Sliced):
             self.phase = _MODEL
             self.optimiser.begin(self.points, self.n_fit, self.iterations, self.aux)
 
-    # fit_step(): one slice of the fit (Sliced.step); True when it has ended (the status is
-    # the optimiser's).  The points the fit rejected as outliers leave the bins then (by value:
-    # the bins may have taken or replaced points while the fit ran on its own copy).  A
-    # composed model whose fit failed or ended worse than the base fit keeps the base fit's
-    # parameters (effects zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE.
-    fit_step = Sliced.step
+    def fit_step(self):
+        """One slice of the fit; True when it has ended (the status is the optimiser's).  The
+        points the fit rejected as outliers leave the bins then (by value: the bins may have
+        taken or replaced points while the fit ran on its own copy).  A composed model whose
+        fit failed or ended worse than the base fit keeps the base fit's parameters (effects
+        zero) with status BASE_KEPT_FAILED or BASE_KEPT_WORSE."""
+        if self.phase == _MODEL:   # the optimiser's own slices, nearly all: its step at once
+            if not self.optimiser.step():   # (through _model, a call more: 25 us a slice on
+                return False                # the emulated Pico, docs/notes/boards-and-logs.md)
+            self._model_ended()
+            return True
+        return self.step()
 
     def _model(self):
         if self.optimiser.step():
-            self._ended()
-            self.phase = _DONE
+            self._model_ended()
+
+    def _model_ended(self):
+        self._ended()
+        self.phase = _DONE
 
     def _base(self):
         if self.base_fit.step():
