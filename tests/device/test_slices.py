@@ -42,7 +42,6 @@ def test_a_step_runs_the_current_slice_and_says_when_it_has_ended():
 # every sliced computation of the device package, by module and class, and how to make one
 SLICED = [("acal.core.gaussnewton", "GaussNewton", lambda c: c(18)),
           ("acal.core.changepoint", "ChangePoint", lambda c: c()),
-          ("acal.core.solve", "Solver", lambda c: c(9)),
           ("acal.paper.optimiser", "Optimiser", lambda c: c(18)),
           ("acal.discover.stepplace", "StepPlace", lambda c: c()),
           ("acal.core.pipeline", "Pipeline", lambda c: c(10))]

@@ -23,7 +23,6 @@
 from acal.core.bins import int32s
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.wide import div_shift
-from acal.core.slices import Sliced
 
 DIAG_BITS = 24
 RHS_BITS = 19
@@ -43,13 +42,9 @@ _STATE = 5
 _MORE = 0
 _SOLVED = 1
 _FAILED = 2
-# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
-_PREPARE = 0   # rows of the scaled (and damped) copy prepared, a slice of their own
-_ELIMINATE = 1  # rows eliminated and unknowns back-substituted (_run)
-_DONE = 2
 
 
-class Solver(Sliced):
+class Solver:
     """Preallocated work space for systems of up to n_max unknowns (row-major n x n).
 
     Sliced like the fit that uses it: begin() finds the scales (O(n)), each step() does about
@@ -73,7 +68,6 @@ class Solver(Sliced):
         self.a = None
         self.x = None
         self.ok = False
-        self.sliced((self._prepare_row, self._eliminate))
 
     def solve(self, a, b, x, n, mu=0, xshift=None):
         """Solve (a + mu 2**-8 diag a) x = b 2**xshift (a: n x n row-major ints, symmetric
@@ -82,7 +76,8 @@ class Solver(Sliced):
         +-2**29).  Returns False, x untouched, when an unknown is not determined (a pivot under
         its guard, a diagonal <= 0, or a solution the integers cannot hold)."""
         if self.begin(a, b, x, n, mu, xshift):
-            self.finish()
+            while not self.step():
+                pass
         return self.ok
 
     def begin(self, a, b, x, n, mu=0, xshift=None):
@@ -108,17 +103,20 @@ class Solver(Sliced):
         st[_RESCALES] = 0
         st[_BACK] = 0
         self.prep = 0
-        self.phase = _PREPARE if n > 0 else _ELIMINATE
         return True
 
-    # step() (Sliced): about STEP_WORK products of work: rows prepared (a slice of their own),
-    # or rows eliminated and unknowns back-substituted (_run); True when done (ok says whether
-    # x holds the solution).
-
-    def _eliminate(self):
+    def step(self):
+        """About STEP_WORK products of work: rows prepared (a slice of their own), or rows
+        eliminated and unknowns back-substituted (_run); True when done (ok says whether x
+        holds the solution).  Not on acal/core/slices.py: no phase, one test inline, and it
+        runs inside GaussNewton's _ELIM slice, where a call more cost 5 % of the wear base
+        fit on the emulated Pico (docs/notes/boards-and-logs.md "One slice machine")."""
+        if self.prep < self.n:
+            self._prepare_row()
+            return False
         r = _run(self.m, self.c, self.y, self.floor, self.state, self.n, STEP_WORK, SIGN_SHIFT)
         if r == _MORE:
-            return
+            return False
         if r == _SOLVED:
             # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
             x = self.x
@@ -127,7 +125,7 @@ class Solver(Sliced):
             for k in range(self.n):
                 x[k] = _shift_sat(y[k], e - self.s[k] + self.xshift[k])
             self.ok = True
-        self.phase = _DONE
+        return True
 
     def _prepare_row(self):
         # Rows prep.. of the scaled (and damped) copy, up to STEP_WORK // 2 entries (at least a
@@ -142,8 +140,6 @@ class Solver(Sliced):
         for j in range(k, end):
             self.floor[j] = self.m[j * self.n + j] >> GUARD_SHIFT
         self.prep = end
-        if end >= self.n:
-            self.phase = _ELIMINATE
 
 
 _SAT = 1 << 29
