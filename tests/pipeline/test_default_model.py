@@ -54,6 +54,22 @@ def test_auto_chooses_by_the_data(capsys, tmp_path):
     assert code == 2 and err.count("\n") == 1 and "--model auto" in err, err
 
 
+def test_auto_is_the_default_of_the_device_method(capsys):
+    """calibrate without --model: the auto record, byte for byte; the float methods and
+    --discover keep the paper's model by default (--model auto or base+EFFECT asks for more)."""
+    runs = {}
+    for name, opts in (("auto", ["--model", "auto"]), ("default", []), ("lsq", ["--method", "lsq"]),
+                       ("base", ["--model", "base"])):
+        code, out, err = run_main(capsys, ["calibrate", POINTS, *opts, "--json"])
+        assert code == 0, err
+        runs[name] = json.loads(out)
+    assert runs["default"] == runs["auto"] and runs["default"]["model"] == "base+temp_offset"
+    assert runs["lsq"]["model"] == "base" and "auto" not in runs["lsq"]
+    assert runs["base"]["model"] == "base" and "auto" not in runs["base"]
+    import accelcal
+    assert accelcal.calibrate(str(POINTS)).to_dict() == runs["auto"]
+
+
 @pytest.mark.slow
 def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
     """The held-back wrist benchmark's protocol (accelcal.studies.heldout: fitted on 3 days,
