@@ -1,0 +1,136 @@
+"""Where the last tenth goes (issue 50 part 5): on clean held-back wrist wear (the protocol of
+accelcal.studies.heldout: fitted on 3 days, scored on the next 2 days' strict still windows,
+10 Hz), the default's error against the true sensor model's, taken apart.
+
+Everything is scored on the recording's own values: each strict window's mean of the file's
+samples (the simulator writes the LIS3DH's 1 mg steps), not of the device's Q10 samples (the
+1 mg steps re-rounded onto 1/1024 g), whose rounding moves every window's mean by ~0.2 mg alike
+for every fit.  Per seed, in mg:
+
+  true       the simulator's true sensor model
+  lsq_all    float least squares on every rest point of the fit days, from the file's values
+  lsq_bins   the same on the points the device's bins selected (from the file's values)
+  lsq_bins_q10  the same points as the device sees them (means of Q10 samples)
+  device     the device's fit (the default's points and integers: `calibrate --model base`)
+  device_file  the device's fit offered the file's values' means instead (what keeping the
+             samples unrounded until the means would give)
+  output     the device's parameters through `apply`'s path (the Q10 samples in, the device's
+             Q13 output), each window's mean of the output scored: the written output
+
+Shares: the bins' points (lsq_bins - lsq_all), the Q10 rounding in the fit's points (device -
+lsq_bins) and the output's rounding (output - device: the input samples' Q10 rounding carried
+through the apply, device scored on the Q10 windows - device, and the Q13 output format, the
+rest).  A float experiment on the host; the
+device code is what `calibrate` runs.
+
+    python -m accelcal.studies.tenth [--seeds 1,2,3] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from acal.core import fixed
+
+COLUMNS = ("true", "lsq_all", "lsq_bins", "lsq_bins_q10", "device", "device_file", "output")
+
+
+def _windows(path: Path, strict: bool):
+    """(Q10 means g, the file's own means g, each window's first sample, length): the strict
+    still windows (heldout's rule) or the wear profile's kept rest segments."""
+    import pyarrow.csv as pacsv
+    from accelcal.files.recordings import open_recording
+    from accelcal.pipeline.scan import scan
+    from accelcal.studies import heldout
+    thr = int(np.ceil(heldout.STRICT_G * fixed.SAMPLE_ONE_G)) if strict else 0
+    sc = scan(open_recording(str(path)), 5, thr, 3)
+    keep = sc.segments.still if strict else sc.masks()["kept"]
+    q = sc.segments.mean[keep] / float(fixed.POINT_ONE_G)
+    tab = pacsv.read_csv(path)
+    xyz = np.column_stack([tab.column(c).to_numpy() for c in "xyz"])
+    start = sc.segments.end[keep] + 1 - sc.length
+    cs = np.vstack([np.zeros((1, 3)), np.cumsum(xyz, axis=0)])
+    own = (cs[start + sc.length] - cs[start]) / sc.length
+    mag = np.linalg.norm(q, axis=1)
+    ok = (mag > 0.5) & (mag < 1.5)
+    return q[ok], own[ok], start[ok], sc.length, xyz
+
+
+def _output_means(p_int, xyz, start, length) -> np.ndarray:
+    """Each window's mean of the device's calibrated output (apply's path: Q10 in, Q13 out)."""
+    from accelcal.pipeline.apply import apply_to_samples
+    idx = start[:, None] + np.arange(length)[None, :]
+    a = apply_to_samples(list(p_int), xyz[idx.ravel()])
+    return a.reshape(len(start), length, 3).mean(axis=1)
+
+
+def run_seed(seed: int, workdir: Path) -> dict:
+    from accelcal import methods
+    from accelcal.bridge import runtime
+    from accelcal.fixedpoint import params_to_int
+    from accelcal.pipeline import compare
+    from accelcal.simulate import wearer
+    from accelcal.studies import heldout
+    whole, fit, test = (workdir / f"{seed}{x}.csv" for x in ("", ".fit", ".test"))
+    truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE, seed,
+                                  effect=[])
+    heldout.split(whole, fit, test)
+    wq, wown, wstart, wlen, wxyz = _windows(test, True)
+    fq, fown, _, _, _ = _windows(fit, False)
+    cfg = runtime.Config.for_profile("wear", False)
+    dev, sel, why = compare.device_fit(fq, cfg)
+    if why:
+        raise RuntimeError(why)
+    rows = {tuple(r) for r in np.asarray(sel)}
+    pick = np.array([tuple(r) in rows for r in fq])
+    dev_file, _, why = compare.device_fit(fown, cfg)
+    lsq = methods.METHODS["lsq"]
+    fits = {"true": np.array([truth["params"][n] for n in fixed.PARAM_NAMES]),
+            "lsq_all": lsq(fown), "lsq_bins": lsq(fown[pick]), "lsq_bins_q10": lsq(fq[pick]),
+            "device": dev, "device_file": dev_file}
+    out = {"seed": seed, "windows": int(len(wown)), "rest_points": int(len(fq)),
+           "bins_points": int(pick.sum())}
+    out.update({k: methods.calibration_error_mg(p, wown) for k, p in fits.items()})
+    out["output"] = methods.calibration_error_mg(None, _output_means(params_to_int(dev), wxyz,
+                                                                     wstart, wlen))
+    out["device_q10_windows"] = methods.calibration_error_mg(dev, wq)
+    out["true_q10_windows"] = methods.calibration_error_mg(fits["true"], wq)
+    for f in (whole, fit, test, whole.with_suffix(".truth.json")):
+        f.unlink(missing_ok=True)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(allow_abbrev=False, prog="python -m accelcal.studies.tenth",
+                                 description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for s in a.seeds.split(","):
+            r = run_seed(int(s), Path(tmp))
+            rows.append(r)
+            print(json.dumps(r) if a.json else f"seed {s}: " + "  ".join(
+                f"{c} {r[c]:.3f}" for c in COLUMNS) + f"  (device / true {r['device'] / r['true']:.2f})",
+                flush=True)
+    if not a.json:
+        m = {c: float(np.mean([r[c] for r in rows])) for c in (*COLUMNS, "device_q10_windows")}
+        print(f"mean mg: " + "  ".join(f"{c} {m[c]:.3f}" for c in COLUMNS))
+        print(f"shares, mg: the bins' points {m['lsq_bins'] - m['lsq_all']:+.3f}, the Q10 "
+              f"rounding in the fit's points {m['device'] - m['lsq_bins']:+.3f}, the output's "
+              f"rounding {m['output'] - m['device']:+.3f} (the input's Q10 rounding carried "
+              f"through {m['device_q10_windows'] - m['device']:+.3f}, the Q13 output format "
+              f"{m['output'] - m['device_q10_windows']:+.3f}); device / true {m['device'] / m['true']:.2f}, "
+              f"device_file / true {m['device_file'] / m['true']:.2f}", file=sys.stdout)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
