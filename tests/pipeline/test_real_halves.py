@@ -107,6 +107,19 @@ def test_the_default_calibration_held_out_at_or_below_lsq_on_every_training_poin
     assert err < fits[which]["device"], (err, fits[which])   # and below the paper's model
 
 
+# The peers' held-out figures on this day, by time halves, as issue 50 states them (measured
+# there on the raw demo.bin, which is not shipped: scikit-digital-health 5.33 mg; actipy did
+# not fit).  Not re-measured here: the bound is the issue's figure.
+SKDH_HELD_OUT_MG = 5.33
+
+
+@pytest.mark.parametrize("which", ["first", "second"])
+def test_the_default_held_out_below_the_peers_figures_by_time_halves(default_fits, which):
+    """The default's held-out error trained on either time half (measured 28 Nov 2026: 2.78 mg
+    each) below scikit-digital-health's 5.33 mg (the issue's, by time halves)."""
+    assert default_fits[which][1] < SKDH_HELD_OUT_MG
+
+
 @pytest.mark.parametrize("which", ["first", "second"])
 def test_compare_split_by_time_halves_gives_these_figures(fits, capsys, which):
     """`accelcal compare --split first-half|second-half --json` (main(argv)) on the points file:
