@@ -103,6 +103,10 @@ def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     from accelcal.pipeline.compare import composed_config
     composed = replace(job, model=AUTO_MODEL, cfg=composed_config(job.cfg),
                        points="all" if job.method == "lsq" else job.points)
+    if _without_temperature(path):   # known from the header: no scan spent on the composed try
+        rec = calibrate_file(path, replace(job, model="base"), progress)
+        rec["auto"] = f"the paper's model: {AUTO_MODEL} does not apply (no temperature column)"
+        return rec
     try:
         rec = calibrate_file(path, composed, progress)
         if rec.ok:
@@ -115,6 +119,17 @@ def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     rec = calibrate_file(path, replace(job, model="base"), progress)
     rec["auto"] = f"the paper's model: {why}"
     return rec
+
+
+def _without_temperature(path) -> bool:
+    """A recording whose header says it has no temperature: a CSV, a .cwa (its first block) or
+    samples in memory; other formats are read whole to know, so they are not asked here."""
+    from accelcal.files.readers import in_memory, is_recording
+    if not (in_memory(path) or str(path).lower().endswith((".csv", ".cwa"))) \
+            or not is_recording(path):
+        return False
+    from accelcal.files.recordings import open_recording
+    return not open_recording(path).has_temp
 
 
 @documented
