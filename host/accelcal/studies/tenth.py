@@ -14,8 +14,12 @@ for every fit.  Per seed, in mg:
   device     the device's fit (the default's points and integers: `calibrate --model base`)
   device_file  the device's fit offered the file's values' means instead (what keeping the
              samples unrounded until the means would give)
+  device_dither  the device's fit offered means of Q10 samples rounded with a deterministic
+             dither (floor(g * 1024 + frac(i * PHI)), i the sample's index in the file): a
+             candidate fix that keeps the Q10 sample format
   output     the device's parameters through `apply`'s path (the Q10 samples in, the device's
              Q13 output), each window's mean of the output scored: the written output
+  output_dither  the same with the dithered Q10 samples in
 
 Shares: the bins' points (lsq_bins - lsq_all), the Q10 rounding in the fit's points (device -
 lsq_bins) and the output's rounding (output - device: the input samples' Q10 rounding carried
@@ -37,7 +41,9 @@ import numpy as np
 
 from acal.core import fixed
 
-COLUMNS = ("true", "lsq_all", "lsq_bins", "lsq_bins_q10", "device", "device_file", "output")
+COLUMNS = ("true", "lsq_all", "lsq_bins", "lsq_bins_q10", "device", "device_file", "device_dither",
+           "output", "output_dither")
+PHI = (5 ** 0.5 - 1) / 2   # the dither's step: i * PHI mod 1 spreads evenly over any window
 
 
 def _windows(path: Path, strict: bool):
@@ -56,9 +62,12 @@ def _windows(path: Path, strict: bool):
     start = sc.segments.end[keep] + 1 - sc.length
     cs = np.vstack([np.zeros((1, 3)), np.cumsum(xyz, axis=0)])
     own = (cs[start + sc.length] - cs[start]) / sc.length
+    d = np.floor(xyz * fixed.SAMPLE_ONE_G + (np.arange(len(xyz)) * PHI % 1.0)[:, None])
+    cd = np.vstack([np.zeros((1, 3)), np.cumsum(d, axis=0)])
+    dith = (cd[start + sc.length] - cd[start]) / sc.length / fixed.SAMPLE_ONE_G
     mag = np.linalg.norm(q, axis=1)
     ok = (mag > 0.5) & (mag < 1.5)
-    return q[ok], own[ok], start[ok], sc.length, xyz
+    return q[ok], own[ok], start[ok], sc.length, xyz, dith[ok], d / fixed.SAMPLE_ONE_G
 
 
 def _output_means(p_int, xyz, start, length) -> np.ndarray:
@@ -80,24 +89,27 @@ def run_seed(seed: int, workdir: Path) -> dict:
     truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE, seed,
                                   effect=[])
     heldout.split(whole, fit, test)
-    wq, wown, wstart, wlen, wxyz = _windows(test, True)
-    fq, fown, _, _, _ = _windows(fit, False)
+    wq, wown, wstart, wlen, wxyz, _, wdith = _windows(test, True)
+    fq, fown, _, _, _, fdith, _ = _windows(fit, False)
     cfg = runtime.Config.for_profile("wear", False)
     dev, sel, why = compare.device_fit(fq, cfg)
     if why:
         raise RuntimeError(why)
     rows = {tuple(r) for r in np.asarray(sel)}
     pick = np.array([tuple(r) in rows for r in fq])
-    dev_file, _, why = compare.device_fit(fown, cfg)
+    dev_file, _, _ = compare.device_fit(fown, cfg)
+    dev_dither, _, _ = compare.device_fit(fdith, cfg)
     lsq = methods.METHODS["lsq"]
     fits = {"true": np.array([truth["params"][n] for n in fixed.PARAM_NAMES]),
             "lsq_all": lsq(fown), "lsq_bins": lsq(fown[pick]), "lsq_bins_q10": lsq(fq[pick]),
-            "device": dev, "device_file": dev_file}
+            "device": dev, "device_file": dev_file, "device_dither": dev_dither}
     out = {"seed": seed, "windows": int(len(wown)), "rest_points": int(len(fq)),
            "bins_points": int(pick.sum())}
     out.update({k: methods.calibration_error_mg(p, wown) for k, p in fits.items()})
     out["output"] = methods.calibration_error_mg(None, _output_means(params_to_int(dev), wxyz,
                                                                      wstart, wlen))
+    out["output_dither"] = methods.calibration_error_mg(None, _output_means(
+        params_to_int(dev_dither), wdith, wstart, wlen))   # already on the Q10 grid: rint keeps it
     out["device_q10_windows"] = methods.calibration_error_mg(dev, wq)
     out["true_q10_windows"] = methods.calibration_error_mg(fits["true"], wq)
     for f in (whole, fit, test, whole.with_suffix(".truth.json")):
@@ -122,6 +134,8 @@ def main(argv=None) -> int:
                 flush=True)
     if not a.json:
         m = {c: float(np.mean([r[c] for r in rows])) for c in (*COLUMNS, "device_q10_windows")}
+        print(f"dithered Q10: device_dither / true {m['device_dither'] / m['true']:.2f}, "
+              f"output_dither / true {m['output_dither'] / m['true']:.2f}")
         print(f"mean mg: " + "  ".join(f"{c} {m[c]:.3f}" for c in COLUMNS))
         print(f"shares, mg: the bins' points {m['lsq_bins'] - m['lsq_all']:+.3f}, the Q10 "
               f"rounding in the fit's points {m['device'] - m['lsq_bins']:+.3f}, the output's "
