@@ -138,9 +138,9 @@ def add_parsers(sub) -> None:
                    help="recording (CSV t,x,y,z[,temp][,NAME...]; Axivity .cwa, GENEActiv .bin, ActiGraph "
                         ".gt3x) or points CSV; several make a batch")
     p.add_argument("--model", default=None,
-                   help="model spec: auto (default, --method device: base+temp_offset where the data "
-                        "has temperature and that fit calibrates, else base), base (the paper's 9 "
-                        "parameters; the float methods', --by's, --discover's default) or base+EFFECT[+EFFECT...] "
+                   help="model spec: auto (default, --method device: base+temp_offset where the "
+                        "data has temperature and that fit calibrates, else base), base (the paper's "
+                        "9; default of float methods, --by, --discover) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
                         "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "

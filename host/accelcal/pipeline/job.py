@@ -91,7 +91,6 @@ class Job:
         return spec
 
 
-
 def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     """`--model auto`: the GGIR family's default, a temperature offset beside the paper's model
     where the data has temperature (base+temp_offset, fitted with the composed model's settings:
@@ -188,7 +187,8 @@ def calibrate(path, *, model: str | None = None, method: str = "device", profile
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
     and after (mg) and, for a recording, its quality.  model: a spec, "auto" (calibrate_auto),
-    or None, the default: auto for the device method, base for the float methods (Job.of).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
+    or None, the default: auto for the device method, base for the float methods (Job.of).
+    settings: Job.of's (engine, cfg, or runtime.Config fields)."""
     from accelcal.files.arrays import as_input
     path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,
