@@ -27,7 +27,10 @@ through the apply, device scored on the Q10 windows - device, and the Q13 output
 rest).  A float experiment on the host; the
 device code is what `calibrate` runs.
 
-    python -m accelcal.studies.tenth [--seeds 1,2,3] [--json]
+With --auto, also the default's auto model over the paper's model (auto_over_base_q10, and
+_dither with both fitted on dithered Q10 means), on the file's own values.
+
+    python -m accelcal.studies.tenth [--seeds 1,2,3] [--auto] [--json]
 """
 from __future__ import annotations
 
@@ -47,14 +50,15 @@ PHI = (5 ** 0.5 - 1) / 2   # the dither's step: i * PHI mod 1 spreads evenly ove
 
 
 def _windows(path: Path, strict: bool):
-    """(Q10 means g, the file's own means g, each window's first sample, length): the strict
-    still windows (heldout's rule) or the wear profile's kept rest segments."""
+    """(Q10 means g, the file's own means g, each window's first sample, length, the file's
+    samples g, dithered Q10 means g, the dithered samples g, (t s, temp degC) of each window):
+    the strict still windows (heldout's rule) or the wear profile's kept rest segments."""
     import pyarrow.csv as pacsv
     from accelcal.files.recordings import open_recording
     from accelcal.pipeline.scan import scan
     from accelcal.studies import heldout
     thr = int(np.ceil(heldout.STRICT_G * fixed.SAMPLE_ONE_G)) if strict else 0
-    sc = scan(open_recording(str(path)), 5, thr, 3)
+    sc = scan(open_recording(str(path)), 5, thr, 3, extras=True)
     keep = sc.segments.still if strict else sc.masks()["kept"]
     q = sc.segments.mean[keep] / float(fixed.POINT_ONE_G)
     tab = pacsv.read_csv(path)
@@ -67,7 +71,45 @@ def _windows(path: Path, strict: bool):
     dith = (cd[start + sc.length] - cd[start]) / sc.length / fixed.SAMPLE_ONE_G
     mag = np.linalg.norm(q, axis=1)
     ok = (mag > 0.5) & (mag < 1.5)
-    return q[ok], own[ok], start[ok], sc.length, xyz, dith[ok], d / fixed.SAMPLE_ONE_G
+    return (q[ok], own[ok], start[ok], sc.length, xyz, dith[ok], d / fixed.SAMPLE_ONE_G,
+            sc.seg_means[keep][ok][:, :2])   # each window's t s, temp degC
+
+
+def _points_fit(model: str, v, cond):
+    """The device's fit of model on points v in stream order with their (t, temp): (spec,
+    theta, reference); a composed model with the settings compare's composed row uses."""
+    from dataclasses import replace
+    from accelcal.bridge import runtime
+    from accelcal.model.effects import ModelSpec
+    from accelcal.pipeline.calibrate import Fit
+    from accelcal.pipeline.compare import composed_config
+    spec = ModelSpec.parse(model)
+    cfg = runtime.Config.for_profile("wear", False)
+    if spec.effects:
+        cfg = replace(composed_config(cfg), kinds=spec.kinds)
+        g = runtime.PointsGroup("train", points=v, temp=cond[:, 1], t=cond[:, 0])
+    else:
+        g = runtime.PointsGroup("train", points=v)
+    rec = Fit(g, runtime.run([g], cfg, "cpython")[0], cfg, spec, "device").record({})
+    if rec.get("status") != "calibrated":
+        raise RuntimeError(rec.get("reason"))
+    return spec, spec.from_int(list(rec["params_int"].values())), rec.get("reference") or {
+        "T0": 0.0, "t0": 0.0}
+
+
+def auto_over_base(fq, fdith, fcond, wown, wcond) -> dict:
+    """The default's auto model (base+temp_offset) over the paper's model, each fitted by the
+    device on the fit days' points (Q10 means, and dithered Q10 means), scored on the file's
+    own values of the strict windows."""
+    out = {}
+    for src, v in (("q10", fq), ("dither", fdith)):
+        err = {}
+        for m in ("base", "base+temp_offset"):
+            spec, theta, ref = _points_fit(m, v, fcond)
+            a = spec.correct(theta, wown, wcond[:, 1], wcond[:, 0], ref, {})
+            err[m] = float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1.0)) * 1e3)
+        out[f"auto_over_base_{src}"] = err["base+temp_offset"] / err["base"]
+    return out
 
 
 def _output_means(p_int, xyz, start, length) -> np.ndarray:
@@ -78,7 +120,7 @@ def _output_means(p_int, xyz, start, length) -> np.ndarray:
     return a.reshape(len(start), length, 3).mean(axis=1)
 
 
-def run_seed(seed: int, workdir: Path) -> dict:
+def run_seed(seed: int, workdir: Path, auto: bool = False) -> dict:
     from accelcal import methods
     from accelcal.bridge import runtime
     from accelcal.fixedpoint import params_to_int
@@ -89,8 +131,8 @@ def run_seed(seed: int, workdir: Path) -> dict:
     truth = wearer.simulate_wrist(whole, heldout.FIT_DAYS + heldout.TEST_DAYS, heldout.RATE, seed,
                                   effect=[])
     heldout.split(whole, fit, test)
-    wq, wown, wstart, wlen, wxyz, _, wdith = _windows(test, True)
-    fq, fown, _, _, _, fdith, _ = _windows(fit, False)
+    wq, wown, wstart, wlen, wxyz, _, wdith, wcond = _windows(test, True)
+    fq, fown, _, _, _, fdith, _, fcond = _windows(fit, False)
     cfg = runtime.Config.for_profile("wear", False)
     dev, sel, why = compare.device_fit(fq, cfg)
     if why:
@@ -110,6 +152,8 @@ def run_seed(seed: int, workdir: Path) -> dict:
                                                                      wstart, wlen))
     out["output_dither"] = methods.calibration_error_mg(None, _output_means(
         params_to_int(dev_dither), wdith, wstart, wlen))   # already on the Q10 grid: rint keeps it
+    if auto:
+        out.update(auto_over_base(fq, fdith, fcond, wown, wcond))
     out["device_q10_windows"] = methods.calibration_error_mg(dev, wq)
     out["true_q10_windows"] = methods.calibration_error_mg(fits["true"], wq)
     for f in (whole, fit, test, whole.with_suffix(".truth.json")):
@@ -123,14 +167,17 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--auto", action="store_true", help="also the default's auto model over the "
+                    "paper's model, fitted on Q10 and on dithered Q10 means")
     a = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for s in a.seeds.split(","):
-            r = run_seed(int(s), Path(tmp))
+            r = run_seed(int(s), Path(tmp), a.auto)
             rows.append(r)
             print(json.dumps(r) if a.json else f"seed {s}: " + "  ".join(
-                f"{c} {r[c]:.3f}" for c in COLUMNS) + f"  (device / true {r['device'] / r['true']:.2f})",
+                f"{c} {r[c]:.3f}" for c in COLUMNS) + f"  (device / true {r['device'] / r['true']:.2f})"
+                + "".join(f"  {k} {r[k]:.3f}" for k in r if k.startswith("auto_")),
                 flush=True)
     if not a.json:
         m = {c: float(np.mean([r[c] for r in rows])) for c in (*COLUMNS, "device_q10_windows")}
