@@ -283,7 +283,7 @@ def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
 
 
 def test_a_discovering_pipeline_has_the_room_from_the_start():
-    """Made with discover=True, a wear-profile pipeline's bins take 8 points a subset (what its
+    """Made with a Plug (discovery), a wear-profile pipeline's bins take 8 points a subset (what its
     BOOT record says) in room for 14, and its fit points and fits (the model's, the
     discovery's two) take 126: nothing is allocated when it adopts."""
     pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
