@@ -131,7 +131,7 @@ def test_apply_stays_small_in_every_composition_and_order():
     tr = Tracer()
     T = traced(tr)
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
-    calibration.int = lambda v: v   # viper's cast in _apply_block: the traced ints pass
+    calibration.int = lambda v: v   # viper's cast in _apply_composed: the traced ints pass
     try:
         # +-2 and +-16 g: the readings' bound is one at every range, and of the products that
         # change with it only q v^2's grows, largest at 16 g (test_apply_path_stays_small_at_the_
@@ -142,7 +142,8 @@ def test_apply_stays_small_in_every_composition_and_order():
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
             cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
-            cal.w = [0, 0, 0]                 # a list: what is stored there stays traced
+            cal.w = [0, 0, 0]                 # lists: what is stored there stays traced
+            cal.terms = [0] * len(cal.terms)
             for temp, time, supply in ((-400, -(10 ** 7), -(10 ** 6)), (400, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
                 cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)

@@ -270,52 +270,75 @@ def apply_params(kind, p, j, k, m):
         k[m + i] = (p[j + i] + half) >> shift
 
 
-def offset_sample(k, m, w, r, e=0):
-    """A generic offset's per-sample form: w -= k r, r its regressor >> 4 (Q12, <= 2**16), k in
-    Q16 (apply_params), w in Q(14 - e) g (e: the full scale's shift, fixed.py)."""
-    s = 14 + e
+# The apply's forms: what an effect does to a reading w (Q(14 - e) g) once the block's conditions
+# (dT, dt, dV, the step: constant within a block, the feeder sets them per block) are known,
+# with three per-axis terms a (block_terms):
+#   FORM_OFFSET     w -= a                   a: the offset, Q(14 - e) g
+#   FORM_SCALE      w -= (a w) >> 18         a: the gain, Q18 (TEMP_SCALE's (k dT) >> 6)
+#   FORM_NONLINEAR  w -= (a ((s s) >> (10 + e))) >> 14   a: q in Q18 per g, s the reading (Q10 g)
+# Each a is the very integer the per-sample form made, so the block's apply is bit-identical to it.
+FORM_OFFSET = const(1)
+FORM_SCALE = const(2)
+FORM_NONLINEAR = const(3)
+
+
+def block_terms(kind, k, m, out, at, dT, dt, ts=0, dV=0, e=0):
+    """Effect `kind`'s form and terms (per-sample parameters k[m:m+3]) at the conditions dT (Q2
+    degC), dt (64 s units), the step's time ts and dV (mV), into out[at] (the form) and
+    out[at+1:at+4] (the terms, above), at the full scale's shift e; clamped as the formats say."""
+    if kind in SHAPES:   # is_generic(), inline
+        r = regressor(kind, dT, dt, ts, dV) >> 4   # Q12, <= 2**16
+        form = FORM_OFFSET
+        s = 14 + e
+    else:
+        if dT > APPLY_DT_MAX:
+            dT = APPLY_DT_MAX
+        elif dT < -APPLY_DT_MAX:
+            dT = -APPLY_DT_MAX
+        if kind == TEMP_OFFSET:
+            form, r, s = FORM_OFFSET, dT, 6 + e
+        elif kind == TEMP_OFFSET2:   # dT^2 <= 2**14; |k| <= 2**11 at 2x the bound: < 2**26
+            form, r, s = FORM_OFFSET, dT * dT, 10 + e
+        elif kind == DRIFT:
+            if dt > APPLY_TIME_MAX:
+                dt = APPLY_TIME_MAX
+            elif dt < -APPLY_TIME_MAX:
+                dt = -APPLY_TIME_MAX
+            form, r, s = FORM_OFFSET, dt, 11 + e
+        elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
+            form, r, s = FORM_SCALE, dT, 6
+        else:                        # NONLINEAR: v^2 in Q(10 - e) g^2 <= 2**16, k v^2 < 2**30
+            form, r, s = FORM_NONLINEAR, 1, 0
+    out[at] = form
     for i in range(3):
-        w[i] -= (k[m + i] * r) >> s
+        out[at + 1 + i] = (k[m + i] * r) >> s
+
+
+def apply_terms(t, at, w, x, y, z, e=0):
+    """One effect's form and terms t[at:at+4] (block_terms) applied to the reading w (list of 3,
+    Q(14 - e) g), x y z the sample (Q10 g): the per-sample reading of what the apply's viper loop
+    (calibration._apply_composed) does."""
+    form = t[at]
+    for i in range(3):
+        a = t[at + 1 + i]
+        if form == FORM_OFFSET:
+            w[i] -= a
+        elif form == FORM_SCALE:
+            w[i] -= (a * w[i]) >> 18
+        else:
+            s = x if i == 0 else (y if i == 1 else z)
+            w[i] -= (a * ((s * s) >> (10 + e))) >> 14
 
 
 def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
     within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
     shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result); ts: a step's
-    time (as dt); dV: the board's integer (mV from its reference)."""
-    if kind in SHAPES:   # is_generic(), inline: per point / per sample
-        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4, e)
-        return
-    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
-        if dT > APPLY_DT_MAX:
-            dT = APPLY_DT_MAX
-        elif dT < -APPLY_DT_MAX:
-            dT = -APPLY_DT_MAX
-    if kind == TEMP_OFFSET:
-        for i in range(3):
-            w[i] -= (k[m + i] * dT) >> (6 + e)
-    elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
-        for i in range(3):
-            w[i] -= (((k[m + i] * dT) >> 6) * w[i]) >> 18
-    elif kind == DRIFT:
-        if dt > APPLY_TIME_MAX:
-            dt = APPLY_TIME_MAX
-        elif dt < -APPLY_TIME_MAX:
-            dt = -APPLY_TIME_MAX
-        for i in range(3):
-            w[i] -= (k[m + i] * dt) >> (11 + e)
-    elif kind == NONLINEAR:      # v^2 in Q(10 - e) g^2: <= 2**16 at +-16 g, k v^2 < 2**30
-        s = x
-        for i in range(3):
-            if i == 1:
-                s = y
-            elif i == 2:
-                s = z
-            w[i] -= (k[m + i] * ((s * s) >> (10 + e))) >> 14
-    elif kind == TEMP_OFFSET2:
-        sq = dT * dT             # <= 2**14; |k| <= 2**11 at 2x the bound: the product < 2**26
-        for i in range(3):
-            w[i] -= (k[m + i] * sq) >> (10 + e)
+    time (as dt); dV: the board's integer (mV from its reference).  block_terms then
+    apply_terms."""
+    t = [0, 0, 0, 0]
+    block_terms(kind, k, m, t, 0, dT, dt, ts, dV, e)
+    apply_terms(t, 0, w, x, y, z, e)
 
 
 # correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
