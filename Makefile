@@ -85,7 +85,8 @@ bench: setup $(STAMP_BENCH)
 # committed beside it (firmware/*/build.sh: `make -C mpy-cross` in CircuitPython 10.2.1; an
 # x86-64 Linux binary: elsewhere build it so and run `make build CP_MPY_CROSS=path/to/mpy-cross`).
 # Beside them, for each MicroPython board with an arch (boards/: pico, esp32), build/BOARD/ with
-# its .mpy, a mip package.json and a freeze manifest.py (host/accelcal/cli/build.py).
+# its .mpy, a mip package.json and a freeze manifest.py (host/accelcal/cli/build.py); the install
+# units' device/UNIT.json and device/manifests/UNIT checked against the package (tools/units.py).
 CP_MPY_CROSS := firmware/circuitpython-feather_rp2040/mpy-cross-circuitpython
 build: setup
 	@for arch in $$($(BIN)/python -c "from accelcal.bridge.rp2040 import BUILD_ARCHS; print(*BUILD_ARCHS)"); do \
@@ -97,6 +98,7 @@ build: setup
 	  echo "build/$$arch/acal: $$(find build/$$arch/acal -name '*.mpy' | wc -l) modules"; \
 	done
 	$(BIN)/python -m accelcal.cli.build build
+	$(BIN)/python tools/units.py --check
 	@rm -rf build/circuitpython
 	@cd device/acal && find . -name '*.py' -not -path '*/__pycache__/*' | sort | while read f; do \
 	  mkdir -p $(CURDIR)/build/circuitpython/acal/$$(dirname $$f); \

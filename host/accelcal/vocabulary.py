@@ -18,8 +18,9 @@ KEYWORDS: dict[str, tuple[str | None, str]] = {
                "CalibrationResult that calibrated"),
     "output": ("-o/--output", "the file written (a recording CSV: t s, x y z g, temp degC); "
                "never one of the inputs"),
-    "model": ("--model", "the model: base (Farago 2024's 9 parameters) or base+EFFECT[+...] "
-              "(accelcal.CATALOGUE, e.g. base+temp_offset)"),
+    "model": ("--model", "the model: base (Farago 2024's 9 parameters), base+EFFECT[+...] "
+              "(accelcal.CATALOGUE, e.g. base+temp_offset) or, for calibrate, auto "
+              "(base+temp_offset where the data has temperature, else base: its default)"),
     "method": ("--method", "the fit: device (the device's integer fit) or a float method: lsq, "
                "de, linauto, linminvar, campolo, merayo, minvol"),
     "methods": ("--methods", "the methods compared: a list, or a comma-separated string "

@@ -6,8 +6,6 @@ host side's bad-input paths: one line, exit status 2."""
 import json
 import os
 import pty
-import subprocess
-import sys
 import tty
 
 import numpy as np
@@ -15,7 +13,7 @@ import pytest
 
 import test_app
 from accelcal.board import virtual
-from conftest import ROOT, run_cli
+from conftest import ROOT, mpremote, run_cli
 
 RATE = 10
 
@@ -32,12 +30,6 @@ def board(tmp_path_factory):
         b.dir = d
         yield b
 
-
-def mpremote(port, *args):
-    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
-                       capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr
-    return p.stdout
 
 
 def test_deploy_acquire_pull_replay_bit_for_bit(board):

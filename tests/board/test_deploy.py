@@ -5,7 +5,6 @@ board-side swap also on a package with subfolders (issue 48's layout), under Mic
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +14,8 @@ import test_app
 from accelcal.board import settings, tree, virtual
 from accelcal.bridge import runtime
 from accelcal.errors import InputError
-from conftest import ROOT, run_cli
+from conftest import ROOT, mpremote, run_cli
 
-
-def mpremote(port, *args):
-    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
-                       capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr
-    return p.stdout
 
 
 def test_deploy_over_sources_and_an_orphan_leaves_only_the_package(tmp_path):

@@ -100,7 +100,7 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
     from accelcal.bridge import boardlog
     script = test_discover._stream(tmp_path, "hidden", test_discover.C_TRUE)
     text = script.read_text()
-    variants = {"discover": text, "plain": text.replace("discover=True", "discover=False"),
+    variants = {"discover": text, "plain": text.replace('{"discover": True}', '{"discover": False}'),
                 "held_from_start": text.replace("    buf = array(", "    p.pipe.early = False\n    buf = array(", 1)}
     assert len({variants[k] for k in variants}) == 3
     first = {}

@@ -2,15 +2,13 @@
 emulated chip's USB CDC on a pseudo-terminal, and `deploy`, `acquire` and `pull` use that port as
 a Pico's, unchanged.  What the board logged replays on the host bit for bit."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from accelcal.board import virtual
 from accelcal.simulate.stimulus import calibration_dance
-from conftest import run_cli, run_main
+from conftest import mpremote, run_cli, run_main
 
 TRUTH = [1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04]
 
@@ -24,12 +22,6 @@ def emulator():
     except InputError as e:
         pytest.skip(f"emulated RP2040 not available: {e}")
 
-
-def mpremote(port, *args):
-    p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
-                       capture_output=True, text=True, timeout=300)
-    assert p.returncode == 0, p.stderr
-    return p.stdout
 
 
 def session(tmp_path, app_args, seconds):

@@ -1,21 +1,15 @@
 """The LIS3DH on the emulated Pico's I2C0 (bridge/scripts/lis3dh.mjs): one chip behaviour, held to
 the virtual board's Python model (simulate/chip/vlis3dh.py) register operation by register
 operation; then the app on boards/pico.py, unchanged, reading it through the real machine.I2C."""
-import json
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from accelcal.locations import CHIP_DIR, script
 from accelcal.simulate.stimulus import calibration_dance, write_stimulus
 from conftest import ROOT, emulated_chip
 
-sys.path.insert(0, str(CHIP_DIR))
-from vclock import Clock  # noqa: E402
-from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
+from lis3dh_models import js_model, python_model
 
 # register addresses (datasheet DocID17530), written out here rather than taken from either model
 CTRL1, CTRL4, CTRL5, TEMP_CFG, FIFO_CTRL = 0x20, 0x23, 0x24, 0x1F, 0x2E
@@ -72,21 +66,6 @@ def random_ops(rng, n_ops=2500):
     return ops
 
 
-def python_model(stim, ops):
-    clock = Clock()
-    chip = SimLIS3DH(Stimulus(str(stim)), clock)
-    reads = []
-    for t, op, reg, arg in ops:
-        clock.set_us(t)
-        if op == "w":
-            chip.write(reg, bytes(arg), 0, len(arg))
-        else:
-            buf = bytearray(arg)
-            chip.read(reg, buf, 0, arg)
-            reads.append(list(buf))
-    return {"reads": reads, "dropped": chip.dropped}
-
-
 @pytest.fixture(scope="module")
 def node():
     if not shutil.which("node"):
@@ -102,11 +81,7 @@ def test_js_model_reads_what_the_python_model_reads(tmp_path, node, rng):
     stim = tmp_path / "stim.bin"
     write_stimulus(stim, 400, xyz, 20 + 0.001 * np.arange(n))
     ops = random_ops(rng)
-    (tmp_path / "ops.json").write_text(json.dumps(ops))
-    p = subprocess.run([node, script("lis3dh.mjs"), "--ops", str(tmp_path / "ops.json"),
-                        "--stimulus", str(stim)], capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr
-    js = json.loads(p.stdout)
+    js = js_model(stim, ops, tmp_path)
     py = python_model(stim, ops)
     assert len(js["reads"]) == len(py["reads"]) > 1000
     first = next((i for i, (a, b) in enumerate(zip(js["reads"], py["reads"])) if a != b), None)

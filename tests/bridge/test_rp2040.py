@@ -3,14 +3,13 @@ package installed as armv6m .mpy files, gives the same integers as CPython: both
 point set, a composed model on a simulated wrist recording's rest points, and a short recording
 fed sample by sample over the emulated USB.  The emulator runs ~20-70 M cycles a wall second, so
 each case is kept to a few emulated seconds."""
-import json
 
 import numpy as np
 import pytest
 
 from accelcal.bridge import rp2040, runtime
 from accelcal.errors import InputError
-from conftest import emulated_chip, run_main
+from conftest import calibrate_both, emulated_chip, temp_offset_points
 
 
 @pytest.fixture(scope="session")
@@ -35,31 +34,8 @@ def test_cycles_are_counted(chip):
     assert loop > short + 2000 * 10              # every bytecode costs cycles
 
 
-def calibrate_both(capsys, *argv):
-    """The same calibrate under CPython and on the chip: (CPython's record, the chip's), each
-    without its runtime field; the exit status must be the same."""
-    records, codes = {}, {}
-    for rt in ("cpython", "rp2040"):
-        code, out, err = run_main(capsys, ["calibrate", *map(str, argv), "--runtime", rt, "--json"])
-        assert code in (0, 2) and out, err
-        rec = json.loads(out)
-        assert rec.pop("runtime") == rt
-        records[rt], codes[rt] = rec, code
-    assert codes["rp2040"] == codes["cpython"]
-    return records["cpython"], records["rp2040"]
-
-
-@pytest.fixture(scope="module")
-def paper_points(tmp_path_factory):
-    pts = tmp_path_factory.mktemp("paper") / "pts.csv"
-    from accelcal import cli
-    assert cli.main(["simulate", "paper", "--noise-mg", "1", "--scenarios", "1", "--seed", "7",
-                     "-o", str(pts)]) == 0
-    return pts
-
-
 def test_calibrate_on_the_chip_equals_cpython(paper_points, chip, capsys):
-    cp, rp = calibrate_both(capsys, paper_points, "--by", "device")
+    cp, rp = calibrate_both(capsys, "rp2040", paper_points, "--by", "device")
     assert rp == cp
     assert cp["points"] >= 18 and cp["status"] == "calibrated" and cp["profile"] == "wear"
 
@@ -67,7 +43,7 @@ def test_calibrate_on_the_chip_equals_cpython(paper_points, chip, capsys):
 def test_paper_profile_on_the_chip_equals_cpython(paper_points, chip, capsys):
     """The paper's gradient descent (18 points, 50 iterations: ~3.7 emulated s, its longs past
     2^30 allocated on the chip's heap and collected)."""
-    cp, rp = calibrate_both(capsys, paper_points, "--by", "device", "--profile", "paper")
+    cp, rp = calibrate_both(capsys, "rp2040", paper_points, "--by", "device", "--profile", "paper")
     assert rp == cp
     assert cp["points"] == 18 and cp["status"] == "calibrated" and cp["profile"] == "paper"
 
@@ -77,16 +53,8 @@ def test_composed_model_on_the_chip_equals_cpython(tmp_path, chip, capsys):
     offset (tests/pipeline/test_diagnose.py takes every 8th for the unix port; the fits, not the points,
     cost the chip's time): bins spread in temperature and time, the base fit, then the composed
     Gauss-Newton fit, all on the chip."""
-    from accelcal import cli
-    from accelcal.pipeline.restpoints import rest_points
-    rec = tmp_path / "day.csv"
-    assert cli.main(["simulate", "wrist", "--days", "1", "--rate", "10", "--seed", "17",
-                     "--effect", "temp_offset", "-o", str(rec)]) == 0
-    p = rest_points(str(rec))
-    pts = tmp_path / "points.csv"
-    np.savetxt(pts, np.column_stack([p.v, p.t, p.temp])[::32], delimiter=",", fmt="%.6f",
-               header="x,y,z,t,temp", comments="")
-    cp, rp = calibrate_both(capsys, pts, "--model", "base+temp_offset")
+    pts = temp_offset_points(tmp_path)
+    cp, rp = calibrate_both(capsys, "rp2040", pts, "--model", "base+temp_offset")
     assert rp == cp
     assert cp["status"] == "calibrated" and cp["model"] == "base+temp_offset"
     assert len(cp["params_int"]) == 12          # the nine and temp_offset's three
@@ -100,7 +68,7 @@ def test_recording_sample_by_sample_on_the_chip_equals_cpython(tmp_path, chip, c
     rec = tmp_path / "short.csv"
     assert cli.main(["simulate", "wrist", "--days", "0.002", "--rate", "25", "--seed", "3",
                      "-o", str(rec)]) == 0
-    cp, rp = calibrate_both(capsys, rec, "--engine", "device")
+    cp, rp = calibrate_both(capsys, "rp2040", rec, "--engine", "device")
     assert rp == cp
     assert cp["rest_points"] > 5 and "4320 samples" in cp["reason"], cp
 

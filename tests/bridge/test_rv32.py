@@ -5,14 +5,13 @@ at every full scale and the fits with the heap locked (0 bytes allocated), and t
 functions whose viper shifts once passed 31 (bridge/ranges.py) at the edges of their domains -
 here a shift by 32 is no shift (`1000 >> 32` is 1000), as on an Xtensa ESP32.  Skipped, in one
 line saying how to install it, where qemu is absent."""
-import json
 
 import numpy as np
 import pytest
 
 from accelcal.bridge import runtime, rv32
 from accelcal.errors import InputError
-from conftest import run_main
+from conftest import calibrate_both, temp_offset_points
 
 
 @pytest.fixture(scope="module")
@@ -84,29 +83,10 @@ def test_shifts_past_31_give_cpythons_integers_on_rv32(board):
     assert rv32.run_script(EDGES, timeout=60).split() == on_cpython(EDGES)
 
 
-def calibrate_both(capsys, *argv):
-    records = {}
-    for rt in ("cpython", "rv32"):
-        code, out, err = run_main(capsys, ["calibrate", *map(str, argv), "--runtime", rt, "--json"])
-        assert code == 0 and out, err
-        rec = json.loads(out)
-        assert rec.pop("runtime") == rt
-        records[rt] = rec
-    return records["cpython"], records["rv32"]
-
-
-@pytest.fixture(scope="module")
-def paper_points(tmp_path_factory):
-    from accelcal import cli
-    pts = tmp_path_factory.mktemp("paper") / "pts.csv"
-    assert cli.main(["simulate", "paper", "--noise-mg", "1", "--scenarios", "1", "--seed", "7",
-                     "-o", str(pts)]) == 0
-    return pts
-
-
 @pytest.mark.parametrize("profile", ["wear", "paper"])
 def test_both_profiles_on_rv32_equal_cpython(paper_points, board, capsys, profile):
-    cp, rv = calibrate_both(capsys, paper_points, "--by", "device", "--profile", profile)
+    cp, rv = calibrate_both(capsys, "rv32", paper_points, "--by", "device", "--profile", profile,
+                            codes=(0,))
     assert rv == cp
     assert cp["status"] == "calibrated" and cp["profile"] == profile
 
@@ -135,16 +115,8 @@ def test_composed_model_on_rv32_equals_cpython(tmp_path, board, capsys):
     offset (as tests/bridge/test_rp2040.py): the bins, the base fit and the composed fit, through
     `calibrate` (slow: ~8 s, most of it simulating the day; the default suite's composed fits
     and apply are the heap-locked test's)."""
-    from accelcal import cli
-    from accelcal.pipeline.restpoints import rest_points
-    rec = tmp_path / "day.csv"
-    assert cli.main(["simulate", "wrist", "--days", "1", "--rate", "10", "--seed", "17",
-                     "--effect", "temp_offset", "-o", str(rec)]) == 0
-    p = rest_points(str(rec))
-    pts = tmp_path / "points.csv"
-    np.savetxt(pts, np.column_stack([p.v, p.t, p.temp])[::32], delimiter=",", fmt="%.6f",
-               header="x,y,z,t,temp", comments="")
-    cp, rv = calibrate_both(capsys, pts, "--model", "base+temp_offset")
+    pts = temp_offset_points(tmp_path)
+    cp, rv = calibrate_both(capsys, "rv32", pts, "--model", "base+temp_offset", codes=(0,))
     assert rv == cp
     assert cp["status"] == "calibrated" and len(cp["params_int"]) == 12
 

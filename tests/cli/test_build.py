@@ -12,7 +12,9 @@ import numpy as np
 import test_app
 from accelcal.board import deploy, tree, virtual
 from accelcal.cli.build import build_board, default_settings
-from conftest import ROOT
+from accelcal.locations import DEVICE_UNITS
+from conftest import ROOT, mpremote
+from test_units import frozen
 
 DEVICE = ROOT / "device" / "acal"
 
@@ -33,11 +35,13 @@ def test_each_board_gets_mpy_a_package_json_and_a_manifest(tmp_path):
         assert (d / "main.py").read_text() == deploy.main_py(app)
         rec = json.loads((d / "acal_settings.json").read_text())
         assert rec["options"] == options and rec["app"] == app and rec["board"] == board
-        man = (d / "freeze" / "manifest.py").read_text()
-        assert 'package("acal")' in man and 'module("acal_board.py")' in man
-        frozen = sorted(p.relative_to(d / "freeze" / "acal").as_posix()
-                        for p in (d / "freeze" / "acal").rglob("*.py"))
-        assert frozen == sorted(p.as_posix() for p in tree.package_sources(False))
+        # the firmware freezes the units the default settings run (core, logger) and the board file
+        assert frozen(d / "freeze" / "manifest.py", tmp_path / "mf") == \
+            sorted(f"acal/{p.as_posix()}" for p in tree.package_sources(False, units=("core", "logger"))) + ["acal_board.py"]
+        assert all((d / "freeze" / "manifests" / u / "manifest.py").is_file() for u in DEVICE_UNITS)
+        sources = sorted(p.relative_to(d / "freeze" / "acal").as_posix()
+                         for p in (d / "freeze" / "acal").rglob("*.py"))
+        assert sources == sorted(p.as_posix() for p in tree.package_sources(False))
         # the hot loops frozen as viper, as the .mpy have them
         marked = [p for p in DEVICE.rglob("*.py") if "\n@viper\n" in p.read_text()
                   or "    @viper\n" in p.read_text()]
@@ -50,12 +54,6 @@ def test_the_mip_route_runs_what_deploy_runs(tmp_path):
     stim = tmp_path / "stim.bin"
     test_app.stimulus(stim, np.random.default_rng(2), n_rest=4)
     flash = tmp_path / "flash"
-
-    def mpremote(port, *args):
-        p = subprocess.run([sys.executable, "-m", "mpremote", "connect", port, *args],
-                           capture_output=True, text=True, timeout=300)
-        assert p.returncode == 0, p.stderr
-        return p.stdout
 
     with virtual.Running(flash, stim) as b:
         # --target .: the board's current folder, / on a board (the unix port's flash folder)

@@ -15,6 +15,7 @@ from acal.discover import search as discover
 from acal.core import effects
 from acal.logger import log
 from acal.core.fixed import PARAM_NAMES
+from posture_stream import STREAM
 
 TRUTH = np.array([1.02, 0.98, 1.01, 0.004, -0.006, 0.003, 0.03, -0.02, 0.04])
 C_TRUE = np.array([0.0009, -0.0007, 0.0006])    # g/degC: temp_offset, the LIS3DH's size
@@ -34,44 +35,6 @@ def postures(rng, c, n=384, drift=np.zeros(3)):
         v = simulate.uncorrect(TRUTH, d[i][None, :])[0] + c * (temp - 28) + drift * hours / 24
         out += [int(round(x * 1024)) for x in v] + [temp]
     return out
-
-
-STREAM = r'''
-import sys
-from array import array
-from acal.logger import log
-from acal.logger.processor import Processor
-
-REST = %s
-GAP = %d
-
-
-def run(path):
-    lg = log.Log(path)
-    p = Processor(lg, 10, discover=True, store=log.CalStore(path + ".a", path + ".b"))
-    buf = array("i", bytearray(12 * 40))
-    seed = 12345
-    for s in range(len(REST) // 4):
-        p.temp = REST[4 * s + 3]
-        for part in range(3):            # 6 s of rest: noise of +-2 LSB (2 mg)
-            for i in range(20):
-                for c in range(3):
-                    seed = (seed * 1103515245 + 12345) & 0x7FFFFFFF
-                    buf[3 * i + c] = REST[4 * s + c] + (seed >> 16) %% 5 - 2
-            p.feed(buf, 20)
-        for i in range(20):              # 2 s of motion
-            for c in range(3):
-                buf[3 * i + c] = REST[4 * s + c] + (300 if (i + c) & 1 else -300)
-        p.feed(buf, 20)
-        p.gap(GAP)
-    while p.discovering:   # its last slices: the gaps, most of the stream's time, feed nothing
-        p.feed(buf, 20)
-    lg.close()
-    print(p.calibrations, p.kinds)
-
-
-run(sys.argv[1])
-'''
 
 
 def _stream(tmp_path, name, c, n=384, drift=np.zeros(3)):

@@ -11,45 +11,10 @@ import pytest
 
 from accelcal.bridge import runtime
 from accelcal.errors import InterpreterFailed
+from posture_stream import STREAM as SCRIPT
 from test_discover import C_TRUE, GAP_SAMPLES, postures
 
 POSTURES = 200     # 26 h of rest postures: the wear bins fill and the board calibrates
-
-SCRIPT = r'''
-import sys
-from array import array
-from acal.logger import log
-from acal.logger.processor import Processor
-
-REST = %s
-GAP = %d
-
-
-def run(path, settings):
-    lg = log.Log(path)
-    p = Processor(lg, 10, **settings)
-    buf = array("i", bytearray(12 * 40))
-    seed = 12345
-    for s in range(len(REST) // 4):
-        p.temp = REST[4 * s + 3]
-        for part in range(3):            # 6 s of rest: noise of +-2 LSB (2 mg)
-            for i in range(20):
-                for c in range(3):
-                    seed = (seed * 1103515245 + 12345) & 0x7FFFFFFF
-                    buf[3 * i + c] = REST[4 * s + c] + (seed >> 16) %% 5 - 2
-            p.feed(buf, 20)
-        for i in range(20):              # 2 s of motion
-            for c in range(3):
-                buf[3 * i + c] = REST[4 * s + c] + (300 if (i + c) & 1 else -300)
-        p.feed(buf, 20)
-        p.gap(GAP)
-    lg.close()
-    print("CALIBRATIONS", p.calibrations)
-    print("MODULES", " ".join(sorted(m for m in sys.modules if m.startswith("acal"))))
-
-
-run(sys.argv[1], eval(sys.argv[2]))
-'''
 
 
 @pytest.fixture(scope="module")

@@ -4,10 +4,8 @@
 (DocID17530) and ST's lis3dh_reg.h, written out here: register addresses, bit positions and
 mg/digit from those, not from either model or the driver.  And the old driver's fifo_level(),
 kept below as a fixture, fails on a chip that sets WTM where the datasheet does."""
-import json
 import re
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -24,6 +22,7 @@ from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
+from lis3dh_models import js_model, python_model  # noqa: E402
 
 # lis3dh_reg.h
 WHO_AM_I, TEMP_CFG, CTRL1, CTRL3, CTRL4, CTRL5 = 0x0F, 0x1F, 0x20, 0x22, 0x23, 0x24
@@ -90,30 +89,6 @@ class Script:
                        (CTRL1, ctrl1)):
             self.w(reg, v)
         return self
-
-
-def run_python(stim, s):
-    clock = Clock()
-    chip = SimLIS3DH(Stimulus(str(stim)), clock)
-    reads = []
-    for t, op, reg, arg in s.ops:
-        clock.set_us(t)
-        if op == "w":
-            chip.write(reg, bytes(arg), 0, len(arg))
-        else:
-            buf = bytearray(arg)
-            chip.read(reg, buf, 0, arg)
-            reads.append(list(buf))
-    return reads
-
-
-def run_node(stim, s, tmp_path):
-    ops = tmp_path / f"ops{len(list(tmp_path.iterdir()))}.json"
-    ops.write_text(json.dumps(s.ops))
-    p = subprocess.run(["node", script("lis3dh.mjs"), "--ops", str(ops), "--stimulus", str(stim)],
-                       capture_output=True, text=True, timeout=60)
-    assert p.returncode == 0, p.stderr
-    return json.loads(p.stdout)["reads"]
 
 
 def s16(lo, hi):
@@ -660,7 +635,7 @@ def test_the_rows_names_are_in_the_files(row):
 
 @pytest.mark.parametrize("row", ROWS, ids=[r["check"] for r in ROWS])
 def test_python_model(row, stim):
-    globals()["m_" + row["check"]](lambda s: run_python(stim, s))
+    globals()["m_" + row["check"]](lambda s: python_model(stim, s.ops)["reads"])
 
 
 @pytest.fixture(scope="module")
@@ -671,7 +646,7 @@ def node():
 
 @pytest.mark.parametrize("row", ROWS, ids=[r["check"] for r in ROWS])
 def test_node_model(row, stim, node, tmp_path):
-    globals()["m_" + row["check"]](lambda s: run_node(stim, s, tmp_path))
+    globals()["m_" + row["check"]](lambda s: js_model(stim, s.ops, tmp_path)["reads"])
 
 
 @pytest.mark.parametrize("flavour", ["micropython", "circuitpython"])

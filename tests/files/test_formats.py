@@ -174,7 +174,7 @@ def test_cwa_streams_in_pieces_to_exactly_the_whole_read(name, monkeypatch):
     tl = whole["low_frequency"]["datetime"] / 1e9
     held = whole["low_frequency"]["temperature"][np.clip(np.searchsorted(tl, t, "right") - 1, 0, None)]
     assert np.array_equal(np.concatenate([c.temp for c in chunks]), held)
-    one = json.loads(run_cli("calibrate", REAL / name, "--json").stdout)
+    one = json.loads(run_cli("calibrate", REAL / name, "--model", "base", "--json").stdout)
     monkeypatch.setattr(CwaRecording, "BLOCKS", 37)
     from accelcal.bridge import runtime
     from accelcal.pipeline.calibrate import calibrate_recording

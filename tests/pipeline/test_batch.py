@@ -79,12 +79,17 @@ def test_fallback_is_reported_not_silent(files, tmp_path):
     assert rec["fallback"] == str(params)
     saved = json.loads(params.read_text())
     assert rec["params_int"] == saved["params_int"]
-    # its error on this file: the saved parameters scored here on the kept rest means (the
-    # default profile's rest test: every axis, the threshold from the noise)
+    # the default (auto) saved the paper's model and a temperature offset (s3 has 24-35 degC):
+    # the fallback's record is that model, its error on this file the saved parameters scored
+    # here on the kept rest means (the default profile's rest test: every axis, the threshold
+    # from the noise), each offset by c (T - T0) at its own mean temperature first
+    assert saved["model"] == rec["model"] == "base+temp_offset" and rec["reference"] == saved["reference"]
     sc = scan(open_recording(morning), 5, 0, 3)
-    v = sc.segments.mean[sc.masks()["kept"]] / 65536.0
-    v = v[(np.linalg.norm(v, axis=1) > 0) ]
+    kept = sc.masks()["kept"]
+    v = sc.segments.mean[kept] / 65536.0
     p = saved["params"]
+    dT = sc.seg_temp[kept] - saved["reference"]["T0"]
+    v = v - np.outer(dT, [p["cx"], p["cy"], p["cz"]])
     K = np.array([[p["kxx"], 0, 0], [p["kxy"], p["kyy"], 0], [p["kxz"], p["kyz"], p["kzz"]]])
     a = (v + [p["ox"], p["oy"], p["oz"]]) @ K.T
     assert rec["error_after_mg"] == pytest.approx(1e3 * np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)), rel=1e-6)
@@ -92,6 +97,12 @@ def test_fallback_is_reported_not_silent(files, tmp_path):
     text = run_cli("calibrate", morning, "--fallback", params).stdout
     assert "NOT ENOUGH DATA" in text and "fallback" in text
     assert run_cli("calibrate", morning).returncode == 2   # no fallback: a failure
+    # the saved temperature offset cannot be applied to a file without temperature: one line
+    import pyarrow.csv as pacsv
+    bare = tmp_path / "bare.csv"
+    pacsv.write_csv(pacsv.read_csv(morning).drop_columns(["temp"]), bare)
+    r = run_cli("calibrate", bare, "--fallback", params)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "temperature column" in r.stderr, r.stderr
 
 
 @pytest.mark.slow   # CI's time limit (stop 37)

@@ -54,6 +54,22 @@ def test_auto_chooses_by_the_data(capsys, tmp_path):
     assert code == 2 and err.count("\n") == 1 and "--model auto" in err, err
 
 
+def test_auto_is_the_default_of_the_device_method(capsys):
+    """calibrate without --model: the auto record, byte for byte; the float methods and
+    --discover keep the paper's model by default (--model auto or base+EFFECT asks for more)."""
+    runs = {}
+    for name, opts in (("auto", ["--model", "auto"]), ("default", []), ("lsq", ["--method", "lsq"]),
+                       ("base", ["--model", "base"])):
+        code, out, err = run_main(capsys, ["calibrate", POINTS, *opts, "--json"])
+        assert code == 0, err
+        runs[name] = json.loads(out)
+    assert runs["default"] == runs["auto"] and runs["default"]["model"] == "base+temp_offset"
+    assert runs["lsq"]["model"] == "base" and "auto" not in runs["lsq"]
+    assert runs["base"]["model"] == "base" and "auto" not in runs["base"]
+    import accelcal
+    assert accelcal.calibrate(str(POINTS)).to_dict() == runs["auto"]
+
+
 @pytest.mark.slow
 def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
     """The held-back wrist benchmark's protocol (accelcal.studies.heldout: fitted on 3 days,
@@ -84,3 +100,19 @@ def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
     assert ratio <= 1.02, ratio
     hidden = scores(1, ["temp_offset"])
     assert hidden["base+temp_offset"] <= 1.15 * hidden["true"] < hidden["base"] / 3, hidden
+
+
+def test_a_recording_without_temperature_gets_the_paper_s_model_from_one_read(tmp_path):
+    """A recording whose header has no temperature: the default is the paper's model, said so,
+    with the same record as --model base (its header tells: the composed model is not tried)."""
+    import accelcal
+    import pyarrow.csv as pacsv
+    from accelcal.simulate import wearer
+    whole, bare = tmp_path / "w.csv", tmp_path / "bare.csv"
+    wearer.simulate_wrist(whole, 1, 10, 3)
+    pacsv.write_csv(pacsv.read_csv(whole).drop_columns(["temp"]), bare)
+    rec, base = accelcal.calibrate(str(bare)), accelcal.calibrate(str(bare), model="base")
+    assert rec["auto"] == ("the paper's model: base+temp_offset does not apply (no temperature "
+                           "column)")
+    assert {k: v for k, v in rec.items() if k != "auto"} == base.to_dict()
+    assert rec.ok and rec["model"] == "base"

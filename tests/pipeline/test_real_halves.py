@@ -3,8 +3,9 @@ wrist watch (sleeppy's demo.bin, tests/data/real/sleeppy/), split by time, in ha
 compare's 2-hour blocks.  Both halves cover the sphere; the device's fit reaches the optimum of
 its own points (float lsq on the same points); and the issue's criterion, the default
 calibration's held-out error at or below float lsq on every training rest point, is checked on
-each split: met trained on the second half, not met (by 0.013 and 0.14 mg) on the other two,
-where the test is marked as an expected failure that fails the suite once it passes."""
+each split: met by the default (auto, issue 50: base+temp_offset on this day) on all three; the
+paper's model by the device met it only trained on the second half (above by 0.013 and 0.14 mg
+on the other two)."""
 import numpy as np
 import pytest
 
@@ -71,15 +72,52 @@ def test_the_device_fit_reaches_the_optimum_of_its_points_on_real_wear(fits, whi
     assert abs(f["device"] - f["lsq_selected"]) <= 0.01 * f["lsq_selected"]
 
 
-@pytest.mark.parametrize("which", [
-    pytest.param("blocks", marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-        "measured 26 Nov 2026: lsq on every training point 2.49 mg, the default 2.62 mg "
-        "(docs/real-recordings.md 'Held out on real files')"))),
-    pytest.param("first", marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-        "measured 26 Nov 2026: lsq on every training point 4.421 mg, the default 4.434 mg"))),
-    "second"])
-def test_the_default_calibration_held_out_at_or_below_lsq_on_every_training_point(fits, which):
-    assert fits[which]["device"] <= fits[which]["lsq_all"]
+@pytest.fixture(scope="module")
+def default_fits(points, tmp_path_factory):
+    """Per split: the default calibration (accelcal.calibrate with no model: auto, issue 50) of
+    the training rest points written as a points file, its model, and its held-out error (mg)
+    scored with the model's own correction on the held-out points."""
+    import accelcal
+    from accelcal.model.effects import ModelSpec
+    out = {}
+    for which in ("blocks", "first", "second"):
+        train, test = halves(points, which)
+        path = tmp_path_factory.mktemp("halves") / f"{which}.csv"
+        np.savetxt(path, np.column_stack([train.v, train.temp, train.t]), delimiter=",",
+                   header="x,y,z,temp,t", comments="", fmt="%.9g")
+        rec = accelcal.calibrate(str(path))
+        assert rec.ok, rec
+        spec = ModelSpec.parse(rec["model"])
+        a = spec.correct(np.array(list(rec["params"].values())), test.v, test.temp, test.t,
+                         rec["reference"], test.cols)
+        out[which] = (rec["model"], float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3))
+    return out
+
+
+@pytest.mark.parametrize("which", ["blocks", "first", "second"])
+def test_the_default_calibration_held_out_at_or_below_lsq_on_every_training_point(
+        fits, default_fits, which):
+    """Issue 50's test: the default (auto: base+temp_offset on this day, 24.9-33.8 degC) at or
+    below float 9-parameter least squares on every training rest point, on every split, where
+    the paper's model by the device was above it on two (measured 26 Nov 2026: blocks 2.62
+    against 2.49 mg, first half 4.434 against 4.421)."""
+    model, err = default_fits[which]
+    assert model == "base+temp_offset"
+    assert err <= fits[which]["lsq_all"], (err, fits[which])
+    assert err < fits[which]["device"], (err, fits[which])   # and below the paper's model
+
+
+# The peers' held-out figures on this day, by time halves, as issue 50 states them (measured
+# there on the raw demo.bin, which is not shipped: scikit-digital-health 5.33 mg; actipy did
+# not fit).  Not re-measured here: the bound is the issue's figure.
+SKDH_HELD_OUT_MG = 5.33
+
+
+@pytest.mark.parametrize("which", ["first", "second"])
+def test_the_default_held_out_below_the_peers_figures_by_time_halves(default_fits, which):
+    """The default's held-out error trained on either time half (measured 28 Nov 2026: 2.78 mg
+    each) below scikit-digital-health's 5.33 mg (the issue's, by time halves)."""
+    assert default_fits[which][1] < SKDH_HELD_OUT_MG
 
 
 @pytest.mark.parametrize("which", ["first", "second"])

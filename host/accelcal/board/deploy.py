@@ -189,8 +189,7 @@ def deploy(port: str, board: str | None = None, settings: dict | None = None,
         raise InputError(f"{port}: board {board} is a CircuitPython board, this one runs {ident['implementation']}")
     circuitpython = info["RUNTIME"] == "circuitpython"
     wanted = units_run(settings or {}) if units == "run" else None
-    modules = [m for m in list(APP_MODULES) + (list(CIRCUITPYTHON_ONLY) if circuitpython else [])
-               if wanted is None or m == "__init__.py" or m.split("/")[0] in wanted]
+    modules = [p.as_posix() for p in tree.package_sources(circuitpython, units=wanted)]
     head = None
     if circuitpython:
         head = circuitpython_drive(r, "boot.py" in ident["files"])

@@ -6,37 +6,53 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from accelcal.locations import DEVICE_PACKAGE
+from accelcal.locations import (CIRCUITPYTHON_ONLY, DEVICE_PACKAGE, DEVICE_UNITS, module_name,
+                                package_sources, unit_of)
 
-# Modules only CircuitPython boards get (by module name, relative to acal).
-CIRCUITPYTHON_ONLY = ("lis3dh_cp",)
+__all__ = ["CIRCUITPYTHON_ONLY", "STAGE", "TARGET", "module_name", "package_sources", "stage_code",
+           "swap_code", "swap_report", "unit_of", "unit_package", "unit_manifest", "unit_files"]
+
 # Where deploy stages the new package before the swap, and where it ends up.
 STAGE = "lib/.acal-new"
 TARGET = "lib/acal"
+# Each install unit's mip package and freeze manifest, written from package_sources' walk by
+# tools/units.py and checked against it (tests/board/test_units.py).
+UNIT_JSON = "{unit}.json"                      # in device/: `mpremote mip install device/core.json`
+UNIT_MANIFEST = "manifests/{unit}/manifest.py"  # in device/: include("…/device/manifests/core")
+
+MANIFEST_HEAD = """# The install unit `{unit}` of the device package acal, for a MicroPython firmware that freezes
+# only the units its board runs: in the board's manifest (FROZEN_MANIFEST), include() this folder
+# for each unit: core and logger on every board, paper for the paper profile, discover for
+# --discover.  Written by tools/units.py from the walk deploy copies (host/accelcal/board/tree.py);
+# device/{unit}.json is the same unit for mip.  The sources as they are: `make build` writes
+# build/BOARD/freeze/ with the same units and the hot loops compiled as viper.
+"""
 
 
-def module_name(rel: Path) -> str:
-    """acal's module for a file of the package: core/fixed.py -> core.fixed, core/__init__.py ->
-    core, __init__.py -> '' (the package itself)."""
-    parts = list(rel.with_suffix("").parts)
-    if parts[-1] == "__init__":
-        parts.pop()
-    return ".".join(parts)
+def unit_files(unit: str, root: Path = DEVICE_PACKAGE) -> list[str]:
+    """A unit's files relative to the package, posix, sorted (the CircuitPython driver included:
+    mip and deploy copy it to CircuitPython boards; a MicroPython firmware's manifest leaves it)."""
+    return [p.as_posix() for p in package_sources(True, root, (unit,))]
 
 
-def package_sources(circuitpython: bool, root: Path = DEVICE_PACKAGE) -> list[Path]:
-    """The package's sources a board gets, relative to root, sorted: the whole tree (never a flat
-    list of names), without caches and, unless circuitpython, without the CircuitPython driver."""
-    out = []
-    for p in sorted(root.rglob("*.py")):
-        rel = p.relative_to(root)
-        if "__pycache__" in rel.parts:
-            continue
-        leaf = module_name(rel).rpartition(".")[2]
-        if leaf in CIRCUITPYTHON_ONLY and not circuitpython:
-            continue
-        out.append(rel)
-    return out
+def unit_package(unit: str, version: str, root: Path = DEVICE_PACKAGE) -> dict:
+    """device/UNIT.json: mip's package of one unit, its urls relative to the file itself (mip
+    and mpremote resolve a relative url against the package.json's own folder)."""
+    return {"urls": [[f"acal/{f}", f"acal/{f}"] for f in unit_files(unit, root)], "deps": [],
+            "version": version}
+
+
+def unit_manifest(unit: str, root: Path = DEVICE_PACKAGE, base: str = "../..",
+                  head: str = MANIFEST_HEAD) -> str:
+    """A unit's manifest.py as micropython-lib writes one: the units it needs include()d (core,
+    for every other unit), then package("acal", files=[...]) of its own files, from base (the
+    folder holding acal/, relative to the manifest)."""
+    files = [f for f in unit_files(unit, root)
+             if module_name(Path(f)).rpartition(".")[2] not in CIRCUITPYTHON_ONLY]
+    needs = "" if unit == DEVICE_UNITS[0] else f'include("../{DEVICE_UNITS[0]}")\n'
+    listed = "".join(f"        {f!r},\n" for f in files).replace("'", '"')
+    return (head.format(unit=unit) + needs +
+            f'package(\n    "acal",\n    files=[\n{listed}    ],\n    base_path="{base}",\n)\n')
 
 
 # Board-side helpers (MicroPython and CircuitPython alike: os.listdir and os.stat, no ilistdir).

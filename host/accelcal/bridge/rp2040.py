@@ -61,6 +61,12 @@ ROMFS_BYTES = 192 * 1024
 MICROPYTHON_ROMFS = Firmware("rp2040-romfs", "micropython-rp2040-romfs", "firmware.uf2",
                              "micropython", "armv6m",
                              romfs=(FLASH_SIZE - 1408 * 1024 - ROMFS_BYTES, ROMFS_BYTES))
+# The same MicroPython with the device package's install units frozen in (a firmware built with
+# `make build`'s freeze manifest, docs/boards-and-logs.md "Install units"): not kept in the
+# repository; `accelcal bench --runtime rp2040` measures the units on it where one is put in
+# firmware/micropython-rp2040-frozen/firmware.uf2.
+MICROPYTHON_FROZEN = Firmware("rp2040-frozen", "micropython-rp2040-frozen", "firmware.uf2",
+                              "micropython", "armv6m")
 FIRMWARES = {fw.name: fw for fw in (MICROPYTHON, CIRCUITPYTHON, MICROPYTHON_ROMFS)}
 
 

@@ -7,8 +7,9 @@ running code:
   `:acal_board.py`, `:main.py`, `:acal_settings.json`): `mpremote mip install --target /
   OUT/BOARD/package.json`.  The settings are deploy's defaults (`accelcal deploy --port P`).
 * freeze: OUT/BOARD/freeze/manifest.py with the sources as the arch compiles them
-  (rp2040.emitted_source: the marked hot loops as viper) and the board file, for a custom
-  firmware (`make BOARD=RPI_PICO FROZEN_MANIFEST=.../manifest.py` in MicroPython's ports/rp2).
+  (rp2040.emitted_source: the marked hot loops as viper), one manifest per install unit
+  (freeze/manifests/UNIT, include()d for the units the board's default settings run) and the
+  board file, for a custom firmware (`make BOARD=RPI_PICO FROZEN_MANIFEST=.../manifest.py` in MicroPython's ports/rp2).
 
 CircuitPython has no mip: given a CircuitPython board, its `.mpy` tree is OUT/BOARD/lib/acal like
 the others (by default `make build` makes build/circuitpython/acal with CP_MPY_CROSS)."""
@@ -21,16 +22,36 @@ from pathlib import Path
 
 from accelcal.board import deploy, settings as bsettings, tree
 from accelcal.bridge import rp2040
-from accelcal.locations import DEVICE_PACKAGE
+from accelcal.locations import DEVICE_PACKAGE, DEVICE_UNITS
 
-MANIFEST = """# Written by `make build` (accelcal.cli.build): acal and the {board} board file, frozen into a
-# MicroPython firmware for {arch}.  Build it from MicroPython's ports/rp2 (or esp32):
-#   make BOARD=... FROZEN_MANIFEST={path}
+MANIFEST = """# Written by `make build` (accelcal.cli.build): acal's install units and the {board} board
+# file, frozen into a MicroPython firmware for {arch}.  Build it from MicroPython's ports/rp2 (or
+# esp32):  make BOARD=... FROZEN_MANIFEST={path}
+# Only the units the board runs: core and logger on every board; uncomment paper for the paper
+# profile, discover for --discover (each unit's manifest is in manifests/UNIT).
 # main.py stays on the board's filesystem (mpremote fs cp {main} :main.py).
 include("$(PORT_DIR)/boards/manifest.py")
-package("acal")
-module("acal_board.py")
+{units}module("acal_board.py")
 """
+UNIT_HEAD = """# The install unit `{unit}` of acal as `make build` compiled it for this board (the hot loops
+# as viper); include() it from the board's manifest.  Written from the walk deploy copies.
+"""
+
+
+def freeze_units(fz: Path, arch: str, units: tuple[str, ...]) -> str:
+    """fz/acal (the arch's sources) and fz/manifests/UNIT/manifest.py for every unit; the
+    include() lines of the board's manifest: the given units, the others commented out."""
+    for rel in tree.package_sources(False):
+        dst = fz / "acal" / rel
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_text(rp2040.emitted_source((DEVICE_PACKAGE / rel).read_text(), arch))
+    lines = ""
+    for unit in DEVICE_UNITS:
+        m = fz / "manifests" / unit / "manifest.py"
+        m.parent.mkdir(parents=True)
+        m.write_text(tree.unit_manifest(unit, head=UNIT_HEAD))
+        lines += ("" if unit in units else "# ") + f'include("manifests/{unit}")\n'
+    return lines
 
 
 def default_settings() -> tuple[dict, dict]:
@@ -68,12 +89,9 @@ def build_board(board: str, out: Path, info: dict | None = None) -> dict:
         made["package_json"] = str(d / "package.json")
     if info["ARCH"]:
         fz = d / "freeze"
-        for rel in tree.package_sources(False):
-            dst = fz / "acal" / rel
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            dst.write_text(rp2040.emitted_source((DEVICE_PACKAGE / rel).read_text(), info["ARCH"]))
+        units = freeze_units(fz, info["ARCH"], deploy.units_run(app))
         shutil.copy(info["path"], fz / "acal_board.py")
-        (fz / "manifest.py").write_text(MANIFEST.format(board=board, arch=info["ARCH"],
+        (fz / "manifest.py").write_text(MANIFEST.format(board=board, arch=info["ARCH"], units=units,
                                                         path=fz / "manifest.py", main=d / "main.py"))
         made["manifest"] = str(fz / "manifest.py")
     return made

@@ -40,7 +40,9 @@ def cmd_calibrate(args) -> int:
                          "method fits the points its bins select")
     from accelcal.bridge.runtime import check
     check(args.runtime)
-    cfg = pipeline_config(args, "+" in args.model)
+    if args.model is None and args.by:   # auto chooses per file, --by fits one model per device
+        args.model = "base"
+    cfg = pipeline_config(args, "+" in (args.model or ""))
     if args.discover:
         from dataclasses import replace
         cfg = replace(cfg, discover=True)
@@ -135,10 +137,10 @@ def add_parsers(sub) -> None:
     p.add_argument("input", nargs="+", metavar="INPUT",
                    help="recording (CSV t,x,y,z[,temp][,NAME...]; Axivity .cwa, GENEActiv .bin, ActiGraph "
                         ".gt3x) or points CSV; several make a batch")
-    p.add_argument("--model", default="base",
-                   help="model spec: base (the paper's 9 parameters), auto (base+temp_offset where "
-                        "the data has temperature and that fit calibrates, else base: the GGIR "
-                        "family's choice; docs/real-recordings.md) or base+EFFECT[+EFFECT...] "
+    p.add_argument("--model", default=None,
+                   help="model spec: auto (default, --method device: base+temp_offset where the "
+                        "data has temperature and that fit calibrates, else base), base (the paper's "
+                        "9; default of float methods, --by, --discover) or base+EFFECT[+EFFECT...] "
                         "(temp_offset, temp_scale, drift, nonlinear: --method device or lsq; "
                         "temp_offset2, step and --effects ones: --method lsq --points all). "
                         "A composed device fit keeps points spread in temperature (>= 3 degC) and time "

@@ -17,6 +17,11 @@ from accelcal.model.effects import ModelSpec, column_ref
 PARAMS_MAX_BYTES = 16 << 20   # a calibrate --by file of thousands of devices is ~ 2 MB
 
 
+# A composed model's integers (pipeline/calibrate.py Fit, a composed --fallback)
+COMPOSED_SCALE = ("Q24 per normalised regressor (device/acal/core/effects.py); decoded in g, "
+                  "1/degC, g/day, 1/g")
+
+
 def params_record(p_int, model="base", method="device", **extra) -> dict:
     """The saved-parameters JSON: model spec, integer parameters and their scale, decoded values."""
     names = fixed.PARAM_NAMES

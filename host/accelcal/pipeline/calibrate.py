@@ -14,11 +14,11 @@ from acal.core import profile as dprofile
 from accelcal import methods
 from accelcal.bridge import runtime
 from accelcal.model.effects import ModelSpec, column_ref
-from accelcal.errors import InputError
+from accelcal.errors import InputError, ModelUnsupported
 from accelcal.files.table import Table
 from accelcal.fixedpoint import (COLUMN_QUANTITIES, QUANTITIES, Conditions, board_columns,
                                  params_to_float, params_to_int, physical, seconds, span_reason)
-from accelcal.files.params import params_record
+from accelcal.files.params import COMPOSED_SCALE, params_record
 from accelcal.pipeline.discovered import discovered_model, discovery_record
 from accelcal.pipeline.results import CalibrationResult
 
@@ -120,7 +120,7 @@ def calibrate_groups(table: Table, by: str | None, cfg: runtime.Config, method: 
             spec.check_data(g.temp, g.t, table.path if not by else f"{table.path} ({by} {g.name})",
                             g.cols)
         except ValueError as e:
-            raise InputError(str(e)) from None
+            raise ModelUnsupported(str(e)) from None
     results = runtime.run(groups, cfg, runtime_name)
     out = []
     for g, r in zip(groups, results):
@@ -316,8 +316,7 @@ class Fit:
                 if spec.change_point:
                     ref["ts"] = ref["t0"] + seconds(r.step_time)
             rec.update(model=str(spec), method=self.method,
-                       scale="Q24 per normalised regressor (device/acal/core/effects.py); decoded in "
-                             "g, 1/degC, g/day, 1/g",
+                       scale=COMPOSED_SCALE,
                        params_int=dict(zip(spec.param_names, map(int, p_int))),
                        params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())),
                        reference=ref)
@@ -366,7 +365,7 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     try:
         spec.check_data(temp, sc.seg_t[kept], path, cols)
     except ValueError as e:
-        raise InputError(str(e)) from None
+        raise ModelUnsupported(str(e)) from None
     if engine == "vector":
         cond = runtime.device_conditions(temp, sc.seg_t[kept], sc.t_first, int(kept.sum()),
                                          **board_columns(cols))
@@ -391,7 +390,8 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec = Fit(g, r, cfg, spec, method, points).record(rec)
     rec["calibration"] = "new" if rec["status"] == "calibrated" else "none"
     if rec["status"] != "calibrated" and fallback:
-        use_fallback(rec, fallback, r.rest_g)
+        use_fallback(rec, fallback, r.rest_g, (sc.segments.mean[kept] / float(fixed.POINT_ONE_G),
+                                               temp, sc.seg_t[kept], cols))
     return rec
 
 
@@ -415,19 +415,32 @@ def quality(sc, m: dict) -> dict:
     }
 
 
-def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray) -> dict:
+def use_fallback(rec: dict, params_path: str, rest_g: np.ndarray, kept=None) -> dict:
     """A file that did not calibrate takes a device's last good calibration, said so in the
-    record: calibration "fallback", the file it came from, its error on this file's rest
-    points.  The record's own status (why it did not calibrate) stays."""
+    record: calibration "fallback", the file it came from, its model, its error on this file's
+    rest points (rest_g; a composed model's on kept: (every kept rest mean g, their temp degC,
+    t s, further columns), bad input where the file lacks what it needs: a temperature column,
+    say).  The record's own status (why it did not calibrate) stays."""
     from accelcal.files.params import load_params
     model, p_int, ref = load_params(params_path)
     spec = ModelSpec.parse(model)
     if spec.effects:
-        raise InputError(f"{params_path}: --fallback takes the paper's model (base); this is {model}")
+        rest_g, temp, t, cols = kept if kept is not None else (np.zeros((0, 3)), None, None, {})
+    if spec.effects and len(rest_g):   # applied to them: they carry what it needs, as apply's
+        from accelcal.pipeline.apply import _check_inputs
+        _check_inputs(spec, temp, spec.columns, cols, f"{rec.get('file')} (--fallback {params_path})")
     rec["calibration"] = "fallback"
     rec["fallback"] = params_path
-    rec.update({k: v for k, v in params_record(p_int, model, "fallback").items()
-                if k in ("scale", "params_int", "params")})
+    rec["model"] = model
+    if spec.effects:   # as Fit._params_record writes a composed model's
+        rec.update(scale=COMPOSED_SCALE, params_int=dict(zip(spec.param_names, map(int, p_int))),
+                   params=dict(zip(spec.param_names, spec.from_int(p_int).tolist())),
+                   reference=ref)
+    else:
+        rec.update({k: v for k, v in params_record(p_int, model, "fallback").items()
+                    if k in ("scale", "params_int", "params")})
     if len(rest_g):
-        rec["error_after_mg"] = methods.calibration_error_mg(params_to_float(p_int), rest_g)
+        rec["error_after_mg"] = methods.calibration_error_mg(params_to_float(p_int), rest_g) \
+            if not spec.effects else 1e3 * float(np.mean(np.abs(np.linalg.norm(spec.correct(
+                spec.from_int(p_int), rest_g, temp, t, ref, cols), axis=1) - 1.0)))
     return rec

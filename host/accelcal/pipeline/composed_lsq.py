@@ -8,7 +8,7 @@ import numpy as np
 
 from acal.core.fixed import TEMP_Q
 
-from accelcal.errors import InputError
+from accelcal.errors import InputError, ModelUnsupported
 from accelcal.methods import calibration_error_mg
 from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.pipeline.results import CalibrationResult
@@ -20,7 +20,7 @@ def check_model(spec: ModelSpec, p: RestPoints) -> None:
     try:
         spec.check_data(p.temp, p.t, p.source, p.cols)
     except ValueError as e:
-        raise InputError(str(e)) from None
+        raise ModelUnsupported(str(e)) from None
 
 
 def prepare(path: str, model: str) -> tuple[ModelSpec, RestPoints]:

@@ -6,12 +6,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from accelcal.bridge import runtime
-from accelcal.errors import InputError
+from accelcal.errors import InputError, ModelUnsupported
 from accelcal.pipeline.results import CalibrationResult
 from accelcal.vocabulary import documented
 
 Config = runtime.Config
 RUNTIMES = runtime.RUNTIMES
+AUTO = "auto"
+AUTO_MODEL = "base+temp_offset"
 
 
 @dataclass
@@ -21,7 +23,7 @@ class Job:
     cfg: runtime.Config
     method: str = "device"
     runtime: str = "cpython"
-    model: str = "base"
+    model: str = AUTO
     engine: str = "vector"
     fallback: str | None = None
     points: str = "bins"
@@ -29,14 +31,16 @@ class Job:
 
     @classmethod
     @documented
-    def of(cls, *, model: str = "base", method: str = "device", profile: str = "wear",
+    def of(cls, *, model: str | None = None, method: str = "device", profile: str = "wear",
            runtime: str = "cpython", engine: str | None = None, fallback: str | None = None,
            points: str = "bins", effects: str | None = None, cfg: runtime.Config | None = None,
            **settings) -> "Job":
         """A job from plain options.  cfg: the pipeline settings (None: the profile's, with any
         settings given as runtime.Config fields: seconds=10, max_count=4, ...).  engine None:
         vector under cpython, device under a MicroPython runtime (as the CLI).  Every argument
-        is checked as the CLI checks its option (files/arguments.py): InputError, one line."""
+        is checked as the CLI checks its option (files/arguments.py): InputError, one line.
+        model None: the default, auto (calibrate_auto) for the device method, the paper's
+        model (base) for the float reference methods and for --discover (which starts from it)."""
         from accelcal.files import arguments as a
         from accelcal.methods import METHODS
         a.paths(fallback=fallback, effects=effects)
@@ -45,15 +49,17 @@ class Job:
         a.choice("points", points)
         if engine is not None:
             a.choice("engine", engine)
-        if not isinstance(model, str):
+        if model is not None and not isinstance(model, str):
             raise InputError(f"model {model!r:.60}: a model name such as base or base+temp_offset")
         if cfg is None:
-            cfg = Config.for_profile(a.choice("profile", profile), "+" in model,
+            cfg = Config.for_profile(a.choice("profile", profile), "+" in (model or ""),
                                      **a.pipeline_settings(settings))
         elif settings:
             raise InputError(f"settings {', '.join(settings)} given with cfg: give one or the other")
         elif not isinstance(cfg, Config):
             raise InputError(f"cfg {cfg!r:.60}: a Config (accelcal.Config.for_profile(...))")
+        if model is None:
+            model = AUTO if method == "device" and not cfg.discover else "base"
         return cls(cfg, method, runtime, model,
                    engine or ("vector" if runtime == "cpython" else "device"),
                    fallback, points, effects)
@@ -85,10 +91,6 @@ class Job:
         return spec
 
 
-AUTO = "auto"
-AUTO_MODEL = "base+temp_offset"
-
-
 def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     """`--model auto`: the GGIR family's default, a temperature offset beside the paper's model
     where the data has temperature (base+temp_offset, fitted with the composed model's settings:
@@ -100,17 +102,33 @@ def calibrate_auto(path: str, job: Job, progress=None) -> CalibrationResult:
     from accelcal.pipeline.compare import composed_config
     composed = replace(job, model=AUTO_MODEL, cfg=composed_config(job.cfg),
                        points="all" if job.method == "lsq" else job.points)
+    if _without_temperature(path):   # known from the header: no scan spent on the composed try
+        rec = calibrate_file(path, replace(job, model="base"), progress)
+        rec["auto"] = f"the paper's model: {AUTO_MODEL} does not apply (no temperature column)"
+        return rec
     try:
         rec = calibrate_file(path, composed, progress)
         if rec.ok:
             rec["auto"] = "temperature in the data: the paper's model and a temperature offset"
             return rec
         why = f"{AUTO_MODEL} did not calibrate ({rec.get('reason')})"
-    except InputError as e:   # no temperature column, say
+    except ModelUnsupported as e:   # no temperature column, too little spread (any other bad
+        # input stops here: a file cut short while read is not a reason for the paper's model)
         why = f"{AUTO_MODEL} does not apply ({str(e).removeprefix(f'{path}: ')})"
     rec = calibrate_file(path, replace(job, model="base"), progress)
     rec["auto"] = f"the paper's model: {why}"
     return rec
+
+
+def _without_temperature(path) -> bool:
+    """A recording whose header says it has no temperature: a CSV, a .cwa (its first block) or
+    samples in memory; other formats are read whole to know, so they are not asked here."""
+    from accelcal.files.readers import in_memory, is_recording
+    if not (in_memory(path) or str(path).lower().endswith((".csv", ".cwa"))) \
+            or not is_recording(path):
+        return False
+    from accelcal.files.recordings import open_recording
+    return not open_recording(path).has_temp
 
 
 @documented
@@ -162,14 +180,15 @@ def calibrate_by(path: str, by: str, job: Job) -> list[CalibrationResult]:
 
 
 @documented
-def calibrate(path, *, model: str = "base", method: str = "device", profile: str = "wear",
+def calibrate(path, *, model: str | None = None, method: str = "device", profile: str = "wear",
               runtime: str = "cpython", fallback: str | None = None, points: str = "bins",
               effects: str | None = None, progress=None, rate: float | None = None, temp=None,
               time=None, **settings) -> CalibrationResult:
     """A file's calibration, as `accelcal calibrate FILE --json` gives it: the record
     (CalibrationResult, a dict) with status, params (decoded), params_int (Q24), error before
-    and after (mg) and, for a recording, its quality.  model: a spec, or "auto"
-    (calibrate_auto).  settings: Job.of's (engine, cfg, or runtime.Config fields)."""
+    and after (mg) and, for a recording, its quality.  model: a spec, "auto" (calibrate_auto),
+    or None, the default: auto for the device method, base for the float methods (Job.of).
+    settings: Job.of's (engine, cfg, or runtime.Config fields)."""
     from accelcal.files.arrays import as_input
     path = as_input(path, rate, temp, time)
     return calibrate_file(path, Job.of(model=model, method=method, profile=profile,

@@ -17,6 +17,7 @@ import tempfile
 from pathlib import Path
 
 from accelcal.bridge import rp2040, runtime
+from accelcal.errors import InputError
 from accelcal.locations import DEVICE_PACKAGE, device_modules, script as mp_script
 
 FIT_CASES = ("paper_base", "wear_base", "wear_temp_offset", "wear_four_effects")
@@ -171,6 +172,16 @@ def install_units(fw: rp2040.Firmware, e: str) -> dict:
     return res
 
 
+def frozen_units() -> dict:
+    """install_units on a firmware with the units frozen in (rp2040.MICROPYTHON_FROZEN, keys
+    FROZEN + units_...), where one is in the checkout; {} where none is."""
+    try:
+        rp2040.firmware_files(rp2040.MICROPYTHON_FROZEN)
+    except InputError:
+        return {}
+    return install_units(rp2040.MICROPYTHON_FROZEN, FROZEN)
+
+
 def round_keys(out: str, e: str) -> dict:
     """rounds()'s printed lines as the bench's keys (prefix e): µs to ms, bytes named so."""
     res = {}
@@ -201,6 +212,7 @@ def measure_chip(pts: list[int], n_samples: int = CHIP_SAMPLES) -> dict:
         **paths_and_fits(rp2040.MICROPYTHON, e),
         **discovery_rounds(rp2040.MICROPYTHON, e),
         **install_units(rp2040.MICROPYTHON, e),
+        **frozen_units(),
     }
     res.update(unix_figures())
     return res
@@ -221,6 +233,7 @@ def unix_figures() -> dict:
 
 MP, CP = "rp2040_emulated_", "circuitpython_emulated_"   # the chip's keys under each firmware
 ROMFS = "rp2040_romfs_emulated_"   # MicroPython with the package in ROMFS (--runtime rp2040-romfs)
+FROZEN = "rp2040_frozen_emulated_"  # MicroPython with the install units frozen in
 
 
 def rows(m: dict) -> list[tuple[str, float | None, float | None, float | None, str]]:
@@ -334,11 +347,13 @@ def format_chip(m: dict) -> str:
                  f"{m[r + 'adopt_heap_free_before_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_taken_bytes']:,} / "
                  f"{m[r + 'adopt_heap_free_after_bytes']:,} bytes; {m[r + 'adopt_max_count']}")
-    if MP + "units_base_modules" in m:
-        line("install units, MicroPython: import acal.logger.app / heap free after it / with its "
+    for pre, how in ((MP, "MicroPython"), (FROZEN, "MicroPython, the units frozen")):
+        if pre + "units_base_modules" not in m:
+            continue
+        line(f"install units, {how}: import acal.logger.app / heap free after it / with its "
              "Processor; acal modules loaded (discover, paper)", "")
         for case in UNIT_CASES:
-            u = MP + f"units_{case}_"
+            u = pre + f"units_{case}_"
             line(f"  {case}", f"{m[u + 'import_app_ms']:.4g} ms / {m[u + 'free_after_import_bytes']:,} / "
                  f"{m[u + 'free_with_processor_bytes']:,} bytes; {m[u + 'modules']} "
                  f"({m[u + 'discover_modules']}, {m[u + 'paper_modules']})")
