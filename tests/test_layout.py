@@ -27,6 +27,9 @@ LONGER_BY_CONCEPT: dict[str, tuple[int, str]] = {
     "device/acal/core/gaussnewton.py": (
         560, "the wear fit's sliced state machine (GaussNewton): one class whose slices, rounds "
              "and outlier rejection share its preallocated arrays"),
+    "device/acal/core/effects.py": (
+        520, "the effects' integer forms, each kind declared once: the fit's (correct_u and its "
+             "viper copy) and the apply's (block_terms' forms), the log's model code"),
 }
 
 

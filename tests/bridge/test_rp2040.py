@@ -107,3 +107,67 @@ def test_the_same_sources_give_the_same_mpy_bytes_in_any_checkout(tmp_path, fw):
     rp2040.mpy_cross(other / src.name, b, fw.arch, fw)
     assert a.read_bytes() == b.read_bytes() and b"rest.py" in a.read_bytes()
     assert str(DEVICE_PACKAGE).encode() not in a.read_bytes()
+
+
+FOUR_EFFECTS = "base+temp_offset+temp_scale+drift+nonlinear"   # the bench's largest model
+APP_APPLY = r'''
+import os
+from acal.core import effects
+from acal.logger import log
+from acal.logger.app import Processor
+try:
+    os.remove("apply_log.bin")
+except OSError:
+    pass
+lg = log.Log("apply_log.bin", 1 << 16)
+proc = Processor(lg, 100, model="%s")
+kinds = proc.kinds
+p = [17000000, 16600000, 16900000, 300000, -200000, 150000, 700000, -500000, 900000]
+for j in range(len(kinds)):
+    p += [(effects.BOUNDS[kinds[j]] * (3 - i)) // 4 for i in range(3)]
+proc.calibration.set(p, 100, 3)    # ref_temp 25 degC (Q2), ref_time 3 units
+proc.calibrations = 1              # applied from the first block on
+proc.index = %d                    # samples so far: a 64 s time unit ends mid-run
+def show(b, n):
+    print(" ".join([str(b[i]) for i in range(3 * n)]))
+proc.on_samples = show
+from array import array
+buf = array("i", [0] * (3 * log.SAMPLES_PER_RECORD))
+s = 99
+for blk in range(%d):
+    proc.temp = 20 + blk %% 12      # whole degC, a new temperature each block
+    for i in range(len(buf)):
+        s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+        buf[i] = (s >> 8) %% 4500 - 2250   # past +-2 g too: clamped
+    proc.feed(buf, log.SAMPLES_PER_RECORD)
+lg.close()
+'''
+
+
+def test_four_effect_app_applies_every_sample_on_the_chip_as_the_twin(chip):
+    """The app's apply path on the emulated Pico: a Processor with a four-effect calibration
+    (the bench's) applies it to every sample of each block (the composed viper loop, terms made
+    per block), a new temperature each block and time passing: the chip's samples equal the
+    host's numpy twin (bridge/twin.py) fed the same conditions, sample for sample."""
+    from accelcal.bridge import twin
+    from acal.core import effects
+    from acal.logger import log
+    blocks, n = 30, log.SAMPLES_PER_RECORD
+    start = 3 * effects.DT_UNIT_S * 100 - 500          # 3 time units at 100 Hz, less 5 s
+    run = chip.run_script(APP_APPLY % (FOUR_EFFECTS, start, blocks))
+    got = np.array(run.out.split(), dtype=np.int64).reshape(-1, 3)
+    kinds = effects.parse_model(FOUR_EFFECTS)
+    p = [17000000, 16600000, 16900000, 300000, -200000, 150000, 700000, -500000, 900000]
+    p += [(effects.BOUNDS[k] * (3 - i)) // 4 for k in kinds for i in range(3)]
+    s, raw = 99, []
+    for _ in range(blocks * n * 3):
+        s = (s * 1103515245 + 12345) & 0x7FFFFFFF
+        raw.append((s >> 8) % 4500 - 2250)
+    index = np.arange(blocks * n)
+    block_start = index // n * n
+    dT = ((20 + index // n % 12) << 2) - 100
+    dt = (start + block_start) // (effects.DT_UNIT_S * 100) - 3
+    assert set(dt.tolist()) == {-1, 0}                 # time passes: the drift term changes
+    want = twin.apply_params(p, np.array(raw), kinds, dT, dt)
+    assert got.shape == want.shape == (blocks * n, 3)
+    assert np.array_equal(got, want)

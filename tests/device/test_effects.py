@@ -131,7 +131,7 @@ def test_apply_stays_small_in_every_composition_and_order():
     tr = Tracer()
     T = traced(tr)
     base = [20971520] * 3 + [2097152] * 3 + [4194304] * 3   # k 1.25, k_ij 0.125, o 0.25 g
-    calibration.int = lambda v: v   # viper's cast in _apply_block: the traced ints pass
+    calibration.int = lambda v: v   # viper's cast in _apply_composed: the traced ints pass
     try:
         # +-2 and +-16 g: the readings' bound is one at every range, and of the products that
         # change with it only q v^2's grows, largest at 16 g (test_apply_path_stays_small_at_the_
@@ -142,7 +142,8 @@ def test_apply_stays_small_in_every_composition_and_order():
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
             cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
-            cal.w = [0, 0, 0]                 # a list: what is stored there stays traced
+            cal.w = [0, 0, 0]                 # lists: what is stored there stays traced
+            cal.terms = [0] * len(cal.terms)
             for temp, time, supply in ((-400, -(10 ** 7), -(10 ** 6)), (400, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
                 cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
@@ -183,3 +184,61 @@ def test_effect_kinds_fit_the_logs_model_field():
     assert {k for k in E.NAMES if E.is_generic(k)} == set(E.SHAPES)
     assert not any(E.is_generic(k) for k in (E.TEMP_OFFSET, E.TEMP_SCALE, E.DRIFT, E.NONLINEAR,
                                              E.TEMP_OFFSET2))
+
+
+def test_an_effect_of_an_existing_form_is_one_table_row(rng):
+    """Issue 48: a kind the package does not have - an offset in the square of the board's supply
+    (id 13) - declared by one row of effects.EFFECTS and nothing else is parsed, fitted (the fit's
+    form, its viper copy, a composed Gauss-Newton fit of simulated points) and applied (the
+    block's viper loop, the host twin) through the table, each against the float form
+    v - theta (dV / 1024)^2."""
+    from array import array
+    from acal.core.calibration import Calibration
+    from acal.core.gaussnewton import GaussNewton
+    from accelcal import simulate
+    from accelcal.bridge import twin
+    new = 13
+    deff.EFFECTS[new] = ("supply_offset2", deff.SOURCE_SUPPLY, 2, deff.FORM_OFFSET, 0, 8, 4, 0,
+                         deff.GENERIC_BOUND)
+    deff.tables()
+    try:
+        assert deff.parse_model("base+supply_offset2") == (new,)
+        assert deff.model_kinds(deff.model_code((new,))) == (new,)
+        theta = np.array([0.03, -0.02, 0.04])                 # g per (dV / 1024)^2
+        p = [int(round(c * 2 ** 24)) for c in theta]
+        dV = rng.integers(-1024, 1025, 300)
+        v = rng.uniform(-1.5, 1.5, (300, 3))
+        x2 = ((dV / 1024.0) ** 2)[:, None]
+        for row, d, w in zip(v, dV.tolist(), v - theta * x2):     # the fit's form, Q24
+            u = [int(round(c * 2 ** 24)) for c in row]
+            a = array("i", u)
+            deff.correct_u(new, p, 0, u, 0, 0, 0, 0, d)
+            deff.correct_kinds(array("i", [new]), 0, 1, array("i", p), 0, a, 0, 0, 0, d, 0)
+            assert list(a) == u and np.abs(np.array(u) / 2 ** 24 - w).max() < 2e-6
+        ident = [1 << 24] * 3 + [0] * 6
+        cal = Calibration((new,))                              # the apply: a block per dV
+        cal.set(ident + p)
+        q = np.rint(v * 1024).astype(int)
+        got = []
+        for row, d in zip(q.tolist(), dV.tolist()):
+            cal.supply = d
+            cal.apply(*row)
+            got.append((cal.x, cal.y, cal.z))
+        got = np.array(got)
+        assert np.array_equal(got, twin.apply_params(ident + p, q, (new,), dV=dV))
+        assert np.abs(got / 2 ** cal.out_q - (q / 1024 - theta * x2)).max() < 3e-4
+        n = 36                                                  # the fit, on simulated points
+        truth = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
+        dv = rng.integers(-1000, 1001, n)
+        pts = simulate.uncorrect(truth, simulate.unit_points(rng, n)) + \
+            theta * ((dv / 1024.0) ** 2)[:, None] + rng.normal(scale=0.0005, size=(n, 3))
+        gn = GaussNewton(n, kinds=(new,), reject=False)
+        from acal.core.status import OK
+        assert gn.run(np.rint(pts * 65536).astype(int).ravel().tolist(), n, 20,
+                      [c for d in dv.tolist() for c in (0, 0, d)]) == OK
+        # 0.03-0.04 g recovered to ~1 mg (0.5 mg noise on 36 points)
+        assert np.abs(np.array(gn.p[9:12]) / 2 ** 24 - theta).max() < 0.004, gn.p[9:12]
+    finally:
+        del deff.EFFECTS[new]
+        deff.tables()
+    assert new not in deff.NAMES

@@ -1,8 +1,9 @@
 # The calibration applied to raw samples on the board, per sample and without allocating: the
 # model of acal/core/model.py (a = K (v + o), a composed model's effects removed first: acal/core/effects.py)
-# in the apply's formats (fixed.py "apply"), every product below 2**30 at every full scale.  One
-# implementation of the clamp and the products, _apply_block: a single sample and a composed
-# model's readings (after their effects) go through it too.
+# in the apply's formats (fixed.py "apply"), every product below 2**30 at every full scale.  Two
+# viper loops a block: _apply_block (the base model; a single sample goes through it too) and
+# _apply_composed (a composed model: the effects by their forms, terms made once per block's
+# conditions by effects.block_terms, then the same clamp and products).
 from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
 from acal.core import effects
@@ -41,14 +42,14 @@ class Calibration:
         self.ref_time = 0
         self.ref_supply = 0
         self.step_time = 0
-        # the generic offsets' regressors (Q12), computed when temp, time or supply changes,
-        # not per sample (effects.regressor: up to three wide products)
-        self.r = [0] * len(self.kinds)
-        self.generic = [effects.is_generic(k) for k in self.kinds]
-        self.r_valid = False
-        self.r_temp = 0
-        self.r_time = 0
-        self.r_supply = 0
+        # the effects' forms and terms at the block's conditions (effects.block_terms), in the
+        # order they are removed (the last effect first), 4 ints each: made when temp, time or
+        # supply changes (per block, not per sample), read by _apply_composed's one viper loop
+        self.terms = int32s(4 * len(self.kinds))
+        self.terms_valid = False
+        self.t_temp = 0
+        self.t_time = 0
+        self.t_supply = 0
         self.x = 0
         self.y = 0
         self.z = 0
@@ -70,7 +71,7 @@ class Calibration:
         self.ref_time = ref_time
         self.step_time = step_time
         self.ref_supply = ref_supply
-        self.r_valid = False
+        self.terms_valid = False
 
     def apply(self, x, y, z):
         """Correct one sample (Q10 g); the result is in self.x, self.y, self.z (Q(13 - e) g).
@@ -96,74 +97,32 @@ class Calibration:
         if not self.kinds:
             _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e,
                          APPLY_OUT_SHIFT, SIGN_SHIFT)
-        else:
-            # the readings after their effects, Q(14 - e) g, into buf; then the block applied
-            # there in place (shift 0; already clamped): one viper call a block, not a sample
-            w = self.w
-            j = i
-            while j < end:
-                self._remove_effects(src[j], src[j + 1], src[j + 2])
-                buf[j] = w[0]
-                buf[j + 1] = w[1]
-                buf[j + 2] = w[2]
-                j += 3
-            _apply_block(buf, buf, i, end, self.k, APPLY_W_MAX, 0, APPLY_OUT_SHIFT, SIGN_SHIFT)
+        else:   # one viper loop a block: the effects' terms made once for its conditions
+            if not self.terms_valid or self.temp != self.t_temp or self.time != self.t_time or \
+                    self.supply != self.t_supply:
+                self._block_terms()
+            _apply_composed(src, buf, i, end, self.k, self.terms, 4 * len(self.kinds),
+                            self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e, self.e, APPLY_W_MAX,
+                            SIGN_SHIFT)
         self.x = buf[end - 3]
         self.y = buf[end - 2]
         self.z = buf[end - 1]
 
-    def _remove_effects(self, x, y, z):
-        # The effects, last first (the reverse of the order they act in), in Q(14 - e), into
-        # self.w; the reading first clamped to the full scale, and after each effect to
-        # +-2.048 * 2**e g (fixed.APPLY_W_MAX): the next effect's products and the 9-parameter
-        # apply then stay below 2**30 in every order (a drift removed over months can move a
-        # reading by several g, and temp_scale multiplies what it leaves).
-        w = self.w
-        e = self.e
-        s = APPLY_FROM_SAMPLE_SHIFT - e
-        m = self.in_max   # the reading to the full scale first: the effects read it (q v^2)
-        if x > m:
-            x = m
-        elif x < -m:
-            x = -m
-        if y > m:
-            y = m
-        elif y < -m:
-            y = -m
-        if z > m:
-            z = m
-        elif z < -m:
-            z = -m
-        w[0] = x << s
-        w[1] = y << s
-        w[2] = z << s
+    def _block_terms(self):
+        # The effects' forms and terms (effects.block_terms) at the current conditions, last
+        # effect first: dT = temp - ref_temp, dt = time - ref_time, dV = supply - ref_supply.
+        kinds = self.kinds
         dT = self.temp - self.ref_temp
         dt = self.time - self.ref_time
-        kinds = self.kinds
-        r = self.r
-        if not self.r_valid or self.temp != self.r_temp or self.time != self.r_time or \
-                self.supply != self.r_supply:
-            dV = self.supply - self.ref_supply
-            for j in range(len(kinds)):
-                if self.generic[j]:
-                    r[j] = effects.regressor(kinds[j], dT, dt, self.step_time, dV) >> 4
-            self.r_valid = True
-            self.r_temp = self.temp
-            self.r_time = self.time
-            self.r_supply = self.supply
-        j = len(kinds) - 1
-        while j >= 0:
-            if self.generic[j]:   # correct_sample's form, with the regressor kept
-                effects.offset_sample(self.k, N_PARAMS + 3 * j, w, r[j], e)
-            else:
-                effects.correct_sample(kinds[j], self.k, N_PARAMS + 3 * j, w, x, y, z, dT, dt,
-                                       0, 0, e)
-            for i in range(3):   # inline: a call per effect costs the chip ~12 us
-                if w[i] > APPLY_W_MAX:
-                    w[i] = APPLY_W_MAX
-                elif w[i] < -APPLY_W_MAX:
-                    w[i] = -APPLY_W_MAX
-            j -= 1
+        dV = self.supply - self.ref_supply
+        n = len(kinds)
+        for j in range(n):
+            effects.block_terms(kinds[n - 1 - j], self.k, N_PARAMS + 3 * (n - 1 - j), self.terms,
+                                4 * j, dT, dt, self.step_time, dV, self.e)
+        self.terms_valid = True
+        self.t_temp = self.temp
+        self.t_time = self.time
+        self.t_supply = self.supply
 
 
 @viper
@@ -208,4 +167,89 @@ def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w
         dst[i] = (kxx * ux + half) >> o
         dst[i + 1] = (kxy * ux + kyy * uy + half) >> o
         dst[i + 2] = (kxz * ux + kyz * uy + kzz * uz + half) >> o
+        i += 3
+
+
+@viper
+def _apply_composed(source, dest, i: int, end: int, coef, terms, nt: int, m: int, s: int, e: int,
+                    wm: int, w: int):
+    # A composed model's apply (Calibration.apply_samples), the samples source[i:end] (flat x y z,
+    # Q10 g) into dest, viper on ports with emitters: each reading clamped to the full scale +-m,
+    # v = x << s in Q(14 - e) g; the effects removed by their forms (effects.py "the apply's
+    # forms": terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm (APPLY_W_MAX) after
+    # each (fixed.py: a reading's range, so the next product and K's stay below 2**30); then
+    # a = K (v + o) rounded to Q(13 - e) g as _apply_block.  Bit-identical to effects.apply_terms
+    # per sample (tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
+    # and test_rv32.py on the chips); every value below 2**30
+    # (tests/device/test_effects.py traces it at the worst case).
+    src = ptr32(source)
+    dst = ptr32(dest)
+    k = ptr32(coef)
+    t = ptr32(terms)
+    kxx = int(k[0]) << w >> w
+    kyy = int(k[1]) << w >> w
+    kzz = int(k[2]) << w >> w
+    kxy = int(k[3]) << w >> w
+    kxz = int(k[4]) << w >> w
+    kyz = int(k[5]) << w >> w
+    ox = int(k[6]) << w >> w
+    oy = int(k[7]) << w >> w
+    oz = int(k[8]) << w >> w
+    sq = 10 + e
+    while i < end:
+        x = int(src[i]) << w >> w
+        y = int(src[i + 1]) << w >> w
+        z = int(src[i + 2]) << w >> w
+        if x > m:
+            x = m
+        elif x < 0 - m:
+            x = 0 - m
+        if y > m:
+            y = m
+        elif y < 0 - m:
+            y = 0 - m
+        if z > m:
+            z = m
+        elif z < 0 - m:
+            z = 0 - m
+        vx = x << s
+        vy = y << s
+        vz = z << s
+        j = 0
+        while j < nt:
+            form = int(t[j])
+            ax = int(t[j + 1]) << w >> w
+            ay = int(t[j + 2]) << w >> w
+            az = int(t[j + 3]) << w >> w
+            if form == 1:                    # FORM_OFFSET
+                vx -= ax
+                vy -= ay
+                vz -= az
+            elif form == 2:                  # FORM_SCALE
+                vx -= (ax * vx) >> 18
+                vy -= (ay * vy) >> 18
+                vz -= (az * vz) >> 18
+            else:                            # FORM_NONLINEAR
+                vx -= (ax * ((x * x) >> sq)) >> 14
+                vy -= (ay * ((y * y) >> sq)) >> 14
+                vz -= (az * ((z * z) >> sq)) >> 14
+            if vx > wm:
+                vx = wm
+            elif vx < 0 - wm:
+                vx = 0 - wm
+            if vy > wm:
+                vy = wm
+            elif vy < 0 - wm:
+                vy = 0 - wm
+            if vz > wm:
+                vz = wm
+            elif vz < 0 - wm:
+                vz = 0 - wm
+            j += 4
+        vx += ox
+        vy += oy
+        vz += oz
+        dst[i] = (kxx * vx + 16384) >> 15
+        dst[i + 1] = (kxy * vx + kyy * vy + 16384) >> 15
+        dst[i + 2] = (kxz * vx + kyz * vy + kzz * vz + 16384) >> 15
         i += 3

@@ -45,12 +45,32 @@
 from acal.core.wide import mul_shift
 from acal.core.fixed import TEMP_DT_MAX
 from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
+from array import array
 try:
     from micropython import const
 except ImportError:
     def const(x):
         return x
 
+# The forms (what an effect does to a reading u, the fit's and the apply's alike) and the sources
+# of their regressors.
+FORM_OFFSET = const(1)      # u -= p x            x: the regressor, from its source to its power
+FORM_SCALE = const(2)       # u -= (p x) u        a gain (first order)
+FORM_NONLINEAR = const(3)   # u -= p u^2          per axis, u^2 with its sign lost
+SOURCE_READING = const(0)   # the reading itself (FORM_NONLINEAR)
+SOURCE_TEMP = const(1)      # dT, Q2 degC from the reference; clamped to +-APPLY_DT_MAX
+SOURCE_TIME = const(2)      # dt, 64 s units from the reference; clamped to +-the row's reach
+SOURCE_STEP = const(3)      # [dt >= ts]: a step at ts (acal/core/changepoint.py finds it)
+SOURCE_SUPPLY = const(4)    # dV, mV of the board's supply from its reference; +-SUPPLY_MAX
+GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
+GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
+GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
+SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
+DT_UNIT_S = const(64)
+APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the reference
+APPLY_TIME_MAX = const(1048575)   # dt units
+FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
+_G = GENERIC_TIME_MAX
 TEMP_OFFSET = const(1)
 TEMP_SCALE = const(2)
 DRIFT = const(3)
@@ -63,43 +83,48 @@ TIME_OFFSET4 = const(9)
 TEMP_OFFSET3 = const(10)
 TEMP_OFFSET4 = const(11)
 SUPPLY_OFFSET = const(12)
-NAMES = {TEMP_OFFSET: "temp_offset", TEMP_SCALE: "temp_scale", DRIFT: "drift", NONLINEAR: "nonlinear",
-         TEMP_OFFSET2: "temp_offset2", STEP: "step", TIME_OFFSET2: "time_offset2",
-         TIME_OFFSET3: "time_offset3", TIME_OFFSET4: "time_offset4", TEMP_OFFSET3: "temp_offset3",
-         TEMP_OFFSET4: "temp_offset4", SUPPLY_OFFSET: "supply_offset"}
-# The generic offsets' regressors: (source, power).  A declared effect of one of these shapes
-# runs on the board as this kind (host: model/effects.py device_kind).
-SOURCE_TEMP = const(1)
-SOURCE_TIME = const(2)
-SOURCE_STEP = const(3)
-SOURCE_SUPPLY = const(4)
-SHAPES = {STEP: (SOURCE_STEP, 1), TIME_OFFSET2: (SOURCE_TIME, 2), TIME_OFFSET3: (SOURCE_TIME, 3),
-          TIME_OFFSET4: (SOURCE_TIME, 4), TEMP_OFFSET3: (SOURCE_TEMP, 3),
-          TEMP_OFFSET4: (SOURCE_TEMP, 4), SUPPLY_OFFSET: (SOURCE_SUPPLY, 1)}
+
+# THE TABLE: every effect kind, declared once; the fit (correct_u, correct_kinds), the apply
+# (block_terms), the host (accelcal/model/effects.py device_kind, bridge/twin.py) and the log
+# (model_code) read it and switch on the form, never on the kind.  A row:
+#   id: (name, source, power, form, post, ps, rs, reach, bound)
+# The regressor x, Q16 (regressor()): the source clamped, as dT / 16 (dT << 10), dt / 2**13
+# (dt << 3) or dV / 1024 (dV << 6) - a step 1.0 (65536) from ts on - raised to `power` (each
+# power an exact floor, wide.mul_shift), then << post.  Fit (Q24, u in Q24 g): offset
+# u -= floor(p x 2**-16), scale u -= floor(floor(p x 2**-16) u 2**-24), nonlinear as the formats
+# say.  Apply: k = p >> ps (rounded), r = x >> rs (an exact int: dT, dT^2, dt or Q12), and the
+# terms block_terms makes from them.  reach: a time source's clamp (fit, apply), dt units.
+# bound: |p| in Q24 (per normalised regressor; host: model/effects.py's float bound, one number).
+# Adding an effect of an existing form is one row here (a free id <= KIND_MAX: the log's
+# 4 bits) plus its host declaration (model/effects.py CATALOGUE) and its test.
+EFFECTS = {
+    TEMP_OFFSET: ("temp_offset", SOURCE_TEMP, 1, FORM_OFFSET, 0, 10, 10, 0, 1342177),  # 5 mg/degC
+    TEMP_SCALE: ("temp_scale", SOURCE_TEMP, 1, FORM_SCALE, 0, 6, 10, 0, 536871),      # 0.2 %/degC
+    DRIFT: ("drift", SOURCE_TIME, 1, FORM_OFFSET, 2, 10, 5, (FIT_TIME_MAX, APPLY_TIME_MAX),
+        509033),                                                             # 20 mg/day
+    NONLINEAR: ("nonlinear", SOURCE_READING, 2, FORM_NONLINEAR, 0, 6, 0, 0, 838861),  # 5 %/g
+    TEMP_OFFSET2: ("temp_offset2", SOURCE_TEMP, 2, FORM_OFFSET, 2, 10, 6, 0, 1073742),   # 1 mg/degC^2
+    STEP: ("step", SOURCE_STEP, 1, FORM_OFFSET, 0, 8, 4, 0, GENERIC_BOUND),
+    TIME_OFFSET2: ("time_offset2", SOURCE_TIME, 2, FORM_OFFSET, 0, 8, 4, (_G, _G), GENERIC_BOUND),
+    TIME_OFFSET3: ("time_offset3", SOURCE_TIME, 3, FORM_OFFSET, 0, 8, 4, (_G, _G), GENERIC_BOUND),
+    TIME_OFFSET4: ("time_offset4", SOURCE_TIME, 4, FORM_OFFSET, 0, 8, 4, (_G, _G), GENERIC_BOUND),
+    TEMP_OFFSET3: ("temp_offset3", SOURCE_TEMP, 3, FORM_OFFSET, 0, 8, 4, 0, GENERIC_BOUND),
+    TEMP_OFFSET4: ("temp_offset4", SOURCE_TEMP, 4, FORM_OFFSET, 0, 8, 4, 0, GENERIC_BOUND),
+    SUPPLY_OFFSET: ("supply_offset", SOURCE_SUPPLY, 1, FORM_OFFSET, 0, 8, 4, 0, GENERIC_BOUND),
+}
 # The log packs a model as KIND_BITS per effect into BOOT's 16-bit model field (model_code):
 # ids 1..KIND_MAX (three are left after SUPPLY_OFFSET) and at most MODEL_EFFECTS_MAX effects.
 KIND_BITS = const(4)
 KIND_MAX = const(15)
 MODEL_EFFECTS_MAX = const(4)
 X_Q = const(12)                   # the generic regressor's format
-GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
-GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
-GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
-SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
-DT_UNIT_S = const(64)
-APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the reference
-APPLY_TIME_MAX = const(1048575)   # dt units
-FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
-# |parameter| bounds in Q24 (per normalised regressor): c 5 mg/degC, s 0.2 %/degC,
-# d 20 mg/day, q 5 %/g, e 1 mg/degC^2.
-BOUNDS = {TEMP_OFFSET: const(1342177),   # 0.005 * 16 * 2**24
-          TEMP_SCALE: const(536871),     # 0.002 * 16 * 2**24
-          DRIFT: const(509033),          # 0.02 * 131072 / 86400 * 2**24
-          NONLINEAR: const(838861),      # 0.05 * 2**24
-          TEMP_OFFSET2: const(1073742),  # 0.001 * 64 * 2**24
-          STEP: GENERIC_BOUND, TIME_OFFSET2: GENERIC_BOUND, TIME_OFFSET3: GENERIC_BOUND,
-          TIME_OFFSET4: GENERIC_BOUND, TEMP_OFFSET3: GENERIC_BOUND, TEMP_OFFSET4: GENERIC_BOUND,
-          SUPPLY_OFFSET: GENERIC_BOUND}
+# What the rest of the package reads, derived from the table (tables(): again after a row is
+# added at run time, as a test does): the names, the bounds, and the generic offsets' shapes -
+# (source, power) of the offsets whose parameter is per unit of the Q16 regressor (rs 4: apply
+# in Q12), which a declared effect of that shape runs as (host: model/effects.py device_kind).
+NAMES = {}
+BOUNDS = {}
+SHAPES = {}
 
 
 def is_generic(kind):
@@ -124,14 +149,18 @@ def condition_of(kind):
 def source_of(kind):
     """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
     SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""
-    if is_generic(kind):
-        source = SHAPES[kind][0]
-        return SOURCE_TIME if source == SOURCE_STEP else source
-    if kind == DRIFT:
-        return SOURCE_TIME
-    if kind == NONLINEAR:
-        return 0
-    return SOURCE_TEMP           # TEMP_OFFSET, TEMP_OFFSET2, TEMP_SCALE
+    source = EFFECTS[kind][1]
+    return SOURCE_TIME if source == SOURCE_STEP else source
+
+
+def kind_of(source, power, form):
+    """The kind the table declares with this source, power and form (a step: SOURCE_STEP, 1),
+    0 when none: the host's device_kind."""
+    for k in EFFECTS:
+        row = EFFECTS[k]
+        if row[1] == source and row[2] == power and row[3] == form:
+            return k
+    return 0
 
 
 def uses_source(kinds, source):
@@ -188,11 +217,13 @@ def model_kinds(code):
     return tuple(kinds)
 
 
-def regressor(kind, dT, dt, ts, dV=0):
-    """A generic offset's regressor x (Q16, |x| <= 2**20) at dT (Q2 degC), dt (64 s units), with a
-    step at ts (64 s units, as dt), and the board's integer dV (mV from its reference): SHAPES,
-    clamped as the formats above say; each power an exact floor (acal/core/wide.py)."""
-    source, power = SHAPES[kind]
+def regressor(kind, dT, dt, ts, dV=0, fit=True):
+    """An offset's or a scale's regressor x (Q16, |x| <= 2**25) at dT (Q2 degC), dt (64 s units),
+    with a step at ts (64 s units, as dt), and the board's integer dV (mV from its reference):
+    the table's row, clamped as the formats above say (a time source to its reach in the fit,
+    or in the apply: fit False); each power an exact floor (acal/core/wide.py)."""
+    row = EFFECTS[kind]
+    source = row[1]
     if source == SOURCE_STEP:
         return 65536 if dt >= ts else 0
     if source == SOURCE_SUPPLY:
@@ -200,130 +231,134 @@ def regressor(kind, dT, dt, ts, dV=0):
             dV = SUPPLY_MAX
         elif dV < -SUPPLY_MAX:
             dV = -SUPPLY_MAX
-        return dV << 6                    # dV / 1024 in Q16, <= 2**16
-    if source == SOURCE_TEMP:
+        base = dV << 6                    # dV / 1024 in Q16, <= 2**16
+    elif source == SOURCE_TEMP:
         if dT > APPLY_DT_MAX:
             dT = APPLY_DT_MAX
         elif dT < -APPLY_DT_MAX:
             dT = -APPLY_DT_MAX
         base = dT << 10                   # dT / 16 in Q16 from Q2 degC, <= 2**17
     else:
-        if dt > GENERIC_TIME_MAX:
-            dt = GENERIC_TIME_MAX
-        elif dt < -GENERIC_TIME_MAX:
-            dt = -GENERIC_TIME_MAX
-        base = dt << 3                    # dt / 2**13 in Q16, <= 2**17
+        reach = row[7][0 if fit else 1]
+        if dt > reach:
+            dt = reach
+        elif dt < -reach:
+            dt = -reach
+        base = dt << 3                    # dt / 2**13 in Q16
     x = base
-    for _ in range(power - 1):
+    for _ in range(row[2] - 1):
         x = mul_shift(x, base, 16)        # <= 2**20
-    return x
+    return x << row[4]
 
 
 def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
-    place; the fit's form.  dT and dt are clamped as the apply clamps them (FIT_TIME_MAX for dt:
-    see the formats above); ts: a step's time (as dt); dV: the board's integer (mV from its
-    reference).  Every intermediate stays below 2**30 (acal/core/wide.py)."""
-    if kind in SHAPES:   # is_generic(), inline: per point / per sample
-        x = regressor(kind, dT, dt, ts, dV)
-        for i in range(3):
-            u[at + i] -= mul_shift(p[j + i], x, 16)
-        return
-    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
-        if dT > APPLY_DT_MAX:
-            dT = APPLY_DT_MAX
-        elif dT < -APPLY_DT_MAX:
-            dT = -APPLY_DT_MAX
-    if kind == TEMP_OFFSET:
-        for i in range(3):
-            u[at + i] -= (p[j + i] * dT) >> 6
-    elif kind == TEMP_SCALE:
-        for i in range(3):
-            u[at + i] -= mul_shift((p[j + i] * dT) >> 6, u[at + i], 24)
-    elif kind == DRIFT:
-        if dt > FIT_TIME_MAX:
-            dt = FIT_TIME_MAX
-        elif dt < -FIT_TIME_MAX:
-            dt = -FIT_TIME_MAX
-        for i in range(3):
-            u[at + i] -= mul_shift(p[j + i] << 5, dt, 16)   # (p dt) >> 11
-    elif kind == NONLINEAR:
+    place; the fit's form, by the table's form.  dT and dt are clamped as the apply clamps them
+    (a time source to its fit reach: see the formats above); ts: a step's time (as dt); dV: the
+    board's integer (mV from its reference).  Every intermediate stays below 2**30
+    (acal/core/wide.py)."""
+    form = EFFECTS[kind][3]
+    if form == FORM_NONLINEAR:
         for i in range(3):
             v = u[at + i]
             u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
-    elif kind == TEMP_OFFSET2:
-        sq = (dT * dT) << 6      # <= 2**20: (e dT^2) >> 10 as an exact wide floor
-        for i in range(3):
-            u[at + i] -= mul_shift(p[j + i], sq, 16)
+        return
+    x = regressor(kind, dT, dt, ts, dV)
+    for i in range(3):
+        g = mul_shift(p[j + i], x, 16)
+        if form == FORM_SCALE:
+            g = mul_shift(g, u[at + i], 24)
+        u[at + i] -= g
 
 
 def apply_params(kind, p, j, k, m):
-    """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]."""
-    if is_generic(kind):
-        shift = 8
-    elif kind == TEMP_OFFSET or kind == DRIFT or kind == TEMP_OFFSET2:
-        shift = 10
-    else:
-        shift = 6
+    """The per-sample form of parameters p[j:j+3] (Q24) into k[m:m+3]: p >> ps, rounded."""
+    shift = EFFECTS[kind][5]
     half = 1 << (shift - 1)
     for i in range(3):
         k[m + i] = (p[j + i] + half) >> shift
 
 
-def offset_sample(k, m, w, r, e=0):
-    """A generic offset's per-sample form: w -= k r, r its regressor >> 4 (Q12, <= 2**16), k in
-    Q16 (apply_params), w in Q(14 - e) g (e: the full scale's shift, fixed.py)."""
-    s = 14 + e
+# The apply's forms: what an effect does to a reading w (Q(14 - e) g) once the block's conditions
+# (dT, dt, dV, the step: constant within a block, the feeder sets them per block) are known,
+# with three per-axis terms a (block_terms), k = p >> ps and r = x >> rs:
+#   FORM_OFFSET     w -= a = (k r) >> (26 - ps - rs + e)     the offset, Q(14 - e) g
+#   FORM_SCALE      w -= (a w) >> 18, a = (k r) >> (22 - ps - rs)   the gain, Q18
+#   FORM_NONLINEAR  w -= (a ((s s) >> (10 + e))) >> 14, a = k (Q18 per g), s the reading (Q10 g)
+# Each a is the very integer the per-sample form made, so the block's apply is bit-identical to it.
+
+
+def block_terms(kind, k, m, out, at, dT, dt, ts=0, dV=0, e=0):
+    """Effect `kind`'s form and terms (per-sample parameters k[m:m+3]) at the conditions dT (Q2
+    degC), dt (64 s units), the step's time ts and dV (mV), into out[at] (the form) and
+    out[at+1:at+4] (the terms, above), at the full scale's shift e; clamped as the formats say."""
+    row = EFFECTS[kind]
+    form = row[3]
+    if form == FORM_NONLINEAR:
+        r, s = 1, 0
+    else:
+        r = regressor(kind, dT, dt, ts, dV, False) >> row[6]
+        s = (26 + e if form == FORM_OFFSET else 22) - row[5] - row[6]
+    out[at] = form
     for i in range(3):
-        w[i] -= (k[m + i] * r) >> s
+        out[at + 1 + i] = (k[m + i] * r) >> s
+
+
+def apply_terms(t, at, w, x, y, z, e=0):
+    """One effect's form and terms t[at:at+4] (block_terms) applied to the reading w (list of 3,
+    Q(14 - e) g), x y z the sample (Q10 g): the per-sample reading of what the apply's viper loop
+    (calibration._apply_composed) does."""
+    form = t[at]
+    for i in range(3):
+        a = t[at + 1 + i]
+        if form == FORM_OFFSET:
+            w[i] -= a
+        elif form == FORM_SCALE:
+            w[i] -= (a * w[i]) >> 18
+        else:
+            s = x if i == 0 else (y if i == 1 else z)
+            w[i] -= (a * ((s * s) >> (10 + e))) >> 14
 
 
 def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
     within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
     shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result); ts: a step's
-    time (as dt); dV: the board's integer (mV from its reference)."""
-    if kind in SHAPES:   # is_generic(), inline: per point / per sample
-        offset_sample(k, m, w, regressor(kind, dT, dt, ts, dV) >> 4, e)
-        return
-    if kind == TEMP_OFFSET or kind == TEMP_SCALE or kind == TEMP_OFFSET2:
-        if dT > APPLY_DT_MAX:
-            dT = APPLY_DT_MAX
-        elif dT < -APPLY_DT_MAX:
-            dT = -APPLY_DT_MAX
-    if kind == TEMP_OFFSET:
-        for i in range(3):
-            w[i] -= (k[m + i] * dT) >> (6 + e)
-    elif kind == TEMP_SCALE:     # a fraction of w, in w's own format
-        for i in range(3):
-            w[i] -= (((k[m + i] * dT) >> 6) * w[i]) >> 18
-    elif kind == DRIFT:
-        if dt > APPLY_TIME_MAX:
-            dt = APPLY_TIME_MAX
-        elif dt < -APPLY_TIME_MAX:
-            dt = -APPLY_TIME_MAX
-        for i in range(3):
-            w[i] -= (k[m + i] * dt) >> (11 + e)
-    elif kind == NONLINEAR:      # v^2 in Q(10 - e) g^2: <= 2**16 at +-16 g, k v^2 < 2**30
-        s = x
-        for i in range(3):
-            if i == 1:
-                s = y
-            elif i == 2:
-                s = z
-            w[i] -= (k[m + i] * ((s * s) >> (10 + e))) >> 14
-    elif kind == TEMP_OFFSET2:
-        sq = dT * dT             # <= 2**14; |k| <= 2**11 at 2x the bound: the product < 2**26
-        for i in range(3):
-            w[i] -= (k[m + i] * sq) >> (10 + e)
+    time (as dt); dV: the board's integer (mV from its reference).  block_terms then
+    apply_terms."""
+    t = [0, 0, 0, 0]
+    block_terms(kind, k, m, t, 0, dT, dt, ts, dV, e)
+    apply_terms(t, 0, w, x, y, z, e)
 
 
 # correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
-# generic kinds' (source, power) as one int each (source << 3 | power), indexed by kind.
-_SHAPE_CODES = bytearray(KIND_MAX + 1)
-for _k in SHAPES:
-    _SHAPE_CODES[_k] = (SHAPES[_k][0] << 3) | SHAPES[_k][1]
-del _k
+# table's rows as ints indexed by kind - form << 6 | source << 3 | power, the post shift, the time
+# reach in the fit - made by tables(), with the names, bounds and shapes above.
+_CODES = bytearray(KIND_MAX + 1)
+_POSTS = bytearray(KIND_MAX + 1)
+_REACH = array("i", bytearray(4 * (KIND_MAX + 1)))
+
+
+def tables():
+    """NAMES, BOUNDS, SHAPES and the viper fit's codes, from EFFECTS (at import; again after a
+    row is added at run time)."""
+    NAMES.clear()
+    BOUNDS.clear()
+    SHAPES.clear()
+    for k in range(KIND_MAX + 1):
+        _CODES[k] = 0
+    for k in EFFECTS:
+        name, source, power, form, post, ps, rs, reach, bound = EFFECTS[k]
+        NAMES[k] = name
+        BOUNDS[k] = bound
+        if form == FORM_OFFSET and rs == 4:
+            SHAPES[k] = (source, power)
+        _CODES[k] = (form << 6) | (source << 3) | power
+        _POSTS[k] = post
+        _REACH[k] = reach[0] if reach else 0
+
+
+tables()
 
 
 @viper
@@ -333,89 +368,67 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
     # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
     # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array); after
     # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
-    # integers of correct_u (tests/device/test_effects.py checks them against it), each wide.mul_shift
-    # written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9); every value below
-    # 2**30 as correct_u's (tests/device/test_ranges.py).
+    # integers of correct_u, by the table's form (tests/device/test_effects.py checks them against
+    # it), each wide.mul_shift written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9);
+    # every value below 2**30 as correct_u's (tests/device/test_ranges.py).
     ids = ptr32(kind_ids)
     p = ptr32(params)
     u = ptr32(reading)
-    shapes = ptr8(_SHAPE_CODES)
+    codes = ptr8(_CODES)
+    posts = ptr8(_POSTS)
+    reach = ptr32(_REACH)
     w = int(SIGN_SHIFT)
     while k > k0:
         k -= 1
         kind = int(ids[k]) << w >> w
         at = j + 3 * (k - k0)
-        code = int(shapes[kind])
+        code = int(codes[kind])
+        form = code >> 6
+        source = (code >> 3) & 7
         x = 0
-        if code:
-            source = code >> 3
-            if source == 3:                  # SOURCE_STEP
-                x = 65536 if dt >= ts else 0
-            elif source == 4:                # SOURCE_SUPPLY
+        if source == 3:                      # SOURCE_STEP
+            x = 65536 if dt >= ts else 0
+        elif source != 0:                    # SOURCE_TEMP (Q2 degC), SOURCE_TIME, SOURCE_SUPPLY
+            if source == 4:
                 v = dV
                 if v > 1024:
                     v = 1024
                 elif v < -1024:
                     v = -1024
-                x = v << 6
+                base = v << 6
+            elif source == 1:
+                v = dT
+                if v > 128:
+                    v = 128
+                elif v < -128:
+                    v = -128
+                base = v << 10
             else:
-                if source == 1:              # SOURCE_TEMP (Q2 degC)
-                    v = dT
-                    if v > 128:
-                        v = 128
-                    elif v < -128:
-                        v = -128
-                    base = v << 10
-                else:                        # SOURCE_TIME
-                    v = dt
-                    if v > 16384:
-                        v = 16384
-                    elif v < -16384:
-                        v = -16384
-                    base = v << 3
-                x = base
-                bh = base >> 15
-                bl = base & 0x7FFF
-                n = (code & 7) - 1
-                while n > 0:
-                    ah = x >> 15
-                    al = x & 0x7FFF
-                    m = ah * bl + al * bh
-                    x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
-                    n -= 1
-        elif kind == 3:                      # DRIFT: (p << 5) dt 2**-16
-            v = dt
-            if v > 262143:
-                v = 262143
-            elif v < -262143:
-                v = -262143
-            x = v
-        elif kind != 4:                      # TEMP_OFFSET, TEMP_SCALE, TEMP_OFFSET2: dT (Q2)
-            v = dT
-            if v > 128:
-                v = 128
-            elif v < -128:
-                v = -128
-            x = v
-            if kind == 5:                    # TEMP_OFFSET2: dT^2 << 6
-                x = (v * v) << 6
+                r = int(reach[kind])
+                v = dt
+                if v > r:
+                    v = r
+                elif v < 0 - r:
+                    v = 0 - r
+                base = v << 3
+            x = base
+            bh = base >> 15
+            bl = base & 0x7FFF
+            n = (code & 7) - 1
+            while n > 0:
+                ah = x >> 15
+                al = x & 0x7FFF
+                m = ah * bl + al * bh
+                x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                n -= 1
+            x = x << int(posts[kind])
         bh = x >> 15
         bl = x & 0x7FFF
         c = 0
         while c < 3:
             a = int(p[at + c]) << w >> w
             r = int(u[c]) << w >> w
-            if kind == 1:                    # TEMP_OFFSET
-                r -= (a * x) >> 6
-            elif kind == 2:                  # TEMP_SCALE: P24((a dT) >> 6, r)
-                a = (a * x) >> 6
-                ah = a >> 15
-                al = a & 0x7FFF
-                rh = r >> 15
-                rl = r & 0x7FFF
-                m = ah * rl + al * rh
-                r -= ((ah * rh) << 6) + (m >> 9) + (((m & 511) + ((al * rl) >> 15)) >> 9)
-            elif kind == 4:                  # NONLINEAR: r - P24(a, P24(r, r))
+            if form == 3:                    # FORM_NONLINEAR: r - P24(a, P24(r, r))
                 rh = r >> 15
                 rl = r & 0x7FFF
                 m = rh * rl + rl * rh
@@ -426,13 +439,19 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
                 sl = s & 0x7FFF
                 m = ah * sl + al * sh
                 r -= ((ah * sh) << 6) + (m >> 9) + (((m & 511) + ((al * sl) >> 15)) >> 9)
-            else:                            # P16(a', x): DRIFT a' = a << 5, the rest a
-                if kind == 3:
-                    a = a << 5
+            else:                            # g = P16(a, x); FORM_SCALE: r - P24(g, r)
                 ah = a >> 15
                 al = a & 0x7FFF
                 m = ah * bl + al * bh
-                r -= ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                g = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                if form == 2:
+                    ah = g >> 15
+                    al = g & 0x7FFF
+                    rh = r >> 15
+                    rl = r & 0x7FFF
+                    m = ah * rl + al * rh
+                    g = ((ah * rh) << 6) + (m >> 9) + (((m & 511) + ((al * rl) >> 15)) >> 9)
+                r -= g
             if clamp:
                 if r > clamp:
                     r = clamp

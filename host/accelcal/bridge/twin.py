@@ -288,50 +288,48 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
 
 def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_time: int, dV,
                     e: int) -> None:
-    """Calibration._remove_effects on every sample: the effects out of w (Q(14 - e) g, in
-    place), last first, each clamped after; q: the clamped readings (Q10 g)."""
+    """The effects of calibration._apply_composed on every sample, by the table's forms
+    (effects.block_terms): out of w (Q(14 - e) g, in place), last first, each clamped after;
+    q: the clamped readings (Q10 g)."""
     m = len(q)
     dT = np.clip(np.broadcast_to(np.asarray(0 if dT is None else dT, np.int64), (m,)),
                  -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
     dt_raw = np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,))[:, None]
-    dt = np.clip(dt_raw, -deff.APPLY_TIME_MAX, deff.APPLY_TIME_MAX)
     dV = np.broadcast_to(np.asarray(0 if dV is None else dV, np.int64), (m,))[:, None]
-    for j in range(len(kinds) - 1, -1, -1):   # last first, as Calibration._remove_effects
+    for j in range(len(kinds) - 1, -1, -1):   # last first, as calibration._apply_composed
         kind = kinds[j]
+        _name, _source, _power, form, _post, ps, rs = deff.EFFECTS[kind][:7]
         ke = [0, 0, 0]
         deff.apply_params(kind, [int(v) for v in p_int[9 + 3 * j:12 + 3 * j]], 0, ke, 0)
         ke = np.array(ke, dtype=np.int64)
-        if deff.is_generic(kind):
-            w -= (ke * generic_regressor(kind, dT, dt_raw, step_time, dV)) >> (14 + e)
-        elif kind == deff.TEMP_OFFSET:
-            w -= (ke * dT) >> (6 + e)
-        elif kind == deff.TEMP_SCALE:
-            w -= (((ke * dT) >> 6) * w) >> 18
-        elif kind == deff.DRIFT:
-            w -= (ke * dt) >> (11 + e)
-        elif kind == deff.NONLINEAR:
+        if form == deff.FORM_NONLINEAR:    # effects.block_terms' forms, by the table's row
             w -= (ke * ((q * q) >> (10 + e))) >> 14
-        elif kind == deff.TEMP_OFFSET2:
-            w -= (ke * (dT * dT)) >> (10 + e)
+        else:
+            r = regressor(kind, dT, dt_raw, step_time, dV) >> rs
+            if form == deff.FORM_OFFSET:
+                w -= (ke * r) >> (26 + e - ps - rs)
+            else:                          # FORM_SCALE
+                w -= (((ke * r) >> (22 - ps - rs)) * w) >> 18
         np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
 
 
-def generic_regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
-                      dV: np.ndarray | int = 0) -> np.ndarray:
-    """The twin of acal.core.effects.regressor >> 4 (Q12, the apply's), vectorised: a step's
-    indicator, the board's supply (clamped), or the clamped temperature or time to its power
-    (each an exact floor in Q16, as acal/core/wide.py's mul_shift gives it)."""
-    source, power = deff.SHAPES[kind]
+def regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
+              dV: np.ndarray | int = 0) -> np.ndarray:
+    """The twin of acal.core.effects.regressor(..., fit=False) (Q16, the apply's clamps),
+    vectorised: a step's indicator, the board's supply (clamped), or the clamped temperature or
+    time to its power (each an exact floor in Q16, as acal/core/wide.py's mul_shift gives it),
+    shifted by the row's post."""
+    _name, source, power, _form, post = deff.EFFECTS[kind][:5]
     if source == deff.SOURCE_STEP:
-        return np.where(dt >= step_time, 4096, 0).astype(np.int64)
+        return np.where(dt >= step_time, 65536, 0).astype(np.int64)
     if source == deff.SOURCE_SUPPLY:
-        return (np.clip(np.asarray(dV, np.int64), -deff.SUPPLY_MAX, deff.SUPPLY_MAX) << 6) >> 4
-    if source == deff.SOURCE_TEMP:
+        base = np.clip(np.asarray(dV, np.int64), -deff.SUPPLY_MAX, deff.SUPPLY_MAX) << 6
+    elif source == deff.SOURCE_TEMP:
         base = np.clip(dT, -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX) << 10   # Q2 degC / 16 in Q16
     else:
-        base = np.clip(dt, -deff.GENERIC_TIME_MAX, deff.GENERIC_TIME_MAX) << 3
+        reach = deff.EFFECTS[kind][7][1]
+        base = np.clip(dt, -reach, reach) << 3
     x = base
     for _ in range(power - 1):
         x = (x * base) >> 16      # < 2**37: exact in int64
-    return x >> 4
-
+    return x << post

@@ -179,22 +179,26 @@ def column_ref(name: str) -> str:
     return f"{name}0"
 
 
-_TEMP_KINDS = {1: deff.TEMP_OFFSET, 2: deff.TEMP_OFFSET2, 3: deff.TEMP_OFFSET3, 4: deff.TEMP_OFFSET4}
-_TIME_KINDS = {1: deff.DRIFT, 2: deff.TIME_OFFSET2, 3: deff.TIME_OFFSET3, 4: deff.TIME_OFFSET4}
+_SOURCES = {"temp": deff.SOURCE_TEMP, "t": deff.SOURCE_TIME}
+_FORMS = {"offset": deff.FORM_OFFSET, "gain": deff.FORM_SCALE}
 
 
 def device_kind(needs: str | None, power: int, form: str, change_point: bool) -> int | None:
-    """The device kind (acal.core.effects) that computes an effect of this shape, None when the
-    device has none: offsets in a power of temperature or time (1..4) or a step in time, a gain
-    linear in temperature, an offset in the squared reading.  Gains in time, higher gains in
-    temperature and other powers of the reading run on the host only."""
-    if form == "gain":
-        return deff.TEMP_SCALE if (needs, power) == ("temp", 1) else None
-    if needs == "temp":
-        return _TEMP_KINDS.get(power)
-    if needs == "t":
-        return deff.STEP if change_point else _TIME_KINDS.get(power)
-    return deff.NONLINEAR if power == 2 else None
+    """The device kind that computes an effect of this shape, from the device's table
+    (acal.core.effects.EFFECTS, kind_of), None when it has none: offsets in a power of
+    temperature or time (1..4) or a step in time, a gain linear in temperature, an offset in
+    the squared reading.  Gains in time, higher gains in temperature and other powers of the
+    reading run on the host only."""
+    if form not in _FORMS:
+        return None
+    if needs is None:   # the reading itself: its own form
+        return deff.kind_of(deff.SOURCE_READING, power, deff.FORM_NONLINEAR) or None \
+            if form == "offset" else None
+    if needs not in _SOURCES:
+        return None
+    if needs == "t" and change_point:   # a step: its indicator, whatever the power
+        return deff.kind_of(deff.SOURCE_STEP, 1, _FORMS[form]) or None
+    return deff.kind_of(_SOURCES[needs], power, _FORMS[form]) or None
 
 
 _GENERIC_DAYS = (1 << deff.GENERIC_TIME_SHIFT) * deff.DT_UNIT_S / 86400.0   # 6.07 days
