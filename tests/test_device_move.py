@@ -58,7 +58,11 @@ def test_every_old_module_lands_on_a_file_that_exists():
     moved = {f"{pkg}/{new}.py" for pkg, new in dm.MOVES.values()}
     here = {p.relative_to(ROOT / "device" / "acal").as_posix()
             for p in (ROOT / "device" / "acal").rglob("*.py") if p.name != "__init__.py"}
-    assert here == moved       # the map names every module of the package
+    assert moved <= here       # every module the map names is in the package
+    # a module added since the move (core/slices.py) is new: its name must not be an old one,
+    # or the rewriter would send that old name's users to the wrong file
+    for added in here - moved:
+        assert added.rsplit("/", 1)[-1][:-3] not in dm.MOVES, added
 
 
 def test_the_tree_uses_no_old_name_and_check_says_so(tmp_path):
