@@ -22,8 +22,9 @@ def test_the_app_sleeps_between_drains_on_the_emulated_pico(capsys):
     for rate in bench_sleep.RATES:
         assert m[e + f"lost_{rate}hz"] == 0
         assert 0 < m[e + f"awake_pct_{rate}hz"] < 50
-        # at least a wake-up a drain (25 samples), more where the bus waits for the chip
-        assert m[e + f"wakeups_per_s_{rate}hz"] >= rate / 25
+        # at least a wake-up a drain, and a drain takes at most the FIFO's 32 (nothing lost):
+        # 25 a drain when it comes on time, a few more when a wait ends late
+        assert m[e + f"wakeups_per_s_{rate}hz"] >= rate / 32
     # the work is per sample: more samples, more awake
     assert m[e + "awake_pct_10hz"] < m[e + "awake_pct_100hz"] < m[e + "awake_pct_400hz"]
     print(bench_sleep.format_sleep(m))

@@ -1,11 +1,13 @@
 """A board that sleeps between drains (issue 46, part 5): the app as `deploy` starts it (the
 FIFO with its watermark, the base model, the wear profile) on the emulated Pico at 10, 100 and
-400 Hz.  Between drains the app sleeps in time.sleep_us, which MicroPython's rp2 port spends in
-WFE with a timer alarm armed; the emulator skips such a wait to the alarm and counts it
+400 Hz.  Between drains the app sleeps in time.sleep_ms (whole ms, rounded up), which
+MicroPython's rp2 port spends in WFE with a timer alarm armed (mp_hal_delay_ms; its sleep_us
+busy-waits the last partial ms); the emulator skips such a wait to the alarm and counts it
 (bridge/scripts/rp2040.mjs `wakeups`).  The awake share is the core's executed cycles over the
 emulated time's cycles at 125 MHz; each figure is the difference of a long and a short run, so
-the import and set-up cancel.  No current estimate: that needs the RP2040 datasheet's run and
-sleep figures, not taken here."""
+the import and set-up cancel.  No current estimate: it needs the RP2040 datasheet's run and
+SLEEP/DORMANT currents (its section 5.4 "Power Consumption" table), whose rows the tools this
+project searches with did not return; none is made up (docs/boards-and-logs.md)."""
 from __future__ import annotations
 
 import tempfile
@@ -69,4 +71,6 @@ def format_sleep(m: dict) -> str:
         lines.append(f"  {rate:>3} Hz: {m[E + f'awake_pct_{rate}hz']:.2f} % of the cycles awake, "
                      f"{m[E + f'wakeups_per_s_{rate}hz']:.1f} wake-ups a second, "
                      f"{m[E + f'lost_{rate}hz']} samples lost (goal at 100 Hz: awake <= 2 %)")
+    lines.append("  current: not estimated (the RP2040 datasheet's run and sleep currents, section "
+                 "5.4, not found by the project's search tools; none made up)")
     return "\n".join(lines)
