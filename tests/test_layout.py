@@ -190,7 +190,7 @@ def test_every_cited_section_is_a_heading():
 
 def test_every_link_between_pages_resolves():
     bad = []
-    pages = [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]
+    pages = [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]
     for page in pages:
         for m in re.finditer(r"\]\(([^)#\s]*)(#[^)\s]*)?\)", page.read_text()):
             target, frag = m.group(1), m.group(2)
