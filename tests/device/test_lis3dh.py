@@ -139,3 +139,51 @@ def test_sample_times_and_stimulus_indices_are_the_plain_formulas(odr, rng):
             assert chip.generated == (c.now_us() - t0) // period
         want = [((t0 + n * period - start) * rate) // 10 ** 6 for n in range(1, chip.generated + 1)]
         assert stim.k == want
+
+
+# --- the FIFO's conversion as a viper loop (lis3dh.fifo_codes_q10) ------------------------------
+
+FIFO_SCRIPT = r'''
+from array import array
+from acal.logger import lis3dh
+b = bytearray(%r)
+for so_mg in (1, 2, 4, 12):
+    for mid in (0, 3):
+        out = array("i", [7] * (len(b) // 2 + 2))
+        lis3dh.fifo_codes_q10(b, len(b) // 2, out, 1, mid, so_mg * 16777, %d)
+        print(" ".join(str(v) for v in out))
+'''
+
+
+def fifo_codes_every_value(rng):
+    # every 10-bit code, each with random bits below the 10 (the chip leaves them 0; a
+    # read past the stored samples is undefined), as the little-endian bytes the bus gives
+    raw = ((np.arange(-512, 512) << 6) | rng.integers(0, 64, 1024)) & 0xFFFF
+    return raw, bytes(np.column_stack([raw & 0xFF, raw >> 8]).astype(np.uint8).ravel())
+
+
+def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
+    """The viper loop read_fifo converts with, run by the MicroPython unix port as the boards'
+    emitters compile it, gives LIS3DH._fifo_to_q10 of every 10-bit code, at every range, in
+    HR mode (a code read as its middle) and not, clamped at SAMPLE_MAX; the cells around the
+    destination are untouched."""
+    from acal.core.fixed import SAMPLE_MAX
+    from accelcal.bridge import runtime
+    raw, data = fifo_codes_every_value(rng)
+    f = tmp_path / "fifo.py"
+    f.write_text(FIFO_SCRIPT % (data, SAMPLE_MAX))
+    got = [list(map(int, line.split())) for line in
+           runtime.run_micropython_script(str(f)).strip().splitlines()]
+    signed = [int(v) - 0x10000 if v & 0x8000 else int(v) for v in raw]
+    want = []
+    for so_mg in (1, 2, 4, 12):
+        for mid in (0, 3):
+            d = lis3dh.LIS3DH.__new__(lis3dh.LIS3DH)
+            d._fifo_so_mg, d._fifo_mid = so_mg, mid
+            want.append([7] + [d._fifo_to_q10(v) for v in signed] + [7])
+    assert got == want
+    assert max(map(max, want)) == SAMPLE_MAX and min(map(min, want)) == -SAMPLE_MAX  # clamped
+    # and CPython's run of the same source (the WebAssembly port and CircuitPython run it so)
+    out = [7] * 1026
+    lis3dh.fifo_codes_q10(data, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX)
+    assert out == want[-1]

@@ -567,3 +567,22 @@ def test_viper_shifts_stay_below_32_over_whole_domains():
     for x, d, s in ((lim, (1 << 26) - 1, 3), (-lim, 3, 1), (12345, 7, 30), (-1, 1, 27)):
         assert div_shift(T(x), T(d), T(s)) == (x << s) // d
     assert tr.shifts and max(hi for _, hi, _ in tr.shifts.values()) == 31   # the bound is met
+
+
+def test_fifo_conversion_stays_small_at_every_code(monkeypatch):
+    """lis3dh.fifo_codes_q10 (viper on the boards) at +-16 g in HR mode, the largest product,
+    over every 10-bit code: every value below 2**30, its shifts within 0..31."""
+    from acal.core.fixed import SAMPLE_MAX
+    from acal.logger import lis3dh
+    tr = Tracer()
+    T = traced(tr)
+    monkeypatch.setattr(lis3dh, "int", lambda v: v, raising=False)   # viper's cast
+    data = []
+    for r in range(-512, 512):
+        v = (r << 6) & 0xFFFF | 63
+        data += [T(v & 0xFF), T(v >> 8)]
+    out = [0] * 1024
+    lis3dh.fifo_codes_q10(data, T(1024), out, T(0), T(3), T(12 * 16777), T(SAMPLE_MAX))
+    assert out[0] == -SAMPLE_MAX and out[-1] == SAMPLE_MAX
+    assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
+    assert tr.max_abs > 1 << 29     # the worst case is reached: 4099 x 201324

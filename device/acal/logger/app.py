@@ -42,6 +42,9 @@ class RealClock:
     def sleep_us(self, us):
         self.time.sleep_us(us)
 
+    def sleep_ms(self, ms):
+        self.time.sleep_ms(ms)
+
 
 _TICKS_HALF = 1 << 29   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
 
@@ -88,6 +91,10 @@ class App:
         self.clock = getattr(board, "clock", None) or RealClock()
         self.rate_hz = rate_hz
         self.period_us = 1000000 // rate_hz
+        # FIFO waits in whole milliseconds where the clock offers them: MicroPython's rp2
+        # time.sleep_us(us) waits us // 1000 ms in WFE and busy-waits the rest (mphalport.c
+        # mp_hal_delay_us), up to 1 ms awake a drain; sleep_ms is all WFE (mp_hal_delay_ms).
+        self._sleep_ms = getattr(self.clock, "sleep_ms", None)
         self.fifo = fifo
         self.samples = 0
         self.lost = 0
@@ -231,14 +238,14 @@ class App:
         c = self.clock
         wait = self.period_us * DRAIN - c.ticks_diff(c.ticks_us(), self.t_last)
         if wait > 0:
-            c.sleep_us(wait)
+            self._wait(wait)
         n = self._fifo_level()
         if n < 0:
             return 0
         if n < DRAIN and not (self.sensor.wtm or self.sensor.overrun):
             # WTM clear: the chip has converted fewer than DRAIN (its clock and ours differ, or
             # the drain came a hair early): wait for the rest rather than drain a few
-            c.sleep_us(self.period_us * (DRAIN - n))
+            self._wait(self.period_us * (DRAIN - n))
             n = self._fifo_level()
             if n < 0:
                 return 0
@@ -285,6 +292,14 @@ class App:
                 self._flush()
         self.samples += n
         return n
+
+    def _wait(self, us):
+        # Between drains: rounded up to whole ms where the clock sleeps in ms (<= 1 ms late, of
+        # the FIFO's 7 levels of slack: 17.5 ms at 400 Hz)
+        if self._sleep_ms is not None:
+            self._sleep_ms((us + 999) // 1000)
+        else:
+            self.clock.sleep_us(us)
 
     def _fifo_level(self):
         # The FIFO's level (FSS, or 32 with OVRN_FIFO), -1 if the bus failed RETRIES times.  The
