@@ -336,7 +336,7 @@ def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
 # reach in the fit - made by tables(), with the names, bounds and shapes above.
 _CODES = bytearray(KIND_MAX + 1)
 _POSTS = bytearray(KIND_MAX + 1)
-_REACH = array("i", bytearray(4 * (KIND_MAX + 1)))
+_REACH = array("i", bytearray(4 * (KIND_MAX + 1)))   # a kind's clamp on its source's value
 
 
 def tables():
@@ -355,7 +355,10 @@ def tables():
             SHAPES[k] = (source, power)
         _CODES[k] = (form << 6) | (source << 3) | power
         _POSTS[k] = post
-        _REACH[k] = reach[0] if reach else 0
+        # the clamp by source, as regressor's (fit=True): dV to +-SUPPLY_MAX, dT to
+        # +-APPLY_DT_MAX, dt to the row's fit reach
+        _REACH[k] = SUPPLY_MAX if source == SOURCE_SUPPLY else (
+            APPLY_DT_MAX if source == SOURCE_TEMP else (reach[0] if reach else 0))
 
 
 tables()
@@ -389,28 +392,20 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
         if source == 3:                      # SOURCE_STEP
             x = 65536 if dt >= ts else 0
         elif source != 0:                    # SOURCE_TEMP (Q2 degC), SOURCE_TIME, SOURCE_SUPPLY
+            v = dt                           # to Q16 as regressor: dt << 3, dV << 6, dT << 10
+            s = 3
             if source == 4:
                 v = dV
-                if v > 1024:
-                    v = 1024
-                elif v < -1024:
-                    v = -1024
-                base = v << 6
+                s = 6
             elif source == 1:
                 v = dT
-                if v > 128:
-                    v = 128
-                elif v < -128:
-                    v = -128
-                base = v << 10
-            else:
-                r = int(reach[kind])
-                v = dt
-                if v > r:
-                    v = r
-                elif v < 0 - r:
-                    v = 0 - r
-                base = v << 3
+                s = 10
+            r = int(reach[kind])             # the source's clamp, from tables()
+            if v > r:
+                v = r
+            elif v < 0 - r:
+                v = 0 - r
+            base = v << s
             x = base
             bh = base >> 15
             bl = base & 0x7FFF
