@@ -182,6 +182,10 @@ def _apply_composed(source, dest, i: int, end: int, coef, terms, nt: int, m: int
     # per sample (tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
     # and test_rv32.py on the chips); every value below 2**30
     # (tests/device/test_effects.py traces it at the worst case).
+    # Its setup (K's nine loads, the clamp to +-m) repeats _apply_block's on purpose (duplicates
+    # D1): a viper function cannot return nine locals, and a shared helper or one loop with a
+    # `nt` test per sample costs the base model's apply a call or a branch per sample, the
+    # hot path every board runs; the two loops stay two, tied by test_composed_app's integers.
     src = ptr32(source)
     dst = ptr32(dest)
     k = ptr32(coef)
