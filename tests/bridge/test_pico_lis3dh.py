@@ -105,19 +105,26 @@ def pico():
     return emulated
 
 
-def fifo_q10(xyz_g):
+def fifo_q10(xyz_g, index=None):
     """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
     digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver reads a
-    code as the middle of its four digits (4 r + 1.5 mg) and scales."""
+    code as the middle of its four digits (4 r + 1.5 mg) and scales, rounding onto Q10 with the
+    dither of each sample's index among those the driver read (index; None: 0, 1, 2, ...: the
+    app read them all), acal.core.fixed.DITHER_STEP."""
     from types import SimpleNamespace
     from acal.logger.lis3dh import LIS3DH
+    from accelcal.fixedpoint import dither
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
     hr = SimpleNamespace(_fifo_mid=3, _fifo_so_mg=1)
-    q = np.vectorize(lambda d: LIS3DH._fifo_to_q10(hr, int(d) << 6), otypes=[np.int64])(d10)
-    # the middle, to Q10 rounding (half an LSB, 0.49 mg) and 16777 / 16384 for 1.024
-    assert np.all(np.abs(q / 1.024 - (4 * d10 + 1.5)) <= 0.52)
+    i = np.arange(len(d10)) if index is None else np.asarray(index)
+    dd = np.broadcast_to(dither(0, int(i.max()) + 1 if len(i) else 0)[i][:, None], d10.shape)
+    q = np.vectorize(lambda d, e: LIS3DH._fifo_to_q10(hr, int(d) << 6, int(e)),
+                     otypes=[np.int64])(d10, dd)
+    # the middle, to Q10's floor with a dither in [0, 1) LSB (under 0.98 mg either way) and
+    # 16777 / 16384 for 1.024 (at most 0.03 LSB low at 2 g)
+    assert np.all(np.abs(q / 1.024 - (4 * d10 + 1.5)) <= 1.01)
     return q
 
 

@@ -57,7 +57,13 @@ _MG_Q10_SHIFT = const(14)
 # FIFO codes in half digits (Q1): x 1.024 / 2 = 16777 / 32768; |(8 r + 3) * 12| <= 49 188 (r: a
 # 10-bit code, |r| <= 512; 12 mg at +-16 g) keeps the product below 8.3e8 < 2**30.
 _HALF_MG_Q10_SHIFT = const(15)
-_HALF_MG_Q10_ROUND = const(16384)     # 1 << (_HALF_MG_Q10_SHIFT - 1)
+# The rounding onto Q10 is the format's (acal.core.fixed: DITHER_*): floor with a dither d of the
+# sample's index, d = (i * 10127) & 16383 in 2**-14 LSB (the driver's i: samples read since it was
+# made), added in place of the half: (mg * _MG_Q10_MUL + d) >> 14, and in half digits d << 1
+# before the >> 15.  Both sums stay below 2**30 (4.12e8 + 16383; 8.3e8 + 32766).  Viper does
+# not fold an imported name: the values are fixed.DITHER_STEP and DITHER_MASK (test_lis3dh).
+_DITHER_STEP = const(10127)
+_DITHER_MASK = const(16383)
 
 
 class LIS3DHError(Exception):
@@ -95,6 +101,7 @@ class LIS3DH:
         self.x = 0
         self.y = 0
         self.z = 0
+        self.dither = 0      # the next sample's dither (2**-14 LSB): the Q10 rounding's
         self.overrun = False
         self.wtm = False
         bits = 12 if high_res else 10
@@ -141,19 +148,21 @@ class LIS3DH:
         v = lo | (hi << 8)
         return v - 0x10000 if v & 0x8000 else v
 
-    def _to_q10(self, raw, shift, so_mg):
+    def _to_q10(self, raw, shift, so_mg, d):
+        # d: the sample's dither (2**-14 LSB, the format's rounding: fixed.DITHER_STEP)
         mg = (raw >> shift) * so_mg
-        v = (mg * _MG_Q10_MUL + (1 << (_MG_Q10_SHIFT - 1))) >> _MG_Q10_SHIFT  # rounded
+        v = (mg * _MG_Q10_MUL + d) >> _MG_Q10_SHIFT
         if v > SAMPLE_MAX:
             return SAMPLE_MAX
         if v < -SAMPLE_MAX:
             return -SAMPLE_MAX
         return v
 
-    def _fifo_to_q10(self, raw):
-        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits
+    def _fifo_to_q10(self, raw, d):
+        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits; d: the
+        # sample's dither (2**-14 LSB)
         h = ((raw >> 6) * 8 + self._fifo_mid) * self._fifo_so_mg
-        v = (h * _MG_Q10_MUL + (1 << (_HALF_MG_Q10_SHIFT - 1))) >> _HALF_MG_Q10_SHIFT
+        v = (h * _MG_Q10_MUL + (d << 1)) >> _HALF_MG_Q10_SHIFT
         if v > SAMPLE_MAX:
             return SAMPLE_MAX
         if v < -SAMPLE_MAX:
@@ -173,9 +182,11 @@ class LIS3DH:
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, b)
         sh = self._shift
         so = self._so_mg
-        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so)
-        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so)
-        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so)
+        d = self.dither
+        self.dither = (d + _DITHER_STEP) & _DITHER_MASK
+        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so, d)
+        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so, d)
+        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so, d)
 
     def fifo_level(self):
         """Samples waiting in the FIFO (0..32), from FSS and OVRN_FIFO; overrun: the FIFO is
@@ -193,8 +204,8 @@ class LIS3DH:
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
         # the conversion in a viper loop on ports with emitters (fifo_codes_q10): 92 us a sample
         # as a bytecode loop on the emulated Pico
-        fifo_codes_q10(self._fifo_buf, 3 * n, out, 3 * start, self._fifo_mid,
-                       self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX)
+        self.dither = fifo_codes_q10(self._fifo_buf, 3 * n, out, 3 * start, self._fifo_mid,
+                                     self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX, self.dither)
 
     def temperature(self):
         """Temperature change from the chip's reference, whole degC (OUT_ADC3, 8 bits)."""
@@ -203,23 +214,31 @@ class LIS3DH:
 
 
 @viper
-def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int):
-    # LIS3DH._fifo_to_q10 of the nv little-endian 16-bit values in the bytearray b, into the int
-    # array out from index at: a viper loop on ports with emitters.  so = mg a 12-bit digit x
-    # _MG_Q10_MUL (<= 12 x 16777); |(8 r + 3) so| <= 4099 x 201324 < 8.3e8 < 2**30 (r: a 10-bit
-    # code, -512..511; tests/device/test_ranges.py).  The sign is taken by hand and >> of a
-    # viper int is arithmetic, so a 64-bit word (the unix port) gives the same values.
+def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int, dith: int) -> int:
+    # LIS3DH._fifo_to_q10 of the nv little-endian 16-bit values in the bytearray b (x y z a
+    # sample), into the int array out from index at: a viper loop on ports with emitters.  dith:
+    # the first sample's dither; returns the next one's (each sample's three values take one).
+    # so = mg a 12-bit digit x _MG_Q10_MUL (<= 12 x 16777); |(8 r + 3) so| + 2 * 16383 <= 4099 x
+    # 201324 + 32766 < 8.3e8 < 2**30 (r: a 10-bit code, -512..511; tests/device/test_ranges.py).
+    # The sign is taken by hand and >> of a viper int is arithmetic, so a 64-bit word (the unix
+    # port) gives the same values.
     p = ptr8(b)
     d = ptr32(out)
     i = 0
+    k = 0
     while i < nv:
         v = int(p[2 * i]) | (int(p[2 * i + 1]) << 8)
         if v & 0x8000:
             v -= 0x10000
-        v = (((v >> 6) * 8 + mid) * so + _HALF_MG_Q10_ROUND) >> _HALF_MG_Q10_SHIFT
+        v = (((v >> 6) * 8 + mid) * so + (dith << 1)) >> _HALF_MG_Q10_SHIFT
         if v > top:
             v = top
         elif v < 0 - top:
             v = 0 - top
         d[at + i] = v
         i += 1
+        k += 1
+        if k == 3:
+            k = 0
+            dith = (dith + _DITHER_STEP) & _DITHER_MASK
+    return dith
