@@ -1,5 +1,5 @@
 """The peers' calibrations of real recordings, split as the tests split them (issue 50 part 6):
-for `make bench`, and the data tests/pipeline/test_real_peers.py scores.
+for `make bench`, and the data tests/pipeline/test_real_halves.py scores.
 
 For each recording given: its rest points (accelcal.pipeline.restpoints.rest_points, those
 `calibrate` keeps), each split of compare's (`--split blocks`, `first-half`, `second-half`:
