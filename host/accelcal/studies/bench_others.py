@@ -124,9 +124,10 @@ def fit(tool: str, path: str) -> dict:
     lower limit 12 h): the largest multiple of 12 h the samples span (at least 12), from which
     it takes more in 12-hour steps up to all of them; skdh_lifted: the whole hours the samples
     span (at least 1), its 12-hour floor lifted (set on the object after its constructor
-    rounded it up), a variant outside its documented settings, labelled so wherever shown.  A tool that
-    declines (skdh: too few hours or no valid calibration after all the data; actipy: CalibOK
-    0) gives fitted false and its reason; no map."""
+    rounded it up), a variant outside its documented settings, labelled so wherever shown.
+    A tool that declines (skdh: too few hours or no valid calibration after all the data;
+    actipy: CalibOK 0) gives fitted false and its reason; no map.  actipy "fits" with no
+    iteration where its error is under its tolerance: the identity, said in left_as_is."""
     z = np.load(path)
     t, acc = z["t"], np.ascontiguousarray(z["acc"], dtype=np.float64)
     temp = z["temp"] if "temp" in z.files else None

@@ -30,9 +30,8 @@ import numpy as np
 
 from accelcal.errors import InputError
 from accelcal.files.recordings import read_whole
-from accelcal.pipeline.restpoints import SPLITS, rest_points, split, usable
-
 from accelcal.locations import checkout
+from accelcal.pipeline.restpoints import SPLITS, rest_points, split, usable
 
 ROOT = checkout() or Path.cwd()
 TOOLS = ("skdh", "skdh_lifted", "actipy")
@@ -68,8 +67,8 @@ def run_peer(python: str, tool: str, npz: Path) -> dict:
     r = subprocess.run([python, "-m", "accelcal.studies.bench_others", "fit", tool, str(npz)],
                        capture_output=True, text=True)
     if r.returncode:
-        return {"tool": tool, "fitted": False, "reason": "crashed: " + (r.stderr.strip().splitlines()
-                                                                         or ["?"])[-1]}
+        last = (r.stderr.strip().splitlines() or ["?"])[-1]
+        return {"tool": tool, "fitted": False, "reason": f"crashed: {last}"}
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
