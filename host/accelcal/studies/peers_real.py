@@ -10,7 +10,8 @@ actipy's calibrate_gravity, each in its own process in .venv-bench
 back from its calibrated samples: per axis c0 + c1 v + c2 T + c3 v T) or that it declined and why
 is written as JSON, with the peers' versions, the split's cut and its rest-point counts, so that
 a test can score the maps on the same held-out rest points as the default without the peers
-installed.  Each recording's whole file too (in-sample; for minutes-long files, whose halves
+installed.  Each split's held-out errors (before, the default, float lsq on every training
+point, each peer that fitted) are printed and kept in the JSON (held_out_mg) for the record.  Each recording's whole file too (in-sample; for minutes-long files, whose halves
 cannot cover, the only question is whether the peers fit at all).  A file accelcal's reader
 refuses is recorded as refused, with no peer run (they are handed accelcal's samples).
 
@@ -63,6 +64,49 @@ def training_mask(p, halves, rule: str, t: np.ndarray) -> tuple[np.ndarray, dict
     raise AssertionError("block split not among SPLITS")
 
 
+def error_mg(a: np.ndarray) -> float:
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def peer_on(fit: dict, p) -> np.ndarray:
+    """A peer's read-back map (per axis c0 + c1 v + c2 T + c3 v T) on rest points p."""
+    c = np.asarray(fit["map"])
+    T = (p.temp if p.temp is not None else np.zeros(len(p)))[:, None]
+    return c[:, 0] + c[:, 1] * p.v + c[:, 2] * T + c[:, 3] * p.v * T
+
+
+def default_on(train, test, folder: Path) -> tuple[str, float]:
+    """The default calibration (accelcal.calibrate, no model: auto) of the training rest points
+    written as a points file, its model and its held-out error (mg) with its own correction."""
+    import accelcal
+    from accelcal.model.effects import ModelSpec
+    path = folder / "train.csv"
+    cols = [train.v] + ([train.temp] if train.temp is not None else []) + [train.t]
+    head = "x,y,z," + ("temp," if train.temp is not None else "") + "t"
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="", fmt="%.9g")
+    rec = accelcal.calibrate(str(path))
+    if not rec.ok:
+        return rec["status"], float("nan")
+    a = ModelSpec.parse(rec["model"]).correct(np.array(list(rec["params"].values())), test.v,
+                                              test.temp, test.t, rec["reference"], test.cols)
+    return rec["model"], error_mg(a)
+
+
+def scores(halves, fits: dict, folder: Path) -> dict:
+    """Held-out errors (mg) on the split's held-out rest points: before, the default, float lsq
+    on every training point, and each peer that fitted (tests/pipeline/test_real_halves.py
+    computes the same from the shipped points; printed by make bench, kept for the record)."""
+    from accelcal import methods
+    train, test = halves[0], halves[1]
+    model, default = default_on(train, test, folder)
+    out = {"before": methods.calibration_error_mg(None, test.v), "default_model": model,
+           "lsq_all": methods.calibration_error_mg(methods.METHODS["lsq"](train.v), test.v)}
+    if default == default:   # not nan: the default calibrated (else its status is the model)
+        out["default"] = default
+    out.update({tool: error_mg(peer_on(f, test)) for tool, f in fits.items() if f["fitted"]})
+    return out
+
+
 def run_peer(python: str, tool: str, npz: Path) -> dict:
     r = subprocess.run([python, "-m", "accelcal.studies.bench_others", "fit", tool, str(npz)],
                        capture_output=True, text=True)
@@ -104,13 +148,14 @@ def one_file(path: Path, python: str, folder: Path) -> dict:
             rec["splits"][rule] = {"no_split": str(e)}
             continue
         sel, how = training_mask(p, halves, rule, t)
+        fits = peers_on(python, t, xyz, temp, sel, folder)
+        held = scores(halves, fits, folder)
         rec["splits"][rule] = {"how": halves.how, **how, "points": len(p),
                                "train_points": len(halves[0]), "held_out_points": len(halves[1]),
-                               "train_samples": int(sel.sum()),
-                               **peers_on(python, t, xyz, temp, sel, folder)}
-        print(f"{path.name} {rule}: " + ", ".join(
-            f"{k} {'fitted' if rec['splits'][rule][k]['fitted'] else 'declined'}" for k in TOOLS),
-              file=sys.stderr)
+                               "train_samples": int(sel.sum()), **fits, "held_out_mg": held}
+        print(f"{path.name} {rule} held out (mg): " + ", ".join(
+            f"{k} {held[k]:.2f}" if k in held else f"{k} declined" for k in
+            ("before", "default", "lsq_all", *TOOLS)) + f" [default: {held['default_model']}]")
     rec["whole_file"] = peers_on(python, t, xyz, temp, np.ones(len(t), bool), folder)
     return rec
 
