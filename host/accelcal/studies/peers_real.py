@@ -167,6 +167,12 @@ def main(argv=None) -> int:
                     help="interpreter with scikit-digital-health and actipy (make .venv-bench)")
     ap.add_argument("--out", type=Path, default=ROOT / "tests" / "data" / "real" / "peers.json")
     a = ap.parse_args(argv)
+    bad = [f"{f}: no such file" for f in a.files if not f.is_file()]
+    if not Path(a.others).is_file():
+        bad.append(f"{a.others}: no such interpreter (make .venv-bench/.installed, or --others)")
+    if bad:
+        print(f"peers_real: {bad[0]}", file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory() as tmp:
         files = [one_file(f, a.others, Path(tmp)) for f in a.files]
     versions = json.loads(subprocess.run([a.others, "-m", "accelcal.studies.bench_others",
