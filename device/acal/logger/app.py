@@ -80,12 +80,13 @@ class MsTicksClock:
 
 
 class App:
-    """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
-    range_g, fifo (default: the FIFO; False: the output registers, 12 bits, one read a sample),
-    capture_bytes, log_budget, plus Processor settings."""
+    """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock);
+    settings: rate_hz, range_g, fifo (default: the FIFO; False: the output registers, 12 bits,
+    one read a sample), bus (None: the board file's BUS; "i2c", "spi", "auto": the LIS3DH's bus,
+    where the board file offers sensor_bus), capture_bytes, log_budget, plus Processor settings."""
 
     def __init__(self, board, rate_hz=100, range_g=2, fifo=True, capture_bytes=0,
-                 log_budget=1 << 20, prefix="", **processor_settings):
+                 log_budget=1 << 20, prefix="", bus=None, **processor_settings):
         from acal.logger.lis3dh import LIS3DH, LIS3DHError
         self.board = board
         self.clock = getattr(board, "clock", None) or RealClock()
@@ -117,7 +118,8 @@ class App:
         self.sensor = None
         for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
             try:
-                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
+                regs = board.sensor_bus(bus) if hasattr(board, "sensor_bus") else board.i2c()
+                self.sensor = LIS3DH(regs, board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
                                      DRAIN - 1)
                 break
             except (OSError, LIS3DHError) as e:

@@ -109,6 +109,30 @@ class SPIRegisters:
             self.cs(1)
 
 
+def answers(regs, address=ADDRESS):
+    """True when WHO_AM_I reads 0x33 on regs (a bus with the register calls); a bus error is
+    False."""
+    b = bytearray(1)
+    try:
+        regs.readfrom_mem_into(address, _WHO_AM_I, b)
+    except OSError:
+        return False
+    return b[0] == WHO_AM_I_VALUE
+
+
+def open_bus(bus, spi, i2c):
+    """The LIS3DH's register bus for a board's setting bus: "spi" (spi()), "i2c" (i2c()) or
+    "auto": spi() if WHO_AM_I answers 0x33 there, else i2c() (with nothing on SPI, MISO reads
+    what it floats to; a Pico's pads pull it down: 0).  spi and i2c: the board's functions."""
+    if bus not in ("auto", "spi", "i2c"):
+        raise ValueError("bus must be 'auto', 'spi' or 'i2c'")
+    if bus != "i2c":
+        s = spi()
+        if bus == "spi" or answers(s):
+            return s
+    return i2c()
+
+
 class LIS3DH:
     """rate_hz: output data rate (1..400); range_g: 2, 4, 8 or 16; high_res: 12-bit outputs;
     fifo: stream-mode FIFO; fth: its watermark, FTH (0..31): FIFO_SRC_REG's WTM (self.wtm after
