@@ -152,8 +152,8 @@ class SPI:
 
     def write(self, buf):
         self.transfers += 1
-        for b in buf:
-            self.device.spi_byte(b)
+        for i in range(len(buf)):      # indexed: an iterator would allocate
+            self.device.spi_byte(buf[i])
 
     def readinto(self, buf, write=0):
         self.transfers += 1
