@@ -221,3 +221,30 @@ def test_a_late_app_overruns_the_fifo_and_counts_what_it_lost(tmp_path, pico):
     # counted lost (it was, once a run, when the clock was read after the FIFO).
     assert lost == chip["dropped"], (lost, chip)
 
+
+
+APP_SPI = APP.replace("fifo=True,", "fifo=True, bus='spi',")
+
+
+def test_the_app_on_pico_reads_the_stimulus_over_spi(tmp_path, pico):
+    """The chip wired to SPI0 (pico.mjs --spi, boards/pico.py's pins): machine.SPI (DMA for the
+    FIFO's drains) through lis3dh.SPIRegisters reads every sample the stimulus gave at its time,
+    the same samples as I2C reads, nothing lost, and the capture replays into the board's log."""
+    from accelcal.bridge import boardlog
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    r = pico.run([APP_SPI.format(seconds=5)], stimulus=tmp_path / "stim.bin", spi=pico.SPI_PICO,
+                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()},
+                 gets=["log.bin", "capture.bin"])
+    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    chip = r.report["lis3dh"]
+    assert chip["spi"] == {"bus": 0, "sck": 18, "mosi": 19, "miso": 16, "cs": 17}
+    assert (lost, overruns, bus_errors, chip["dropped"]) == (0, 0, 0, 0)
+    assert 5 * RATE <= samples <= chip["converted"] and chip["transactions"] > 0
+    for f in ("log.bin", "capture.bin"):
+        (tmp_path / f).write_bytes(r.files[f])
+    got = np.concatenate([b[3] for b in boardlog.read_capture(tmp_path).blocks if b[0] == "samples"])
+    s, us = chip["starts"][-1]
+    k = (s * 1_000_000 + us + np.arange(1, samples + 1) * 10_000) * RATE // 1_000_000
+    assert len(got) == samples and np.array_equal(got, fifo_q10(xyz[k]))
+    rep = boardlog.replay(tmp_path)
+    assert rep["identical"] and rep["samples_replayed"] == samples

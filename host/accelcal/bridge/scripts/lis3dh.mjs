@@ -396,7 +396,7 @@ export function lis3dhReport(att) {
   const d = att.lis3dh;
   return { converted: d.converted, generated: d.generated, dropped: d.dropped, exhausted: d.exhausted,
     starts: d.starts, stimulus_rate_hz: d.stim.rateHz, transactions: att.stats.transactions,
-    faults: att.stats.faults, bytes: att.stats.bytes };
+    faults: att.stats.faults, bytes: att.stats.bytes, spi: att.stats.spi || null };
 }
 
 // ---------------------------------------------------------------- the equivalence test's driver
