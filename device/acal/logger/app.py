@@ -340,8 +340,9 @@ class App:
         end = -1 if seconds is None else self.samples + self.lost + seconds * self.rate_hz
         done = getattr(self.board, "exhausted", None)  # the virtual board's stimulus can end
         # The set-up's garbage (imports, ~60 kB on a Pico) collected before acquiring: left in
-        # the heap, its holes made every allocation of a block's flush scan the allocation table
-        # (the emulated Pico at 100 Hz: 0.7-1.8 % of the core, by the heap's layout)
+        # the heap, it cost the emulated Pico 0.7-1.8 % of its core at 100 Hz, by the heap's
+        # layout, in one small region of the firmware's code (an allocator's scan past the
+        # holes, we think: no symbols to confirm it); docs/boards-and-logs.md
         gc.collect()
         while end < 0 or self.samples + self.lost < end:
             self.step()
