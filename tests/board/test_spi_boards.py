@@ -52,3 +52,24 @@ def test_the_default_app_on_spi_loses_nothing_at_400_hz(tmp_path, which):
 @pytest.mark.parametrize("which", ["pico", "feather"])
 def test_the_default_app_on_spi_loses_nothing_at_every_rate(tmp_path, which, rate):
     run_on_spi(tmp_path, which, rate, 20)
+
+
+def test_deploy_bus_goes_to_the_app_and_boards_name_theirs(tmp_path):
+    """`deploy --bus spi` puts bus='spi' in main.py's app settings (left out, the board file's
+    BUS rules); the two RP2040 board files default to auto, the virtual board to I2C, and a
+    bus the app does not know is refused before anything is read."""
+    import argparse
+    from accelcal.board.deploy import main_py
+    from accelcal.cli import board as cli_board
+    top = argparse.ArgumentParser()
+    cli_board.add_parsers(top.add_subparsers())
+    for given, want in ((["--bus", "spi"], "spi"), ([], None)):
+        args = top.parse_args(["deploy", "--port", "X", *given])
+        s = cli_board._app_settings(args)
+        assert s.get("bus") == want
+        assert ("bus='spi'" in main_py(s)) == (want == "spi")
+    with pytest.raises(SystemExit):
+        top.parse_args(["deploy", "--port", "X", "--bus", "usb"])
+    for f, bus in (("pico.py", '"auto"'), ("feather_rp2040.py", '"auto"'),
+                   ("virtual.py", 'os.getenv("ACCELCAL_BUS") or "i2c"')):
+        assert f"\nBUS = {bus}\n" in (ROOT / "boards" / f).read_text()
