@@ -107,3 +107,12 @@ def test_acquisition_on_spi_allocates_nothing_on_the_32_bit_port(tmp_path, stim_
     out = mp32(str(script), str(stim_path), str(tmp_path), "fifo", extra_path=[str(CHIP_DIR)]).split()
     assert out[0] == "OK", out
     assert 5000 <= int(out[1]) < 5032 and int(out[3]) == 0
+
+
+def test_a_board_file_without_spi_refuses_the_spi_bus(tmp_path, stim_path):
+    """A board file with no sensor_bus (boards/esp32.py) has the chip on I2C: bus="spi" is
+    refused at once, not run over I2C unsaid."""
+    os.chdir(tmp_path)
+    with pytest.raises(ValueError, match="I2C only"):
+        App(board(stim_path), rate_hz=25, bus="spi")
+    assert App(board(stim_path), rate_hz=25, bus="i2c").sensor is not None

@@ -116,6 +116,8 @@ class App:
         self.proc = Processor(self.log, rate_hz, capture=cap, store=store, range_g=range_g,
                               **processor_settings)
         self.sensor = None
+        if not hasattr(board, "sensor_bus") and bus not in (None, "i2c"):
+            raise ValueError("bus %r: this board file has the LIS3DH on I2C only" % (bus,))
         for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
             try:
                 regs = board.sensor_bus(bus) if hasattr(board, "sensor_bus") else board.i2c()
