@@ -2,8 +2,8 @@
 # SDA/SDI, GP16 = MISO <- SDO/SA0, GP17 -> CS) or on I2C0 (GP4 = SDA, GP5 = SCL, CS tied high).
 # BUS: "auto" (SPI when the LIS3DH answers there, else I2C: a board wired for either works
 # unchanged), "spi" or "i2c"; the app's bus setting (deploy --bus) overrides it.  SPI keeps the
-# core awake far less: a 25-sample FIFO drain is ~150 bytes, 0.14 ms at 8.9 MHz against 3.4 ms
-# at 400 kHz, which machine.I2C and machine.SPI both wait out awake (docs/boards-and-logs.md).
+# core awake far less: a 25-sample FIFO drain is ~150 bytes, 0.14 ms on the wire at 8.9 MHz against
+# 3.4 ms at 400 kHz, which machine.I2C and machine.SPI both wait out awake (docs/boards-and-logs.md).
 RUNTIME = "micropython"
 ARCH = "armv6m"
 BUS = "auto"

@@ -1,9 +1,9 @@
 # The LIS3DH on CircuitPython: adafruit_lis3dh finds and identifies the chip (what it does well),
 # and samples are read as raw integers through the same register code as lis3dh.LIS3DH, over
 # busio via adafruit_bus_device (no floats, no per-sample allocation).
-from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError, SPIRegisters
+from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError
 
-SPI_BAUD = 10000000    # the LIS3DH's fastest SPC (DocID17530 2.4.1: 10 MHz)
+SPI_BAUD = 10000000    # the LIS3DH's fastest SPC (DocID17530's SPI timing: fc(SPC) <= 10 MHz)
 
 
 class BusioRegisters:
@@ -29,8 +29,8 @@ class BusioRegisters:
             d.write(self._reg_val)
 
 
-class BusioSPIRegisters(SPIRegisters):
-    """lis3dh.SPIRegisters over a busio.SPI and a chip-select digitalio pin, through
+class BusioSPIRegisters:
+    """lis3dh.SPIRegisters's calls over a busio.SPI and a chip-select digitalio pin, through
     adafruit_bus_device's SPIDevice (it locks and configures the bus, mode 3, and drives CS
     around each transaction)."""
 
