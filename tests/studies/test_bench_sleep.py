@@ -14,11 +14,13 @@ def test_the_awake_share_and_wake_ups_are_the_difference_of_two_runs():
 
 
 @pytest.mark.slow
-def test_the_app_sleeps_between_drains_on_the_emulated_pico(capsys):
-    emulated_chip()
+@pytest.mark.parametrize("board", ["pico", "feather"])
+def test_the_app_sleeps_between_drains_on_the_emulated_boards(capsys, board):
+    from accelcal.bridge import rp2040
     from accelcal.studies import bench_sleep
-    m = bench_sleep.measure_sleep()
-    k = bench_sleep.key
+    emulated_chip(getattr(rp2040, bench_sleep.BOARDS[board][1]))
+    m = bench_sleep.measure_sleep(board)
+    k = lambda bus, what, rate: bench_sleep.key(bus, what, rate, board)   # noqa: E731
     for bus in bench_sleep.BUSES:
         for rate in bench_sleep.RATES:
             assert m[k(bus, "lost", rate)] == 0
@@ -46,3 +48,13 @@ def test_the_current_estimate_weighs_the_datasheets_figures_by_the_awake_share()
     text = bench_sleep.format_sleep(m)
     assert "I2C: 10 Hz ~0.57 mA, 100 Hz ~0.57 mA" in text and "Table 637" in text
     assert "SPI: 10 Hz ~0.48 mA" in text and "SPI 100 Hz: 1.00 % of the cycles awake" in text
+
+
+def test_each_boards_figures_print_under_its_name():
+    from accelcal.studies import bench_sleep
+    m = {bench_sleep.key(b, k, r, "feather"): v for r in bench_sleep.RATES for b in bench_sleep.BUSES
+         for k, v in (("awake_pct", 8.0 if b == "i2c" else 2.5), ("wakeups_per_s", r / 25), ("lost", 0))}
+    assert all(k.startswith("rp2040_circuitpython_") for k in m)
+    text = bench_sleep.format_sleep(m)
+    assert "Feather RP2040 (CircuitPython)" in text and "Pico" not in text
+    assert "SPI 100 Hz: 2.50 % of the cycles awake" in text and "I2C 100 Hz: 8.00 %" in text

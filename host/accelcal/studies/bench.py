@@ -339,6 +339,7 @@ def bench_main(*, runtime_name: str = "micropython", as_json: bool = False) -> i
         if rp2040.CIRCUITPYTHON in chips:
             print("measuring on the emulated RP2040, CircuitPython (a few minutes)...", file=sys.stderr)
             m.update(bench_circuitpython.measure())
+            m.update(bench_sleep.measure_sleep("feather"))
         if cp_missing:
             m["circuitpython" if runtime_name == "rp2040" else "romfs"] = cp_missing
         chip = bench_chip.format_chip(m) + bench_sleep.format_sleep(m)

@@ -31,22 +31,30 @@ app.run({seconds})
 print('ACAL_DONE', app.samples, app.lost)
 """
 E = "rp2040_emulated_"
+# the emulated boards: board file, firmware, the chip's I2C and SPI wiring (pico.mjs), key prefix
+BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5", "SPI_PICO", E),
+          "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3", "SPI_FEATHER",
+                      "rp2040_circuitpython_")}
 # RP2040 datasheet 5.7.2 Table 637, typical average DVDD current, mA
 RUN_MA = 9.4        # BOOTSEL mode - Active (48 MHz)
 SLEEP_MA = 0.39     # Sleep (hello_sleep)
 
 
-def key(bus: str, what: str, rate: int) -> str:
-    """The figure's name: I2C's as before SPI came (rp2040_emulated_awake_pct_100hz), SPI's with
-    spi_ before what."""
-    return E + ("spi_" if bus == "spi" else "") + f"{what}_{rate}hz"
+def key(bus: str, what: str, rate: int, board: str = "pico") -> str:
+    """The figure's name: the Pico's I2C ones as before SPI came
+    (rp2040_emulated_awake_pct_100hz), SPI's with spi_ before what; the Feather's the same after
+    rp2040_circuitpython_."""
+    return BOARDS[board][4] + ("spi_" if bus == "spi" else "") + f"{what}_{rate}hz"
 
 
-def _run(stimulus: Path, rate: int, seconds: int, bus: str = "i2c") -> tuple[int, int, float, int]:
+def _run(stimulus: Path, rate: int, seconds: int, bus: str = "i2c",
+         board: str = "pico") -> tuple[int, int, float, int]:
     from accelcal.board import emulated
+    board_file, fw, i2c, spi, _ = BOARDS[board]
     r = emulated.run([APP.format(rate=rate, seconds=seconds, bus=bus)], stimulus=stimulus,
-                     spi=emulated.SPI_PICO if bus == "spi" else None,
-                     puts={"acal_board.py": (BOARDS_DIR / "pico.py").read_bytes()})
+                     fw=getattr(rp2040, fw), i2c=i2c,
+                     spi=getattr(emulated, spi) if bus == "spi" else None,
+                     puts={"acal_board.py": (BOARDS_DIR / board_file).read_bytes()})
     lost = int(r.out.split("ACAL_DONE")[1].split()[1])
     s = r.report["scripts"][0]
     return s["cycles"], s["wakeups"], s["emulated_ms"], lost
@@ -66,10 +74,10 @@ def current_ma(awake_pct: float) -> float:
     return a * RUN_MA + (1.0 - a) * SLEEP_MA
 
 
-def measure_sleep() -> dict:
+def measure_sleep(board: str = "pico") -> dict:
     import sys
     from accelcal.simulate.stimulus import calibration_dance
-    print("the app sleeping between drains on the emulated Pico (a few minutes)...",
+    print(f"the app sleeping between drains on the emulated {board} (a few minutes)...",
           file=sys.stderr)
     truth = [1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04]
     res = {}
@@ -78,35 +86,43 @@ def measure_sleep() -> dict:
         calibration_dance(stim, 400, truth, seed=5, rounds=1, rest_s=9)
         for bus in BUSES:
             for rate in RATES:
-                short, long = _run(stim, rate, SHORT_S, bus), _run(stim, rate, LONG_S, bus)
+                short = _run(stim, rate, SHORT_S, bus, board)
+                long = _run(stim, rate, LONG_S, bus, board)
                 share, wakeups = awake(short, long)
-                res[key(bus, "awake_pct", rate)] = share
-                res[key(bus, "wakeups_per_s", rate)] = wakeups
-                res[key(bus, "sleep_state_dvdd_ma", rate)] = current_ma(share)
-                res[key(bus, "lost", rate)] = short[3] + long[3]
+                res[key(bus, "awake_pct", rate, board)] = share
+                res[key(bus, "wakeups_per_s", rate, board)] = wakeups
+                res[key(bus, "sleep_state_dvdd_ma", rate, board)] = current_ma(share)
+                res[key(bus, "lost", rate, board)] = short[3] + long[3]
     return res
 
 
 def format_sleep(m: dict) -> str:
-    if E + f"awake_pct_{RATES[0]}hz" not in m:
-        return ""
-    lines = ["", "the app as deployed (FIFO, base model, wear profile) on the emulated Pico, "
+    lines = []
+    for board, what in (("pico", "the emulated Pico (MicroPython)"),
+                        ("feather", "the emulated Feather RP2040 (CircuitPython)")):
+        if key("i2c", "awake_pct", RATES[0], board) in m:
+            lines += _format_board(m, board, what)
+    return "\n".join(lines)
+
+
+def _format_board(m: dict, board: str, what: str) -> list[str]:
+    k = lambda bus, w, rate: m[key(bus, w, rate, board)]   # noqa: E731
+    lines = ["", f"the app as deployed (FIFO, base model, wear profile) on {what}, "
              f"{LONG_S} s less {SHORT_S} s of emulated time: the core awake / waits ended by an "
-             "alarm a second (WFE between drains), the LIS3DH on I2C0 (400 kHz) and on SPI0 "
-             "(8.93 MHz):"]
+             "alarm a second (WFE between drains), the LIS3DH on I2C and on SPI:"]
     for bus in BUSES:
-        if key(bus, "awake_pct", RATES[0]) not in m:
+        if key(bus, "awake_pct", RATES[0], board) not in m:
             continue
         for rate in RATES:
-            lines.append(f"  {bus.upper()} {rate:>3} Hz: {m[key(bus, 'awake_pct', rate)]:.2f} % of the "
-                         f"cycles awake, {m[key(bus, 'wakeups_per_s', rate)]:.1f} wake-ups a second, "
-                         f"{m[key(bus, 'lost', rate)]} samples lost (goal at 100 Hz: awake <= 2 %)")
+            lines.append(f"  {bus.upper()} {rate:>3} Hz: {k(bus, 'awake_pct', rate):.2f} % of the "
+                         f"cycles awake, {k(bus, 'wakeups_per_s', rate):.1f} wake-ups a second, "
+                         f"{k(bus, 'lost', rate)} samples lost (goal at 100 Hz: awake <= 2 %)")
     lines.append(f"  DVDD current were the waits the SLEEP state: {RUN_MA} mA awake, {SLEEP_MA} mA "
                  "asleep (RP2040 datasheet 5.7.2 Table 637, typical; awake: BOOTSEL active at "
                  "48 MHz, a floor):")
     for bus in BUSES:
-        if key(bus, "awake_pct", RATES[0]) in m:
+        if key(bus, "awake_pct", RATES[0], board) in m:
             lines.append(f"  {bus.upper()}: " + ", ".join(
-                f"{rate} Hz ~{current_ma(m[key(bus, 'awake_pct', rate)]):.2f} mA" for rate in RATES)
+                f"{rate} Hz ~{current_ma(k(bus, 'awake_pct', rate)):.2f} mA" for rate in RATES)
                 + " (the WFE waits today keep every clock running: more)")
-    return "\n".join(lines)
+    return lines
