@@ -248,3 +248,27 @@ def test_the_app_on_pico_reads_the_stimulus_over_spi(tmp_path, pico):
     assert len(got) == samples and np.array_equal(got, fifo_q10(xyz[k]))
     rep = boardlog.replay(tmp_path)
     assert rep["identical"] and rep["samples_replayed"] == samples
+
+
+MODES = """from machine import SPI, Pin
+cs = Pin(17, Pin.OUT, value=1)
+b, cmd = bytearray(1), bytearray([0x8F])     # WHO_AM_I, read
+got = []
+for pol, pha in ((0, 0), (0, 1), (1, 0), (1, 1)):
+    spi = SPI(0, baudrate=10_000_000, polarity=pol, phase=pha, sck=Pin(18), mosi=Pin(19), miso=Pin(16))
+    cs(0); spi.write(cmd); spi.readinto(b); cs(1)
+    got.append(b[0])
+spi.write(cmd); spi.readinto(b)              # CS high: not selected
+got.append(b[0])
+print('MODES', *got)
+"""
+
+
+def test_the_emulated_chip_answers_spi_in_mode_0_or_3_with_cs_low(tmp_path, pico):
+    """The Node chip's SPI front end on the emulated SPI0: WHO_AM_I answers 0x33 in modes 0 and
+    3 (CPOL = CPHA: SDI latched on SPC's rising edge, DocID17530 6.2), nothing in modes 1 and 2,
+    nothing with CS high."""
+    write_stimulus(tmp_path / "stim.bin", 400, np.zeros((400, 3)), np.full(400, 20.0))
+    r = pico.run([MODES], stimulus=tmp_path / "stim.bin", spi=pico.SPI_PICO)
+    assert r.out.split("MODES")[1].split() == ["51", "0", "0", "51", "0"]
+    assert r.report["lis3dh"]["transactions"] == 4
