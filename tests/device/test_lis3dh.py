@@ -219,3 +219,97 @@ def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
     out = [7] * 1026
     assert lis3dh.fifo_codes_q10(data, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX, 16000) == nxt
     assert out == want[-1][:-1]
+
+
+# ---------------------------------------------------------------- SPI (DocID17530 6.2)
+from vbus import BusioSPI, DigitalInOut, Pin, SPI  # noqa: E402
+
+
+def _two_chips(tmp_path, rng):
+    """Two simulated chips on one stimulus and two clocks kept in step: one read over I2C,
+    the other over SPI."""
+    n = 4000
+    t = np.arange(n) / 400
+    xyz = np.column_stack([0.3 * np.sin(t), 1.5 * np.cos(3 * t), 0.8 + 0 * t]) + rng.normal(scale=0.002, size=(n, 3))
+    write_stimulus(tmp_path / "stim.bin", 400, xyz, 20 + 0.01 * np.arange(n))
+    a, b = Clock(), Clock()
+    return (SimLIS3DH(Stimulus(str(tmp_path / "stim.bin")), a), a,
+            SimLIS3DH(Stimulus(str(tmp_path / "stim.bin")), b), b)
+
+
+def test_the_driver_on_spi_reads_what_it_reads_on_i2c(tmp_path, rng):
+    """The same driver over SPIRegisters (machine.SPI + a CS Pin) and over I2C, on two chips fed
+    alike: every register sample, every FIFO drain and level, the temperature agree."""
+    ci, ki, cs_, ks = _two_chips(tmp_path, rng)
+    for fifo in (False, True):
+        i2c = lis3dh.LIS3DH(I2C({0x18: ci}), rate_hz=400, range_g=4, fifo=fifo, fth=11)
+        spi = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
+                            fifo=fifo, fth=11)
+        a, b = [0] * 96, [0] * 96
+        for k in range(120):
+            ki.sleep_us(2500 * (1 + k % 40))
+            ks.sleep_us(2500 * (1 + k % 40))
+            if fifo:
+                n = i2c.fifo_level()
+                assert (n, i2c.overrun, i2c.wtm) == (spi.fifo_level(), spi.overrun, spi.wtm)
+                i2c.read_fifo(a, 0, n)
+                spi.read_fifo(b, 0, n)
+                assert a[:3 * n] == b[:3 * n] and n > 0
+            else:
+                assert i2c.data_ready() == spi.data_ready()
+                i2c.read_sample()
+                spi.read_sample()
+                assert (i2c.x, i2c.y, i2c.z) == (spi.x, spi.y, spi.z)
+            assert i2c.temperature() == spi.temperature()
+    assert ci.dropped == cs_.dropped > 0        # the FIFO filled and overran, alike
+
+
+class _Wire:
+    """A device that records each SPI transaction's bytes (CS low to high) and answers 0."""
+
+    def __init__(self):
+        self.frames, self.cur = [], None
+
+    def spi_select(self, low):
+        if low:
+            self.cur = []
+        else:
+            self.frames.append(self.cur)
+
+    def spi_byte(self, v):
+        self.cur.append(v)
+        return 0x33 if self.cur == [0x8F, 0] else 0
+
+
+def test_the_driver_s_spi_first_byte_is_the_datasheet_s():
+    """DocID17530 6.2: RW (bit 7) 1 to read, MS (bit 6) 1 to increment, AD5:0; a write is RW = 0,
+    its address, its byte, all within one CS low."""
+    w = _Wire()
+    d = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
+    assert w.frames[0] == [0x8F, 0]                       # WHO_AM_I: read, one byte, no MS
+    assert [0x24, 0x80] in w.frames and [0x2E, 0x80 | 24] in w.frames   # BOOT; stream, FTH 24
+    w.frames.clear()
+    d.fifo_level()
+    d.read_fifo([0] * 96, 0, 2)
+    d.read_sample()
+    assert w.frames == [[0xAF, 0], [0xE8] + [0] * 12, [0xE8] + [0] * 6]
+
+
+def test_adafruit_lis3dh_spi_reads_our_model(chip):
+    """A third party's SPI protocol (adafruit_lis3dh.LIS3DH_SPI, over busio's API and
+    adafruit_bus_device, SPI mode 0) on the simulated chip's SPI front end reads what our driver
+    reads over SPI (mode 3, lis3dh_cp.BusioSPIRegisters)."""
+    c, clock, _ = chip
+    theirs = adafruit_lis3dh.LIS3DH_SPI(BusioSPI(c), DigitalInOut(c))
+    assert theirs.data_rate == adafruit_lis3dh.DATARATE_400_HZ and theirs.range == adafruit_lis3dh.RANGE_2_G
+    bus = BusioSPI(c)
+    ours = lis3dh.LIS3DH(lis3dh_cp.BusioSPIRegisters(bus, DigitalInOut(c)), rate_hz=400)
+    assert bus.mode == (1, 1) and bus.baudrate == lis3dh_cp.SPI_BAUD
+    for _ in range(200):
+        clock.sleep_us(2500)
+        ax, ay, az = theirs.acceleration
+        raw = [round(a / G * 16380) for a in (ax, ay, az)]
+        d = ours.dither   # the sample's dither (the Q10 format's rounding, fixed.DITHER_STEP)
+        ours.read_sample()
+        assert [ours.x, ours.y, ours.z] == [ours._to_q10(r, ours._shift, ours._so_mg, d) for r in raw]
+    assert theirs.read_adc_raw(3) >> 8 == ours.temperature()

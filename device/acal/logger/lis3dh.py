@@ -14,6 +14,9 @@
 # FIFO_SRC_REG (2Fh): bit 7 WTM (unread > FTH), bit 6 OVRN_FIFO (32 unread: the next conversion
 # overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
 # OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
+# Buses: LIS3DH takes a bus with machine.I2C's register calls (readfrom_mem_into, writeto_mem; the
+# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  SPIRegisters gives those calls
+# over a machine.SPI and a chip-select Pin (6.2: CS low, a first byte RW | MS | AD5:0, the data).
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:
@@ -40,6 +43,10 @@ _OUT_X_L = const(0x28)
 _FIFO_CTRL_REG = const(0x2E)
 _FIFO_SRC_REG = const(0x2F)
 _AUTO_INC = const(0x80)
+# SPI's first byte (DocID17530 6.2): bit 7 RW (1: read), bit 6 MS (1: the address increments)
+_SPI_READ = const(0x80)
+_SPI_MS = const(0x40)
+_SPI_AD = const(0x3F)
 # FIFO_SRC_REG bits
 _WTM = const(0x80)
 _OVRN_FIFO = const(0x40)
@@ -68,6 +75,68 @@ _DITHER_MASK = const(16383)
 
 class LIS3DHError(Exception):
     pass
+
+
+class SPIRegisters:
+    """machine.I2C's register calls over a 4-wire SPI (DocID17530 6.2, mode 3: CPOL = CPHA = 1,
+    SPC up to 10 MHz): spi a machine.SPI (write, readinto), cs its chip-select Pin (an output,
+    high between transactions).  A read is CS low, RW | MS | AD5:0, then the bytes clocked in,
+    CS high; a write RW = 0, AD5:0, its byte.  The I2C sub-address's bit 7 (auto-increment)
+    becomes MS; addr is ignored (the chip is chosen by cs).  No allocation per call: the first
+    bytes go out of preallocated buffers.  SPI has no acknowledge: a board without the chip
+    reads what MISO floats to, which check() refuses (WHO_AM_I)."""
+
+    def __init__(self, spi, cs):
+        self.spi = spi
+        self.cs = cs
+        self._cmd = bytearray(1)
+        self._wr = bytearray(2)
+        cs(1)
+
+    def readfrom_mem_into(self, addr, memaddr, buf):
+        self._cmd[0] = _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
+        self.cs(0)
+        try:
+            self.spi.write(self._cmd)
+            self.spi.readinto(buf)
+        finally:
+            self.cs(1)
+
+    def writeto_mem(self, addr, memaddr, buf):
+        if len(buf) != 1:
+            raise ValueError("single-register writes only")
+        w = self._wr
+        w[0] = memaddr & _SPI_AD
+        w[1] = buf[0]
+        self.cs(0)
+        try:
+            self.spi.write(w)
+        finally:
+            self.cs(1)
+
+
+def answers(regs, address=ADDRESS):
+    """True when WHO_AM_I reads 0x33 on regs (a bus with the register calls); a bus error is
+    False."""
+    b = bytearray(1)
+    try:
+        regs.readfrom_mem_into(address, _WHO_AM_I, b)
+    except OSError:
+        return False
+    return b[0] == WHO_AM_I_VALUE
+
+
+def open_bus(bus, spi, i2c):
+    """The LIS3DH's register bus for a board's setting bus: "spi" (spi()), "i2c" (i2c()) or
+    "auto": spi() if WHO_AM_I answers 0x33 there, else i2c() (with nothing on SPI, MISO reads
+    what it floats to; a Pico's pads pull it down: 0).  spi and i2c: the board's functions."""
+    if bus not in ("auto", "spi", "i2c"):
+        raise ValueError("bus must be 'auto', 'spi' or 'i2c'")
+    if bus != "i2c":
+        s = spi()
+        if bus == "spi" or answers(s):
+            return s
+    return i2c()
 
 
 class LIS3DH:
