@@ -11,7 +11,9 @@ reference time lies 40 units back) and, in the hour, its time moves on 56 units.
 The board keeps a Fletcher checksum of every calibrated value it produced while its capture
 (raw samples and each block's temperature) still had room, and the count of all of them.  The
 host feeds the pulled capture to the numpy twin (accelcal.bridge.twin.apply_params) with the
-stored parameters and each block's dT and dt: its checksum must be the board's.  The short runs
+stored parameters and each block's dT and dt (and, should the board fit again as a resumed board
+does once its bins are ready, with each usable fit it logged, from the index it took it at):
+its checksum must be the board's.  The short runs
 capture everything; an hour's capture holds its first 600 kB (all of it at 10 and 25 Hz, the
 first ~4 min at 400 Hz), and the rest is counted: every sample read was applied.  The checksum
 tells a dt 30 units (32 min) off or a dT a quarter degree off (both tried)."""
@@ -97,11 +99,40 @@ def fletcher(values):
     return a, b
 
 
+def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate):
+    """The twin's apply of what the board applied: the stored calibration from the boot, each
+    usable fit the board logged (CAL and its EFFECT records) from the index it was taken at,
+    each sample with its block's dT and dt from the calibration's references.  Also the count
+    of those fits."""
+    from accelcal.bridge import twin
+    from accelcal.bridge.boardlog import FIELDS, decode
+    from acal.core import effects, fixed
+    from acal.core.status import usable
+    from acal.logger import log
+    lg = decode(pull / "log.bin")
+    cals = [dict(zip(FIELDS[log.CAL], v)) for v in lg.of(log.CAL)]
+    fx = [dict(zip(FIELDS[log.EFFECT], v)) for v in lg.of(log.EFFECT)]
+    time = index // (effects.DT_UNIT_S * rate)
+    segments = [(0, p, ref_temp, -REF_TIME_BACK)]
+    for c in cals:
+        if usable(c["status"]):
+            mine = [e for e in fx if e["index"] == c["index"]]
+            assert [e["effect"] for e in mine] == list(kinds)
+            new = [c[n] for n in FIELDS[log.CAL][7:]] + [e[k] for e in mine for k in ("p0", "p1", "p2")]
+            segments.append((c["index"], new, mine[0]["ref_temp"], mine[0]["ref_time"]))
+    out = np.empty_like(q)
+    for j, (start, params, rt, rtime) in enumerate(segments):
+        end = segments[j + 1][0] if j + 1 < len(segments) else 1 << 62
+        m = (index >= start) & (index < end)
+        out[m] = twin.apply_params(params, q[m], kinds, (temp[m] << fixed.TEMP_Q) - rt,
+                                   time[m] - rtime, 2)
+    return out, len(segments) - 1
+
+
 def run_four_effects(tmp_path, which, rate, seconds):
     from accelcal.board import emulated
-    from accelcal.bridge import rp2040, twin
+    from accelcal.bridge import rp2040
     from accelcal.bridge.boardlog import read_capture
-    from acal.core import effects, fixed
     board_file, fw_name, i2c = BOARDS[which]
     fw = getattr(rp2040, fw_name)
     emulated_chip(fw)
@@ -124,19 +155,16 @@ def run_four_effects(tmp_path, which, rate, seconds):
     cap = read_capture(pull)
     blocks = [b for b in cap.blocks if b[0] == "samples"]
     q = np.concatenate([b[3] for b in blocks])[:checked // 3]
-    first = np.concatenate([np.full(len(b[3]), b[1]) for b in blocks])[:len(q)]
     temp = np.concatenate([np.full(len(b[3]), b[2]) for b in blocks])[:len(q)]
-    unit = effects.DT_UNIT_S * rate
-    dT = (temp << fixed.TEMP_Q) - ref_temp
-    dt = first // unit + REF_TIME_BACK
-    host = twin.apply_params(p, q, kinds, dT, dt, 2)
+    index = np.concatenate([b[1] + np.arange(len(b[3])) for b in blocks])[:len(q)]
+    host, refits = twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate)
     print(f"\n{which} {rate} Hz four effects, {seconds} emulated s: {samples} samples, {lost} lost, "
           f"{overruns} overruns; the chip converted {chip['converted']}, dropped "
           f"{chip['dropped']}; {applied // 3} applied, the first {checked // 3} checked against "
-          f"the twin ({len(set(temp.tolist()))} temperatures, {len(set(dt.tolist()))} times)")
+          f"the twin ({len(set(temp.tolist()))} temperatures, {refits} fits of the board's own)")
     assert (lost, overruns, chip["dropped"], bus_errors) == (0, 0, 0, 0)
     assert seconds * rate <= samples <= chip["converted"] <= samples + 32
-    assert cals == 3                     # the stored calibration, resumed; no fit replaced it
+    assert cals == 3 + refits            # the stored calibration resumed, then the board's fits
     assert applied == 3 * samples        # every sample read was applied
     assert checked == 3 * len(q) and len(q) >= min(samples, 40_000)
     assert len(set(temp.tolist())) >= 5  # the temperature terms changed across blocks
