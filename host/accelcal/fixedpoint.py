@@ -13,10 +13,45 @@ from acal.core import effects as deff
 from acal.core import fixed
 
 
-def g_to_sample(g: np.ndarray) -> np.ndarray:
-    """Floats in g -> device samples (Q10 g ints), rounded, clipped to the +-16 g range."""
-    q = np.rint(np.asarray(g, dtype=np.float64) * fixed.SAMPLE_ONE_G)
-    return np.clip(q, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX).astype(np.int64)
+def dither(first: int, n: int) -> np.ndarray:
+    """The Q10 rounding's dither of samples first..first + n - 1 of a stream, in 2**-14 LSB
+    (acal.core.fixed.DITHER_STEP): (i * DITHER_STEP) & DITHER_MASK, int64 (n,)."""
+    i = np.arange(first, first + n, dtype=np.int64)
+    return (i * fixed.DITHER_STEP) & fixed.DITHER_MASK
+
+
+# |g| past this is clipped before the conversion to Q24 ints (any value past +-16 g clips alike)
+_G_CLIP = 2.0 * fixed.SAMPLE_MAX / fixed.SAMPLE_ONE_G
+
+
+def to_samples(c, d: np.ndarray, out: np.ndarray) -> None:
+    """One axis of floats in g (float32 or float64, converted in its own dtype: scaling by a
+    power of two and floor are exact in either) -> Q10 samples into out: floor(g * 2**24) + the
+    dither d (2**-14 LSB), >> 14, clipped to +-SAMPLE_MAX (fixed.py: the driver's form)."""
+    c = np.asarray(c)
+    if not np.issubdtype(c.dtype, np.floating):
+        c = c.astype(np.float64)
+    v = np.clip(c, -_G_CLIP, _G_CLIP)     # a copy, in the axis's dtype
+    np.multiply(v, v.dtype.type(1 << (fixed.SAMPLE_Q + fixed.DITHER_BITS)), out=v)
+    np.floor(v, out=v)
+    w = v.astype(np.int64)
+    w += d
+    w >>= fixed.DITHER_BITS
+    np.clip(w, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX, out=w)
+    out[...] = w
+
+
+def g_to_sample(g: np.ndarray, first: int = 0) -> np.ndarray:
+    """Floats in g (m x 3) -> device samples (Q10 g ints, int64 m x 3), rounded as the device's
+    format is (acal.core.fixed: floor with the dither of each sample's index in its stream, the
+    first being first), clipped to the +-16 g range."""
+    g = np.asarray(g)
+    g2 = g.reshape(len(g), -1) if g.ndim else g.reshape(1, 1)   # rows are samples
+    out = np.empty(g2.shape, np.int64)
+    d = dither(first, len(g2))
+    for j in range(g2.shape[1]):
+        to_samples(g2[:, j], d, out[:, j])
+    return out.reshape(g.shape)
 
 
 def g_to_point(g: np.ndarray) -> np.ndarray:

@@ -93,6 +93,44 @@ def test_js_model_reads_what_the_python_model_reads(tmp_path, node, rng):
     assert any(0 < v & 0x1F and not v & 0x80 for v in src)
 
 
+def as_spi(ops, rng):
+    """The same traffic with about half the operations as SPI transactions (DocID17530 6.2,
+    written here from the datasheet: RW bit 7, MS bit 6 for the I2C sub-address's bit 7, AD5:0;
+    a read clocks random bytes out on SDI, which the chip must ignore)."""
+    out = []
+    for t, op, reg, arg in ops:
+        if rng.random() < 0.5:
+            out.append([t, op, reg, arg])
+            continue
+        first = (0x40 if reg & 0x80 else 0) | (reg & 0x3F)
+        if op == "r":
+            out.append([t, "s", 0, [0x80 | first] + [int(b) for b in rng.integers(0, 256, arg)]])
+        else:
+            out.append([t, "s", 0, [first] + list(arg)])
+    return out
+
+
+def test_spi_reads_what_i2c_reads_in_both_models(tmp_path, node, rng):
+    """Half the random traffic over the SPI front end: both models give every read byte for
+    byte as the same traffic all over I2C does (the SPI front end is the same register file)."""
+    n = 40000
+    t = np.arange(n) / 400
+    xyz = np.column_stack([1.9 * np.sin(t), 2.5 * np.cos(3 * t), 0.8 + 0.01 * t])
+    stim = tmp_path / "stim.bin"
+    write_stimulus(stim, 400, xyz, 20 + 0.001 * np.arange(n))
+    ops = random_ops(rng, 1500)
+    spi = as_spi(ops, rng)
+    i2c = python_model(stim, ops)["reads"]
+    for got in (python_model(stim, spi), js_model(stim, spi, tmp_path)):
+        reads = [r[1:] if o[1] == "s" else r
+                 for o, r in zip([o for o in spi if o[1] != "w"], got["reads"])
+                 if not (o[1] == "s" and not o[3][0] & 0x80)]    # an SPI write reads nothing
+        assert reads == i2c
+        assert all(r[0] == 0 for o, r in zip([o for o in spi if o[1] != "w"], got["reads"])
+                   if o[1] == "s")          # SDO is not driven during the first byte
+    assert sum(o[1] == "s" for o in spi) > 600
+
+
 # ---------------------------------------------------------------- the app on the emulated Pico
 RATE = 100
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
@@ -105,19 +143,26 @@ def pico():
     return emulated
 
 
-def fifo_q10(xyz_g):
+def fifo_q10(xyz_g, index=None):
     """What the app gets from the FIFO for these accelerations: the chip rounds to its 12-bit
     digit (1 mg at 2 g, half away from zero), clips, keeps the top 10 bits; the driver reads a
-    code as the middle of its four digits (4 r + 1.5 mg) and scales."""
+    code as the middle of its four digits (4 r + 1.5 mg) and scales, rounding onto Q10 with the
+    dither of each sample's index among those the driver read (index; None: 0, 1, 2, ...: the
+    app read them all), acal.core.fixed.DITHER_STEP."""
     from types import SimpleNamespace
     from acal.logger.lis3dh import LIS3DH
+    from accelcal.fixedpoint import dither
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
     hr = SimpleNamespace(_fifo_mid=3, _fifo_so_mg=1)
-    q = np.vectorize(lambda d: LIS3DH._fifo_to_q10(hr, int(d) << 6), otypes=[np.int64])(d10)
-    # the middle, to Q10 rounding (half an LSB, 0.49 mg) and 16777 / 16384 for 1.024
-    assert np.all(np.abs(q / 1.024 - (4 * d10 + 1.5)) <= 0.52)
+    i = np.arange(len(d10)) if index is None else np.asarray(index)
+    dd = np.broadcast_to(dither(0, int(i.max()) + 1 if len(i) else 0)[i][:, None], d10.shape)
+    q = np.vectorize(lambda d, e: LIS3DH._fifo_to_q10(hr, int(d) << 6, int(e)),
+                     otypes=[np.int64])(d10, dd)
+    # the middle, to Q10's floor with a dither in [0, 1) LSB (under 0.98 mg either way) and
+    # 16777 / 16384 for 1.024 (at most 0.03 LSB low at 2 g)
+    assert np.all(np.abs(q / 1.024 - (4 * d10 + 1.5)) <= 1.01)
     return q
 
 
@@ -183,3 +228,54 @@ def test_a_late_app_overruns_the_fifo_and_counts_what_it_lost(tmp_path, pico):
     # counted lost (it was, once a run, when the clock was read after the FIFO).
     assert lost == chip["dropped"], (lost, chip)
 
+
+
+APP_SPI = APP.replace("fifo=True,", "fifo=True, bus='spi',")
+
+
+def test_the_app_on_pico_reads_the_stimulus_over_spi(tmp_path, pico):
+    """The chip wired to SPI0 (pico.mjs --spi, boards/pico.py's pins): machine.SPI (DMA for the
+    FIFO's drains) through lis3dh.SPIRegisters reads every sample the stimulus gave at its time,
+    the same samples as I2C reads, nothing lost, and the capture replays into the board's log."""
+    from accelcal.bridge import boardlog
+    xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)
+    r = pico.run([APP_SPI.format(seconds=5)], stimulus=tmp_path / "stim.bin", spi=pico.SPI_PICO,
+                 puts={"acal_board.py": (ROOT / "boards" / "pico.py").read_bytes()},
+                 gets=["log.bin", "capture.bin"])
+    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    chip = r.report["lis3dh"]
+    assert chip["spi"] == {"bus": 0, "sck": 18, "mosi": 19, "miso": 16, "cs": 17}
+    assert (lost, overruns, bus_errors, chip["dropped"]) == (0, 0, 0, 0)
+    assert 5 * RATE <= samples <= chip["converted"] and chip["transactions"] > 0
+    for f in ("log.bin", "capture.bin"):
+        (tmp_path / f).write_bytes(r.files[f])
+    got = np.concatenate([b[3] for b in boardlog.read_capture(tmp_path).blocks if b[0] == "samples"])
+    s, us = chip["starts"][-1]
+    k = (s * 1_000_000 + us + np.arange(1, samples + 1) * 10_000) * RATE // 1_000_000
+    assert len(got) == samples and np.array_equal(got, fifo_q10(xyz[k]))
+    rep = boardlog.replay(tmp_path)
+    assert rep["identical"] and rep["samples_replayed"] == samples
+
+
+MODES = """from machine import SPI, Pin
+cs = Pin(17, Pin.OUT, value=1)
+b, cmd = bytearray(1), bytearray([0x8F])     # WHO_AM_I, read
+got = []
+for pol, pha in ((0, 0), (0, 1), (1, 0), (1, 1)):
+    spi = SPI(0, baudrate=10_000_000, polarity=pol, phase=pha, sck=Pin(18), mosi=Pin(19), miso=Pin(16))
+    cs(0); spi.write(cmd); spi.readinto(b); cs(1)
+    got.append(b[0])
+spi.write(cmd); spi.readinto(b)              # CS high: not selected
+got.append(b[0])
+print('MODES', *got)
+"""
+
+
+def test_the_emulated_chip_answers_spi_in_mode_0_or_3_with_cs_low(tmp_path, pico):
+    """The Node chip's SPI front end on the emulated SPI0: WHO_AM_I answers 0x33 in modes 0 and
+    3 (CPOL = CPHA: SDI latched on SPC's rising edge, DocID17530 6.2), nothing in modes 1 and 2,
+    nothing with CS high."""
+    write_stimulus(tmp_path / "stim.bin", 400, np.zeros((400, 3)), np.full(400, 20.0))
+    r = pico.run([MODES], stimulus=tmp_path / "stim.bin", spi=pico.SPI_PICO)
+    assert r.out.split("MODES")[1].split() == ["51", "0", "0", "51", "0"]
+    assert r.report["lis3dh"]["transactions"] == 4

@@ -1,5 +1,5 @@
 """The two LIS3DH models driven by one list of register operations ([t_us, "w", reg, [bytes]] or
-[t_us, "r", reg, n]): the Python one the virtual board runs (simulate/chip/vlis3dh.py) and the
+[t_us, "r", reg, n]; or [t_us, "s", 0, [bytes]], one SPI transaction): the Python one the virtual board runs (simulate/chip/vlis3dh.py) and the
 Node one on the emulated Pico's I2C0 (bridge/scripts/lis3dh.mjs).  test_lis3dh_conformance.py holds
 each to the datasheet, test_pico_lis3dh.py holds them to each other."""
 import json
@@ -23,6 +23,10 @@ def python_model(stim, ops) -> dict:
         clock.set_us(t)
         if op == "w":
             chip.write(reg, bytes(arg), 0, len(arg))
+        elif op == "s":       # one SPI transaction: CS low, the bytes, CS high
+            chip.spi_select(True)
+            reads.append([chip.spi_byte(b) for b in arg])
+            chip.spi_select(False)
         else:
             buf = bytearray(arg)
             chip.read(reg, buf, 0, arg)

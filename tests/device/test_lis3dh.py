@@ -53,8 +53,9 @@ def test_adafruit_and_ours_read_the_same_registers(chip, range_g, divider, const
         clock.sleep_us(2500)
         ax, ay, az = theirs.acceleration
         raw = [round(a / G * divider) for a in (ax, ay, az)]
+        d = ours.dither
         ours.read_sample()
-        exp = [ours._to_q10(r, ours._shift, ours._so_mg) for r in raw]
+        exp = [ours._to_q10(r, ours._shift, ours._so_mg, d) for r in raw]
         assert [ours.x, ours.y, ours.z] == exp
         n += 1
     assert n == 300
@@ -84,8 +85,34 @@ def test_register_reads_match_stimulus_to_a_digit(chip):
         d.read_sample()
         got.append((d.x, d.y, d.z))
         k.append(c.generated)
-    # a 1 mg digit (rounded: <= 0.5 mg) read as Q10 g (rounded: <= 0.49 mg)
-    assert np.abs(np.array(got) / 1024 - xyz[np.array(k)]).max() < 0.0010
+    # a 1 mg digit (rounded: <= 0.5 mg) read as Q10 g (floor with a dither in [0, 1) LSB:
+    # < 0.98 mg either way)
+    err = np.array(got) / 1024 - xyz[np.array(k)]
+    assert np.abs(err).max() < 0.0015
+
+
+def test_the_drivers_dither_is_the_formats(chip):
+    """The driver rounds onto Q10 with the format's dither (acal.core.fixed.DITHER_STEP), one
+    a sample in the order it reads them, by either read, as the host rounds a recording's
+    samples (fixedpoint.dither): the same sequence from its first sample; and viper's copies of
+    the constants are the format's."""
+    from acal.core import fixed
+    from accelcal.fixedpoint import dither
+    assert (lis3dh._DITHER_STEP, lis3dh._DITHER_MASK) == (fixed.DITHER_STEP, fixed.DITHER_MASK)
+    c, clock, xyz = chip
+    d = lis3dh.LIS3DH(I2C({0x18: c}), rate_hz=400)
+    seen = []
+    for _ in range(50):
+        clock.sleep_us(2500)
+        seen.append(d.dither)
+        d.read_sample()
+    f = lis3dh.LIS3DH(I2C({0x18: c}), rate_hz=400, fifo=True)
+    for n in (20, 7):
+        clock.sleep_us(2500 * n)
+        seen.append(f.dither)
+        f.read_fifo([0] * 96, 0, f.fifo_level())
+    assert seen[:50] == dither(0, 50).tolist()
+    assert seen[50:] == [0, int(dither(20, 1)[0])] and f.dither == dither(27, 1)[0]
 
 
 def test_fifo_keeps_10_bits_and_counts_overrun(chip):
@@ -97,7 +124,9 @@ def test_fifo_keeps_10_bits_and_counts_overrun(chip):
     out = [0] * 96
     d.read_fifo(out, 0, n)
     q = np.array(out[:3 * n]) / 1.024 - 1.5   # Q10 g back to mg, less the middle of a code
-    assert np.abs(q - 4 * np.round(q / 4)).max() <= 0.52  # 4 mg steps at +-2 g
+    # 4 mg steps at +-2 g, to Q10's floor with a dither in [0, 1) LSB (< 0.98 mg either way) and
+    # 16777 / 16384 for 1.024 (0.03 LSB low at most)
+    assert np.abs(q - 4 * np.round(q / 4)).max() <= 1.01
     assert d.fifo_level() == 0
     clock.sleep_us(2500 * 40)  # 40 samples into 32 places: 8 overwritten
     assert d.fifo_level() == 32 and d.overrun and c.dropped == 8
@@ -150,8 +179,8 @@ b = bytearray(%r)
 for so_mg in (1, 2, 4, 12):
     for mid in (0, 3):
         out = array("i", [7] * (len(b) // 2 + 2))
-        lis3dh.fifo_codes_q10(b, len(b) // 2, out, 1, mid, so_mg * 16777, %d)
-        print(" ".join(str(v) for v in out))
+        nxt = lis3dh.fifo_codes_q10(b, len(b) // 2, out, 1, mid, so_mg * 16777, %d, 16000)
+        print(" ".join(str(v) for v in out), nxt)
 '''
 
 
@@ -165,8 +194,9 @@ def fifo_codes_every_value(rng):
 def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
     """The viper loop read_fifo converts with, run by the MicroPython unix port as the boards'
     emitters compile it, gives LIS3DH._fifo_to_q10 of every 10-bit code, at every range, in
-    HR mode (a code read as its middle) and not, clamped at SAMPLE_MAX; the cells around the
-    destination are untouched."""
+    HR mode (a code read as its middle) and not, clamped at SAMPLE_MAX, with the dither of each
+    sample (three values) from the one given (16000: it wraps), returning the next sample's;
+    the cells around the destination are untouched."""
     from acal.core.fixed import SAMPLE_MAX
     from accelcal.bridge import runtime
     raw, data = fifo_codes_every_value(rng)
@@ -175,15 +205,111 @@ def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
     got = [list(map(int, line.split())) for line in
            runtime.run_micropython_script(str(f)).strip().splitlines()]
     signed = [int(v) - 0x10000 if v & 0x8000 else int(v) for v in raw]
+    dith = [(16000 + (j // 3) * 10127) & 16383 for j in range(len(signed))]
+    nxt = (16000 + len(signed) // 3 * 10127) & 16383   # 341 whole samples of 1024 values
     want = []
     for so_mg in (1, 2, 4, 12):
         for mid in (0, 3):
             d = lis3dh.LIS3DH.__new__(lis3dh.LIS3DH)
             d._fifo_so_mg, d._fifo_mid = so_mg, mid
-            want.append([7] + [d._fifo_to_q10(v) for v in signed] + [7])
+            want.append([7] + [d._fifo_to_q10(v, e) for v, e in zip(signed, dith)] + [7, nxt])
     assert got == want
     assert max(map(max, want)) == SAMPLE_MAX and min(map(min, want)) == -SAMPLE_MAX  # clamped
     # and CPython's run of the same source (the WebAssembly port and CircuitPython run it so)
     out = [7] * 1026
-    lis3dh.fifo_codes_q10(data, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX)
-    assert out == want[-1]
+    assert lis3dh.fifo_codes_q10(data, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX, 16000) == nxt
+    assert out == want[-1][:-1]
+
+
+# ---------------------------------------------------------------- SPI (DocID17530 6.2)
+from vbus import BusioSPI, DigitalInOut, Pin, SPI  # noqa: E402
+
+
+def _two_chips(tmp_path, rng):
+    """Two simulated chips on one stimulus and two clocks kept in step: one read over I2C,
+    the other over SPI."""
+    n = 4000
+    t = np.arange(n) / 400
+    xyz = np.column_stack([0.3 * np.sin(t), 1.5 * np.cos(3 * t), 0.8 + 0 * t]) + rng.normal(scale=0.002, size=(n, 3))
+    write_stimulus(tmp_path / "stim.bin", 400, xyz, 20 + 0.01 * np.arange(n))
+    a, b = Clock(), Clock()
+    return (SimLIS3DH(Stimulus(str(tmp_path / "stim.bin")), a), a,
+            SimLIS3DH(Stimulus(str(tmp_path / "stim.bin")), b), b)
+
+
+def test_the_driver_on_spi_reads_what_it_reads_on_i2c(tmp_path, rng):
+    """The same driver over SPIRegisters (machine.SPI + a CS Pin) and over I2C, on two chips fed
+    alike: every register sample, every FIFO drain and level, the temperature agree."""
+    ci, ki, cs_, ks = _two_chips(tmp_path, rng)
+    for fifo in (False, True):
+        i2c = lis3dh.LIS3DH(I2C({0x18: ci}), rate_hz=400, range_g=4, fifo=fifo, fth=11)
+        spi = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
+                            fifo=fifo, fth=11)
+        a, b = [0] * 96, [0] * 96
+        for k in range(120):
+            ki.sleep_us(2500 * (1 + k % 40))
+            ks.sleep_us(2500 * (1 + k % 40))
+            if fifo:
+                n = i2c.fifo_level()
+                assert (n, i2c.overrun, i2c.wtm) == (spi.fifo_level(), spi.overrun, spi.wtm)
+                i2c.read_fifo(a, 0, n)
+                spi.read_fifo(b, 0, n)
+                assert a[:3 * n] == b[:3 * n] and n > 0
+            else:
+                assert i2c.data_ready() == spi.data_ready()
+                i2c.read_sample()
+                spi.read_sample()
+                assert (i2c.x, i2c.y, i2c.z) == (spi.x, spi.y, spi.z)
+            assert i2c.temperature() == spi.temperature()
+    assert ci.dropped == cs_.dropped > 0        # the FIFO filled and overran, alike
+
+
+class _Wire:
+    """A device that records each SPI transaction's bytes (CS low to high) and answers 0."""
+
+    def __init__(self):
+        self.frames, self.cur = [], None
+
+    def spi_select(self, low):
+        if low:
+            self.cur = []
+        else:
+            self.frames.append(self.cur)
+
+    def spi_byte(self, v):
+        self.cur.append(v)
+        return 0x33 if self.cur == [0x8F, 0] else 0
+
+
+def test_the_driver_s_spi_first_byte_is_the_datasheet_s():
+    """DocID17530 6.2: RW (bit 7) 1 to read, MS (bit 6) 1 to increment, AD5:0; a write is RW = 0,
+    its address, its byte, all within one CS low."""
+    w = _Wire()
+    d = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
+    assert w.frames[0] == [0x8F, 0]                       # WHO_AM_I: read, one byte, no MS
+    assert [0x24, 0x80] in w.frames and [0x2E, 0x80 | 24] in w.frames   # BOOT; stream, FTH 24
+    w.frames.clear()
+    d.fifo_level()
+    d.read_fifo([0] * 96, 0, 2)
+    d.read_sample()
+    assert w.frames == [[0xAF, 0], [0xE8] + [0] * 12, [0xE8] + [0] * 6]
+
+
+def test_adafruit_lis3dh_spi_reads_our_model(chip):
+    """A third party's SPI protocol (adafruit_lis3dh.LIS3DH_SPI, over busio's API and
+    adafruit_bus_device, SPI mode 0) on the simulated chip's SPI front end reads what our driver
+    reads over SPI (mode 3, lis3dh_cp.BusioSPIRegisters)."""
+    c, clock, _ = chip
+    theirs = adafruit_lis3dh.LIS3DH_SPI(BusioSPI(c), DigitalInOut(c))
+    assert theirs.data_rate == adafruit_lis3dh.DATARATE_400_HZ and theirs.range == adafruit_lis3dh.RANGE_2_G
+    bus = BusioSPI(c)
+    ours = lis3dh.LIS3DH(lis3dh_cp.BusioSPIRegisters(bus, DigitalInOut(c)), rate_hz=400)
+    assert bus.mode == (1, 1) and bus.baudrate == lis3dh_cp.SPI_BAUD
+    for _ in range(200):
+        clock.sleep_us(2500)
+        ax, ay, az = theirs.acceleration
+        raw = [round(a / G * 16380) for a in (ax, ay, az)]
+        d = ours.dither   # the sample's dither (the Q10 format's rounding, fixed.DITHER_STEP)
+        ours.read_sample()
+        assert [ours.x, ours.y, ours.z] == [ours._to_q10(r, ours._shift, ours._so_mg, d) for r in raw]
+    assert theirs.read_adc_raw(3) >> 8 == ours.temperature()

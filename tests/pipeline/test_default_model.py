@@ -73,10 +73,14 @@ def test_auto_is_the_default_of_the_device_method(capsys):
 @pytest.mark.slow
 def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
     """The held-back wrist benchmark's protocol (accelcal.studies.heldout: fitted on 3 days,
-    scored on the next 2 days' strict still windows), 8 clean seeds: the auto model's error
-    over the paper's model's within 2 % in the mean (measured 28 Nov 2026: 0.992, each seed
-    0.93-1.05); with temp_offset hidden (seed 1) within 1.15x the true sensor model, where the
-    paper's model is 5x it."""
+    scored on the next 2 days' strict still windows), 8 clean seeds.  Issue 50's "loses nothing
+    where no effect is hidden (within 2 %)" is held to here as: the auto model's error over the
+    paper's model's, mean and median of the 8 seeds, at most 1.02; and no seed above 1.08 (a
+    single seed's ratio spreads about +-5 % either way: two fits of the same points, one with
+    three more parameters, not a loss that shows in the mean).  Measured 28 Nov 2026 (twice, the
+    same): 0.969, 0.956, 1.049, 0.927, 1.039, 1.053, 0.943, 0.999 (mean 0.992, median 0.984,
+    worst 1.053).  With temp_offset hidden (seed 1) within 1.15x the true sensor model, where
+    the paper's model is 5x it."""
     from accelcal.simulate import wearer
     from accelcal.studies import heldout
 
@@ -95,9 +99,10 @@ def test_auto_loses_nothing_on_clean_wear_and_finds_a_hidden_offset(tmp_path):
             f.unlink()
         return out
     clean = [scores(s, []) for s in range(1, 9)]
-    ratio = np.mean([c["base+temp_offset"] / c["base"] for c in clean])
-    print("auto / base on clean seeds:", [round(c["base+temp_offset"] / c["base"], 3) for c in clean])
-    assert ratio <= 1.02, ratio
+    ratios = [c["base+temp_offset"] / c["base"] for c in clean]
+    print("auto / base on clean seeds:", [round(r, 3) for r in ratios])
+    assert np.mean(ratios) <= 1.02 and np.median(ratios) <= 1.02, ratios
+    assert max(ratios) <= 1.08, ratios
     hidden = scores(1, ["temp_offset"])
     assert hidden["base+temp_offset"] <= 1.15 * hidden["true"] < hidden["base"] / 3, hidden
 

@@ -105,10 +105,13 @@ def rest_gap_around(path, ts):
 def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     """The wear profile's pipeline on the shock recording: the change-point search on the held
     points puts ts after the last held point before the true shock, and the integer fit's error
-    on every rest point is within 1.12x of the float fit of all of them (1.08x until the bins
-    kept a time effect's early points, acal.core.bins; 1.11x since on this shock at 44 h of 72, which
-    leaves fewer held points after it; a shock at 19 h had 8 of 110 before it, 1.57x held out:
-    tests/studies/test_composed_points.py).  (The search and the
+    on every rest point is within 0.02 mg of the float fit of all of them.  (It was held within
+    1.12x while both carried the Q10 rounding's bias in every rest mean, ~0.17 mg: 0.263 against
+    0.237 mg, 0.026 mg over; with the format's dither, acal.core.fixed, 0.078 against 0.066 mg,
+    0.012 mg over, 1.19x of the smaller floor.  1.08x until the bins kept a time effect's early
+    points, acal.core.bins; 1.11x since on this shock at 44 h of 72, which leaves fewer held
+    points after it; a shock at 19 h had 8 of 110 before it, 1.57x held out:
+    tests/studies/test_composed_points.py.)  (The search and the
     step's fit run bit-identical and heap-locked on the 32-bit port: tests/device/test_heap.py.)"""
     path = recordings["step"]
     truth = json.loads(path.with_suffix(".truth.json").read_text())["effects"][0]
@@ -124,7 +127,7 @@ def test_the_device_finds_the_step_and_fits_it_in_integers(recordings, capsys):
     code, text, err = run_main(capsys, ["calibrate", str(path), "--model", "base+step", "--json",
                                         "--method", "lsq", "--points", "all"])
     lsq = json.loads(text)
-    assert dev["error_after_mg"] <= 1.12 * lsq["error_after_mg"], (dev["error_after_mg"], lsq["error_after_mg"])
+    assert dev["error_after_mg"] <= lsq["error_after_mg"] + 0.02, (dev["error_after_mg"], lsq["error_after_mg"])
 
 
 def test_the_device_refuses_what_it_cannot_fit_in_one_line(recordings, tmp_path, capsys):
@@ -310,8 +313,9 @@ def test_a_regressor_the_recording_lacks_is_one_line(tmp_path):
 def test_a_clear_curve_is_named_with_its_straight_part_in_one_step(recordings):
     """A curve and its straight part are one candidate too (diagnose.curves), named when it
     passes the rule and leaves 1.5x less held-out error than the best single effect (the step's
-    parsimony factor): on seed 5 it does (2.6x); on seed 31 the straight part alone is named
-    first (1.2x), the curve in the next step (the loop test above)."""
+    parsimony factor): on seed 5 it does (2.6x), and on seed 31 (4.0x; 1.2x, the straight part
+    named first and the curve in the next step, while the rest means carried the Q10 rounding's
+    bias, before the format's dither, acal.core.fixed)."""
     out = diagnose(recordings["curve5"], "base")
     assert out["missing_effect"] == "temp_offset+temp_offset2", out["explanation"]
     c = {x["effect"]: x for x in out["candidates"]}
@@ -322,21 +326,39 @@ def test_a_clear_curve_is_named_with_its_straight_part_in_one_step(recordings):
     assert "Both parts at once" in out["explanation"]
     assert "--model base+temp_offset+temp_offset2" in out["explanation"]
     first = diagnose(recordings["curve31"], "base")
-    assert first["missing_effect"] == "temp_offset", first["explanation"]
+    assert first["missing_effect"] == "temp_offset+temp_offset2", first["explanation"]
 
 
-def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(recordings):
-    """On seed 4 the fit on every training point finds the curve no better than its straight part
-    (the rare cold points are all held out); the device's bins keep them, so the device would fit
-    base+temp_offset as the curve's chord.  diagnose judges the curve again as the device fits it,
-    in both folds of its split (pipeline/foldjudge.py), and names it: the effect the simulation
-    hid."""
+def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(recordings,
+                                                                                monkeypatch):
+    """On seed 4 the curve's cold ends (the first hour, three showers) all fall in held-out
+    blocks: while the rest means carried the Q10 rounding's bias the fit on every training point
+    found the curve no better than its straight part, and the device's bins, which keep them,
+    would fit base+temp_offset as the curve's chord.  With the format's dither (acal.core.fixed)
+    the every-point judge names it itself (18 of 18 blocks; no seed of 1-3 and 6 left it to the
+    fallback); the fallback is then judged with the every-point judge silenced: diagnose judges
+    the curve again as the device fits it, in both folds of its split (pipeline/foldjudge.py),
+    and names it: the effect the simulation hid."""
     from acal.discover import rule as discovery
-    out = diagnose(recordings["curve4"], "base+temp_offset")
+    from accelcal.pipeline import diagnose as dg
+    plain = diagnose(recordings["curve4"], "base+temp_offset")
+    assert plain["missing_effect"] == "temp_offset2", plain["explanation"]
+    c = next(x for x in plain["candidates"] if x["effect"] == "temp_offset2")
+    assert discovery.names(plain["heldout_error_mg"], c["heldout_error_mg"], c["blocks_improved"],
+                           c["blocks"])   # the every-point judge alone
+
+    class EveryPointSilent:   # the rule, but the every-point judge names nothing
+        def __getattr__(self, name):
+            return getattr(discovery, name)
+
+        @staticmethod
+        def names(*args):
+            return False
+
+    monkeypatch.setattr(dg, "discovery", EveryPointSilent())
+    out = dg.diagnose(str(recordings["curve4"]), "base+temp_offset")
     assert out["missing_effect"] == "temp_offset2", out["explanation"]
     c = next(x for x in out["candidates"] if x["effect"] == "temp_offset2")
-    assert not discovery.names(out["heldout_error_mg"], c["heldout_error_mg"],
-                               c["blocks_improved"], c["blocks"])   # the every-point judge alone
     judged = c["device_folds"]
     assert judged["named"] and judged["clear"] and c["evidence"] == "clear"
     assert judged["blocks"] > c["blocks"] == out["heldout_blocks"]   # both halves held out in turn

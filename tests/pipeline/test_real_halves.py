@@ -5,7 +5,9 @@ its own points (float lsq on the same points); and the issue's criterion, the de
 calibration's held-out error at or below float lsq on every training rest point, is checked on
 each split: met by the default (auto, issue 50: base+temp_offset on this day) on all three; the
 paper's model by the device met it only trained on the second half (above by 0.013 and 0.14 mg
-on the other two)."""
+on the other two); and against scikit-digital-health and actipy, fitted on the raw file's
+training samples by `python -m accelcal.studies.peers_real` (make bench; tests/data/real/peers.json)
+and scored here on the same held-out points, the default at or below both on every split."""
 import numpy as np
 import pytest
 
@@ -107,17 +109,83 @@ def test_the_default_calibration_held_out_at_or_below_lsq_on_every_training_poin
     assert err < fits[which]["device"], (err, fits[which])   # and below the paper's model
 
 
-# The peers' held-out figures on this day, by time halves, as issue 50 states them (measured
-# there on the raw demo.bin, which is not shipped: scikit-digital-health 5.33 mg; actipy did
-# not fit).  Not re-measured here: the bound is the issue's figure.
-SKDH_HELD_OUT_MG = 5.33
+# The peers on this day, measured here: scikit-digital-health and actipy (.venv-bench, which CI's
+# venv does not have) fitted on each split's training samples of the raw demo.bin by
+# `python -m accelcal.studies.peers_real` (make bench), their maps recorded in peers.json with
+# their versions.  Scored here on the same held-out rest points as the default.
+PEERS = ROOT / "tests" / "data" / "real" / "peers.json"
+DEMO_SHA256 = "2cd13acb192b246a09844a764bad2441e6814411f242e684d8904a208a76d48f"
 
 
-@pytest.mark.parametrize("which", ["first", "second"])
-def test_the_default_held_out_below_the_peers_figures_by_time_halves(default_fits, which):
-    """The default's held-out error trained on either time half (measured 28 Nov 2026: 2.78 mg
-    each) below scikit-digital-health's 5.33 mg (the issue's, by time halves)."""
-    assert default_fits[which][1] < SKDH_HELD_OUT_MG
+def peers_of(name):
+    import json
+    data = json.loads(PEERS.read_text())
+    return data, next(f for f in data["files"] if f["file"] == name)
+
+
+def peer_error_mg(fit, p):
+    """A peer's map (per axis c0 + c1 v + c2 T + c3 v T, read back from its calibrated samples)
+    on rest points p: mean | |a| - 1 g | in mg."""
+    c = np.asarray(fit["map"])
+    v, T = p.v, p.temp[:, None]
+    a = c[:, 0] + c[:, 1] * v + c[:, 2] * T + c[:, 3] * v * T
+    return float(np.mean(np.abs(np.linalg.norm(a, axis=1) - 1)) * 1e3)
+
+
+def test_the_peers_were_fitted_on_the_raw_file_of_these_points_split_as_here(points):
+    """peers.json holds the raw demo.bin's peers (its sha256 as the README gives it), with the
+    peers' versions, and each split cut the rest points as restpoints.split cuts the shipped
+    ones (the same counts of training and held-out points); the read-back maps reproduce the
+    peers' calibrated samples (residual under 1e-9 g), so the map is the peer's own."""
+    data, demo = peers_of("demo.bin")
+    assert demo["sha256"] == DEMO_SHA256
+    assert set(data["versions"]) >= {"scikit-digital-health", "actipy"}
+    assert demo["splits"].keys() == set(RULES.values())
+    for which, rule in RULES.items():
+        s = demo["splits"][rule]
+        train, test = halves(points, which)
+        assert (s["points"], s["train_points"], s["held_out_points"]) == (
+            len(points), len(train), len(test))
+        for tool in ("skdh", "skdh_lifted", "actipy"):
+            assert s[tool]["fitted"] == ("map" in s[tool])
+            assert not s[tool]["fitted"] or s[tool]["map_residual_g"] < 1e-9
+
+
+def test_the_peers_data_is_for_the_real_files_in_the_suite():
+    """Every file of peers.json but demo.bin is a file in tests/data/real/ with the same sha256
+    (so the data goes stale loudly when a file changes), and a peer that declined a file has its
+    reason and no map: no figure."""
+    import hashlib
+    data, _ = peers_of("demo.bin")
+    shipped = {f.name: f for f in (ROOT / "tests" / "data" / "real").rglob("*") if f.is_file()}
+    for rec in data["files"]:
+        if rec["file"] != "demo.bin":
+            assert hashlib.sha256(shipped[rec["file"]].read_bytes()).hexdigest() == rec["sha256"]
+        for s in [*rec["splits"].values(), rec["whole_file"]]:
+            for tool in ("skdh", "skdh_lifted", "actipy"):
+                if tool in s:
+                    assert s[tool]["fitted"] or (s[tool]["reason"] and "map" not in s[tool])
+
+
+@pytest.mark.parametrize("which", ["blocks", "first", "second"])
+def test_the_default_held_out_at_or_below_both_peers(fits, default_fits, points, which):
+    """Issue 50's test on the real files in the suite: the default's held-out error at or below
+    scikit-digital-health's and actipy's, each fitted on the same training part of the raw file
+    and scored on the same held-out points.  Measured 28 Nov 2026 (skdh 0.17.18, actipy 3.8.3):
+    skdh declines every split with its defaults (under its 12-hour floor: 10.4-10.9 h; no
+    figure); with that floor lifted it scores 2.29, 4.44 and 5.76 mg (blocks, first, second)
+    against the default's 2.12, 2.78 and 2.78; actipy finds its error under its 10 mg tolerance
+    and leaves the samples as they are (4.79, 7.43, 4.72 mg: the uncalibrated figures)."""
+    _, demo = peers_of("demo.bin")
+    s = demo["splits"][RULES[which]]
+    test = halves(points, which)[1]
+    default = default_fits[which][1]
+    assert not s["skdh"]["fitted"] and "Less than 12 hours" in s["skdh"]["reason"]
+    scored = {tool: peer_error_mg(s[tool], test) for tool in ("skdh_lifted", "actipy")}
+    assert "left as they are" in s["actipy"]["left_as_is"]
+    assert scored["actipy"] == pytest.approx(fits[which]["before"], rel=1e-6)   # identity
+    assert default <= min(scored.values()), (default, scored)
+    assert default <= fits[which]["lsq_all"]
 
 
 @pytest.mark.parametrize("which", ["first", "second"])

@@ -2,7 +2,9 @@
 held-out wrist benchmark's temperature-gain seed 4 (accelcal.studies.heldout: fitted on 3 days,
 scored on the next 2 days' strict still windows), the device's base+temp_scale fit on its 126
 points comes within 1.25x the true sensor model's error, where the 72 points (8 per subset) it
-had left it above (1.34x, docs/model-discovery.md "Points for a composed model")."""
+had left it above (1.34x, docs/model-discovery.md "Points for a composed model") while the rest
+means carried the Q10 rounding's bias.  Since the format's dither (acal.core.fixed) the 72 points
+are within it too (measured: 1.054x, and 1.086x on the 126), so only the 126's bound is held."""
 from acal.core import profile
 from acal.core.gaussnewton import MAX_POINTS
 from acal.core.bins import N_SUBSETS
@@ -29,7 +31,7 @@ def test_the_points_of_a_composed_model_bring_a_hard_seed_within_1_25x_the_true_
         assert why is None, why
         ratio[max_count] = heldout.score_mg(*got, win) / true
     print(ratio)
-    assert ratio[None] <= 1.25 < ratio[profile.WEAR_MAX_COUNT], ratio
+    assert ratio[None] <= 1.25 and ratio[profile.WEAR_MAX_COUNT] <= 1.25, ratio
 
 
 def test_a_step_early_in_the_fit_days_keeps_points_on_both_sides(tmp_path):

@@ -24,6 +24,18 @@ except ImportError:  # CPython without Blinka
 SAMPLE_Q = const(10)
 SAMPLE_ONE_G = const(1024)
 SAMPLE_MAX = const(16383)
+# The rounding onto Q10: sample i of a stream (its index from the stream's first sample) is
+# floor(g * 1024 + d_i), d_i = ((i * DITHER_STEP) & DITHER_MASK) / 2**DITHER_BITS, a deterministic
+# dither (i * 0.618..., the golden ratio's Weyl sequence, mod 1: it spreads evenly over any run
+# of samples), not round(g * 1024): a source's own steps (the LIS3DH's 1 mg, 1.024 LSB) re-rounded
+# to the nearest LSB keep a bias of up to 0.49 mg in every still window's mean, the same in every
+# window of a posture, which the fit took for the sensor's error (issue 50 part 5: 1.49x the true
+# model on clean wear; docs/real-recordings.md "Where the last tenth goes").  A value on the grid
+# (a .cwa's 1/256 g, a board's logged Q10) is kept as it is.  In integers, the driver's form:
+# (g in Q24 + d_i in Q14 of an LSB) >> 14; DITHER_STEP is odd, so d_i takes all 16384 values.
+DITHER_BITS = const(14)
+DITHER_MASK = const(16383)
+DITHER_STEP = const(10127)   # round(0.6180339887 * 2**14) = 10126, made odd: 10127
 
 # --- temperature ------------------------------------------------------------------------------
 # TEMP: Q2 degC (1 LSB = 0.25 degC), the device's temperature condition everywhere past the

@@ -89,8 +89,13 @@ class Pipeline(Sliced):
         self.base_kinds = tuple(base_kinds) if len(base_kinds) < len(self.kinds) else ()
         if fit == NEWTON:
             self.optimiser = GaussNewton(capacity, self.kinds, True)
-            if self.kinds:  # the base fit of the same points: kept when the composed one fails
-                self.base_fit = GaussNewton(capacity, self.base_kinds, True)
+            if self.kinds:  # the base fit of the same points: kept when the composed one fails;
+                # before a step's search without outlier rejection: the points after a shock are
+                # the outliers of the model without the step, the search's evidence (issue 50
+                # part 5: once the rest means lost the Q10 rounding's bias, a smaller median
+                # residual let the rejection drop them, and the step was placed 3.7 h late)
+                self.base_fit = GaussNewton(capacity, self.base_kinds,
+                                            len(base_kinds) >= len(self.kinds))
                 self.start = [0] * (N_PARAMS + 3 * len(self.kinds))
             if len(base_kinds) < len(self.kinds):
                 from acal.core.changepoint import ChangePoint   # a step's models only

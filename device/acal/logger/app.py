@@ -80,12 +80,13 @@ class MsTicksClock:
 
 
 class App:
-    """board: a module from boards/ (i2c(), I2C_ADDRESS, optional clock); settings: rate_hz,
-    range_g, fifo (default: the FIFO; False: the output registers, 12 bits, one read a sample),
-    capture_bytes, log_budget, plus Processor settings."""
+    """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock);
+    settings: rate_hz, range_g, fifo (default: the FIFO; False: the output registers, 12 bits,
+    one read a sample), bus (None: the board file's BUS; "i2c", "spi", "auto": the LIS3DH's bus,
+    where the board file offers sensor_bus), capture_bytes, log_budget, plus Processor settings."""
 
     def __init__(self, board, rate_hz=100, range_g=2, fifo=True, capture_bytes=0,
-                 log_budget=1 << 20, prefix="", **processor_settings):
+                 log_budget=1 << 20, prefix="", bus=None, **processor_settings):
         from acal.logger.lis3dh import LIS3DH, LIS3DHError
         self.board = board
         self.clock = getattr(board, "clock", None) or RealClock()
@@ -115,9 +116,12 @@ class App:
         self.proc = Processor(self.log, rate_hz, capture=cap, store=store, range_g=range_g,
                               **processor_settings)
         self.sensor = None
+        if not hasattr(board, "sensor_bus") and bus not in (None, "i2c"):
+            raise ValueError("bus %r: this board file has the LIS3DH on I2C only" % (bus,))
         for attempt in range(RETRIES):  # a bus fault while probing is retried like any other
             try:
-                self.sensor = LIS3DH(board.i2c(), board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
+                regs = board.sensor_bus(bus) if hasattr(board, "sensor_bus") else board.i2c()
+                self.sensor = LIS3DH(regs, board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
                                      DRAIN - 1)
                 break
             except (OSError, LIS3DHError) as e:
@@ -337,6 +341,11 @@ class App:
         flush."""
         end = -1 if seconds is None else self.samples + self.lost + seconds * self.rate_hz
         done = getattr(self.board, "exhausted", None)  # the virtual board's stimulus can end
+        # The set-up's garbage (imports, ~60 kB on a Pico) collected before acquiring: left in
+        # the heap, it cost the emulated Pico 0.7-1.8 % of its core at 100 Hz, by the heap's
+        # layout, in one small region of the firmware's code (an allocator's scan past the
+        # holes, we think: no symbols to confirm it); docs/boards-and-logs.md
+        gc.collect()
         while end < 0 or self.samples + self.lost < end:
             self.step()
             if done is not None and done():

@@ -14,6 +14,9 @@
 # FIFO_SRC_REG (2Fh): bit 7 WTM (unread > FTH), bit 6 OVRN_FIFO (32 unread: the next conversion
 # overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
 # OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
+# Buses: LIS3DH takes a bus with machine.I2C's register calls (readfrom_mem_into, writeto_mem; the
+# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  SPIRegisters gives those calls
+# over a machine.SPI and a chip-select Pin (6.2: CS low, a first byte RW | MS | AD5:0, the data).
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:
@@ -40,6 +43,10 @@ _OUT_X_L = const(0x28)
 _FIFO_CTRL_REG = const(0x2E)
 _FIFO_SRC_REG = const(0x2F)
 _AUTO_INC = const(0x80)
+# SPI's first byte (DocID17530 6.2): bit 7 RW (1: read), bit 6 MS (1: the address increments)
+_SPI_READ = const(0x80)
+_SPI_MS = const(0x40)
+_SPI_AD = const(0x3F)
 # FIFO_SRC_REG bits
 _WTM = const(0x80)
 _OVRN_FIFO = const(0x40)
@@ -57,11 +64,79 @@ _MG_Q10_SHIFT = const(14)
 # FIFO codes in half digits (Q1): x 1.024 / 2 = 16777 / 32768; |(8 r + 3) * 12| <= 49 188 (r: a
 # 10-bit code, |r| <= 512; 12 mg at +-16 g) keeps the product below 8.3e8 < 2**30.
 _HALF_MG_Q10_SHIFT = const(15)
-_HALF_MG_Q10_ROUND = const(16384)     # 1 << (_HALF_MG_Q10_SHIFT - 1)
+# The rounding onto Q10 is the format's (acal.core.fixed: DITHER_*): floor with a dither d of the
+# sample's index, d = (i * 10127) & 16383 in 2**-14 LSB (the driver's i: samples read since it was
+# made), added in place of the half: (mg * _MG_Q10_MUL + d) >> 14, and in half digits d << 1
+# before the >> 15.  Both sums stay below 2**30 (4.12e8 + 16383; 8.3e8 + 32766).  Viper does
+# not fold an imported name: the values are fixed.DITHER_STEP and DITHER_MASK (test_lis3dh).
+_DITHER_STEP = const(10127)
+_DITHER_MASK = const(16383)
 
 
 class LIS3DHError(Exception):
     pass
+
+
+class SPIRegisters:
+    """machine.I2C's register calls over a 4-wire SPI (DocID17530 6.2, mode 3: CPOL = CPHA = 1,
+    SPC up to 10 MHz): spi a machine.SPI (write, readinto), cs its chip-select Pin (an output,
+    high between transactions).  A read is CS low, RW | MS | AD5:0, then the bytes clocked in,
+    CS high; a write RW = 0, AD5:0, its byte.  The I2C sub-address's bit 7 (auto-increment)
+    becomes MS; addr is ignored (the chip is chosen by cs).  No allocation per call: the first
+    bytes go out of preallocated buffers.  SPI has no acknowledge: a board without the chip
+    reads what MISO floats to, which check() refuses (WHO_AM_I)."""
+
+    def __init__(self, spi, cs):
+        self.spi = spi
+        self.cs = cs
+        self._cmd = bytearray(1)
+        self._wr = bytearray(2)
+        cs(1)
+
+    def readfrom_mem_into(self, addr, memaddr, buf):
+        self._cmd[0] = _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
+        self.cs(0)
+        try:
+            self.spi.write(self._cmd)
+            self.spi.readinto(buf)
+        finally:
+            self.cs(1)
+
+    def writeto_mem(self, addr, memaddr, buf):
+        if len(buf) != 1:
+            raise ValueError("single-register writes only")
+        w = self._wr
+        w[0] = memaddr & _SPI_AD
+        w[1] = buf[0]
+        self.cs(0)
+        try:
+            self.spi.write(w)
+        finally:
+            self.cs(1)
+
+
+def answers(regs, address=ADDRESS):
+    """True when WHO_AM_I reads 0x33 on regs (a bus with the register calls); a bus error is
+    False."""
+    b = bytearray(1)
+    try:
+        regs.readfrom_mem_into(address, _WHO_AM_I, b)
+    except OSError:
+        return False
+    return b[0] == WHO_AM_I_VALUE
+
+
+def open_bus(bus, spi, i2c):
+    """The LIS3DH's register bus for a board's setting bus: "spi" (spi()), "i2c" (i2c()) or
+    "auto": spi() if WHO_AM_I answers 0x33 there, else i2c() (with nothing on SPI, MISO reads
+    what it floats to; a Pico's pads pull it down: 0).  spi and i2c: the board's functions."""
+    if bus not in ("auto", "spi", "i2c"):
+        raise ValueError("bus must be 'auto', 'spi' or 'i2c'")
+    if bus != "i2c":
+        s = spi()
+        if bus == "spi" or answers(s):
+            return s
+    return i2c()
 
 
 class LIS3DH:
@@ -95,6 +170,7 @@ class LIS3DH:
         self.x = 0
         self.y = 0
         self.z = 0
+        self.dither = 0      # the next sample's dither (2**-14 LSB): the Q10 rounding's
         self.overrun = False
         self.wtm = False
         bits = 12 if high_res else 10
@@ -141,19 +217,21 @@ class LIS3DH:
         v = lo | (hi << 8)
         return v - 0x10000 if v & 0x8000 else v
 
-    def _to_q10(self, raw, shift, so_mg):
+    def _to_q10(self, raw, shift, so_mg, d):
+        # d: the sample's dither (2**-14 LSB, the format's rounding: fixed.DITHER_STEP)
         mg = (raw >> shift) * so_mg
-        v = (mg * _MG_Q10_MUL + (1 << (_MG_Q10_SHIFT - 1))) >> _MG_Q10_SHIFT  # rounded
+        v = (mg * _MG_Q10_MUL + d) >> _MG_Q10_SHIFT
         if v > SAMPLE_MAX:
             return SAMPLE_MAX
         if v < -SAMPLE_MAX:
             return -SAMPLE_MAX
         return v
 
-    def _fifo_to_q10(self, raw):
-        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits
+    def _fifo_to_q10(self, raw, d):
+        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits; d: the
+        # sample's dither (2**-14 LSB)
         h = ((raw >> 6) * 8 + self._fifo_mid) * self._fifo_so_mg
-        v = (h * _MG_Q10_MUL + (1 << (_HALF_MG_Q10_SHIFT - 1))) >> _HALF_MG_Q10_SHIFT
+        v = (h * _MG_Q10_MUL + (d << 1)) >> _HALF_MG_Q10_SHIFT
         if v > SAMPLE_MAX:
             return SAMPLE_MAX
         if v < -SAMPLE_MAX:
@@ -173,9 +251,11 @@ class LIS3DH:
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, b)
         sh = self._shift
         so = self._so_mg
-        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so)
-        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so)
-        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so)
+        d = self.dither
+        self.dither = (d + _DITHER_STEP) & _DITHER_MASK
+        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so, d)
+        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so, d)
+        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so, d)
 
     def fifo_level(self):
         """Samples waiting in the FIFO (0..32), from FSS and OVRN_FIFO; overrun: the FIFO is
@@ -193,8 +273,8 @@ class LIS3DH:
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
         # the conversion in a viper loop on ports with emitters (fifo_codes_q10): 92 us a sample
         # as a bytecode loop on the emulated Pico
-        fifo_codes_q10(self._fifo_buf, 3 * n, out, 3 * start, self._fifo_mid,
-                       self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX)
+        self.dither = fifo_codes_q10(self._fifo_buf, 3 * n, out, 3 * start, self._fifo_mid,
+                                     self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX, self.dither)
 
     def temperature(self):
         """Temperature change from the chip's reference, whole degC (OUT_ADC3, 8 bits)."""
@@ -203,23 +283,31 @@ class LIS3DH:
 
 
 @viper
-def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int):
-    # LIS3DH._fifo_to_q10 of the nv little-endian 16-bit values in the bytearray b, into the int
-    # array out from index at: a viper loop on ports with emitters.  so = mg a 12-bit digit x
-    # _MG_Q10_MUL (<= 12 x 16777); |(8 r + 3) so| <= 4099 x 201324 < 8.3e8 < 2**30 (r: a 10-bit
-    # code, -512..511; tests/device/test_ranges.py).  The sign is taken by hand and >> of a
-    # viper int is arithmetic, so a 64-bit word (the unix port) gives the same values.
+def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int, dith: int) -> int:
+    # LIS3DH._fifo_to_q10 of the nv little-endian 16-bit values in the bytearray b (x y z a
+    # sample), into the int array out from index at: a viper loop on ports with emitters.  dith:
+    # the first sample's dither; returns the next one's (each sample's three values take one).
+    # so = mg a 12-bit digit x _MG_Q10_MUL (<= 12 x 16777); |(8 r + 3) so| + 2 * 16383 <= 4099 x
+    # 201324 + 32766 < 8.3e8 < 2**30 (r: a 10-bit code, -512..511; tests/device/test_ranges.py).
+    # The sign is taken by hand and >> of a viper int is arithmetic, so a 64-bit word (the unix
+    # port) gives the same values.
     p = ptr8(b)
     d = ptr32(out)
     i = 0
+    k = 0
     while i < nv:
         v = int(p[2 * i]) | (int(p[2 * i + 1]) << 8)
         if v & 0x8000:
             v -= 0x10000
-        v = (((v >> 6) * 8 + mid) * so + _HALF_MG_Q10_ROUND) >> _HALF_MG_Q10_SHIFT
+        v = (((v >> 6) * 8 + mid) * so + (dith << 1)) >> _HALF_MG_Q10_SHIFT
         if v > top:
             v = top
         elif v < 0 - top:
             v = 0 - top
         d[at + i] = v
         i += 1
+        k += 1
+        if k == 3:
+            k = 0
+            dith = (dith + _DITHER_STEP) & _DITHER_MASK
+    return dith

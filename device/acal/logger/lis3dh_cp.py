@@ -3,6 +3,8 @@
 # busio via adafruit_bus_device (no floats, no per-sample allocation).
 from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError
 
+SPI_BAUD = 10000000    # the LIS3DH's fastest SPC (DocID17530's SPI timing: fc(SPC) <= 10 MHz)
+
 
 class BusioRegisters:
     """machine.I2C-style register calls (readfrom_mem_into, writeto_mem) over a busio.I2C."""
@@ -25,6 +27,32 @@ class BusioRegisters:
         self._reg_val[1] = buf[0]
         with self.device as d:
             d.write(self._reg_val)
+
+
+class BusioSPIRegisters:
+    """lis3dh.SPIRegisters's calls over a busio.SPI and a chip-select digitalio pin, through
+    adafruit_bus_device's SPIDevice (it locks and configures the bus, mode 3, and drives CS
+    around each transaction)."""
+
+    def __init__(self, spi, cs, baudrate=SPI_BAUD):
+        from adafruit_bus_device.spi_device import SPIDevice
+        self.device = SPIDevice(spi, cs, baudrate=baudrate, polarity=1, phase=1)
+        self._cmd = bytearray(1)
+        self._wr = bytearray(2)
+
+    def readfrom_mem_into(self, addr, memaddr, buf):
+        self._cmd[0] = 0x80 | (0x40 if memaddr & 0x80 else 0) | (memaddr & 0x3F)
+        with self.device as spi:
+            spi.write(self._cmd)
+            spi.readinto(buf)
+
+    def writeto_mem(self, addr, memaddr, buf):
+        if len(buf) != 1:
+            raise ValueError("single-register writes only")
+        self._wr[0] = memaddr & 0x3F
+        self._wr[1] = buf[0]
+        with self.device as spi:
+            spi.write(self._wr)
 
 
 def make(i2c, address=ADDRESS, **settings):

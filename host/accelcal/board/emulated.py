@@ -22,15 +22,21 @@ from accelcal.files.outputs import check_output
 from accelcal.locations import script
 
 DRIVER = script("pico.mjs")
+# the LIS3DH on SPI: BUS,SCK,MOSI,MISO,CS as boards/pico.py and boards/feather_rp2040.py wire it
+SPI_PICO = "0,18,19,16,17"
+SPI_FEATHER = "0,18,19,20,7"
 
 
 def node_args(stimulus=None, bus_faults=0, seed=1, flash_in=None, flash_out=None,
-              fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c="0,4,5") -> list[str]:
-    """pico.mjs's command line up to its mode: the firmware, the chip, its flash."""
+              fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c="0,4,5", spi=None) -> list[str]:
+    """pico.mjs's command line up to its mode: the firmware, the chip (on I2C, or on SPI when
+    spi is "BUS,SCK,MOSI,MISO,CS"), its flash."""
     uf2, rom = rp2040.firmware_files(fw)
     args = ["node", DRIVER, "--rp2040js", rp2040.emulator_index(), "--firmware", str(uf2),
             "--bootrom", str(rom), "--bus-faults", str(bus_faults), "--seed", str(seed),
             "--flavour", fw.flavour, "--i2c", i2c]
+    if spi:
+        args += ["--spi", spi]
     if stimulus:
         args += ["--stimulus", str(stimulus)]
     if flash_in:
@@ -49,14 +55,15 @@ class PicoRun:
 
 def run(scripts: list[str], *, stimulus=None, puts: dict | None = None, gets=(), bus_faults=0,
         seed=1, flash_in=None, flash_out=None, timeout: float = 1800,
-        fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c: str = "0,4,5") -> PicoRun:
+        fw: rp2040.Firmware = rp2040.MICROPYTHON, i2c: str = "0,4,5", spi: str | None = None) -> PicoRun:
     """Boot (from flash_in, default: the image with the device package installed), put files
     (remote name -> bytes), run each script, fetch `gets` (those that exist).  fw: the firmware
-    (the Feather's CircuitPython: i2c="1,2,3", its board.I2C())."""
+    (the Feather's CircuitPython: i2c="1,2,3", its board.I2C()); spi: the chip on SPI instead
+    (SPI_PICO, SPI_FEATHER)."""
     flash_in = flash_in or rp2040.flash_image(fw)
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
-        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out, fw, i2c) + ["run"]
+        args = node_args(stimulus, bus_faults, seed, flash_in, flash_out, fw, i2c, spi) + ["run"]
         for i, (remote, data) in enumerate((puts or {}).items()):
             (t / f"put{i}").write_bytes(data)
             args += ["--put", f"{t / f'put{i}'}={remote}"]

@@ -26,6 +26,7 @@ from acal.core import effects as deff
 from acal.core import fixed
 from acal.core import rest as drest
 from acal.core.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
+from accelcal import fixedpoint
 
 
 @dataclass
@@ -229,31 +230,26 @@ def rest_segments(q: np.ndarray, rate_hz: int, seconds: int = DEFAULT_SECONDS,
     return Segments.concat(parts)
 
 
-def samples_planar(x, y, z) -> np.ndarray:
-    """Floats in g (three columns) -> the device's samples, planar 3 x m int32 Q10 g: rounded,
-    clipped to +-16 g (as io.g_to_sample, without the m x 3 copy)."""
+def samples_planar(x, y, z, first: int = 0) -> np.ndarray:
+    """Floats in g (three columns) -> the device's samples, planar 3 x m int32 Q10 g: rounded as
+    the device's format is (fixedpoint.g_to_sample: the dither of each sample's index in the
+    stream, the first being first), clipped to +-16 g, without the m x 3 copy."""
     out = np.empty((3, len(x)), np.int32)
+    d = fixedpoint.dither(first, len(x))
     for i, c in enumerate((x, y, z)):
-        v = np.multiply(c, fixed.SAMPLE_ONE_G, dtype=np.float64)
-        np.rint(v, out=v)
-        np.clip(v, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX, out=v)
-        out[i] = v
+        fixedpoint.to_samples(c, d, out[i])
     return out
 
 
-def planar_of(axes) -> np.ndarray:
-    """samples_planar of a reader's axes (recordings.Chunk.axes): three (n,) columns, or an
-    (n, 3) array of floats in g, float32 or float64, converted in its own dtype without a
-    float64 copy first.  The same samples to the bit: the scale is a power of two (exact in
-    either dtype, as are rint and the clip to +-16 g), so a float32 value gives what its float64
-    copy gives."""
+def planar_of(axes, first: int = 0) -> np.ndarray:
+    """samples_planar of a reader's axes (recordings.Chunk.axes, the chunk's first sample at
+    stream index first): three (n,) columns, or an (n, 3) array of floats in g, float32 or
+    float64, converted in its own dtype without a float64 copy first.  The same samples to the
+    bit: the scale is a power of two and the floor exact in either dtype (the dither is added to
+    the ints), so a float32 value gives what its float64 copy gives."""
     if isinstance(axes, tuple):
-        return samples_planar(*axes)
-    v = np.empty((3, len(axes)), axes.dtype)        # planar in memory: C order, not axes.T's
-    np.multiply(axes.T, axes.dtype.type(fixed.SAMPLE_ONE_G), out=v)
-    np.rint(v, out=v)
-    np.clip(v, -fixed.SAMPLE_MAX, fixed.SAMPLE_MAX, out=v)
-    return v.astype(np.int32)
+        return samples_planar(*axes, first=first)
+    return samples_planar(axes[:, 0], axes[:, 1], axes[:, 2], first)
 
 
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,

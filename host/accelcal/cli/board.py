@@ -39,6 +39,8 @@ def _app_settings(args) -> dict:
         s["fifo"] = False
     if args.recal_hours is not None:
         s["recal_seconds"] = int(args.recal_hours * 3600)
+    if args.bus is not None:
+        s["bus"] = args.bus
     if args.discover:
         if args.profile != "wear" or args.model != "base":
             raise InputError("--discover: the board discovers from the wear profile's base model "
@@ -214,6 +216,11 @@ def _add_virtual(bsub) -> None:
     q.set_defaults(func=cmd_board_virtual)
 
 
+BUS_HELP = ("the LIS3DH's bus (default: the board file's BUS; the Pico's and the Feather's: auto, "
+            "SPI where the chip answers there, else I2C); SPI keeps the board awake under a third "
+            "as long at 100 Hz (docs/boards-and-logs.md)")
+
+
 def add_parsers(sub) -> None:
     p = sub.add_parser("board", help=COMMANDS["board"][1], description="Board tools.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
@@ -230,6 +237,7 @@ def add_parsers(sub) -> None:
                        help="also capture the raw samples, up to this many kB (for `accelcal replay`)")
         g.add_argument("--fifo", action="store_true", help="read the FIFO past its watermark (default)")
         g.add_argument("--registers", action="store_true", help="read the output registers (warned: loses samples)")
+        g.add_argument("--bus", choices=["auto", "spi", "i2c"], help=BUS_HELP)
         g.add_argument("--recal-hours", type=float_in(0, 8760, lo_open=True), help="least time between calibrations (default 6)")
         g.add_argument("--model", default="base",
                        help="the model the board fits and applies: base (the paper's) or a composed "

@@ -19,13 +19,14 @@ from accelcal.vocabulary import documented
 
 def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", temp=None, t=None,
                      ref: dict | None = None, source: str = "recording", range_g: int = 2,
-                     cols: dict | None = None) -> np.ndarray:
+                     cols: dict | None = None, first: int = 0) -> np.ndarray:
     """Calibrate samples with the vectorised twin of the device's per-sample code
     (calibration.Calibration, bit-exact with it: tests/bridge/test_vector.py).  A composed
     model needs each sample's temperature (degC) and time (s) and the fit's reference (T0, t0):
     the device sees them in Q2 degC (fixed.TEMP_Q) and 64 s units from t0.  cols: the recording's further
     columns by name, for a model whose effects follow one (the board's supply_mv for the
-    device's supply_offset; any other on the host)."""
+    device's supply_offset; any other on the host).  first: the first sample's index in its
+    recording (the Q10 rounding's dither follows it: fixedpoint.g_to_sample)."""
     spec = ModelSpec.parse(model)
     if spec.host_only:
         return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source, cols)
@@ -37,7 +38,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
                          "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "
                          "bounds)") from None
-    q = g_to_sample(xyz_g)
+    q = g_to_sample(xyz_g, first)
     one_g = float(1 << cal.out_q)   # the calibrated samples' format, Q(13 - e) g (fixed.py)
     if not spec.effects:  # the twin of cal.apply_samples (tests/bridge/test_vector.py: bit-exact)
         return twin.apply_params(p_int, q, range_g=range_g) / one_g
@@ -113,7 +114,7 @@ def apply_file(p_int: list[int], model: str, ref: dict, path: str, output: str,
         for ch in rec.chunks():
             clipped += int(np.count_nonzero((np.abs(ch.xyz) > limit + 0.5 / fixed.SAMPLE_ONE_G).any(axis=1)))
             a = np.round(apply_to_samples(p_int, ch.xyz, model, ch.temp, ch.t, ref, path, rng,
-                                          ch.cols), 6)
+                                          ch.cols, ch.first), 6)
             cols = [ch.t, a[:, 0], a[:, 1], a[:, 2]] + ([np.round(ch.temp, 3)] if rec.has_temp else []) \
                 + [ch.cols[c] for c in rec.columns]
             writer.write_batch(pa.RecordBatch.from_arrays([pa.array(c) for c in cols], schema=schema))

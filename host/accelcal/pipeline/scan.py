@@ -4,7 +4,10 @@ temperature).  Then the host's quality checks decide which still segments are no
 rest and are kept from the bins (docs/real-recordings.md "False rest kept out"):
 
 * imputed / idle-sleep: every axis constant for a whole segment.  A real sensor's noise moves
-  at least one axis by a digit in 5 s; files pad gaps with repeated values or zeros;
+  at least one axis by a digit in 5 s; files pad gaps with repeated values or zeros.  Constant
+  in the device's samples' terms: a spread of at most one LSB on every axis (the Q10 format's
+  dither, acal.core.fixed, makes a constant value off the grid floor(g * 1024) or one more; a
+  1 mg digit moves a sample by 1.024 LSB, over 50 samples with the dither by 2 LSB);
 * clipped: a sample at the full scale in the segment (the mean is not gravity's);
 * non-wear: still on every axis (not only the rest-test axis) while the device is colder than
   skin (below WEAR_TEMP_C) or cooling fast (faster than COOLING_C_PER_MIN): off the wrist
@@ -27,6 +30,7 @@ from accelcal.files.checks import check_units
 from accelcal.files.recordings import STANDARD_RANGES_G, Recording, gap_limit
 from accelcal.files.table import median
 
+IMPUTED_SPREAD = 1          # Q10 LSB: a constant value's samples, dithered (above)
 WEAR_TEMP_C = 25.0          # worn wrist devices read 28-35 degC; off the wrist: the room's
 SKIN_MIN_C = 28.0           # a file that never reads this has relative temperatures (an LIS3DH
                             # without a reference) or was never worn: no "cold" test there
@@ -114,7 +118,7 @@ class Scan:
         s = self.segments
         still = s.still
         rng = s.hi - s.lo
-        imputed = (rng == 0).all(axis=1)
+        imputed = (rng <= IMPUTED_SPREAD).all(axis=1)
         r = self.full_scale_g
         if r:
             clipped = np.maximum(s.hi.max(axis=1), -s.lo.min(axis=1)) >= clip_level(r)
@@ -224,7 +228,7 @@ def _count_clipping(sc, p: np.ndarray) -> None:
 def _to_samples(ch) -> None:
     # run in the reading thread, beside the detector on the other core: on the 14-day .cwa the
     # conversion was 3.2 s of the detector thread's 8.6 s, which was the longer of the two
-    ch.planar = twin.planar_of(ch.axes)
+    ch.planar = twin.planar_of(ch.axes, ch.first)
 
 
 def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int | None = None,
@@ -265,7 +269,7 @@ def scan(rec: Recording, seconds: int, threshold: int, axis: int, rate_hz: int |
         gaps, span = _gaps(rec, ch, last_t, limit)
         sc.run_seconds += span
         sc.gap_starts.extend((gaps + ch.first).tolist())
-        p = ch.planar if ch.planar is not None else twin.planar_of(ch.axes)
+        p = ch.planar if ch.planar is not None else twin.planar_of(ch.axes, ch.first)
         extra = None
         if extras:
             mag2 = np.einsum("ij,ij->i", ch.xyz, ch.xyz)

@@ -50,7 +50,7 @@ def throughput(n: int = 20_000_000) -> dict:
 
     def convert():
         for a in range(0, n, chunk):
-            twin.samples_planar(x[a:a + chunk], y[a:a + chunk], z[a:a + chunk])
+            twin.samples_planar(x[a:a + chunk], y[a:a + chunk], z[a:a + chunk], a)
 
     def rest():
         rs = twin.RestStream(100)

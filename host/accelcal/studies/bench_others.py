@@ -4,6 +4,11 @@ process so that each one's peak memory is its own:
 
     python -m accelcal.studies.bench_others skdh|actipy RECORDING.csv WINDOWS.npz
     python -m accelcal.studies.bench_others heldout skdh|actipy FIT.csv TEST_WINDOWS.npz
+    python -m accelcal.studies.bench_others fit skdh|skdh_lifted|actipy SAMPLES.npz
+    python -m accelcal.studies.bench_others versions
+
+(fit: the tool's calibration of the samples of SAMPLES.npz (t s, acc (n, 3) g, temp degC or
+absent), its map read back as in heldout, for accelcal.studies.peers_real.)
 
 Reads the CSV whole (Arrow, as both tools need the arrays in memory), calibrates with the tool's
 own function and its defaults, and scores the tool's calibrated samples on accelcal's still
@@ -91,8 +96,86 @@ def heldout(tool: str, path: str, windows: str) -> dict:
     return {"tool": tool, "heldout_error_mg": err, "params": params, **kw}
 
 
+def versions() -> dict:
+    from importlib.metadata import version
+    return {"scikit-digital-health": version("scikit-digital-health"),
+            "actipy": version("actipy"), "numpy": np.__version__}
+
+
+def read_back(acc, temp, cal) -> tuple[list, float]:
+    """The tool's map as applied to acc: per axis i, cal_i = c0 + c1 v_i + c2 T + c3 v_i T,
+    fitted by least squares on up to 400 000 samples spread over the recording (both peers'
+    forms are exactly this: skdh (v + o) s + (T - Tm) m, actipy/GGIR o + s v + m (T - Tm));
+    and the largest residual over those samples (g), which shows that the form holds."""
+    T = temp if temp is not None else np.zeros(len(acc))
+    idx = np.linspace(0, len(acc) - 1, min(len(acc), 400_000)).astype(int)
+    coefs, worst = [], 0.0
+    for i in range(3):
+        X = np.column_stack([np.ones(len(idx)), acc[idx, i], T[idx], acc[idx, i] * T[idx]])
+        c, *_ = np.linalg.lstsq(X, cal[idx, i], rcond=None)
+        worst = max(worst, float(np.abs(X @ c - cal[idx, i]).max()))
+        coefs.append([float(v) for v in c])
+    return coefs, worst
+
+
+def fit(tool: str, path: str) -> dict:
+    """The tool's own calibration of every sample of path, with its defaults, except
+    scikit-digital-health's min_hours (72 h by default, rounded up to a multiple of 12 h, its
+    lower limit 12 h): the largest multiple of 12 h the samples span (at least 12), from which
+    it takes more in 12-hour steps up to all of them; skdh_lifted: the whole hours the samples
+    span (at least 1), its 12-hour floor lifted (set on the object after its constructor
+    rounded it up), a variant outside its documented settings, labelled so wherever shown.
+    A tool that declines (skdh: too few hours or no valid calibration after all the data;
+    actipy: CalibOK 0) gives fitted false and its reason; no map.  actipy "fits" with no
+    iteration where its error is under its tolerance: the identity, said in left_as_is."""
+    z = np.load(path)
+    t, acc = z["t"], np.ascontiguousarray(z["acc"], dtype=np.float64)
+    temp = z["temp"] if "temp" in z.files else None
+    rate = float(1.0 / np.median(np.diff(t[:100000])))
+    out = {"tool": tool, "samples": int(len(t)), "hours": float(len(t) / rate / 3600),
+           "rate_hz": rate, "versions": versions()}
+    raw = acc.copy()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if tool in ("skdh", "skdh_lifted"):
+            hours = int(len(t) / rate / 3600)
+            from skdh.preprocessing import CalibrateAccelerometer
+            if tool == "skdh":   # its constructor rounds min_hours up to a multiple of 12
+                skdh = CalibrateAccelerometer(min_hours=max(12, hours // 12 * 12))
+            else:                # its 12-hour floor lifted: set after the constructor rounded it
+                skdh = CalibrateAccelerometer(min_hours=12)
+                skdh.min_hours = max(1, hours)
+            out["min_hours"] = skdh.min_hours
+            res = skdh.predict(
+                time=t + 1.6e9, accel=acc, fs=rate, temperature=temp, apply=True)
+            said = [str(w.message) for w in caught if "alibration" in str(w.message)]
+            ok = bool(res) and not said
+            reason = "; ".join(said) or (None if ok else "no result")
+            cal = res.get("accel") if ok else None
+            params = {k: np.asarray(res[k]).tolist() for k in ("offset", "scale",
+                                                                "temperature scale")} if res else {}
+        else:
+            cal, params = run_actipy(t, acc, temp, rate)
+            ok = bool(params.get("CalibOK"))
+            reason = None if ok else f"CalibOK {params.get('CalibOK')}"
+            if ok and not params.get("CalibNumIters"):   # its error under its 10 mg tolerance
+                out["left_as_is"] = ("its error before calibrating, %.2f mg on its %d stationary "
+                                     "windows, under its 10 mg tolerance: samples left as they are"
+                                     % (params["CalibErrorBefore(mg)"], params["CalibNumSamples"]))
+    out.update(fitted=ok, reason=reason, params=params)
+    if ok:
+        out["map"], out["map_residual_g"] = read_back(raw, temp, np.asarray(cal))
+    return out
+
+
 def main(argv=None) -> int:
     argv = argv or sys.argv[1:]
+    if argv[0] == "versions":
+        print(json.dumps(versions()))
+        return 0
+    if argv[0] == "fit":
+        print(json.dumps(fit(argv[1], argv[2])))
+        return 0
     if argv[0] == "heldout":
         print(json.dumps(heldout(*argv[1:4])))
         return 0

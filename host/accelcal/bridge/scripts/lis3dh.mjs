@@ -83,6 +83,9 @@ export class LIS3DH {
     this.converted = 0;    // samples converted since power-up
     this.starts = [];      // each (re)start of the ODR's time line: [s, us] since the epoch
     this.exhausted = false;
+    this.spiSelected = false; // the SPI front end (vlis3dh.py spi_select/spi_byte): CS low
+    this.spiCmd = -1;
+    this.spiReg = 0;
     this.onSample = null;  // (this) after each conversion: the board's supply follows it
     const [s, us] = this.now();
     this.epochS = s;
@@ -234,6 +237,21 @@ export class LIS3DH {
     }
   }
 
+  // The SPI front end (DocID17530 6.2; vlis3dh.py spi_select/spi_byte): CS low starts a
+  // transaction whose first byte is RW (bit 7), MS (bit 6), AD5:0; SDO not driven reads 0.
+  spiSelect(low) { this.spiSelected = low; this.spiCmd = -1; }
+
+  spiByte(v) {
+    if (!this.spiSelected) return 0;
+    this.catchUp();
+    if (this.spiCmd < 0) { this.spiCmd = v; this.spiReg = v & 0x3f; return 0; }
+    const reg = this.spiReg;
+    if (this.spiCmd & 0x40) this.spiReg = reg + 1 === OUT_X_L + 6 && this.fifoMode() ? OUT_X_L : reg + 1;
+    if (this.spiCmd & 0x80) return this.readByte(reg);
+    this.writeByte(reg, v);
+    return 0;
+  }
+
   // A transaction's bytes, as vlis3dh.py's read()/write() take them (the equivalence test).
   read(reg, n) {
     this.catchUp();
@@ -274,20 +292,23 @@ export function emulatedClock(mcu) {
 }
 
 const R_TX_EMPTY = 1 << 4;
-const FUNC_I2C = 3;
+const FUNC_I2C = 3, FUNC_SPI = 1;
+const SSPCR0_SPO = 1 << 6, SSPCR0_SPH = 1 << 7;
 
-// Wire the model to the chip's I2C0.  Returns { lis3dh, stats }.
+// Wire the model to the chip's I2C (bus, sda, scl) or, with spi = { bus, sck, mosi, miso, cs },
+// to an SPI block and a chip-select GPIO instead (the chip is wired one way, as on a board).
+// Returns { lis3dh, stats }.
 export function attachLis3dh(chip, { stimulus, address = 0x18, faultPerMille = 0, seed = 1,
-  bus = 0, sda = 4, scl = 5, busTiming = true, tempRefMc = 25000 } = {}) {
+  bus = 0, sda = 4, scl = 5, busTiming = true, tempRefMc = 25000, spi = null } = {}) {
   const { mcu } = chip;
   const dev = new LIS3DH(new Stimulus(stimulus), emulatedClock(mcu), tempRefMc);
   const faults = new Faults(faultPerMille, seed);
   const stats = { transactions: 0, faults: 0, bytes: 0 };
-  const i2c = mcu.i2c[bus];
-  // the board's supply (a version-2 stimulus) on ADC3, which reads VSYS / 3 against 3.3 V
   if (dev.stim.hasSupply) {
     dev.onSample = (d) => { mcu.adc.channelValues[3] = Math.max(0, Math.min(4095, Math.round(d.stim.supplyMv * 4095 / 9900))); };
   }
+  if (spi) { attachSpi(mcu, dev, stats, spi, busTiming); return { lis3dh: dev, stats, faults }; }
+  const i2c = mcu.i2c[bus];
   let pending = null;
   const alarm = mcu.clock.createAlarm(() => { const f = pending; pending = null; f(); });
   const bitNs = () => Math.max(1, i2c.sclHighPeriod + i2c.sclLowPeriod) * 8; // clk_sys at 125 MHz
@@ -338,17 +359,49 @@ export function attachLis3dh(chip, { stimulus, address = 0x18, faultPerMille = 0
   return { lis3dh: dev, stats, faults };
 }
 
+// The SPI front end on an RP2040 SPI block (rp2040js's PL022: onTransmit(byte) for each frame
+// the block starts, completeTransmit(rx) when it ends): CS is a GPIO the firmware drives (SIO);
+// while it is low each byte goes to the model (LIS3DH.spiByte) and its answer comes back
+// dataBits SPI clock periods later, the clock from the block's own prescaler and SCR
+// (clk_peri / (CPSDVSR (1 + SCR)): 8.93 MHz for MicroPython's baudrate=10_000_000 at 125 MHz).
+// The chip answers only with SCK/MOSI/MISO switched to SPI and in mode 0 or 3 (CPOL = CPHA: it
+// latches SDI on SPC's rising edge); else MISO reads 0.  Frames follow each other without gaps
+// (the PL022 in Motorola mode with SPH = 1 keeps SSPFSSOUT low; we do not model the one-bit gap
+// it inserts with SPH = 0).  DMA (MicroPython uses it for 32 bytes and more) works through the
+// block's DREQs, which rp2040js raises.
+function attachSpi(mcu, dev, stats, { bus = 0, sck, mosi, miso, cs }, busTiming) {
+  const port = mcu.spi[bus];
+  stats.spi = { bus, sck, mosi, miso, cs };
+  const wired = () => [sck, mosi, miso].every((p) => mcu.gpio[p].functionSelect === FUNC_SPI)
+    && !(port.control0 & SSPCR0_SPO) === !(port.control0 & SSPCR0_SPH);
+  mcu.gpio[cs].addListener((v) => { // 0: GPIOPinState.Low, an output driven low
+    const low = v === 0;
+    if (low === dev.spiSelected) return;
+    dev.spiSelect(low);
+    if (low) stats.transactions++;
+  });
+  let pending = null;
+  const alarm = mcu.clock.createAlarm(() => { const f = pending; pending = null; f(); });
+  port.onTransmit = (v) => {
+    stats.bytes++;
+    const rx = dev.spiSelected && wired() ? dev.spiByte(v) : 0;
+    if (!busTiming || !port.clockFrequency) { port.completeTransmit(rx); return; }
+    pending = () => port.completeTransmit(rx);
+    alarm.schedule(Math.round(port.dataBits * 1e9 / port.clockFrequency));
+  };
+}
+
 // The model's ground truth, for a run's report.
 export function lis3dhReport(att) {
   const d = att.lis3dh;
   return { converted: d.converted, generated: d.generated, dropped: d.dropped, exhausted: d.exhausted,
     starts: d.starts, stimulus_rate_hz: d.stim.rateHz, transactions: att.stats.transactions,
-    faults: att.stats.faults, bytes: att.stats.bytes };
+    faults: att.stats.faults, bytes: att.stats.bytes, spi: att.stats.spi || null };
 }
 
 // ---------------------------------------------------------------- the equivalence test's driver
 // node lis3dh.mjs --ops OPS.json --stimulus STIM: OPS is a list of [t_us, 'w', reg, [bytes]] or
-// [t_us, 'r', reg, n]; prints one JSON list of the bytes each read gave.
+// [t_us, 'r', reg, n] (I2C) or [t_us, 's', 0, [bytes]] (one SPI transaction, its bytes read back); prints one JSON list of the bytes each read gave.
 async function main() {
   const { parseArgs } = await import('node:util');
   const { values } = parseArgs({ options: { ops: { type: 'string' }, stimulus: { type: 'string' } } });
@@ -357,7 +410,12 @@ async function main() {
   const reads = [];
   for (const [tUs, op, reg, arg] of JSON.parse(fs.readFileSync(values.ops, 'utf8'))) {
     t = tUs;
-    if (op === 'w') dev.write(reg, arg); else reads.push(dev.read(reg, arg));
+    if (op === 'w') dev.write(reg, arg);
+    else if (op === 's') { // one SPI transaction: CS low, the bytes, CS high
+      dev.spiSelect(true);
+      reads.push(arg.map((b) => dev.spiByte(b)));
+      dev.spiSelect(false);
+    } else reads.push(dev.read(reg, arg));
   }
   process.stdout.write(JSON.stringify({ reads, dropped: dev.dropped, converted: dev.converted }) + '\n');
 }

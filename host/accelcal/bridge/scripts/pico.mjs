@@ -3,10 +3,11 @@
 //
 //   node pico.mjs --rp2040js INDEX_JS --firmware FW.uf2 --bootrom ROM.bin [--flash-in IMG]
 //        [--flash-out IMG] [--stimulus STIM] [--bus-faults PER_MILLE] [--seed N]
-//        [--flavour micropython|circuitpython] [--i2c BUS,SDA,SCL] MODE ...
+//        [--flavour micropython|circuitpython] [--i2c BUS,SDA,SCL | --spi BUS,SCK,MOSI,MISO,CS] MODE ...
 //
 // --i2c: where the LIS3DH is wired (default 0,4,5: the Pico's I2C0; the Feather RP2040's
-// board.I2C() is 1,2,3).  CircuitPython (--flavour): its drive is made writable to code for the
+// board.I2C() is 1,2,3); --spi: wired to an SPI block and a chip-select GPIO instead (the Pico's
+// SPI0 as boards/pico.py has it: 0,18,19,16,17; the Feather's board.SPI() and D5: 0,18,19,20,7).  CircuitPython (--flavour): its drive is made writable to code for the
 // --put files (until the next power-up: a board that logs does it in boot.py).
 //
 // MODE run:   [--put LOCAL=REMOTE]... [--exec SCRIPT]... [--get REMOTE=LOCAL]... [--report FILE]
@@ -37,6 +38,7 @@ const OPTIONS = {
   stimulus: { type: 'string' }, 'bus-faults': { type: 'string', default: '0' },
   seed: { type: 'string', default: '1' },
   flavour: { type: 'string', default: 'micropython' }, i2c: { type: 'string', default: '0,4,5' },
+  spi: { type: 'string' },
   put: { type: 'string', multiple: true, default: [] }, exec: { type: 'string', multiple: true, default: [] },
   get: { type: 'string', multiple: true, default: [] }, report: { type: 'string' },
   'cut-at': { type: 'string' },
@@ -97,10 +99,15 @@ export function bootPico(emu, v) {
   const chip = R.createChip(emu, { firmware: v.firmware, bootrom: v.bootrom, flavour: v.flavour,
     flashIn: v['flash-in'] && fs.existsSync(v['flash-in']) ? v['flash-in'] : null });
   const [bus, sda, scl] = v.i2c.split(',').map(Number);
-  const sensor = v.stimulus ? attachLis3dh(chip, { stimulus: v.stimulus, bus, sda, scl,
+  let spi = null;
+  if (v.spi) {
+    const [sb, sck, mosi, miso, cs] = v.spi.split(',').map(Number);
+    spi = { bus: sb, sck, mosi, miso, cs };
+  }
+  const sensor = v.stimulus ? attachLis3dh(chip, { stimulus: v.stimulus, bus, sda, scl, spi,
     faultPerMille: Number(v['bus-faults']), seed: Number(v.seed) }) : null;
   // CircuitPython bit-bangs its address probe on the pins
-  if (sensor && v.flavour === 'circuitpython') attachProbeAck(chip, { sda, scl, address: 0x18 });
+  if (sensor && !spi && v.flavour === 'circuitpython') attachProbeAck(chip, { sda, scl, address: 0x18 });
   return { chip, sensor };
 }
 

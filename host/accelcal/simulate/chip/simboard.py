@@ -1,7 +1,8 @@
 # The virtual board's hardware in one object: a simulated LIS3DH fed by a stimulus file, on a fake
-# machine.I2C (fault_per_mille of its transactions fail), with a virtual clock.  MicroPython-
+# machine.I2C (fault_per_mille of its transactions fail) and on a fake machine.SPI with its
+# chip-select Pin (the chip's SPI front end; no faults), with a virtual clock.  MicroPython-
 # compatible; boards/virtual.py, the tests and the bench build their boards from it.
-from vbus import I2C
+from vbus import I2C, SPI, Pin
 from vclock import Clock
 from vlis3dh import SimLIS3DH, Stimulus
 
@@ -15,6 +16,8 @@ class SimBoard:
         self.clock = clock if clock is not None else Clock()
         self.chip = SimLIS3DH(Stimulus(stimulus_path), self.clock)
         self.bus = I2C({ADDRESS: self.chip}, fault_per_mille)
+        self.spi_bus = SPI(self.chip)
+        self.cs = Pin(self.chip)
 
     def i2c(self):
         return self.bus

@@ -1,8 +1,12 @@
-# Fake I2C buses in front of simulated devices, MicroPython-compatible.
+# Fake I2C and SPI buses in front of simulated devices, MicroPython-compatible.
 #
 #   I2C       - the machine.I2C API the device driver uses (readfrom_mem_into, writeto_mem, ...)
 #   BusioI2C  - the busio.I2C API CircuitPython drivers use (try_lock, writeto, readfrom_into,
 #               writeto_then_readfrom), so the real adafruit_lis3dh runs on the simulated chip.
+#   SPI, Pin  - machine.SPI (write, readinto, write_readinto) and a chip-select machine.Pin in
+#               front of one device's SPI front end (spi_select, spi_byte: vlis3dh.py), byte by
+#               byte; BusioSPI and DigitalInOut the same for busio.SPI and digitalio.  SPI has
+#               no acknowledge, so no faults are drawn: a transfer with CS high reads 0.
 #
 # Fault injection: with fault_per_mille > 0, that share of transactions fails with OSError(EIO)
 # before reaching the device (like a NACK in the address phase), so a retry is side-effect free.
@@ -96,3 +100,97 @@ class BusioI2C(_Bus):
                               in_start=0, in_end=None):
         self.writeto(addr, out_buf, out_start, out_end)
         self.readfrom_into(addr, in_buf, in_start, in_end)
+
+
+class Pin:
+    """A chip-select machine.Pin (pin(v), pin.value(v)) and digitalio.DigitalInOut (.value,
+    switch_to_output) in one: writing 0 selects the device's SPI front end."""
+
+    def __init__(self, device, value=1):
+        self.device = device
+        self._v = 1
+        Pin.value(self, value)
+
+    def value(self, v=None):
+        if v is None:
+            return self._v
+        v = 1 if v else 0
+        if v != self._v:
+            self._v = v
+            self.device.spi_select(v == 0)
+
+    __call__ = value
+
+    def switch_to_output(self, value=False, drive_mode=None):
+        self.value(value)
+
+
+class DigitalInOut(Pin):
+    """digitalio.DigitalInOut: .value is a property."""
+
+    def __init__(self, device, value=1):
+        Pin.__init__(self, device, value)
+
+    @property
+    def value(self):
+        return self._v == 1
+
+    @value.setter
+    def value(self, v):
+        Pin.value(self, v)
+
+    def switch_to_output(self, value=False, drive_mode=None):
+        Pin.value(self, value)
+
+
+class SPI:
+    """machine.SPI in front of one device (its chip select is a Pin on the same device)."""
+
+    def __init__(self, device):
+        self.device = device
+        self.transfers = 0
+
+    def write(self, buf):
+        self.transfers += 1
+        for i in range(len(buf)):      # indexed: an iterator would allocate
+            self.device.spi_byte(buf[i])
+
+    def readinto(self, buf, write=0):
+        self.transfers += 1
+        for i in range(len(buf)):
+            buf[i] = self.device.spi_byte(write)
+
+    def write_readinto(self, out, into):
+        self.transfers += 1
+        for i in range(len(out)):
+            into[i] = self.device.spi_byte(out[i])
+
+
+class BusioSPI(SPI):
+    """busio.SPI: locked and configured (as adafruit_bus_device's SPIDevice does) around
+    transfers of a slice [start:end]."""
+
+    def __init__(self, device):
+        SPI.__init__(self, device)
+        self.locked = False
+        self.mode = (0, 0)
+        self.baudrate = 100000
+
+    def try_lock(self):
+        if self.locked:
+            return False
+        self.locked = True
+        return True
+
+    def unlock(self):
+        self.locked = False
+
+    def configure(self, baudrate=100000, polarity=0, phase=0, bits=8):
+        self.baudrate = baudrate
+        self.mode = (polarity, phase)
+
+    def write(self, buf, start=0, end=None):
+        SPI.write(self, memoryview(buf)[start:len(buf) if end is None else end])
+
+    def readinto(self, buf, start=0, end=None, write_value=0):
+        SPI.readinto(self, memoryview(buf)[start:len(buf) if end is None else end], write_value)

@@ -32,6 +32,12 @@
 #    modelled; INT2 has no FIFO source and stays low);
 #  * reads: the sub-address auto-increments when its bit 7 is set; in a FIFO mode it rolls over
 #    from OUT_Z_H (2Dh) to OUT_X_L (28h), and reading OUT_Z_H pops the set.
+#  * the SPI front end (6.2, spi_select/spi_byte), on the same registers: CS low starts a
+#    transaction whose first byte is RW (bit 7, 1 = read), MS (bit 6, 1 = the address
+#    increments, with the FIFO's roll-over as above), AD5:0; each byte after it reads a register
+#    out on SDO or writes the byte clocked in.  SDO while the first byte (or a write's data) is
+#    clocked in, and with CS high, is not driven: the models give 0 (what the RP2040's default
+#    pad pull-down reads).  The SPI clock's mode and speed are the bus's (vbus.py, lis3dh.mjs).
 # Where the datasheet is silent the model assumes, and says so: a read of the outputs with the
 # FIFO empty (EMPTY = 1) returns the latest conversion (what bypass would show) and pops nothing;
 # FSS saturates at 31 with OVRN_FIFO marking the 32nd; the per-axis XDA..ZOR bits, the
@@ -127,6 +133,9 @@ class SimLIS3DH:
         # whole seconds and microseconds, as the clock keeps them (vclock.py: 32-bit faithful).
         self.epoch_s = clock.s
         self.epoch_us = clock.us
+        self.spi_selected = False   # the SPI front end: CS low
+        self._spi_cmd = -1          # this transaction's first byte (-1: not clocked in yet)
+        self._spi_reg = 0
         self._reset()
 
     def _reset(self):
@@ -317,6 +326,28 @@ class SimLIS3DH:
         if reg == _REG_STATUS_AUX:
             return 0x44 if (self.regs[_REG_TEMP_CFG] & 0xC0) == 0xC0 else 0
         return self.regs[reg]
+
+    def spi_select(self, low):
+        """CS: low (True) starts a transaction, high ends it."""
+        self.spi_selected = low
+        self._spi_cmd = -1
+
+    def spi_byte(self, v):
+        """One byte clocked in on SDI while CS is low; returns the byte clocked out on SDO."""
+        if not self.spi_selected:
+            return 0
+        if self._spi_cmd < 0:   # the first byte: RW, MS, AD5:0
+            self._spi_cmd = v
+            self._spi_reg = v & 0x3F
+            self.catch_up()
+            return 0
+        reg = self._spi_reg
+        if self._spi_cmd & 0x40:   # MS: the next address, rolling over in a FIFO mode
+            self._spi_reg = _REG_OUT_X_L if reg + 1 == _REG_OUT_X_L + 6 and self.fifo_mode() else reg + 1
+        if self._spi_cmd & 0x80:
+            return self._read_byte(reg)
+        self._write_byte(reg, v)
+        return 0
 
     def write(self, reg, data, start, end):
         inc = reg & 0x80
