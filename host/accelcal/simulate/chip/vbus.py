@@ -65,13 +65,9 @@ class I2C(_Bus):
         self._device(addr).write(memaddr, buf, 0, len(buf))
 
 
-class BusioI2C(_Bus):
-    """busio.I2C: a write of one byte sets the register pointer; reads continue from it."""
-
-    def __init__(self, devices, fault_per_mille=0, seed=1):
-        _Bus.__init__(self, devices, fault_per_mille, seed)
-        self.pointer = {}
-        self.locked = False
+class _BusioLock:
+    """busio's bus lock: try_lock() before a transfer, unlock() after (both fakes share it)."""
+    locked = False
 
     def try_lock(self):
         if self.locked:
@@ -80,6 +76,15 @@ class BusioI2C(_Bus):
         return True
 
     def unlock(self):
+        self.locked = False
+
+
+class BusioI2C(_BusioLock, _Bus):
+    """busio.I2C: a write of one byte sets the register pointer; reads continue from it."""
+
+    def __init__(self, devices, fault_per_mille=0, seed=1):
+        _Bus.__init__(self, devices, fault_per_mille, seed)
+        self.pointer = {}
         self.locked = False
 
     def writeto(self, addr, buf, start=0, end=None):
@@ -166,7 +171,7 @@ class SPI:
             into[i] = self.device.spi_byte(out[i])
 
 
-class BusioSPI(SPI):
+class BusioSPI(_BusioLock, SPI):
     """busio.SPI: locked and configured (as adafruit_bus_device's SPIDevice does) around
     transfers of a slice [start:end]."""
 
@@ -175,15 +180,6 @@ class BusioSPI(SPI):
         self.locked = False
         self.mode = (0, 0)
         self.baudrate = 100000
-
-    def try_lock(self):
-        if self.locked:
-            return False
-        self.locked = True
-        return True
-
-    def unlock(self):
-        self.locked = False
 
     def configure(self, baudrate=100000, polarity=0, phase=0, bits=8):
         self.baudrate = baudrate
