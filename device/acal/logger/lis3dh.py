@@ -77,6 +77,15 @@ class LIS3DHError(Exception):
     pass
 
 
+def spi_command(memaddr, read):
+    """SPI's first byte (DocID17530 6.2) for an I2C sub-address memaddr: a read is RW | MS | AD5:0,
+    MS (the address increments) where memaddr's bit 7 asks for it, as over I2C (6.1.1); a write
+    RW = 0, AD5:0.  Both SPI register classes (this one's, lis3dh_cp's) frame their bytes so."""
+    if read:
+        return _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
+    return memaddr & _SPI_AD
+
+
 class SPIRegisters:
     """machine.I2C's register calls over a 4-wire SPI (DocID17530 6.2, mode 3: CPOL = CPHA = 1,
     SPC up to 10 MHz): spi a machine.SPI (write, readinto), cs its chip-select Pin (an output,
@@ -94,7 +103,7 @@ class SPIRegisters:
         cs(1)
 
     def readfrom_mem_into(self, addr, memaddr, buf):
-        self._cmd[0] = _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
+        self._cmd[0] = spi_command(memaddr, True)
         self.cs(0)
         try:
             self.spi.write(self._cmd)
@@ -106,7 +115,7 @@ class SPIRegisters:
         if len(buf) != 1:
             raise ValueError("single-register writes only")
         w = self._wr
-        w[0] = memaddr & _SPI_AD
+        w[0] = spi_command(memaddr, False)
         w[1] = buf[0]
         self.cs(0)
         try:

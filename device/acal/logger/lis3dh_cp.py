@@ -1,7 +1,7 @@
 # The LIS3DH on CircuitPython: adafruit_lis3dh finds and identifies the chip (what it does well),
 # and samples are read as raw integers through the same register code as lis3dh.LIS3DH, over
 # busio via adafruit_bus_device (no floats, no per-sample allocation).
-from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError
+from acal.logger.lis3dh import LIS3DH, ADDRESS, LIS3DHError, spi_command
 
 SPI_BAUD = 10000000    # the LIS3DH's fastest SPC (DocID17530's SPI timing: fc(SPC) <= 10 MHz)
 
@@ -41,7 +41,7 @@ class BusioSPIRegisters:
         self._wr = bytearray(2)
 
     def readfrom_mem_into(self, addr, memaddr, buf):
-        self._cmd[0] = 0x80 | (0x40 if memaddr & 0x80 else 0) | (memaddr & 0x3F)
+        self._cmd[0] = spi_command(memaddr, True)
         with self.device as spi:
             spi.write(self._cmd)
             spi.readinto(buf)
@@ -49,7 +49,7 @@ class BusioSPIRegisters:
     def writeto_mem(self, addr, memaddr, buf):
         if len(buf) != 1:
             raise ValueError("single-register writes only")
-        self._wr[0] = memaddr & 0x3F
+        self._wr[0] = spi_command(memaddr, False)
         self._wr[1] = buf[0]
         with self.device as spi:
             spi.write(self._wr)
