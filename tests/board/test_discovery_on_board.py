@@ -119,7 +119,7 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
 
 def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
     from acal.core import profile
-    from acal.core.bins import N_SUBSETS
+    from acal.core.bins import N_SUBSETS, C_TEMP, C_TIME
     from acal.discover.heldout import held_out
     from acal.core.pipeline import Pipeline
     from acal.discover.plug import Plug
@@ -129,8 +129,8 @@ def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
     for i in range(600):          # 600 rest means over 40 h, in every direction
         v = rng.normal(size=3)
         v = v / np.linalg.norm(v)
-        pipe.time = i * 4         # 64 s units: 256 s apart
-        pipe.temp = (20 + i % 9) * 4   # Q2 degC
+        pipe.now[C_TIME] = i * 4         # 64 s units: 256 s apart
+        pipe.now[C_TEMP] = (20 + i % 9) * 4   # Q2 degC
         pipe.offer(*(int(c * 65536) for c in v))
     b = pipe.bins
     def times():

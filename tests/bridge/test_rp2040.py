@@ -115,6 +115,8 @@ import os
 from acal.core import effects
 from acal.logger import log
 from acal.logger.app import Processor
+from acal.core.bins import C_TEMP
+from acal.core.fixed import TEMP_Q
 try:
     os.remove("apply_log.bin")
 except OSError:
@@ -135,7 +137,7 @@ from array import array
 buf = array("i", [0] * (3 * log.SAMPLES_PER_RECORD))
 s = 99
 for blk in range(%d):
-    proc.temp = 20 + blk %% 12      # whole degC, a new temperature each block
+    proc.now[C_TEMP] = (20 + blk %% 12) << TEMP_Q   # whole degC, a new temperature each block
     for i in range(len(buf)):
         s = (s * 1103515245 + 12345) & 0x7FFFFFFF
         buf[i] = (s >> 8) %% 4500 - 2250   # past +-2 g too: clamped

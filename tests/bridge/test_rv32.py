@@ -127,6 +127,7 @@ HEAP = r"""
 import micropython
 from array import array
 from acal.core.calibration import Calibration
+from acal.core.bins import C_TEMP
 from acal.core import effects
 from acal.core.gaussnewton import GaussNewton
 from acal.paper.optimiser import Optimiser
@@ -157,7 +158,7 @@ def work(res):
         for i in range(len(out)):
             s = (s * 31 + out[i]) & 0xFFFFF
         res[0] += s
-    comp.temp = 1000
+    comp.now[C_TEMP] = 1000
     comp.apply_samples(out, 0, len(READ) // 3, READ)
     for gn, aux in fits:
         gn.run(PTS, 72, 20, aux)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from acal.core.bins import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.calibration import Calibration
 from acal.core.rest import RestDetector
 from accelcal.bridge import twin
@@ -212,12 +213,12 @@ def test_composed_apply_equals_the_device_calibration(case):
     cal.set(p, 0, 0, step_time, 120)
     dev = []
     for (x, y, z), a, b, c in zip(q.tolist(), dT.tolist(), dt.tolist(), dV.tolist()):
-        cal.temp, cal.time, cal.supply = a, b, c + 120
+        cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = a, b, c + 120
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
     assert (twin.apply_params(p, q, kinds, dT, dt, range_g, step_time, dV) == np.array(dev)).all()
     # and the block form (apply_samples) gives the one-sample form's integers
-    cal.temp, cal.time, cal.supply = int(dT[-1]), int(dt[-1]), int(dV[-1]) + 120
+    cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = int(dT[-1]), int(dt[-1]), int(dV[-1]) + 120
     buf = q[-50:].ravel().tolist()
     cal.apply_samples(buf, 0, 50)
     assert (np.array(buf).reshape(-1, 3)[-1] == dev[-1]).all()

@@ -10,6 +10,8 @@ import sys
 from array import array
 from acal.logger import log
 from acal.logger.processor import Processor
+from acal.core.bins import C_TEMP
+from acal.core.fixed import TEMP_Q
 
 REST = %s
 GAP = %d
@@ -21,7 +23,7 @@ def run(path, settings):
     buf = array("i", bytearray(12 * 40))
     seed = 12345
     for s in range(len(REST) // 4):
-        p.temp = REST[4 * s + 3]
+        p.now[C_TEMP] = REST[4 * s + 3] << TEMP_Q   # whole degC, as the app reads it
         for part in range(3):            # 6 s of rest: noise of +-2 LSB (2 mg)
             for i in range(20):
                 for c in range(3):

@@ -16,7 +16,7 @@ from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
 from acal.core import effects, profile
 from acal.logger import log
-from acal.core.bins import Bins
+from acal.core.bins import Bins, C_TEMP, C_TIME
 from acal.discover.plug import grow_bins
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
@@ -47,7 +47,7 @@ def rest_means(seed, first, n, drift):
 # that model runs without one; 1: it goes on, the fresh pipeline takes the points at the end).
 SCRIPT = r'''
 from acal.core import profile
-from acal.core.bins import N_SUBSETS
+from acal.core.bins import N_SUBSETS, C_TEMP, C_TIME
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
 try:
@@ -66,8 +66,8 @@ ROUNDS = %d
 
 def feed(pipe, pts):
     for i in range(len(pts) // 5):
-        pipe.temp = pts[5 * i + 3]
-        pipe.time = pts[5 * i + 4]
+        pipe.now[C_TEMP] = pts[5 * i + 3]
+        pipe.now[C_TIME] = pts[5 * i + 4]
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
 
 
@@ -193,6 +193,7 @@ PROCESSOR = r'''
 import sys
 from acal.logger import log
 from acal.logger.processor import Processor
+from acal.core.bins import C_TEMP, C_TIME
 
 PTS = [int(v) for v in "%s".split()]
 MORE = [int(v) for v in "%s".split()]
@@ -200,8 +201,8 @@ MORE = [int(v) for v in "%s".split()]
 
 def feed(p, pts):
     for i in range(len(pts) // 5):
-        p.pipe.temp = pts[5 * i + 3]
-        p.pipe.time = pts[5 * i + 4]
+        p.pipe.now[C_TEMP] = pts[5 * i + 3]
+        p.pipe.now[C_TIME] = pts[5 * i + 4]
         p.pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
 
 

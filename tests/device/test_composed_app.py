@@ -20,7 +20,7 @@ sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal.logger import log  # noqa: E402
-from acal.core.bins import TEMP_DIFFER  # noqa: E402
+from acal.core.bins import TEMP_DIFFER, C_TEMP  # noqa: E402
 from acal.core.fixed import TEMP_Q  # noqa: E402
 from acal.logger.app import App, Processor  # noqa: E402
 from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
@@ -106,7 +106,11 @@ def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
     # the reference in Q2 degC: the middle of the held points' whole degrees (the chip's OUT_ADC3,
     # scaled by the Processor), a quarter degree apart when their range is odd
     assert proc.calibration.ref_temp == e["ref_temp"] == app.proc.calibration.ref_temp
-    assert app.proc.calibration.temp == app.proc.temp << TEMP_Q
+    # one conditions value, the app's, held by the calibration and the pipeline: the chip's
+    # whole degrees in Q2
+    now = app.proc.now
+    assert app.proc.calibration.now is now and app.proc.pipe.now is now and app.now is now
+    assert now[C_TEMP] != 0 and now[C_TEMP] % (1 << TEMP_Q) == 0
     temps = [app.proc.pipe.bins.condition(s, k)[0] for s in range(9)
              for k in range(app.proc.pipe.bins.counts[s])]
     assert all(t % (1 << TEMP_Q) == 0 for t in temps)   # whole degrees, held in Q2
@@ -126,7 +130,7 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
     temps = cal.ref_temp + rng.integers(-15 << TEMP_Q, (15 << TEMP_Q) + 1, 300)
     got = []
     for (x, y, z), temp in zip(np.rint(v * 1024).astype(int).tolist(), temps.tolist()):
-        cal.temp = temp
+        cal.now[C_TEMP] = temp
         cal.apply(x, y, z)
         got.append((cal.x, cal.y, cal.z))
     q = float(1 << TEMP_Q)
@@ -140,6 +144,7 @@ APPLY_SCRIPT = r'''
 from array import array
 from acal.core import effects
 from acal.core.calibration import Calibration
+from acal.core.bins import C_TEMP, C_TIME
 buf = array("i", [rnd(2097) * 4 for _ in range(3 * 2000)])   # to +-8 g: clamped at 2 g
 # the first effects; then a step and two generic offsets (time^4, temperature^4); then at
 # +-8 g full scale, without effects (the viper block alone) and with two
@@ -153,8 +158,8 @@ for m, (kinds, r) in enumerate((((1, 3, 4), 2),
         p += [rnd(effects.BOUNDS[k]) for _ in range(3)]
     cal.set(p, 30, 5000, 2000)
     for j in range(10):
-        cal.temp = rnd(60) + 30
-        cal.time = 5000 + (rnd(1 << 21) if m != 1 else rnd(1 << 15))
+        cal.now[C_TEMP] = rnd(60) + 30
+        cal.now[C_TIME] = 5000 + (rnd(1 << 21) if m != 1 else rnd(1 << 15))
         if micropython:  # MicroPython: a MemoryError if the per-sample path allocates
             micropython.heap_lock()
         cal.apply_samples(buf, 500 * m + 50 * j, 50)

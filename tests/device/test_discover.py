@@ -156,11 +156,12 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
 # The points fed to a discovering pipeline, calibrated, its discovery begun: x y z (Q16 g) temp
 # time per rest mean (a string: a list literal this long exhausts the 32-bit port's pystack)
 FEED = r'''
+from acal.core.bins import C_TEMP, C_TIME
 PTS = [int(v) for v in "%s".split()]
 pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
 for i in range(len(PTS) // 5):
-    pipe.temp = PTS[5 * i + 3]
-    pipe.time = PTS[5 * i + 4]
+    pipe.now[C_TEMP] = PTS[5 * i + 3]
+    pipe.now[C_TIME] = PTS[5 * i + 4]
     pipe.offer(PTS[5 * i], PTS[5 * i + 1], PTS[5 * i + 2])
 status = pipe.calibrate()
 d = pipe.plug.discovery

@@ -8,6 +8,7 @@ import pytest
 
 from acal.core import effects as deff
 from acal.core.fixed import TEMP_Q
+from acal.core.bins import C_TEMP, C_TIME, C_SUPPLY
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, run_both
@@ -146,7 +147,7 @@ def test_apply_stays_small_in_every_composition_and_order():
             cal.terms = [0] * len(cal.terms)
             for temp, time, supply in ((-400, -(10 ** 7), -(10 ** 6)), (400, 10 ** 7, 10 ** 6),
                                        (5, 3, 7)):
-                cal.temp, cal.time, cal.supply = T(temp), T(time), T(supply)
+                cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = T(temp), T(time), T(supply)
                 for x in (-2097 << cal.e, 16383):   # at and past the full scale (clamped)
                     cal.apply(T(x), T(-x), T(x))
                     assert max(abs(cal.x), abs(cal.y), abs(cal.z)) <= 28236   # an int16
@@ -221,7 +222,7 @@ def test_an_effect_of_an_existing_form_is_one_table_row(rng):
         q = np.rint(v * 1024).astype(int)
         got = []
         for row, d in zip(q.tolist(), dV.tolist()):
-            cal.supply = d
+            cal.now[C_SUPPLY] = d
             cal.apply(*row)
             got.append((cal.x, cal.y, cal.z))
         got = np.array(got)

@@ -10,6 +10,7 @@ from accelcal.studies import bench_chip
 from acal.discover import search as discover
 from acal.core import effects, profile
 from acal.core.pipeline import Pipeline
+from acal.core.bins import C_TEMP, C_TIME
 from acal.discover.plug import Plug
 
 
@@ -27,8 +28,8 @@ def _cpython_kinds():
     pts = ns["PTS"]
     pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
     for i in range(len(pts) // 5):
-        pipe.temp = pts[5 * i + 3]
-        pipe.time = pts[5 * i + 4]
+        pipe.now[C_TEMP] = pts[5 * i + 3]
+        pipe.now[C_TIME] = pts[5 * i + 4]
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
     pipe.calibrate()
     d = pipe.plug.discovery

@@ -7,7 +7,7 @@
 from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
 from acal.core import effects
-from acal.core.bins import int32s
+from acal.core.bins import int32s, conditions, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.model import identity, in_bounds, effects_within
 
@@ -22,12 +22,13 @@ class Calibration:
     still sensor's sub-mg mean kept, and an int16 at every full scale).
 
     kinds: a composed model's effects (acal.core.effects ids).  Their parameters follow the nine in
-    p and are kept in their per-sample form (acal/core/effects.py); the feeder keeps `temp` (Q2 degC),
-    `time` (64 s units) and `supply` (mV, the board's) current, and the effects are removed with
-    dT = temp - ref_temp, dt = time - ref_time and dV = supply - ref_supply, the references the
-    fit used (set()); a step at dt >= step_time."""
+    p and are kept in their per-sample form (acal/core/effects.py); the feeder keeps the conditions
+    `now` current (bins.conditions(1), given or a zeroed one of its own: C_TEMP Q2 degC, C_TIME
+    64 s units, C_SUPPLY mV, the board's), and the effects are removed with dT = temp - ref_temp,
+    dt = time - ref_time and dV = supply - ref_supply, the references the fit used (set()); a
+    step at dt >= step_time."""
 
-    def __init__(self, kinds=(), range_g=2):
+    def __init__(self, kinds=(), range_g=2, now=None):
         self.kinds = tuple(kinds)
         self.e = apply_range_shift(range_g)  # fixed.py: the format by full scale
         self.out_q = APPLY_OUT_Q - self.e
@@ -35,9 +36,7 @@ class Calibration:
         self.n_params = N_PARAMS + 3 * len(self.kinds)
         self.k = int32s(self.n_params)   # an int32 array: _apply_block's typed pointer
         self.w = int32s(3)   # one sample (apply()), or a reading after its effects, Q(14 - e)
-        self.temp = 0
-        self.time = 0
-        self.supply = 0
+        self.now = conditions(1) if now is None else now
         self.ref_temp = 0
         self.ref_time = 0
         self.ref_supply = 0
@@ -98,8 +97,9 @@ class Calibration:
             _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e,
                          APPLY_OUT_SHIFT, SIGN_SHIFT)
         else:   # one viper loop a block: the effects' terms made once for its conditions
-            if not self.terms_valid or self.temp != self.t_temp or self.time != self.t_time or \
-                    self.supply != self.t_supply:
+            c = self.now
+            if not self.terms_valid or c[C_TEMP] != self.t_temp or c[C_TIME] != self.t_time or \
+                    c[C_SUPPLY] != self.t_supply:
                 self._block_terms()
             _apply_composed(src, buf, i, end, self.k, self.terms, 4 * len(self.kinds),
                             self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e, self.e, APPLY_W_MAX,
@@ -112,17 +112,18 @@ class Calibration:
         # The effects' forms and terms (effects.block_terms) at the current conditions, last
         # effect first: dT = temp - ref_temp, dt = time - ref_time, dV = supply - ref_supply.
         kinds = self.kinds
-        dT = self.temp - self.ref_temp
-        dt = self.time - self.ref_time
-        dV = self.supply - self.ref_supply
+        c = self.now
+        dT = c[C_TEMP] - self.ref_temp
+        dt = c[C_TIME] - self.ref_time
+        dV = c[C_SUPPLY] - self.ref_supply
         n = len(kinds)
         for j in range(n):
             effects.block_terms(kinds[n - 1 - j], self.k, N_PARAMS + 3 * (n - 1 - j), self.terms,
                                 4 * j, dT, dt, self.step_time, dV, self.e)
         self.terms_valid = True
-        self.t_temp = self.temp
-        self.t_time = self.time
-        self.t_supply = self.supply
+        self.t_temp = c[C_TEMP]
+        self.t_time = c[C_TIME]
+        self.t_supply = c[C_SUPPLY]
 
 
 @viper

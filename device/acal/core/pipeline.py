@@ -2,7 +2,7 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
-                       int32s)
+                       int32s, C_TEMP, C_TIME, C_SUPPLY)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.core.fixed import N_PARAMS
 from acal.core.gaussnewton import GaussNewton
@@ -60,13 +60,17 @@ class Pipeline(Sliced):
     (the points per subset its bins and fits make room for), attach() (once, the pipeline
     made), offer() (each rest mean: True when the bins take it too) and ready() (once the
     bins' own rule is met: True when the plug's is too).  After a fit the feeder hands the
-    plug the pipeline (Plug.fitted)."""
+    plug the pipeline (Plug.fitted).
+
+    now: the conditions the rest means are seen at (bins.conditions(1): C_TEMP Q2 degC, C_TIME
+    64 s units, C_SUPPLY mV), the feeder's own array, which it keeps current (the Processor's
+    `now`); None: a zeroed one of the pipeline's own."""
 
     def __init__(self, rate_hz=100, seconds=DEFAULT_SECONDS, threshold=DEFAULT_THRESHOLD, axis=0,
                  min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
                  iterations=None, on_rest=None,
                  alphas=(ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET), kinds=(), fit=GRADIENT,
-                 plug=None):
+                 plug=None, now=None):
         self.kinds = tuple(kinds)
         self.fit = fit
         self.rest = RestDetector(rate_hz, seconds, threshold, axis)
@@ -115,9 +119,8 @@ class Pipeline(Sliced):
         self.iterations = iterations
         self.points = int32s(3 * capacity)
         self.aux = conditions(capacity)  # dT, dt, dV per point (composed models)
-        self.temp = 0
-        self.time = 0
-        self.supply = 0
+        # the conditions now (bins.conditions(1): C_TEMP, C_TIME, C_SUPPLY), shared with the feeder
+        self.now = conditions(1) if now is None else now
         self.ref_temp = 0
         self.ref_time = 0
         self.ref_supply = 0
@@ -135,12 +138,13 @@ class Pipeline(Sliced):
             plug.attach(self, capacity)
 
     def offer(self, x, y, z):
-        """A rest mean (Q16 g), seen at self.temp, self.time and self.supply -> bins; returns the
-        subset it was kept in or -1."""
+        """A rest mean (Q16 g), seen at the conditions self.now -> bins; returns the subset it was
+        kept in or -1."""
         self.rest_count += 1
         plug = self.plug
         if plug is None or plug.offer(self, x, y, z):
-            s = self.bins.offer(x, y, z, self.temp, self.time, self.supply)
+            c = self.now
+            s = self.bins.offer(x, y, z, c[C_TEMP], c[C_TIME], c[C_SUPPLY])
         else:
             s = -1
         if self.on_rest is not None:

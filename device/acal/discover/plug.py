@@ -15,7 +15,7 @@
 # the heap of a board hours into a recording and could fail there.
 # Formats as the pipeline's: points Q16 g, conditions as bins.py (COND a point).
 from acal.core import effects
-from acal.core.bins import COND, N_SUBSETS, gravity
+from acal.core.bins import COND, N_SUBSETS, gravity, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.pipeline import spanned, track
 from acal.core.profile import NEWTON, adopted_max_count
 from acal.discover.heldout import HeldOut
@@ -63,13 +63,14 @@ class Plug:
         self.discovery = Discover(capacity, self.held)
 
     def offer(self, pipe, x, y, z):
-        """A rest mean (Q16 g) at pipe.temp, pipe.time, pipe.supply: a held-out block's goes to
-        the held-out set (and to the bins too while early); True when the bins take it."""
+        """A rest mean (Q16 g) at the conditions pipe.now: a held-out block's goes to the held-out
+        set (and to the bins too while early); True when the bins take it."""
         held = self.held
-        if held is None or not held.takes(pipe.time):
+        c = pipe.now
+        if held is None or not held.takes(c[C_TIME]):
             return True
         if gravity(x, y, z):
-            held.offer(x, y, z, pipe.temp, pipe.time, pipe.supply)
+            held.offer(x, y, z, c[C_TEMP], c[C_TIME], c[C_SUPPLY])
         return self.early
 
     def ready(self, b):

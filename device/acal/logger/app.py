@@ -14,6 +14,8 @@ from array import array
 from acal.core import effects
 from acal.logger import log
 from acal.core.emit import copy_ints
+from acal.core.bins import C_TEMP, C_SUPPLY
+from acal.core.fixed import TEMP_Q
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
 from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
@@ -115,6 +117,7 @@ class App:
         store = log.CalStore(prefix + "cal_a.bin", prefix + "cal_b.bin")
         self.proc = Processor(self.log, rate_hz, capture=cap, store=store, range_g=range_g,
                               **processor_settings)
+        self.now = self.proc.now   # the conditions the block is read at: written in _flush
         self.sensor = None
         if not hasattr(board, "sensor_bus") and bus not in (None, "i2c"):
             raise ValueError("bus %r: this board file has the LIS3DH on I2C only" % (bus,))
@@ -183,13 +186,13 @@ class App:
     def _flush(self):
         if self.fill:
             try:  # one try: a failed temperature read keeps the last value
-                self.proc.temp = self.sensor.temperature() + self.temp_ref
+                self.now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
             except OSError:
                 self.bus_errors += 1
             if self.supply_mv is not None:
                 try:  # as the temperature: a failed read keeps the last value
                     mv = self.supply_mv()
-                    self.proc.supply = 0 if mv < 0 else (65535 if mv > 65535 else mv)
+                    self.now[C_SUPPLY] = 0 if mv < 0 else (65535 if mv > 65535 else mv)
                 except OSError:
                     self.bus_errors += 1
             self.proc.feed(self.block, self.fill)

@@ -13,6 +13,7 @@ from acal.core.calibration import Calibration
 from acal.core.model import in_bounds, effects_within
 from acal.core.status import OK, usable
 from acal.core.pipeline import Pipeline
+from acal.core.bins import conditions, C_TEMP, C_TIME, C_SUPPLY
 
 VERSION = 4  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC;
 #   4: DISCOVERY carries the effect its parameters are of
@@ -74,15 +75,20 @@ class Processor:
         settings = profiles.settings(profile, bool(self.kinds))
         for k in pipeline_settings:
             settings[k] = pipeline_settings[k]
-        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds,
-                             plug=_plug() if discover else None, **settings)
+        # The board's conditions now (bins.conditions(1)): C_TEMP Q2 degC and C_SUPPLY mV written
+        # by the feeder where it reads them (app.py), C_TIME by feed(); one array, which the
+        # pipeline, its bins and the calibration hold too: nothing copied per block.
+        self.now = conditions(1)
         self.tracks = bool(self.kinds) or discover   # the feeder's conditions reach the bins
+        self.pipe = Pipeline(rate_hz, on_rest=self._on_rest, kinds=self.kinds,
+                             plug=_plug() if discover else None,
+                             now=self.now if self.tracks else None, **settings)
         self.fitting = False
         self.recal_samples = recal_seconds * rate_hz
         self.rest_log_samples = REST_LOG_SECONDS * rate_hz
         self.day_samples = 86400 * rate_hz
         self.time_unit_samples = effects.DT_UNIT_S * rate_hz
-        self.calibration = Calibration(self.kinds, range_g)
+        self.calibration = Calibration(self.kinds, range_g, self.pipe.now)
         # The calibrated samples of each block go to on_samples(buf, n) (interleaved, in
         # Q(calibration.out_q) g: Q13 at 2 g, fixed.py "apply"), once a calibration exists: the
         # wearable's own use of the data hooks in there.
@@ -91,10 +97,6 @@ class Processor:
         self.params = [0] * self.calibration.n_params
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
-        # whole degC, set by the feeder (the LIS3DH's OUT_ADC3, + the board's TEMP_REF_C), as
-        # REST and SAMPLES records log it; the bins and the apply take it in Q2 (fixed.TEMP_Q)
-        self.temp = 0
-        self.supply = 0             # the board's supply, mV, set by the feeder (supply_offset)
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
         self._cap_supply = -1       # the supply the capture last recorded
         self.calibrations = 0
@@ -168,7 +170,8 @@ class Processor:
             self.rest_skipped += 1
             self.merged += 1
             return
-        if self.log.write(log.REST, index, x, y, z, self.temp, subset, self.merged):
+        if self.log.write(log.REST, index, x, y, z, self.now[C_TEMP] >> TEMP_Q, subset,
+                          self.merged):
             self.rest_bytes += self._rest_size
             self.rest_logged += 1
         self.merged = 0
@@ -183,13 +186,8 @@ class Processor:
             self._capture(buf, n)
         self.batch_start = self.index
         pipe = self.pipe
-        if self.tracks:  # the block's conditions, for the bins and for applying the calibration
-            pipe.temp = self.temp << TEMP_Q
-            pipe.time = self.index // self.time_unit_samples
-            pipe.supply = self.supply
-            self.calibration.temp = pipe.temp
-            self.calibration.time = pipe.time
-            self.calibration.supply = self.supply
+        if self.tracks:  # the block's time (its temperature and supply: the feeder's)
+            self.now[C_TIME] = self.index // self.time_unit_samples
         pipe.add_samples(buf, 0, n)
         self.index += n
         if self.on_samples is not None and self.calibrations:
@@ -224,13 +222,14 @@ class Processor:
 
     def _capture(self, buf, n):
         c = self.capture
-        if self.uses_supply and self.supply != self._cap_supply:   # replays need it too
-            if not c.write(log.SUPPLY, self.index, self.supply):
+        now = self.now
+        if self.uses_supply and now[C_SUPPLY] != self._cap_supply:   # replays need it too
+            if not c.write(log.SUPPLY, self.index, now[C_SUPPLY]):
                 self.capture_full = True
                 return
-            self._cap_supply = self.supply
+            self._cap_supply = now[C_SUPPLY]
         b = c.buf
-        struct.pack_into("<IBb", b, 3, self.index, n, self.temp)
+        struct.pack_into("<IBb", b, 3, self.index, n, now[C_TEMP] >> TEMP_Q)
         log.pack_int16(buf, 3 * n, b, 9)
         if not c.write_payload(log.SAMPLES, 6 + 6 * n):
             self.capture_full = True
@@ -317,7 +316,7 @@ class Processor:
         plug.adopt(pipe)
         self.kinds = pipe.kinds
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
-        self.calibration = Calibration(self.kinds, self.range_g)
+        self.calibration = Calibration(self.kinds, self.range_g, self.now)
         self.params = [0] * self.calibration.n_params
         values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
                                               f[4 * i + 3])

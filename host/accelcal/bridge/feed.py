@@ -151,7 +151,7 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
                 now = _conditions_now(pipe)
             # a discovering pipeline's held-out blocks take points the bins would refuse
             if skip[i] and not (pipe.plug is not None and pipe.plug.held is not None
-                                and held_out(pipe.time)):
+                                and held_out(pipe.now[dbins.C_TIME])):
                 # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1
@@ -163,8 +163,9 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
 
 
 def _conditions_now(pipe) -> tuple:
-    # the pipeline's current conditions, as its rest records carry them
-    return tuple(getattr(pipe, q.name) for q in QUANTITIES)
+    # the pipeline's current conditions, as its rest records carry them (QUANTITIES' order is
+    # the device's columns, dbins.C_TEMP ...)
+    return tuple(pipe.now[i] for i in range(len(QUANTITIES)))
 
 
 def _as_offered(b: dbins.Bins, cond: np.ndarray) -> np.ndarray:

@@ -151,14 +151,15 @@ def rounds(pts, lock=False):
     from acal.discover import search as discover
     from acal.core import profile
     from acal.core.pipeline import Pipeline
+    from acal.core.bins import C_TEMP, C_TIME
     from acal.discover.plug import Plug
     if lock and not hasattr(micropython, "heap_lock"):
         return
     tag = "_locked" if lock else ""
     pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
     for i in range(len(pts) // 5):
-        pipe.temp = pts[5 * i + 3]
-        pipe.time = pts[5 * i + 4]
+        pipe.now[C_TEMP] = pts[5 * i + 3]
+        pipe.now[C_TIME] = pts[5 * i + 4]
         pipe.offer(pts[5 * i], pts[5 * i + 1], pts[5 * i + 2])
     print("discover_calibrate_status", pipe.calibrate())
     d = pipe.plug.discovery

@@ -16,6 +16,7 @@ from array import array
 
 from acal.core import effects
 from acal.core.pipeline import Pipeline
+from acal.core.bins import C_TEMP, C_TIME
 from acal.core.profile import PAPER, WEAR, settings
 
 try:
@@ -86,9 +87,9 @@ def case(name, prof, kinds):
         s = settings(prof, bool(kinds))   # a composed model: its own bins (126 points, wear)
         pipe = Pipeline(100, kinds=kinds, **s)
         for i in range(4000):
-            pipe.temp = 20 + (i % 17)
-            pipe.time = i
-            x, y, z = point(65536, pipe.temp)
+            pipe.now[C_TEMP] = 20 + (i % 17)
+            pipe.now[C_TIME] = i
+            x, y, z = point(65536, pipe.now[C_TEMP])
             pipe.offer(x, y, z)
             if pipe.bins.total() >= 9 * pipe.bins.max_count:
                 break

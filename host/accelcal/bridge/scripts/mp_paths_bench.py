@@ -117,10 +117,11 @@ def main(work, repeat):
     from acal.core import effects
     from acal.logger import log
     from acal.core.calibration import Calibration
+    from acal.core.bins import C_TEMP, C_TIME
     print("apply_base_us_per_1000", apply_us(Calibration(()), N_APPLY, repeat) * 1000 // N_APPLY)
     cal = Calibration(effects.parse_model(LARGEST))
-    cal.temp = 5
-    cal.time = 100
+    cal.now[C_TEMP] = 5
+    cal.now[C_TIME] = 100
     print("apply_largest_us_per_1000", apply_us(cal, N_APPLY, repeat) * 1000 // N_APPLY)
     os.chdir(work)
     remove(("bench_log.bin",))

@@ -47,7 +47,7 @@
 import sys
 from array import array
 
-from acal.core.bins import COND
+from acal.core.bins import COND, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.pipeline import Pipeline
 from acal.core.profile import NEWTON
 
@@ -75,7 +75,7 @@ class Runner:
         emit = self.emit
 
         def on_rest(x, y, z, s):
-            emit("R", [x, y, z, s, pipe.temp, pipe.time, pipe.supply])
+            emit("R", [x, y, z, s, pipe.now[C_TEMP], pipe.now[C_TIME], pipe.now[C_SUPPLY]])
 
         pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
                         max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
@@ -84,9 +84,9 @@ class Runner:
         self.pipe = pipe
 
     def conditions(self, temp, time, supply):
-        self.pipe.temp = temp
-        self.pipe.time = time
-        self.pipe.supply = supply
+        self.pipe.now[C_TEMP] = temp
+        self.pipe.now[C_TIME] = time
+        self.pipe.now[C_SUPPLY] = supply
 
     def point(self, x, y, z):
         self.pipe.offer(x, y, z)
