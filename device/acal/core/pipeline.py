@@ -35,8 +35,8 @@ class Pipeline(Sliced):
     the subset it was kept in or -1 (the app logs these; the host collects them).
 
     kinds: the effects of a composed model (acal.core.effects ids; () is the paper's model).  Their
-    bins track temperature, time and the board's supply (bins.py), and the feeder keeps `temp`
-    (Q2 degC, fixed.TEMP_Q), `time` (64 s units) and `supply` (mV, effects.SUPPLY_OFFSET) current; a fit takes
+    bins track temperature, time and the board's supply (bins.py), and the feeder keeps the
+    conditions `now` current (below); a fit takes
     each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
     ref_supply), which the calibration keeps.  iterations None: 50 for the
     paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
