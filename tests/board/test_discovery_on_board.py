@@ -119,7 +119,8 @@ def test_a_discovering_board_calibrates_as_early_as_one_that_does_not(tmp_path):
 
 def test_leaving_early_takes_every_held_out_point_out_of_the_bins():
     from acal.core import profile
-    from acal.core.bins import N_SUBSETS, C_TEMP, C_TIME
+    from acal.core.bins import N_SUBSETS
+    from acal.core.fixed import C_TEMP, C_TIME
     from acal.discover.heldout import held_out
     from acal.core.pipeline import Pipeline
     from acal.discover.plug import Plug

@@ -115,8 +115,7 @@ import os
 from acal.core import effects
 from acal.logger import log
 from acal.logger.app import Processor
-from acal.core.bins import C_TEMP
-from acal.core.fixed import TEMP_Q
+from acal.core.fixed import C_TEMP, TEMP_Q
 try:
     os.remove("apply_log.bin")
 except OSError:

@@ -127,7 +127,7 @@ HEAP = r"""
 import micropython
 from array import array
 from acal.core.calibration import Calibration
-from acal.core.bins import C_TEMP
+from acal.core.fixed import C_TEMP
 from acal.core import effects
 from acal.core.gaussnewton import GaussNewton
 from acal.paper.optimiser import Optimiser

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from acal.core.bins import C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.calibration import Calibration
 from acal.core.rest import RestDetector
 from accelcal.bridge import twin

@@ -10,8 +10,7 @@ import sys
 from array import array
 from acal.logger import log
 from acal.logger.processor import Processor
-from acal.core.bins import C_TEMP
-from acal.core.fixed import TEMP_Q
+from acal.core.fixed import C_TEMP, TEMP_Q
 
 REST = %s
 GAP = %d

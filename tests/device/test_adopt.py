@@ -16,7 +16,8 @@ from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
 from acal.core import effects, profile
 from acal.logger import log
-from acal.core.bins import Bins, C_TEMP, C_TIME
+from acal.core.bins import Bins
+from acal.core.fixed import C_TEMP, C_TIME
 from acal.discover.plug import grow_bins
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
@@ -47,7 +48,8 @@ def rest_means(seed, first, n, drift):
 # that model runs without one; 1: it goes on, the fresh pipeline takes the points at the end).
 SCRIPT = r'''
 from acal.core import profile
-from acal.core.bins import N_SUBSETS, C_TEMP, C_TIME
+from acal.core.bins import N_SUBSETS
+from acal.core.fixed import C_TEMP, C_TIME
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
 try:
@@ -193,7 +195,7 @@ PROCESSOR = r'''
 import sys
 from acal.logger import log
 from acal.logger.processor import Processor
-from acal.core.bins import C_TEMP, C_TIME
+from acal.core.fixed import C_TEMP, C_TIME
 
 PTS = [int(v) for v in "%s".split()]
 MORE = [int(v) for v in "%s".split()]

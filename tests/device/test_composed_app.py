@@ -20,8 +20,8 @@ sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal.logger import log  # noqa: E402
-from acal.core.bins import TEMP_DIFFER, C_TEMP  # noqa: E402
-from acal.core.fixed import TEMP_Q  # noqa: E402
+from acal.core.bins import TEMP_DIFFER  # noqa: E402
+from acal.core.fixed import C_TEMP, TEMP_Q  # noqa: E402
 from acal.logger.app import App, Processor  # noqa: E402
 from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
 
@@ -144,7 +144,7 @@ APPLY_SCRIPT = r'''
 from array import array
 from acal.core import effects
 from acal.core.calibration import Calibration
-from acal.core.bins import C_TEMP, C_TIME
+from acal.core.fixed import C_TEMP, C_TIME
 buf = array("i", [rnd(2097) * 4 for _ in range(3 * 2000)])   # to +-8 g: clamped at 2 g
 # the first effects; then a step and two generic offsets (time^4, temperature^4); then at
 # +-8 g full scale, without effects (the viper block alone) and with two

@@ -156,7 +156,7 @@ def test_a_stored_model_the_discovery_does_not_adopt_is_not_resumed(tmp_path):
 # The points fed to a discovering pipeline, calibrated, its discovery begun: x y z (Q16 g) temp
 # time per rest mean (a string: a list literal this long exhausts the 32-bit port's pystack)
 FEED = r'''
-from acal.core.bins import C_TEMP, C_TIME
+from acal.core.fixed import C_TEMP, C_TIME
 PTS = [int(v) for v in "%s".split()]
 pipe = Pipeline(10, plug=Plug(), **profile.settings(profile.WEAR))
 for i in range(len(PTS) // 5):

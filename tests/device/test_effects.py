@@ -8,7 +8,7 @@ import pytest
 
 from acal.core import effects as deff
 from acal.core.fixed import TEMP_Q
-from acal.core.bins import C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, run_both

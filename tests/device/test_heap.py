@@ -119,7 +119,7 @@ for r in (2, 4, 8, 16):
 # a composed model of every temperature form (dT in Q2 degC: fixed.TEMP_Q), its effects at their
 # bounds, at the smallest and largest full scale, read at and past dT's clamp
 from acal.core import effects
-from acal.core.bins import C_TEMP
+from acal.core.fixed import C_TEMP
 TEMPS = (effects.TEMP_OFFSET, effects.TEMP_OFFSET2, effects.TEMP_SCALE, effects.TEMP_OFFSET4)
 composed = []
 for r in (2, 16):

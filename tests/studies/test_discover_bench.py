@@ -10,7 +10,7 @@ from accelcal.studies import bench_chip
 from acal.discover import search as discover
 from acal.core import effects, profile
 from acal.core.pipeline import Pipeline
-from acal.core.bins import C_TEMP, C_TIME
+from acal.core.fixed import C_TEMP, C_TIME
 from acal.discover.plug import Plug
 
 

@@ -35,10 +35,6 @@ except ImportError:
         return x
 
 COND = const(3)     # conditions per point, flat: temperature (Q2 degC), time (64 s), supply (mV)
-# A conditions value (conditions(1)) and each point's, by column (effects.condition_of's order):
-C_TEMP = const(0)    # Q2 degC (fixed.TEMP_Q): the LIS3DH's OUT_ADC3 + the board's TEMP_REF_C
-C_TIME = const(1)    # 64 s units (effects.DT_UNIT_S) from the first sample
-C_SUPPLY = const(2)  # mV, the board's supply (board.supply_mv), clamped to 0..65535
 
 
 def int32s(n):
@@ -48,10 +44,8 @@ def int32s(n):
 
 
 def conditions(n_points):
-    """Zeroed room for n_points' conditions (COND each, C_TEMP, C_TIME, C_SUPPLY).  conditions(1)
-    is the board's conditions now: one array, made once by the Processor, written where the board
-    reads each quantity (the app: temperature, supply; the Processor: time) and read by the
-    Pipeline, its bins, the Plug and the Calibration, which all hold the same object."""
+    """Zeroed room for n_points' conditions (COND each, fixed.C_TEMP ...).  conditions(1): the
+    board's conditions now, one array (Processor.now) that the pipeline and calibration share."""
     return int32s(COND * n_points)
 
 FIRST = 0

@@ -7,7 +7,8 @@
 from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
                         APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
 from acal.core import effects
-from acal.core.bins import int32s, conditions, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.bins import int32s, conditions
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.model import identity, in_bounds, effects_within
 

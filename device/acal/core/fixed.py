@@ -47,6 +47,11 @@ DITHER_STEP = const(10127)   # round(0.6180339887 * 2**14) = 10126, made odd: 10
 # (fixedpoint.device_conditions).  Range: |temp| <= 125 degC -> 500 (absolute, with a board's
 # TEMP_REF_C; relative otherwise); dT is clamped to +-TEMP_DT_MAX (effects.py) before any product.
 TEMP_Q = const(2)
+# The board's conditions now (bins.conditions(1), the Processor's `now`) and each point's, by
+# column (bins.COND; effects.condition_of's order; the host's fixedpoint.QUANTITIES):
+C_TEMP = const(0)    # Q2 degC (TEMP_Q): the LIS3DH's OUT_ADC3 + the board's TEMP_REF_C
+C_TIME = const(1)    # 64 s units (effects.DT_UNIT_S) from the first sample
+C_SUPPLY = const(2)  # mV, the board's supply (board.supply_mv), clamped to 0..65535
 TEMP_ONE = const(4)      # 1 degC
 TEMP_DT_MAX = const(128)  # 32 degC: dT's clamp either side of the reference (effects.py)
 

@@ -2,15 +2,14 @@
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
-                       int32s, C_TEMP, C_TIME, C_SUPPLY)
+                       int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
-from acal.core.fixed import N_PARAMS
+from acal.core.fixed import N_PARAMS, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.gaussnewton import GaussNewton
 from acal.core import gaussnewton
 from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
-from acal.core.reference import centre, lowest
 from acal.core.slices import Sliced
 
 # the fit's phases: their slices' places in the table (acal/core/slices.py; _DONE their count)
@@ -119,6 +118,10 @@ class Pipeline(Sliced):
         self.iterations = iterations
         self.points = int32s(3 * capacity)
         self.aux = conditions(capacity)  # dT, dt, dV per point (composed models)
+        self.reference = None
+        if self.kinds or plug is not None:   # the fit's references (_centre), imported here:
+            from acal.core import reference  # the base model's board never loads the module
+            self.reference = reference
         # the conditions now (bins.conditions(1): C_TEMP, C_TIME, C_SUPPLY), shared with the feeder
         self.now = conditions(1) if now is None else now
         self.ref_temp = 0
@@ -204,9 +207,10 @@ class Pipeline(Sliced):
         aux = self.aux
         n = self.n_fit
         kinds = self.kinds
-        self.ref_temp = centre(aux, n, 0, lowest(kinds, 0))
-        self.ref_time = centre(aux, n, 1, lowest(kinds, 1))
-        self.ref_supply = centre(aux, n, 2, lowest(kinds, 2))
+        r = self.reference
+        self.ref_temp = r.centre(aux, n, 0, r.lowest(kinds, 0))
+        self.ref_time = r.centre(aux, n, 1, r.lowest(kinds, 1))
+        self.ref_supply = r.centre(aux, n, 2, r.lowest(kinds, 2))
         self.phase = _BEGIN
 
     def _begin(self):

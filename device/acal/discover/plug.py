@@ -15,7 +15,8 @@
 # the heap of a board hours into a recording and could fail there.
 # Formats as the pipeline's: points Q16 g, conditions as bins.py (COND a point).
 from acal.core import effects
-from acal.core.bins import COND, N_SUBSETS, gravity, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.bins import COND, N_SUBSETS, gravity
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.pipeline import spanned, track
 from acal.core.profile import NEWTON, adopted_max_count
 from acal.discover.heldout import HeldOut

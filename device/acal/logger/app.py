@@ -14,8 +14,7 @@ from array import array
 from acal.core import effects
 from acal.logger import log
 from acal.core.emit import copy_ints
-from acal.core.bins import C_TEMP, C_SUPPLY
-from acal.core.fixed import TEMP_Q
+from acal.core.fixed import C_TEMP, C_SUPPLY, TEMP_Q
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
 from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,

@@ -8,12 +8,12 @@ from array import array
 from acal.core import effects
 from acal.logger import log
 from acal.core import profile as profiles
-from acal.core.fixed import N_PARAMS, POINT_ONE_G, TEMP_Q
+from acal.core.fixed import N_PARAMS, POINT_ONE_G, TEMP_Q, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.calibration import Calibration
 from acal.core.model import in_bounds, effects_within
 from acal.core.status import OK, usable
 from acal.core.pipeline import Pipeline
-from acal.core.bins import conditions, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.bins import conditions
 
 VERSION = 4  # 2: profiles (BOOT carries the fit); 3: EFFECT's reference temperature in Q2 degC;
 #   4: DISCOVERY carries the effect its parameters are of

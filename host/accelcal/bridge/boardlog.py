@@ -202,13 +202,13 @@ def run_capture(dirpath: str | Path, log_path: str | Path, profile: str | None =
         if blk[0] == "gap":
             proc.gap(blk[2])
         elif blk[0] == "supply":   # the board's supply from here on, as its feeder set it
-            proc.now[dbins.C_SUPPLY] = blk[2]
+            proc.now[fixed.C_SUPPLY] = blk[2]
         else:
             _, first, temp, xyz = blk
             if first != proc.index:
                 raise InputError(f"{d}/capture.bin: sample {first} follows {proc.index}: "
                                  "capture records missing")
-            proc.now[dbins.C_TEMP] = temp << fixed.TEMP_Q   # whole degC, as the app reads it
+            proc.now[fixed.C_TEMP] = temp << fixed.TEMP_Q   # whole degC, as the app reads it
             proc.feed(xyz.ravel().tolist(), len(xyz))
     lg.close()
     return proc

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from acal.core import bins as dbins
+from acal.core.fixed import C_TIME
 from acal.discover.heldout import held_out
 from accelcal.fixedpoint import QUANTITIES
 
@@ -151,7 +152,7 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
                 now = _conditions_now(pipe)
             # a discovering pipeline's held-out blocks take points the bins would refuse
             if skip[i] and not (pipe.plug is not None and pipe.plug.held is not None
-                                and held_out(pipe.now[dbins.C_TIME])):
+                                and held_out(pipe.now[C_TIME])):
                 # what offer and on_rest do for a refusal
                 pipe.rest_count += 1
                 b.offered += 1
@@ -164,7 +165,7 @@ def offer_points(runner, collector, q: np.ndarray, cond: np.ndarray | None) -> N
 
 def _conditions_now(pipe) -> tuple:
     # the pipeline's current conditions, as its rest records carry them (QUANTITIES' order is
-    # the device's columns, dbins.C_TEMP ...)
+    # the device's columns, fixed.C_TEMP ...)
     return tuple(pipe.now[i] for i in range(len(QUANTITIES)))
 
 

@@ -151,7 +151,7 @@ def rounds(pts, lock=False):
     from acal.discover import search as discover
     from acal.core import profile
     from acal.core.pipeline import Pipeline
-    from acal.core.bins import C_TEMP, C_TIME
+    from acal.core.fixed import C_TEMP, C_TIME
     from acal.discover.plug import Plug
     if lock and not hasattr(micropython, "heap_lock"):
         return

@@ -16,7 +16,7 @@ from array import array
 
 from acal.core import effects
 from acal.core.pipeline import Pipeline
-from acal.core.bins import C_TEMP, C_TIME
+from acal.core.fixed import C_TEMP, C_TIME
 from acal.core.profile import PAPER, WEAR, settings
 
 try:

@@ -117,7 +117,7 @@ def main(work, repeat):
     from acal.core import effects
     from acal.logger import log
     from acal.core.calibration import Calibration
-    from acal.core.bins import C_TEMP, C_TIME
+    from acal.core.fixed import C_TEMP, C_TIME
     print("apply_base_us_per_1000", apply_us(Calibration(()), N_APPLY, repeat) * 1000 // N_APPLY)
     cal = Calibration(effects.parse_model(LARGEST))
     cal.now[C_TEMP] = 5

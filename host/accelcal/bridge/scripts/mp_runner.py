@@ -47,7 +47,9 @@
 import sys
 from array import array
 
-from acal.core.bins import COND, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.bins import COND
+
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.pipeline import Pipeline
 from acal.core.profile import NEWTON
 
