@@ -128,3 +128,13 @@ def test_a_gt3x_cut_anywhere_is_refused_in_one_line(tmp_path, capsys, keep):
     path.write_bytes(data[:int(len(data) * keep)])
     code, out, err = run_main(capsys, ["calibrate", path])
     assert code == 2 and len(err.splitlines()) == 1 and "damaged zip" in err, err
+
+
+def test_a_count_past_the_file_without_a_configured_period_is_refused(tmp_path, capsys):
+    """Without 'Measurement Period' nothing bounds what a truncated file may declare: refused."""
+    data = (REAL / "gnactv_sample.bin").read_bytes()
+    path = tmp_path / "noperiod.bin"
+    path.write_bytes(re.sub(rb"Measurement Period:[^\r\n]*\r?\n", b"", data.replace(
+        b"Number of Pages:3", b"Number of Pages:4")))
+    code, out, err = run_main(capsys, ["calibrate", path])
+    assert code == 2 and len(err.splitlines()) == 1 and "no 'Measurement Period'" in err, err

@@ -114,7 +114,12 @@ def check_bin(path: str) -> BinPages:
                          f"{found} page{'s' * (found != 1)}, {whole} whole (a damaged header; "
                          "the file is not read)")
     if declared > found:   # a truncated file: its reader is given its whole pages (binpages.py)
-        _within(path, "'Number of Pages'", declared, 1, _period_pages(path, fields), " pages")
+        most = _period_pages(path, fields)
+        if not most:
+            raise InputError(f"{path}: header field 'Number of Pages' is {declared}; the file holds "
+                             f"{found}, and no 'Measurement Period' tells a truncated file from a "
+                             "damaged header (the file is not read)")
+        _within(path, "'Number of Pages'", declared, 1, most, " pages")
         return pages
     if declared * first_hex > 2 * size:
         raise InputError(f"{path}: header field 'Number of Pages' ({declared}) x a page's "
