@@ -349,7 +349,8 @@ def test_the_naming_rule_over_seeds_on_the_board(tmp_path_factory):
 
 @pytest.mark.slow
 def test_the_naming_rule_over_seeds(tmp_path_factory):
-    """Twelve seeds (30-41; 5 minutes): diagnose names one of the two hidden effects on >= 10
+    """Twelve seeds (30-41; minutes: this and the composed points' sweep took 15 together on two
+    shared cores): diagnose names one of the two hidden effects on >= 10
     (measured 11: on seed 33 drift is better in 12 of 18 blocks, one short) and nothing on any
     clean seed; the board's discovery names both on >= 11 (measured 12) and nothing clean."""
     rec = _sweep(tmp_path_factory, SWEEP_SLOW)

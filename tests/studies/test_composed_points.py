@@ -50,7 +50,7 @@ def test_a_composed_models_points_hold_a_hard_seed_within_1_25x_the_true_model(t
 
 @pytest.mark.slow
 def test_the_points_of_a_composed_model_lower_the_mean_over_seeds(tmp_path):
-    """Seeds 1-6 (3 minutes): the 126 points' mean ratio below the 72's (measured 1.052 against
+    """Seeds 1-6 (minutes): the 126 points' mean ratio below the 72's (measured 1.052 against
     1.073), each within 1.25x."""
     got = [_ratios(tmp_path, seed) for seed in range(1, 7)]
     many = [r[None] for r in got]
