@@ -119,11 +119,13 @@ def fletcher(values):
     return a, b
 
 
-def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate, shift=0):
+def twin_apply(pull, p, kinds, ref_temp, q, temp, index, block_start, rate, shift=0):
     """The twin's apply of what the board applied: the stored calibration from the boot, each
     usable fit the board logged (CAL and its EFFECT records) from the index it was taken at
     (plus shift: a wrong index, which the checksum must tell), each sample with its block's dT
-    and dt from the calibration's references.  Also the count of those fits."""
+    and dt from the calibration's references.  Also the count of those fits.  A block's dt is
+    its first sample's (Processor.feed sets the conditions once a block): where a 64 s unit
+    ends inside a block, its later samples keep the earlier unit."""
     from accelcal.bridge import twin
     from accelcal.bridge.boardlog import FIELDS, decode
     from acal.core import effects, fixed
@@ -132,7 +134,7 @@ def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate, shift=0):
     lg = decode(pull / "log.bin")
     cals = [dict(zip(FIELDS[log.CAL], v)) for v in lg.of(log.CAL)]
     fx = [dict(zip(FIELDS[log.EFFECT], v)) for v in lg.of(log.EFFECT)]
-    time = index // (effects.DT_UNIT_S * rate)
+    time = block_start // (effects.DT_UNIT_S * rate)
     segments = [(0, p, ref_temp, -REF_TIME_BACK)]
     for c in cals:
         if usable(c["status"]):
@@ -179,7 +181,8 @@ def run_four_effects(tmp_path, which, rate, seconds, refit=False):
     q = np.concatenate([b[3] for b in blocks])[:checked // 3]
     temp = np.concatenate([np.full(len(b[3]), b[2]) for b in blocks])[:len(q)]
     index = np.concatenate([b[1] + np.arange(len(b[3])) for b in blocks])[:len(q)]
-    host, refits = twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate)
+    block_start = np.concatenate([np.full(len(b[3]), b[1]) for b in blocks])[:len(q)]
+    host, refits = twin_apply(pull, p, kinds, ref_temp, q, temp, index, block_start, rate)
     print(f"\n{which} {rate} Hz four effects, {seconds} emulated s: {samples} samples, {lost} lost, "
           f"{overruns} overruns; the chip converted {chip['converted']}, dropped "
           f"{chip['dropped']}; {applied // 3} applied, the first {checked // 3} checked against "
@@ -191,7 +194,7 @@ def run_four_effects(tmp_path, which, rate, seconds, refit=False):
     assert checked == 3 * len(q) and len(q) >= min(samples, 40_000)
     assert len(set(temp.tolist())) >= 5  # the temperature terms changed across blocks
     assert (fa, fb) == fletcher(host)
-    return refits, (fa, fb), (pull, p, kinds, ref_temp, q, temp, index, rate)
+    return refits, (fa, fb), (pull, p, kinds, ref_temp, q, temp, index, block_start, rate)
 
 
 @pytest.mark.parametrize("which", ["pico", "feather"])
