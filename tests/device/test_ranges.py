@@ -123,10 +123,11 @@ def test_apply_worst_case_at_every_range(range_g):
 
 @pytest.mark.parametrize("range_g", [2, 4, 8, 16])
 def test_apply_matches_the_float_model(rng, range_g):
-    # K in Q14, offsets in Q(14 - e), the result rounded to Q(13 - e): in output LSBs, half a
-    # step of rounding, K's half LSB (2^-15) times each of three readings of up to 2.3 * 2^e g
-    # (3 * 2.3 / 4), and the offsets' half LSB times K's row sum (1.5 / 4): <= 2.6 LSB
-    # (0.32 mg at +-2 g, 2.6 mg at +-16 g)
+    # D = K - I in Q(18 - e), c = K o in Q(28 - e), the result rounded to Q(13 - e) (fixed.py
+    # "apply", the base model): in output LSBs, half a step of rounding, D's half LSB
+    # (2^-(19 - e)) times each of three readings of up to 2.048 * 2^e g (3 * 2.048 * 2^(e - 6)),
+    # and c's rounding (one LSB of Q(28 - e): 2^-15): <= 0.60 LSB at +-2 g (0.07 mg), 1.27 at
+    # +-16 g (1.2 mg); K and o in Q14 gave up to 2.6 LSB
     from accelcal.fixedpoint import params_to_float
     from accelcal.methods import correct
     cal = Calibration(range_g=range_g)
@@ -144,7 +145,8 @@ def test_apply_matches_the_float_model(rng, range_g):
         buf = v.ravel().tolist()
         cal.apply_samples(buf, 0, len(v))
         worst = max(worst, np.abs(np.array(buf).reshape(-1, 3) - exp).max())
-    assert worst <= 0.5 + 3 * 2.3 / 4 + 1.5 / 4, worst
+    e = fixed.apply_range_shift(range_g)
+    assert worst <= 0.5 + 3 * 2.048 * 2.0 ** (e - 6) + 2.0 ** -15, worst
     assert worst > 0.5   # the parameters' rounding is seen: the bound is not vacuous
 
 

@@ -263,15 +263,16 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
     effect); a step from dt >= step_time on."""
     e = fixed.apply_range_shift(range_g)
+    m = fixed.APPLY_IN_MAX << e
+    q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
+    if not kinds:
+        return _apply_base(p_int, q, e)
     k = [(int(v) + (1 << (fixed.APPLY_PARAM_SHIFT - 1))) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:6]]
     shift = fixed.APPLY_PARAM_SHIFT + e   # the offsets in Q(14 - e)
     k += [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[6:9]]
-    m = fixed.APPLY_IN_MAX << e
-    q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
     off = np.array(k[6:9], dtype=np.int64)
     u = q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)
-    if kinds:
-        _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
+    _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
     u += off
     s = fixed.APPLY_OUT_SHIFT
     half = 1 << (s - 1)
@@ -279,6 +280,27 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     out[:, 0] = (k[0] * u[:, 0] + half) >> s
     out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> s
     out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> s
+    return out
+
+
+def _apply_base(p_int, q: np.ndarray, e: int) -> np.ndarray:
+    """calibration._apply_block's base model on the clamped readings q (Q10 g): D = K - I in
+    Q(18 - e) and c = K o in Q(28 - e) g with the output's half LSB, as calibration._base_params
+    makes them (its exact floors: Python's ints), a = ((x << (18 - e)) + D x + c) >> 15."""
+    p = [int(v) for v in p_int[:9]]
+    ds = fixed.PARAM_Q - fixed.APPLY_D_Q + e
+    d = [(p[i] - (fixed.PARAM_ONE if i < 3 else 0) + (1 << (ds - 1))) >> ds for i in range(6)]
+    cs = 2 * fixed.PARAM_Q - fixed.APPLY_C_Q + e - 1
+    s = fixed.APPLY_OUT_SHIFT
+    half = 1 << (s - 1)
+    c = [((sum((p[a] * p[b]) >> cs for a, b in row) + 1) >> 1) + half
+         for row in (((0, 6),), ((3, 6), (1, 7)), ((4, 6), (5, 7), (2, 8)))]
+    t = fixed.APPLY_D_Q - e
+    x, y, z = q[:, 0], q[:, 1], q[:, 2]
+    out = np.empty_like(q)
+    out[:, 0] = ((x << t) + d[0] * x + c[0]) >> s
+    out[:, 1] = ((y << t) + d[3] * x + d[1] * y + c[1]) >> s
+    out[:, 2] = ((z << t) + d[4] * x + d[5] * y + d[2] * z + c[2]) >> s
     return out
 
 
