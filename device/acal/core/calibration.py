@@ -56,6 +56,7 @@ class Calibration:
         self.x = 0
         self.y = 0
         self.z = 0
+        self.dither = 0   # the base apply's output dither's phase (fixed.py APPLY_DITHER_STEP)
         p = [0] * self.n_params
         identity(p)
         self.set(p)
@@ -100,8 +101,8 @@ class Calibration:
         i = 3 * start
         end = 3 * (start + n)
         if not self.kinds:
-            _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_D_Q - self.e,
-                         APPLY_OUT_SHIFT, SIGN_SHIFT)
+            self.dither = _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_D_Q - self.e,
+                                       self.dither, SIGN_SHIFT)
         else:   # one viper loop a block: the effects' terms made once for its conditions
             if not self.terms_valid or self.temp != self.t_temp or self.time != self.t_time or \
                     self.supply != self.t_supply:
@@ -134,26 +135,26 @@ def _base_params(p, k, e):
     # The base model's apply formats (fixed.py "apply", APPLY_D_Q, APPLY_C_Q) from Q24 p into
     # k[0:9]: D = K - I in Q(18 - e), rounded; c = K o in Q(28 - e) g, each row's products exact
     # floors in Q(29 - e) (wide.mul_shift: |p| < 2**29, every intermediate a small int), summed
-    # and rounded once, with the output's half LSB (2**(APPLY_OUT_SHIFT - 1)) added.
+    # and rounded once (the output's rounding is the loop's dither).
     ds = PARAM_Q - APPLY_D_Q + e
     for i in range(6):
         k[i] = (p[i] - (PARAM_ONE if i < 3 else 0) + (1 << (ds - 1))) >> ds
     cs = 2 * PARAM_Q - APPLY_C_Q + e - 1
-    half = 1 << (APPLY_OUT_SHIFT - 1)
-    k[6] = ((mul_shift(p[0], p[6], cs) + 1) >> 1) + half
-    k[7] = ((mul_shift(p[3], p[6], cs) + mul_shift(p[1], p[7], cs) + 1) >> 1) + half
-    k[8] = ((mul_shift(p[4], p[6], cs) + mul_shift(p[5], p[7], cs) + mul_shift(p[2], p[8], cs)
-             + 1) >> 1) + half
+    k[6] = (mul_shift(p[0], p[6], cs) + 1) >> 1
+    k[7] = (mul_shift(p[3], p[6], cs) + mul_shift(p[1], p[7], cs) + 1) >> 1
+    k[8] = (mul_shift(p[4], p[6], cs) + mul_shift(p[5], p[7], cs) + mul_shift(p[2], p[8], cs)
+            + 1) >> 1
 
 
 @viper
-def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w: int):
+def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, r: int, w: int) -> int:
     # The apply's one implementation (Calibration.apply_samples): the samples source[i:end]
     # (flat x y z) into dest, viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     # Readings clamped to +-m (Q10 g), a = ((x << s) + D x + c) >> o: s = 18 - e, D = K - I in
-    # Q(18 - e), c = K o in Q(28 - e) g with the output's half LSB (_base_params), rounded by o
-    # bits to Q(13 - e) g (fixed.py "apply"); every value below 2**30 at every full scale
-    # (tests/device/test_ranges.py traces them).
+    # Q(18 - e), c = K o in Q(28 - e) g (_base_params), rounded by 15 bits to Q(13 - e) g with
+    # the dither r (Q15, the phase of the first sample; fixed.py APPLY_DITHER_STEP and _MASK are
+    # the literals below), the next sample's phase returned; every value below 2**30 at every
+    # full scale (tests/device/test_ranges.py traces them).
     src = ptr32(source)
     dst = ptr32(dest)
     k = ptr32(coef)
@@ -182,10 +183,12 @@ def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w
             z = m
         elif z < -m:
             z = -m
-        dst[i] = ((x << s) + dxx * x + cx) >> o
-        dst[i + 1] = ((y << s) + dxy * x + dyy * y + cy) >> o
-        dst[i + 2] = ((z << s) + dxz * x + dyz * y + dzz * z + cz) >> o
+        dst[i] = ((x << s) + dxx * x + cx + r) >> 15
+        dst[i + 1] = ((y << s) + dxy * x + dyy * y + cy + r) >> 15
+        dst[i + 2] = ((z << s) + dxz * x + dyz * y + dzz * z + cz + r) >> 15
+        r = (r + 13573) & 32767
         i += 3
+    return r
 
 
 @viper
