@@ -1,7 +1,11 @@
 # Adafruit Feather RP2040, CircuitPython: the LIS3DH on board.SPI() (SCK GP18 -> SPC, MO GP19 ->
-# SDA/SDI, MI GP20 <- SDO/SA0) with CS on D5 (GP7), or on the STEMMA QT / board.I2C() bus (SDA
-# GP2, SCL GP3, CS tied high).  BUS: "auto" (SPI when the LIS3DH answers there, else I2C: a board
-# wired for either works unchanged), "spi" or "i2c"; the app's bus setting (deploy --bus) wins.
+# SDA/SDI, MI GP20 <- SDO/SA0) with CS on D5 (GP7), or on the STEMMA QT bus (board.SCL GP3,
+# board.SDA GP2, CS tied high) at I2C_FREQ.  BUS: "auto" (SPI when the LIS3DH answers there, else
+# I2C: a board wired for either works unchanged), "spi" or "i2c"; the app's bus setting (deploy
+# --bus) wins.  I2C runs at 400 kHz, the LIS3DH's fast mode (DocID17530 Rev 2, 2.4.2 Table 8
+# "I2C slave timing values": f(SCL) 0-400 kHz), as boards/pico.py: board.I2C() would give
+# CircuitPython's shared singleton at a fixed 100 kHz (shared-module/board/__init__.c), and
+# busio.I2C polls each transfer awake, so 4x the bus time is 4x the core awake for it.
 import supervisor
 import time
 
@@ -11,15 +15,23 @@ RUNTIME = "circuitpython"
 ARCH = None          # CircuitPython runs the sources (its .mpy format differs from MicroPython's)
 BUS = "auto"
 I2C_ADDRESS = 0x18
+I2C_FREQ = 400000
 TEMP_REF_C = None
 
 _spi = None
+_i2c = None
 
 
 def i2c():
-    import board
-    from acal.logger.lis3dh_cp import BusioRegisters
-    return BusioRegisters(board.I2C(), I2C_ADDRESS)
+    # one object for the board's life, as spi(): busio.I2C claims SCL/SDA, which cannot be
+    # claimed twice (a retried set-up asks again); nothing else may then use board.I2C()
+    global _i2c
+    if _i2c is None:
+        import board
+        import busio
+        from acal.logger.lis3dh_cp import BusioRegisters
+        _i2c = BusioRegisters(busio.I2C(board.SCL, board.SDA, frequency=I2C_FREQ), I2C_ADDRESS)
+    return _i2c
 
 
 def spi():

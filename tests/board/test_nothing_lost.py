@@ -1,6 +1,6 @@
 """Nothing lost by default: the app as `deploy` starts it (acal.logger.app.main with no reader named:
 the FIFO, drained past its watermark) on the emulated Pico (MicroPython, boards/pico.py) and the
-emulated Feather RP2040 (CircuitPython, boards/feather_rp2040.py, busio at 100 kHz) loses no
+emulated Feather RP2040 (CircuitPython, boards/feather_rp2040.py, busio.I2C at 400 kHz) loses no
 sample at any rate the CLI offers: the app counts none lost, the chip model overwrote none, and
 the FIFO never filled.  One short run per board here; an emulated hour at each rate is slow."""
 import numpy as np

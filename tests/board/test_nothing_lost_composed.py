@@ -16,7 +16,9 @@ does once its bins are ready, with each usable fit it logged, from the index it 
 its checksum must be the board's.  The short runs
 capture everything; an hour's capture holds its first 600 kB (all of it at 10 and 25 Hz, the
 first ~4 min at 400 Hz), and the rest is counted: every sample read was applied.  The checksum
-tells a dt 30 units (32 min) off or a dT a quarter degree off (both tried)."""
+tells a dt 30 units (32 min) off or a dT a quarter degree off (both tried).  A short run makes
+the board fit again mid-run (test_the_twin_follows_a_refit_of_the_board) and checks the twin
+across it."""
 import numpy as np
 import pytest
 
@@ -31,7 +33,8 @@ BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5"),
           "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3")}
 RATES = [10, 25, 50, 100, 200, 400]
 APP = """import acal.logger.app, acal_board
-app = acal.logger.app.App(acal_board, rate_hz={rate}, profile=1, model='{model}', capture_bytes={cap})
+app = acal.logger.app.App(acal_board, rate_hz={rate}, profile=1, model='{model}', capture_bytes={cap}{settings})
+{extra}
 st = [0, 1, 0, 0]   # values applied, Fletcher a, b over those the capture kept
 proc = app.proc
 def check(buf, n):
@@ -91,6 +94,23 @@ def stimulus(path, seconds):
     write_stimulus(path, STIM_HZ, xyz, temp)
 
 
+def refit_stimulus(path, seconds):
+    """Twelve still poses in turn (the six faces and six edges, 5 s each) with 2 mg of noise (the
+    wear profile takes no exactly constant segment as still) and a temperature swinging
+    15..45 degC (an 80 s triangle): rest points enough for a fit of the four-effect model
+    within ~90 s, their temperatures spread."""
+    n = (seconds + 30) * STIM_HZ
+    t = np.arange(n) / STIM_HZ
+    faces = np.vstack([np.eye(3), -np.eye(3)])
+    edges = np.array([[1, 1, 0], [-1, 0, 1], [0, 1, -1], [1, 0, -1], [-1, -1, 0], [0, -1, 1],
+                      [1, 0, 1], [-1, 1, 0], [0, -1, -1], [1, -1, 0], [-1, 0, -1], [0, 1, 1.0]])
+    poses = np.vstack([faces, edges / np.sqrt(2)])
+    noise = np.random.default_rng(7).normal(scale=0.002, size=(n, 3))
+    xyz = poses[(t // 5).astype(int) % 12] * 0.98 + 0.01 + noise
+    temp = 15 + 30 * np.abs((t / 40) % 2 - 1)
+    write_stimulus(path, STIM_HZ, xyz, temp)
+
+
 def fletcher(values):
     a, b = 1, 0
     for v in (np.asarray(values, dtype=np.int64).ravel() & 0xffff).tolist():
@@ -99,11 +119,13 @@ def fletcher(values):
     return a, b
 
 
-def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate):
+def twin_apply(pull, p, kinds, ref_temp, q, temp, index, block_start, rate, shift=0):
     """The twin's apply of what the board applied: the stored calibration from the boot, each
-    usable fit the board logged (CAL and its EFFECT records) from the index it was taken at,
-    each sample with its block's dT and dt from the calibration's references.  Also the count
-    of those fits."""
+    usable fit the board logged (CAL and its EFFECT records) from the index it was taken at
+    (plus shift: a wrong index, which the checksum must tell), each sample with its block's dT
+    and dt from the calibration's references.  Also the count of those fits.  A block's dt is
+    its first sample's (Processor.feed sets the conditions once a block): where a 64 s unit
+    ends inside a block, its later samples keep the earlier unit."""
     from accelcal.bridge import twin
     from accelcal.bridge.boardlog import FIELDS, decode
     from acal.core import effects, fixed
@@ -112,14 +134,14 @@ def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate):
     lg = decode(pull / "log.bin")
     cals = [dict(zip(FIELDS[log.CAL], v)) for v in lg.of(log.CAL)]
     fx = [dict(zip(FIELDS[log.EFFECT], v)) for v in lg.of(log.EFFECT)]
-    time = index // (effects.DT_UNIT_S * rate)
+    time = block_start // (effects.DT_UNIT_S * rate)
     segments = [(0, p, ref_temp, -REF_TIME_BACK)]
     for c in cals:
         if usable(c["status"]):
             mine = [e for e in fx if e["index"] == c["index"]]
             assert [e["effect"] for e in mine] == list(kinds)
             new = [c[n] for n in FIELDS[log.CAL][7:]] + [e[k] for e in mine for k in ("p0", "p1", "p2")]
-            segments.append((c["index"], new, mine[0]["ref_temp"], mine[0]["ref_time"]))
+            segments.append((c["index"] + shift, new, mine[0]["ref_temp"], mine[0]["ref_time"]))
     out = np.empty_like(q)
     for j, (start, params, rt, rtime) in enumerate(segments):
         end = segments[j + 1][0] if j + 1 < len(segments) else 1 << 62
@@ -129,7 +151,7 @@ def twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate):
     return out, len(segments) - 1
 
 
-def run_four_effects(tmp_path, which, rate, seconds):
+def run_four_effects(tmp_path, which, rate, seconds, refit=False):
     from accelcal.board import emulated
     from accelcal.bridge import rp2040
     from accelcal.bridge.boardlog import read_capture
@@ -138,8 +160,10 @@ def run_four_effects(tmp_path, which, rate, seconds):
     emulated_chip(fw)
     store, p, kinds, ref_temp = four_effect_store(tmp_path, rate)
     stim = tmp_path / "stim.bin"
-    stimulus(stim, seconds)
-    r = emulated.run([APP.format(seconds=seconds, rate=rate, model=MODEL, cap=CAPTURE_BYTES)],
+    (refit_stimulus if refit else stimulus)(stim, seconds)
+    r = emulated.run([APP.format(seconds=seconds, rate=rate, model=MODEL, cap=CAPTURE_BYTES,
+                                 settings=REFIT_SETTINGS if refit else "",
+                                 extra=EARLY_BINS if refit else "")],
                      stimulus=stim, fw=fw, i2c=i2c, gets=("log.bin", "capture.bin"),
                      puts={"acal_board.py": (ROOT / "boards" / board_file).read_bytes(),
                            "cal_a.bin": store},
@@ -157,7 +181,8 @@ def run_four_effects(tmp_path, which, rate, seconds):
     q = np.concatenate([b[3] for b in blocks])[:checked // 3]
     temp = np.concatenate([np.full(len(b[3]), b[2]) for b in blocks])[:len(q)]
     index = np.concatenate([b[1] + np.arange(len(b[3])) for b in blocks])[:len(q)]
-    host, refits = twin_apply(pull, p, kinds, ref_temp, q, temp, index, rate)
+    block_start = np.concatenate([np.full(len(b[3]), b[1]) for b in blocks])[:len(q)]
+    host, refits = twin_apply(pull, p, kinds, ref_temp, q, temp, index, block_start, rate)
     print(f"\n{which} {rate} Hz four effects, {seconds} emulated s: {samples} samples, {lost} lost, "
           f"{overruns} overruns; the chip converted {chip['converted']}, dropped "
           f"{chip['dropped']}; {applied // 3} applied, the first {checked // 3} checked against "
@@ -169,11 +194,31 @@ def run_four_effects(tmp_path, which, rate, seconds):
     assert checked == 3 * len(q) and len(q) >= min(samples, 40_000)
     assert len(set(temp.tolist())) >= 5  # the temperature terms changed across blocks
     assert (fa, fb) == fletcher(host)
+    return refits, (fa, fb), (pull, p, kinds, ref_temp, q, temp, index, block_start, rate)
 
 
 @pytest.mark.parametrize("which", ["pico", "feather"])
 def test_a_four_effect_model_applied_loses_nothing_at_400_hz(tmp_path, which):
     run_four_effects(tmp_path, which, 400, 5 if which == "pico" else 2)
+
+
+# A refit within the run: the bins' least time spread for the drift term, 12 h
+# (bins.TIME_DIFFER), made one 64 s unit, so they are ready as a resumed board's are once it has
+# worn the model 12 h; rest judged against a fixed threshold (60 mg, Q10 g) over 2 s segments
+# (the wear profile's noise gauge judges nothing still before 80 s of quiet segments).
+EARLY_BINS = "app.proc.pipe.bins.set_differ(app.proc.pipe.bins.temp_differ, 1, 0)"
+REFIT_SETTINGS = ", threshold=60, seconds=2"
+
+
+def test_the_twin_follows_a_refit_of_the_board(tmp_path):
+    """The Pico, with the four-effect model resumed, fits again mid-run (its bins made ready
+    early): the board's checksum over the applied values equals the twin's, which takes the
+    stored calibration up to the refit's index and the refit's parameters from there; taken a
+    block (25 samples) early or late, or never, the twin's checksum differs from the board's."""
+    refits, board_sum, args = run_four_effects(tmp_path, "pico", 50, 115, refit=True)
+    assert refits >= 1
+    for shift in (-25, 25, 1 << 40):   # a block early, late, never
+        assert fletcher(twin_apply(*args, shift=shift)[0]) != board_sum
 
 
 @pytest.mark.slow

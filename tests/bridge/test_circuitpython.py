@@ -270,6 +270,7 @@ FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh
 lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
 time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
+board.I2C().deinit()   # frees GP2/GP3: the board file claims them at 400 kHz (busio.I2C)
 import acal.logger.app, acal_board
 ms = supervisor.ticks_ms()
 app = acal.logger.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
@@ -293,8 +294,8 @@ def site_package(name):
 @pytest.mark.slow
 def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
-    the LIS3DH model on board.I2C() (I2C1, GP2/GP3, its pull-ups seen): the real adafruit_lis3dh
-    (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
+    the LIS3DH model on I2C1 (GP2/GP3, its pull-ups seen): the real adafruit_lis3dh on
+    board.I2C() (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
     for 74 emulated seconds at 100 Hz while the board is turned through a calibration dance
     (three rounds of six faces and six edges, 2 s still each), logs to the drive (writable to it
     after a power-up with boot.py, nothing remounted from the REPL), calibrates near the
