@@ -84,7 +84,7 @@ REAL := tests/data/real
 REAL_FILES := $(REAL)/ax3_sample.cwa $(REAL)/ax6_sample.cwa $(REAL)/gnactv_sample.bin \
 	$(REAL)/ggir/actigraph_testfile.gt3x $(REAL)/ggir/ax3_testfile.cwa $(REAL)/pygt3x/neo.gt3x \
 	$(REAL)/pygt3x/CPW1C48210013_baseline.agdc $(REAL)/pygt3x/WRIST_rawLSB_032Hz_test.agdc \
-	$(REAL)/geneacore/1008667Hz.bin
+	$(REAL)/geneacore/1008667Hz.bin $(REAL)/ggir/GENEActiv_testfile.bin
 
 bench: setup $(STAMP_BENCH) $(SLEEPPY_DEMO)
 	$(BIN)/python -m accelcal.studies.peers_real --others $(VENV_BENCH)/bin/python $(SLEEPPY_DEMO) $(REAL_FILES)

@@ -9,6 +9,12 @@
 #     (ports/esp32/machine_i2c.h): neither has a GPIO22, and GPIO21 is the C3's UART0 TX (its REPL
 #     on boards with a USB-UART bridge); 18/19 are the C3's USB. The C3 has one I2C controller (0).
 #   Other chips (S2, C6, ...): the port's I2C0 default pins for that chip (SDA_PIN None).
+# SPI, on the ESP32 only: its VSPI, machine.SPI(2), on VSPI's IO_MUX pins (ESP32 datasheet, the
+#   IO_MUX table: GPIO18 VSPICLK -> SPC, GPIO23 VSPID -> SDA/SDI, GPIO19 VSPIQ <- SDO/SA0, GPIO5
+#   VSPICS0 -> CS, driven here as a plain output), mode 3 at the LIS3DH's 10 MHz (DocID17530
+#   6.2).  BUS stays "i2c" (with nothing on SPI an ESP32's MISO floats: "auto" could read
+#   anything there); `deploy --bus spi` or BUS = "spi" for a sensor wired so.  SPI keeps the core
+#   awake less than I2C (docs/boards-and-logs.md, "What each bus costs").
 # The clock: time.ticks_us is the esp_timer's microseconds since boot (not the CPU clock, 160 MHz
 # by default on an ESP32 and a C3), wrapping at 2^30 us as on an RP2040: the app's RealClock.
 import sys
@@ -25,6 +31,12 @@ else:
     SDA_PIN = SCL_PIN = None
 I2C_FREQ = 400000
 I2C_ADDRESS = 0x18   # SDO/SA0 to GND; 0x19 when tied high
+BUS = "i2c"
+if CHIP == "ESP32":
+    SPI_ID, SCK_PIN, MOSI_PIN, MISO_PIN, CS_PIN = 2, 18, 23, 19, 5
+    SPI_BAUD = 10000000
+else:
+    SPI_ID = None   # not offered: the app refuses --bus spi in one line
 # The chip's own temperature is the die's, not the wrist's: on an S2/S3/C3/C6
 # esp32.mcu_temperature() gives calibrated whole degC (the port sets its range to -10..80 degC),
 # a thermometer good enough to set TEMP_REF_C (its reading minus the first OUT_ADC3 reading, the
@@ -44,6 +56,21 @@ def i2c():
     if SDA_PIN is None:
         return I2C(I2C_ID, freq=I2C_FREQ)
     return I2C(I2C_ID, sda=Pin(SDA_PIN), scl=Pin(SCL_PIN), freq=I2C_FREQ)
+
+
+if SPI_ID is not None:
+    def spi():
+        """The LIS3DH's registers over VSPI, mode 3 (DocID17530 6.2), CS on CS_PIN."""
+        from machine import SPI, Pin
+        from acal.logger.lis3dh import SPIRegisters
+        return SPIRegisters(SPI(SPI_ID, baudrate=SPI_BAUD, polarity=1, phase=1,
+                                sck=Pin(SCK_PIN), mosi=Pin(MOSI_PIN), miso=Pin(MISO_PIN)),
+                            Pin(CS_PIN, Pin.OUT, value=1))
+
+    def sensor_bus(bus=None):
+        """The LIS3DH's register bus: bus, or BUS when None (lis3dh.open_bus)."""
+        from acal.logger.lis3dh import open_bus
+        return open_bus(bus or BUS, spi, i2c)
 
 
 if SUPPLY_PIN is not None:

@@ -20,17 +20,26 @@ TEMP_REF_C = None
 
 _spi = None
 _i2c = None
+_i2c_bus = None
+
+
+def i2c_bus():
+    """The STEMMA QT bus, a busio.I2C at I2C_FREQ: one object for the board's life, as spi()'s
+    (busio.I2C claims SCL/SDA, which cannot be claimed twice: a retried set-up asks again);
+    nothing else may then use board.I2C().  Another driver on the same bus takes this one."""
+    global _i2c_bus
+    if _i2c_bus is None:
+        import board
+        import busio
+        _i2c_bus = busio.I2C(board.SCL, board.SDA, frequency=I2C_FREQ)
+    return _i2c_bus
 
 
 def i2c():
-    # one object for the board's life, as spi(): busio.I2C claims SCL/SDA, which cannot be
-    # claimed twice (a retried set-up asks again); nothing else may then use board.I2C()
     global _i2c
     if _i2c is None:
-        import board
-        import busio
         from acal.logger.lis3dh_cp import BusioRegisters
-        _i2c = BusioRegisters(busio.I2C(board.SCL, board.SDA, frequency=I2C_FREQ), I2C_ADDRESS)
+        _i2c = BusioRegisters(i2c_bus(), I2C_ADDRESS)
     return _i2c
 
 

@@ -100,3 +100,31 @@ def test_bad_emulated_board_options_end_in_one_line(tmp_path, capsys):
                                            stim, *extra])
         assert code == 2 and len(err.strip().splitlines()) == 1 and not out, (extra, err)
     assert other.read_text() == "mine" and stim.stat().st_size > 1000
+
+
+WIRING = """from machine import I2C, SPI, Pin
+i2c = I2C(0, sda=Pin(4), scl=Pin(5), freq=400000)
+spi = SPI(0, baudrate=10000000, polarity=1, phase=1, sck=Pin(18), mosi=Pin(19), miso=Pin(16))
+cs = Pin(17, Pin.OUT, value=1)
+cs(0)
+spi.write(bytes([0x8f]))   # read WHO_AM_I (0Fh), DocID17530 6.2
+who = spi.read(1)[0]
+cs(1)
+try:
+    on_i2c = i2c.readfrom_mem(0x18, 0x0f, 1)[0]
+except OSError:
+    on_i2c = -1   # no acknowledge at 0x18
+print('WIRED', on_i2c, who)
+"""
+
+
+def test_board_virtual_bus_spi_wires_the_lis3dh_to_spi0(tmp_path, emulator):
+    """`board virtual --chip rp2040 --bus spi`: the LIS3DH answers on SPI0 with boards/pico.py's
+    pins (WHO_AM_I 0x33, DocID17530) and nothing acknowledges 0x18 on I2C0; the default wires it
+    on I2C0 (WHO_AM_I read there) and SPI reads nothing (MISO's pull-down)."""
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=3, rounds=1, rest_s=1)
+    for bus, want in (("spi", "WIRED -1 51"), ("i2c", "WIRED 51 0")):
+        with virtual.Running(tmp_path / f"{bus}.bin", tmp_path / "stim.bin", "--chip", "rp2040",
+                             "--bus", bus) as b:
+            out = mpremote(b.port, "exec", WIRING)
+        assert out.strip().splitlines()[-1] == want, (bus, out)

@@ -3,6 +3,8 @@ the Feather RP2040's board.SPI() with CS on D5), the board files and the app as 
 them, unchanged: their BUS "auto" finds the chip on SPI, and nothing is lost at any rate the CLI
 offers (the app counts none lost, the chip model overwrote none, the FIFO never filled, every
 transaction went over SPI).  One short run per board here; 20 emulated s at each rate is slow."""
+import shutil
+
 import numpy as np
 import pytest
 
@@ -73,3 +75,28 @@ def test_deploy_bus_goes_to_the_app_and_boards_name_theirs(tmp_path):
     for f, bus in (("pico.py", '"auto"'), ("feather_rp2040.py", '"auto"'),
                    ("virtual.py", 'os.getenv("ACCELCAL_BUS") or "i2c"')):
         assert f"\nBUS = {bus}\n" in (ROOT / "boards" / f).read_text()
+
+
+def test_board_virtual_bus_is_the_unix_boards_bus(tmp_path):
+    """`board virtual --bus spi` on the unix port: boards/virtual.py (as deploy installs it)
+    takes BUS from it, and sensor_bus() then reads WHO_AM_I over the fake machine.SPI; the
+    default is I2C."""
+    from accelcal.board import virtual
+    from conftest import mpremote
+    calibration_dance(tmp_path / "stim.bin", 100, TRUTH, seed=3, rounds=1, rest_s=1)
+    code = ("import acal_board\nfrom acal.logger.lis3dh import answers\n"
+            "r = acal_board.sensor_bus()\nprint('BUS', acal_board.BUS, type(r).__name__, answers(r))")
+    for given, want in ((["--bus", "spi"], "BUS spi SPIRegisters True"),
+                        ([], "BUS i2c I2C True")):
+        flash = tmp_path / f"flash{len(given)}"
+        (flash / "lib" / "acal").mkdir(parents=True)
+        (flash / "acal_board.py").write_bytes((ROOT / "boards" / "virtual.py").read_bytes())
+        for sub in ("acal/__init__.py", "acal/core", "acal/logger"):
+            src = ROOT / "device" / sub
+            if src.is_dir():
+                shutil.copytree(src, flash / "lib" / sub)
+            else:
+                (flash / "lib" / sub).write_bytes(src.read_bytes())
+        with virtual.Running(flash, tmp_path / "stim.bin", *given) as b:
+            out = mpremote(b.port, "exec", code)
+        assert out.strip().splitlines()[-1] == want, out

@@ -266,11 +266,11 @@ def test_bench_says_in_one_line_when_circuitpython_is_missing(monkeypatch, capsy
 # The paper's profile with 1 s rest segments (a setting the app takes): the dance's 2 s poses
 # fill the nine subsets twice in ~70 emulated s (the wear profile judges no segment still before
 # 80 s of quiet ones).  The app is started as main() starts it, with the rest window given.
-FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh
-lis = adafruit_lis3dh.LIS3DH_I2C(board.I2C(), address=0x18)   # the real driver finds the chip
+FEATHER_APP = """import board, time, supervisor, adafruit_lis3dh, acal_board
+# the real driver finds the chip, on the busio.I2C (400 kHz) the board file keeps for the app
+lis = adafruit_lis3dh.LIS3DH_I2C(acal_board.i2c_bus(), address=0x18)
 time.sleep(0.02)   # its first conversion at 400 Hz (the datasheet's turn-on time: 1/ODR + 1 ms)
 print('ADAFRUIT', lis.range, round(sum(v * v for v in lis.acceleration) ** 0.5))
-board.I2C().deinit()   # frees GP2/GP3: the board file claims them at 400 kHz (busio.I2C)
 import acal.logger.app, acal_board
 ms = supervisor.ticks_ms()
 app = acal.logger.app.App(acal_board, rate_hz=100, fifo=True, capture_bytes=300000, profile=0, seconds=1)
@@ -294,8 +294,8 @@ def site_package(name):
 @pytest.mark.slow
 def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
-    the LIS3DH model on I2C1 (GP2/GP3, its pull-ups seen): the real adafruit_lis3dh on
-    board.I2C() (from the package in .venv, into /lib) finds the chip; the app reads its FIFO through busio
+    the LIS3DH model on I2C1 (GP2/GP3, its pull-ups seen): the real adafruit_lis3dh (from the
+    package in .venv, into /lib), on the board file's busio.I2C, finds the chip; the app reads its FIFO through busio
     for 74 emulated seconds at 100 Hz while the board is turned through a calibration dance
     (three rounds of six faces and six edges, 2 s still each), logs to the drive (writable to it
     after a power-up with boot.py, nothing remounted from the REPL), calibrates near the
@@ -363,3 +363,39 @@ class ChipRemote:
     def exec(self, code, **_):
         from accelcal.board import emulated
         return emulated.run([code], flash_in=self.image, fw=FW).out
+
+
+CP_FIFO_SCRIPT = r'''
+from array import array
+from acal.logger import lis3dh
+b = bytes(%r)
+print('TABLES', lis3dh._TABLES)
+for so_mg in (1, 2, 4, 12):
+    for mid in (0, 3):
+        so = so_mg * 16777
+        v0, carry = lis3dh.fifo_tables(mid, so, %d)
+        out = array("i", [7] * 1026)
+        nxt = lis3dh.fifo_codes_table(b, 1023, out, 1, v0, carry, 16000)
+        print(" ".join(str(v) for v in out), nxt)
+'''
+
+
+def test_the_fifo_tables_on_circuitpython_give_the_documented_values(rng, chip):
+    """On CircuitPython (no emitters) the driver converts the FIFO through its tables
+    (lis3dh._TABLES): there, every 10-bit code at every range, HR or not, from the dither 16000
+    on, gives CPython's fifo_codes_q10 values (held to LIS3DH._fifo_to_q10 in
+    tests/device/test_lis3dh.py) and the same next dither."""
+    from acal.core.fixed import SAMPLE_MAX
+    from acal.logger import lis3dh
+    from test_lis3dh import fifo_codes_every_value
+    _, data = fifo_codes_every_value(rng)
+    r = rp2040.run_script(CP_FIFO_SCRIPT % (data, SAMPLE_MAX), fw=FW)
+    lines = r.out.strip().splitlines()
+    assert lines[0].split() == ["TABLES", "True"]
+    want = []
+    for so_mg in (1, 2, 4, 12):
+        for mid in (0, 3):
+            out = [7] * 1026
+            nxt = lis3dh.fifo_codes_q10(data, 1023, out, 1, mid, so_mg * 16777, SAMPLE_MAX, 16000)
+            want.append(out + [nxt])
+    assert [list(map(int, line.split())) for line in lines[1:]] == want

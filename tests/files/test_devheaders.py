@@ -35,7 +35,9 @@ def _put(data: bytes, at: int, value: bytes) -> bytes:
 
 
 def bin_cases():
-    pages = [b"0", b"-1", b"40000000", b"99999999999999999999", b"4", b"x", b""]
+    # ("4" is no longer here: more pages declared than held, within the configured period, is
+    # a truncated file, read to its last whole page: tests/files/test_truncated.py)
+    pages = [b"0", b"-1", b"2", b"40000000", b"99999999999999999999", b"x", b""]
     cases = {f"pages {v.decode()!r}": _field(BIN, b"Number of Pages", v) for v in pages}
     for v in (b"0 Hz", b"-5 Hz", b"1e30 Hz", b"nan Hz", b"100000 Hz"):
         cases[f"header rate {v.decode()}"] = _field(BIN, b"Measurement Frequency", v)

@@ -21,11 +21,13 @@ EFFECTS = ("temp_offset", "temp_scale", "drift", "nonlinear")
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
     d = tmp_path_factory.mktemp("discovery")
-    # "two" on seed 35 since the Q10 format's dither (acal.core.fixed): on seed 33 the paper
-    # profile's 200-iteration composed fit of these 36 points fell from 1.05 to 2.23 mg (its base
-    # 2.70 -> 2.08) and drift was named in 12 of 18 blocks, one short (14 before); on seeds 35-37
-    # the composed fit is 1.04, 1.04, 1.16 mg (1.09, 1.01, 1.23 before) and drift named in 16,
-    # 18, 18 blocks (16, 17, 17); on seed 34 the composed paper fit fails either way
+    # "two" on seed 35.  The naming rule is held over seeds below (test_the_naming_rule_over_
+    # seeds*), not on this one: on seeds 30-41 diagnose names one of the two hidden effects on 11
+    # of 12 (drift better in 14-18 of 18 held-out blocks; on seed 33, since the Q10 format's
+    # dither, in 12, one short of the rule's 70 %) and nothing on 12 of 12 clean seeds, the
+    # board's discovery names both on 12 of 12 (drift in 14-18 blocks) and nothing on clean
+    # data on 12 of 12 (measured 28 Nov 2026).  Seed 33 also fails the paper profile's composed
+    # fit below (2.23 mg against its base's 1.76).
     cases = {"clean31": (31, ()), "clean32": (32, ()), "two": (35, ("temp_offset", "drift"))}
     cases.update({e: (31, (e,)) for e in EFFECTS})
     return simulate_wrists(d, cases, DAYS, RATE)
@@ -319,3 +321,46 @@ def test_what_the_discovery_finds_is_what_is_saved_and_applied(recordings, capsy
         err_mg[name] = float(np.mean(np.linalg.norm(a - truth, axis=1)) * 1e3)
     # measured: 0.58 mg discovered, 2.79 mg base (mean |a - a_true| per sample, seed 31)
     assert err_mg["discovered"] < 1.0 and err_mg["base"] > 3 * err_mg["discovered"], err_mg
+
+
+SWEEP_FAST = (33, 34)     # 33: the seed diagnose falls short on; 34: the board's closest (14 of 18)
+SWEEP_SLOW = tuple(range(30, 42))
+
+
+def _sweep(tmp_path_factory, seeds):
+    d = tmp_path_factory.mktemp("sweep")
+    cases = {f"two{s}": (s, ("temp_offset", "drift")) for s in seeds}
+    cases.update({f"clean{s}": (s, ()) for s in seeds})
+    return simulate_wrists(d, cases, DAYS, RATE)
+
+
+def test_the_naming_rule_over_seeds_on_the_board(tmp_path_factory):
+    """The board's discovery (its rule: better in >= 70 % of >= 12 held-out blocks) on two
+    seeds with temp_offset and drift hidden, and on the same seeds clean: both effects named on
+    every one (on seeds 30-41 drift is better in 14-18 of 18 blocks, the rule needs 13), nothing
+    named on any clean one.  The same rule on twelve seeds, and diagnose's: the slow test below."""
+    rec = _sweep(tmp_path_factory, SWEEP_FAST)
+    for s in SWEEP_FAST:
+        d = calibrate_api(str(rec[f"two{s}"]), cfg=DISCOVER)["discovery"]
+        assert sorted(d["effects"]) == ["drift", "temp_offset"], (s, d["effects"])
+        clean = calibrate_api(str(rec[f"clean{s}"]), cfg=DISCOVER)["discovery"]
+        assert clean["effects"] == [], (s, clean["effects"])
+
+
+@pytest.mark.slow
+def test_the_naming_rule_over_seeds(tmp_path_factory):
+    """Twelve seeds (30-41; minutes: this and the composed points' sweep took 15 together on two
+    shared cores): diagnose names one of the two hidden effects on >= 10
+    (measured 11: on seed 33 drift is better in 12 of 18 blocks, one short) and nothing on any
+    clean seed; the board's discovery names both on >= 11 (measured 12) and nothing clean."""
+    rec = _sweep(tmp_path_factory, SWEEP_SLOW)
+    named = sum(diagnose(rec[f"two{s}"])["missing_effect"] in ("temp_offset", "drift")
+                for s in SWEEP_SLOW)
+    assert named >= 10, named
+    for s in SWEEP_SLOW:
+        assert diagnose(rec[f"clean{s}"])["missing_effect"] is None, s
+    both = sum(sorted(calibrate_api(str(rec[f"two{s}"]), cfg=DISCOVER)["discovery"]["effects"])
+               == ["drift", "temp_offset"] for s in SWEEP_SLOW)
+    assert both >= 11, both
+    for s in SWEEP_SLOW:
+        assert calibrate_api(str(rec[f"clean{s}"]), cfg=DISCOVER)["discovery"]["effects"] == [], s

@@ -5,8 +5,10 @@
 # _apply_composed (a composed model: the effects by their forms, terms made once per block's
 # conditions by effects.block_terms, then the same clamp and products).
 from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIFT, APPLY_OUT_SHIFT,
-                        APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, apply_range_shift)
+                        APPLY_OUT_Q, APPLY_IN_MAX, APPLY_W_MAX, APPLY_D_Q, APPLY_C_Q, PARAM_Q,
+                        PARAM_ONE, apply_range_shift)
 from acal.core import effects
+from acal.core.wide import mul_shift
 from acal.core.bins import int32s, conditions
 from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
@@ -17,7 +19,8 @@ class Calibration:
     """A calibration applied to raw samples, per sample and without allocating.
 
     range_g: the sensor's full scale (2, 4, 8 or 16 g), shift e (fixed.apply_range_shift).
-    set(p) takes Q24 parameters and keeps them in the apply's formats (fixed.py: K in Q14, the
+    set(p) takes Q24 parameters and keeps them in the apply's formats (fixed.py "apply": the
+    base model's K - I in Q(18 - e) and K o in Q(28 - e) g; a composed model's K in Q14 and
     offsets in Q(14 - e) g), so the products stay below 2**30 at every full scale.  Samples in
     are Q10 g; calibrated samples out are Q(13 - e) g (self.out_q, fixed.APPLY_OUT_Q - e: a
     still sensor's sub-mg mean kept, and an int16 at every full scale).
@@ -53,6 +56,7 @@ class Calibration:
         self.x = 0
         self.y = 0
         self.z = 0
+        self.dither = 0   # the base apply's output dither's phase (fixed.py APPLY_DITHER_STEP)
         p = [0] * self.n_params
         identity(p)
         self.set(p)
@@ -62,7 +66,9 @@ class Calibration:
         reference, mV); ValueError outside the bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
-        for i in range(N_PARAMS):
+        if not self.kinds:
+            _base_params(p, self.k, self.e)
+        for i in range(N_PARAMS if self.kinds else 0):   # a composed model's: K and o in Q14
             shift = APPLY_PARAM_SHIFT if i < 6 else APPLY_PARAM_SHIFT + self.e
             self.k[i] = (p[i] + (1 << (shift - 1))) >> shift
         for j in range(len(self.kinds)):
@@ -95,8 +101,8 @@ class Calibration:
         i = 3 * start
         end = 3 * (start + n)
         if not self.kinds:
-            _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e,
-                         APPLY_OUT_SHIFT, SIGN_SHIFT)
+            self.dither = _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_D_Q - self.e,
+                                       self.dither, SIGN_SHIFT)
         else:   # one viper loop a block: the effects' terms made once for its conditions
             c = self.now
             if not self.terms_valid or c[C_TEMP] != self.t_temp or c[C_TIME] != self.t_time or \
@@ -127,26 +133,42 @@ class Calibration:
         self.t_supply = c[C_SUPPLY]
 
 
+def _base_params(p, k, e):
+    # The base model's apply formats (fixed.py "apply", APPLY_D_Q, APPLY_C_Q) from Q24 p into
+    # k[0:9]: D = K - I in Q(18 - e), rounded; c = K o in Q(28 - e) g, each row's products exact
+    # floors in Q(29 - e) (wide.mul_shift: |p| < 2**29, every intermediate a small int), summed
+    # and rounded once (the output's rounding is the loop's dither).
+    ds = PARAM_Q - APPLY_D_Q + e
+    for i in range(6):
+        k[i] = (p[i] - (PARAM_ONE if i < 3 else 0) + (1 << (ds - 1))) >> ds
+    cs = 2 * PARAM_Q - APPLY_C_Q + e - 1
+    k[6] = (mul_shift(p[0], p[6], cs) + 1) >> 1
+    k[7] = (mul_shift(p[3], p[6], cs) + mul_shift(p[1], p[7], cs) + 1) >> 1
+    k[8] = (mul_shift(p[4], p[6], cs) + mul_shift(p[5], p[7], cs) + mul_shift(p[2], p[8], cs)
+            + 1) >> 1
+
+
 @viper
-def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w: int):
+def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, r: int, w: int) -> int:
     # The apply's one implementation (Calibration.apply_samples): the samples source[i:end]
     # (flat x y z) into dest, viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
-    # Readings clamped to +-m, u = (x << s) + o in Q(14 - e) g, the Q14 products rounded by o
-    # bits to Q(13 - e) g (fixed.py "apply"); every value below 2**30 at every full scale
-    # (tests/device/test_ranges.py traces them).
+    # Readings clamped to +-m (Q10 g), a = ((x << s) + D x + c) >> o: s = 18 - e, D = K - I in
+    # Q(18 - e), c = K o in Q(28 - e) g (_base_params), rounded by 15 bits to Q(13 - e) g with
+    # the dither r (Q15, the phase of the first sample; fixed.py APPLY_DITHER_STEP and _MASK are
+    # the literals below), the next sample's phase returned; every value below 2**30 at every
+    # full scale (tests/device/test_ranges.py traces them).
     src = ptr32(source)
     dst = ptr32(dest)
     k = ptr32(coef)
-    kxx = int(k[0]) << w >> w
-    kyy = int(k[1]) << w >> w
-    kzz = int(k[2]) << w >> w
-    kxy = int(k[3]) << w >> w
-    kxz = int(k[4]) << w >> w
-    kyz = int(k[5]) << w >> w
-    ox = int(k[6]) << w >> w
-    oy = int(k[7]) << w >> w
-    oz = int(k[8]) << w >> w
-    half = 1 << (o - 1)
+    dxx = int(k[0]) << w >> w
+    dyy = int(k[1]) << w >> w
+    dzz = int(k[2]) << w >> w
+    dxy = int(k[3]) << w >> w
+    dxz = int(k[4]) << w >> w
+    dyz = int(k[5]) << w >> w
+    cx = int(k[6]) << w >> w
+    cy = int(k[7]) << w >> w
+    cz = int(k[8]) << w >> w
     while i < end:
         x = int(src[i]) << w >> w
         y = int(src[i + 1]) << w >> w
@@ -163,13 +185,12 @@ def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, o: int, w
             z = m
         elif z < -m:
             z = -m
-        ux = (x << s) + ox
-        uy = (y << s) + oy
-        uz = (z << s) + oz
-        dst[i] = (kxx * ux + half) >> o
-        dst[i + 1] = (kxy * ux + kyy * uy + half) >> o
-        dst[i + 2] = (kxz * ux + kyz * uy + kzz * uz + half) >> o
+        dst[i] = ((x << s) + dxx * x + cx + r) >> 15
+        dst[i + 1] = ((y << s) + dxy * x + dyy * y + cy + r) >> 15
+        dst[i + 2] = ((z << s) + dxz * x + dyz * y + dzz * z + cz + r) >> 15
+        r = (r + 13573) & 32767
         i += 3
+    return r
 
 
 @viper

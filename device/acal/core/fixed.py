@@ -114,7 +114,8 @@ FIT_K_OFF_MAX = const(8388608)   # 0.5
 FIT_O_MAX = const(8388608)       # 0.5 g
 
 # --- apply (per sample) -----------------------------------------------------------------------
-# Calibrated sample = K (v + o), with K in Q14 and o in Q14 g:
+# Calibrated sample = K (v + o), with K in Q14 and o in Q14 g (a composed model's apply; the base
+# model keeps K - I and K o finer, APPLY_D_Q below, within the same bounds):
 #   u = (x << 4) + o14 (Q14 g),  a = sum(k14 * u) >> 15 (APPLY_OUT: Q13 g, 0.12 mg).
 # At +-2.048 g (the LIS3DH's 12-bit +-2 g range) and inside the parameter bounds:
 # |u| <= (2.048 + 0.25) * 2**14 = 37650 and |k14| row sum <= (1.25 + 2 * 0.125) * 2**14 = 24576,
@@ -141,6 +142,27 @@ APPLY_IN_MAX = const(2097)          # 2.048 g in Q10: +-2 g full scale
 # still holds (a correction that would go beyond full scale is clipped, as the sensor itself
 # clips).
 APPLY_W_MAX = const(33552)          # 2097 << 4: 2.048 * 2**e g in Q(14 - e)
+# The base model's apply (no effects: calibration._apply_block) keeps more of the parameters:
+# K = I + D with D in Q(18 - e) (d = (K24 - I) >> (6 + e), rounded) and the offsets taken in
+# once, c = K o in Q(28 - e) g computed exactly from the Q24 parameters at set() (wide.mul_shift),
+# and the output rounded with a dither: per sample i (the count of samples the Calibration has
+# applied, from 0), with the reading x in Q10,
+#   a = ((x << (18 - e)) + sum(d x) + c + r_i) >> 15   (Q(13 - e) g, as above),
+#   r_i = (i * APPLY_DITHER_STEP) & APPLY_DITHER_MASK   (Q15: sqrt(2) - 1's Weyl sequence).
+# A still window's readings are a few Q10 values, so sum(d x) + c keeps one fraction of the
+# output's LSB through the window: rounded to the nearest (r_i = 2**14) it left up to half an LSB
+# (0.06 mg a window at +-2 g, the same in every window of a posture; seed 5 of the study 1.17x
+# the true model for 1.08x unrounded); the dither's mean over any run of samples is the half.
+# At +-2.048 * 2**e g: |x << (18 - e)| <= 2097 * 2**18 = 5.50e8, |D| row sum <= (0.25 + 2 *
+# 0.125) 2**(18 - e) so |sum(d x)| <= 0.5 * 2097 * 2**18 = 2.75e8, |c| <= 1.5 * 0.25 * 2**(28 - e)
+# = 1.01e8, r_i < 2**15: every sum <= 9.26e8 < 2**30 and |a| <= 28 236 again
+# (tests/device/test_ranges.py).
+# The Q14 offsets' rounding (+-0.03 mg a window, the same in every window of a posture) was the
+# written output's last share over the device's fit (issue 50 part 5, docs/real-recordings.md).
+APPLY_D_Q = const(18)               # D = K - I in Q(APPLY_D_Q - e)
+APPLY_C_Q = const(28)               # c = K o in Q(APPLY_C_Q - e) g
+APPLY_DITHER_STEP = const(13573)    # round((sqrt(2) - 1) * 2**15), odd: all 2**15 values
+APPLY_DITHER_MASK = const(32767)    # (literals in calibration._apply_block: viper)
 
 
 def apply_range_shift(range_g):

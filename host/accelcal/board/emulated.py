@@ -130,14 +130,16 @@ class EmulatedBoard:
     firmware soft-resets by itself (Ctrl-D), so the relay is a plain byte pipe."""
 
     def __init__(self, flash: str | Path, stimulus: str | Path, bus_faults: int = 0, seed: int = 1,
-                 log=None):
+                 log=None, spi: str | None = None):
         self.flash = Path(flash).resolve()
         self.stimulus = Path(stimulus).resolve()
         self.log = log or (lambda msg: None)
         if not self.flash.exists():    # a new board: the firmware formats its littlefs at boot
             self.log(f"new flash image {self.flash}")
+        # spi: the LIS3DH on SPI (SPI_PICO) instead of I2C0
         self.args = node_args(self.stimulus, bus_faults, seed,
-                               self.flash if self.flash.exists() else None, self.flash) + ["serve"]
+                               self.flash if self.flash.exists() else None, self.flash,
+                               spi=spi) + ["serve"]
         self.client_master, client_slave = pty.openpty()
         tty.setraw(client_slave)
         self.port = os.ttyname(client_slave)

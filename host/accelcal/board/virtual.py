@@ -31,13 +31,14 @@ SIM_DIR = CHIP_DIR
 
 class VirtualBoard:
     def __init__(self, flash: str | Path, stimulus: str | Path, bus_faults: int = 0,
-                 heap: str | None = None, speed: int = 0, log=None):
+                 heap: str | None = None, speed: int = 0, log=None, bus: str = "i2c"):
         self.flash = Path(flash).resolve()
         self.flash.mkdir(parents=True, exist_ok=True)
         self.stimulus = Path(stimulus).resolve()
         self.bus_faults = bus_faults
         self.heap = heap
         self.speed = speed
+        self.bus = bus
         self.log = log or (lambda msg: None)
         self.proc: subprocess.Popen | None = None
         self.master_a = -1
@@ -56,7 +57,7 @@ class VirtualBoard:
             cmd += ["-X", f"heapsize={self.heap}"]
         env = dict(os.environ, MICROPYPATH=f".frozen:.:lib:{SIM_DIR}",
                    ACCELCAL_STIMULUS=str(self.stimulus), ACCELCAL_BUS_FAULTS=str(self.bus_faults),
-                   ACCELCAL_SPEED=str(self.speed))
+                   ACCELCAL_SPEED=str(self.speed), ACCELCAL_BUS=self.bus)
         self.proc = subprocess.Popen(cmd, stdin=sa, stdout=sa, stderr=sa, cwd=self.flash, env=env,
                                      close_fds=True, start_new_session=True)
         os.close(sa)
@@ -127,10 +128,13 @@ class VirtualBoard:
 
 def start_virtual(*, flash_dir: str | None, stimulus: str | None, days: float, rate: int,
                   seed: int, bus_faults: int, heap: str | None, speed: int, link: str | None,
-                  port_file: str | None, chip: str = "unix", say=lambda m: None):
+                  port_file: str | None, chip: str = "unix", bus: str = "i2c",
+                  say=lambda m: None):
     """`accelcal board virtual` up to serving: the outputs checked, a stimulus simulated if none
     is given, the board started, its link and port file made.  chip: unix (the unix port, a
-    folder as its flash) or rp2040 (the emulated Pico, a flash image file).  say(message): what
+    folder as its flash) or rp2040 (the emulated Pico, a flash image file).  bus: "i2c" or "spi",
+    where the LIS3DH is wired (rp2040: I2C0 or SPI0 only, as boards/pico.py; unix: the chip
+    answers on both, and this is the board file's BUS).  say(message): what
     it does and the board's log.  Returns (board, flash); serve_until() relays."""
     from accelcal.simulate import wearer
     if chip == "rp2040":
@@ -156,8 +160,12 @@ def start_virtual(*, flash_dir: str | None, stimulus: str | None, days: float, r
         say(f"simulating {days:g} day(s) of wrist wear at {rate} Hz (seed {seed}) into {stim}")
         wearer.simulate_wrist(rec, days, rate, seed, stimulus=stim)
     log = lambda m: say(f"virtual board: {m}")  # noqa: E731
-    board = (emulated.EmulatedBoard(flash, stim, bus_faults, seed, log=log) if chip == "rp2040"
-             else VirtualBoard(flash, stim, bus_faults, heap, speed, log=log))
+    if bus not in ("i2c", "spi"):
+        raise InputError(f"--bus {bus}: i2c or spi")
+    board = (emulated.EmulatedBoard(flash, stim, bus_faults, seed, log=log,
+                                    spi=emulated.SPI_PICO if bus == "spi" else None)
+             if chip == "rp2040" else VirtualBoard(flash, stim, bus_faults, heap, speed, log=log,
+                                                   bus=bus))
     if link:
         Path(link).symlink_to(board.port)
     if port_file:

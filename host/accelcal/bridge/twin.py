@@ -253,7 +253,7 @@ def planar_of(axes, first: int = 0) -> np.ndarray:
 
 
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
-                 step_time: int = 0, dV=None) -> np.ndarray:
+                 step_time: int = 0, dV=None, first: int = 0) -> np.ndarray:
     """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters
     (9, then 3 per effect), Q10 samples in, calibrated samples out in Q(13 - e) g
     (fixed.apply_out_q(range_g)) (m x 3 int64), the format of the full scale range_g (fixed.py),
@@ -261,17 +261,20 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     sample's dT (Q2 degC, fixed.TEMP_Q, from the reference temperature) and dt (64 s units from the reference
     time), as the device's temp - ref_temp and time - ref_time, and dV (mV of the board's supply
     from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
-    effect); a step from dt >= step_time on."""
+    effect); a step from dt >= step_time on.  first: the base model's count of samples applied
+    before q's first (the output's dither, fixed.APPLY_DITHER_STEP: the device's
+    Calibration.dither after that many)."""
     e = fixed.apply_range_shift(range_g)
+    m = fixed.APPLY_IN_MAX << e
+    q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
+    if not kinds:
+        return _apply_base(p_int, q, e, first)
     k = [(int(v) + (1 << (fixed.APPLY_PARAM_SHIFT - 1))) >> fixed.APPLY_PARAM_SHIFT for v in p_int[:6]]
     shift = fixed.APPLY_PARAM_SHIFT + e   # the offsets in Q(14 - e)
     k += [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[6:9]]
-    m = fixed.APPLY_IN_MAX << e
-    q = np.clip(np.asarray(q, dtype=np.int64).reshape(-1, 3), -m, m)   # the full scale, as the device
     off = np.array(k[6:9], dtype=np.int64)
     u = q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)
-    if kinds:
-        _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
+    _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
     u += off
     s = fixed.APPLY_OUT_SHIFT
     half = 1 << (s - 1)
@@ -279,6 +282,29 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     out[:, 0] = (k[0] * u[:, 0] + half) >> s
     out[:, 1] = (k[3] * u[:, 0] + k[1] * u[:, 1] + half) >> s
     out[:, 2] = (k[4] * u[:, 0] + k[5] * u[:, 1] + k[2] * u[:, 2] + half) >> s
+    return out
+
+
+def _apply_base(p_int, q: np.ndarray, e: int, first: int) -> np.ndarray:
+    """calibration._apply_block's base model on the clamped readings q (Q10 g): D = K - I in
+    Q(18 - e) and c = K o in Q(28 - e) g as calibration._base_params makes them (its exact
+    floors: Python's ints), a = ((x << (18 - e)) + D x + c + r_i) >> 15, r_i the output's
+    dither of sample first + i."""
+    p = [int(v) for v in p_int[:9]]
+    ds = fixed.PARAM_Q - fixed.APPLY_D_Q + e
+    d = [(p[i] - (fixed.PARAM_ONE if i < 3 else 0) + (1 << (ds - 1))) >> ds for i in range(6)]
+    cs = 2 * fixed.PARAM_Q - fixed.APPLY_C_Q + e - 1
+    s = fixed.APPLY_OUT_SHIFT
+    c = [(sum((p[a] * p[b]) >> cs for a, b in row) + 1) >> 1
+         for row in (((0, 6),), ((3, 6), (1, 7)), ((4, 6), (5, 7), (2, 8)))]
+    r = ((first + np.arange(len(q), dtype=np.int64)) * fixed.APPLY_DITHER_STEP) & \
+        fixed.APPLY_DITHER_MASK
+    t = fixed.APPLY_D_Q - e
+    x, y, z = q[:, 0], q[:, 1], q[:, 2]
+    out = np.empty_like(q)
+    out[:, 0] = ((x << t) + d[0] * x + c[0] + r) >> s
+    out[:, 1] = ((y << t) + d[3] * x + d[1] * y + c[1] + r) >> s
+    out[:, 2] = ((z << t) + d[4] * x + d[5] * y + d[2] * z + c[2] + r) >> s
     return out
 
 

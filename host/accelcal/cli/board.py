@@ -17,7 +17,7 @@ def cmd_board_virtual(args) -> int:
     board, flash = start_virtual(flash_dir=args.flash, stimulus=args.stimulus, days=args.days,
                                  rate=args.rate, seed=args.seed, bus_faults=args.bus_faults,
                                  heap=args.heap, speed=args.speed, link=args.link,
-                                 port_file=args.port_file, chip=args.chip, say=say)
+                                 port_file=args.port_file, chip=args.chip, bus=args.bus, say=say)
     print(board.port, flush=True)
     what = "emulated Pico (RP2040, MicroPython firmware)" if args.chip == "rp2040" else "virtual board"
     say(f"{what} on {board.port} (flash {flash.resolve()}); try: mpremote connect "
@@ -209,6 +209,11 @@ def _add_virtual(bsub) -> None:
     q.add_argument("--seed", type=int_in(0, 2 ** 32 - 1), default=1)
     q.add_argument("--bus-faults", type=int_in(0, 1000), default=0, metavar="PER_MILLE",
                    help="share of I2C transactions that fail, per mille (default 0)")
+    q.add_argument("--bus", choices=["i2c", "spi"], default="i2c",
+                   help="where the LIS3DH is wired (default i2c): with --chip rp2040 on I2C0 "
+                        "(GP4/GP5) or on SPI0 (GP18 SCK, GP19 MOSI, GP16 MISO, GP17 CS) only, as "
+                        "boards/pico.py has them; the unix port's chip answers on both, and this "
+                        "is its board file's BUS (ACCELCAL_BUS)")
     q.add_argument("--heap", help="MicroPython heap size, e.g. 160k (an RP2040's)")
     q.add_argument("--speed", type=int_in(0, 10000), default=0, help="0: as fast as possible (default); N: N x real time")
     q.add_argument("--link", help="also make this symlink to the port")

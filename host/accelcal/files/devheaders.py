@@ -19,6 +19,7 @@ import os
 import zipfile
 
 from accelcal.errors import InputError
+from accelcal.files.binpages import PAGE_HEX, BinPages
 
 RATE_HZ = (1.0, 1000.0)          # GENEActiv, ActiGraph: a sample rate outside is not a device's
 BIN_HEADER_MAX = 64 * 1024       # a GENEActiv header is ~2 kB (59 lines)
@@ -55,11 +56,13 @@ def _within(path: str, what: str, v: float, lo: float, hi: float, unit: str = ""
                          f"{unit} (a damaged header; the file is not read)")
 
 
-def check_bin(path: str) -> None:
+def check_bin(path: str) -> BinPages:
     """A GENEActiv .bin: the 59-line text header, then pages of "Recorded Data", 8 field lines
-    and a hex line.  Checked: the header's rate, gains and offsets, "Number of Pages" (1 to the pages the file holds, and
-    pages x the first page's hex line within twice the file's size: actfast reserves that), and
-    every page's "Measurement Frequency" (read line by line, BIN_LINE_MAX bytes at a time)."""
+    and a hex line.  Checked: the header's rate, gains and offsets, "Number of Pages" (at least
+    the pages that begin in the file, and pages x a page's hex line within twice the file's
+    size: actfast reserves that), and every page's "Measurement Frequency" (read line by line,
+    BIN_LINE_MAX bytes at a time).  Returns the pages counted: a header declaring more than the
+    file holds is a truncated file, read to its last whole page (files/binpages.py)."""
     size = os.path.getsize(path)
     with open(path, "rb") as fh:
         head = fh.read(BIN_HEADER_MAX)
@@ -84,32 +87,57 @@ def check_bin(path: str) -> None:
             for name, lo, hi in ((f"{axis} gain", 1, GAIN_MAX), (f"{axis} offset", -GAIN_MAX, GAIN_MAX)):
                 if name in fields:
                     _within(path, f"'{name}'", _number(path, f"'{name}'", fields[name], True), lo, hi)
-        # the pages: count them, check each one's rate, note the first one's hex line
+        # the pages: count them (whole ones apart), check each one's rate
         fh.seek(cut)
-        found, first_hex, n_line, at_start = 0, 0, 0, True
+        found, whole, end, n_line, hex_len, first_hex, at_start = 0, 0, cut, 0, 0, 0, True
         while True:
             line = fh.readline(BIN_LINE_MAX)
+            ends = line.endswith(b"\n")
+            if at_start and line.startswith(b"Recorded Data"):
+                found, n_line, hex_len = found + 1, 0, 0
+            n_line += at_start
+            if n_line == 10:                         # "Recorded Data", 8 fields, the hex line
+                hex_len += len(line.strip())
+                first_hex = hex_len if found == 1 else first_hex
+                if (ends or not line) and hex_len >= PAGE_HEX:   # the page is whole
+                    whole, end, n_line = whole + 1, fh.tell(), 11
+            elif at_start and ends and line.startswith(b"Measurement Frequency:"):
+                what = f"'Measurement Frequency' of page {found}"
+                _within(path, what, _number(path, what, line[22:].decode("latin-1")),
+                        *RATE_HZ, " Hz")
             if not line:
                 break
-            if not at_start and found == 1 and n_line == 10:   # the first hex line, continued
-                first_hex += len(line.strip())
-            if at_start:
-                if line.startswith(b"Recorded Data"):
-                    found, n_line = found + 1, 0
-                elif line.startswith(b"Measurement Frequency:"):
-                    what = f"'Measurement Frequency' of page {found}"
-                    _within(path, what, _number(path, what, line[22:].decode("latin-1")),
-                            *RATE_HZ, " Hz")
-                n_line += 1
-                if found == 1 and n_line == 10:      # "Recorded Data", 8 fields, the hex line
-                    first_hex = len(line.strip())
-            at_start = line.endswith(b"\n")
-    if not 1 <= declared <= found:
+            at_start = ends
+    pages = BinPages(declared, found, whole, cut, end)
+    if not 1 <= declared or declared < found or not whole:
         raise InputError(f"{path}: header field 'Number of Pages' is {declared}; the file holds "
-                         f"{found} page{'s' * (found != 1)} (a damaged header; the file is not read)")
+                         f"{found} page{'s' * (found != 1)}, {whole} whole (a damaged header; "
+                         "the file is not read)")
+    if declared > found:   # a truncated file: its reader is given its whole pages (binpages.py)
+        most = _period_pages(path, fields)
+        if not most:
+            raise InputError(f"{path}: header field 'Number of Pages' is {declared}; the file holds "
+                             f"{found}, and no 'Measurement Period' tells a truncated file from a "
+                             "damaged header (the file is not read)")
+        _within(path, "'Number of Pages'", declared, 1, most, " pages")
+        return pages
     if declared * first_hex > 2 * size:
         raise InputError(f"{path}: header field 'Number of Pages' ({declared}) x a page's "
                          f"{first_hex} hex characters is more than the file's {size} bytes hold")
+    return pages
+
+
+def _period_pages(path: str, fields: dict) -> int:
+    """The pages a GENEActiv's configured recording fills ("Measurement Period" hours at the
+    header's rate, 300 samples a page, one more for a partial page): what a truncated file's
+    header may declare (GGIR's test file: 216 h at 85.7 Hz, 222 135 pages; it declares 222 048).
+    A header without both fields cannot tell a truncated file from a damaged count: 0."""
+    if "Measurement Period" not in fields or "Measurement Frequency" not in fields:
+        return 0
+    hours = _number(path, "'Measurement Period'", fields["Measurement Period"].replace("Hours", ""))
+    rate = _number(path, "'Measurement Frequency'", fields["Measurement Frequency"].replace("Hz", ""))
+    _within(path, "'Measurement Period'", hours, 0, 24 * 366, " h")
+    return int(hours * 3600 * rate) // 300 + 1
 
 
 def check_cwa(head: bytes, path: str, size: int) -> None:
@@ -187,12 +215,12 @@ def check_zip(path: str) -> None:
                          f"Date' ({start}) (a damaged header; the file is not read)")
 
 
-def check_device_file(path: str) -> None:
+def check_device_file(path: str) -> BinPages | None:
     """The header check of a device file by its suffix (.bin, .gt3x, .agdc; a .cwa's is made
-    where it is opened, CwaRecording)."""
+    where it is opened, CwaRecording); a .bin's pages as counted."""
     ext = os.path.splitext(path)[1].lower()
     if ext == ".bin":
-        check_bin(path)
+        return check_bin(path)
     elif ext in (".gt3x", ".agdc"):
         check_zip(path)
 

@@ -87,6 +87,7 @@ class Recording:
         self.columns: list[str] = []    # further named columns (CSV only), Chunk.cols
         self.warnings: list[str] = []   # what the reader said of the file (kept in the report)
         self.overlapping_pages: int | None = None   # a paged format's (GENEActiv), resolved
+        self.pages_missing = self.pages_cut = 0      # a truncated file's (binpages.py)
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         raise NotImplementedError
@@ -170,6 +171,16 @@ def _actfast(path: str, fmt: str) -> dict:
     except BaseException as e:  # actfast's own errors, and a Rust panic (a BaseException)
         raise InputError(f"{path}: not a readable {fmt} file "
                          f"({' '.join(str(e).split())[:200]})") from None
+
+
+def _read_bin(path: str, fmt: str, pages) -> dict:
+    """A GENEActiv .bin's whole pages, by actfast (a truncated file's through a scratch copy
+    that declares them, files/binpages.py), a page cut mid-way dropped."""
+    if not pages.short:
+        return _actfast(path, fmt)
+    from accelcal.files.binpages import whole_pages
+    with whole_pages(path, pages) as tmp:
+        return _actfast(tmp, fmt)
 
 
 def _group(timeseries: dict, key: str) -> dict | None:
@@ -270,12 +281,12 @@ class ActigraphyRecording(Recording):
         super().__init__(path)
         ext = Path(path).suffix.lower()
         self.format = ACTIGRAPHY[ext]
-        check_device_file(path)     # what the readers trust, before they see the file
+        pages = check_device_file(path)     # what the readers trust, before they see the file
         data, cols = {}, None
         why = "CentrePoint .agdc files are read by pygt3x"
         if ext != ".agdc":    # actfast does not know CentrePoint files: pygt3x reads them
             try:
-                data = _actfast(path, self.format)
+                data = _read_bin(path, self.format, pages) if pages else _actfast(path, self.format)
             except InputError as e:
                 if ext != ".gt3x":
                     raise
@@ -300,6 +311,9 @@ class ActigraphyRecording(Recording):
         self.range_g = _declared_range(self.meta)
         if ext == ".bin":   # pages whose times overlapped, placed as the maker's readers place them
             self.overlapping_pages = data.get("overlapping_pages", 0)
+            if pages and pages.short:     # a truncated file (files/binpages.py)
+                self.pages_missing, self.pages_cut = pages.missing, pages.cut
+                self.warnings.append(pages.warning())
 
     def chunks(self, size: int = CHUNK) -> Iterator[Chunk]:
         n = len(self.t)
@@ -328,6 +342,10 @@ class CwaRecording(Recording):
         check_cwa(head, path, size)     # the header packet and the first block's rate
         self.header_len = int.from_bytes(head[2:4], "little") + 4
         self.n_blocks = max(0, (size - self.header_len) // self.BLOCK)
+        if self.n_blocks and (size - self.header_len) % self.BLOCK:   # a last block cut: dropped
+            self.pages_cut = 1
+            self.warnings.append(f"a truncated file: {self.n_blocks} whole data blocks and 1 "
+                                 "cut mid-way (dropped)")
         if self.n_blocks == 0:
             raise InputError(f"{path}: {self.format} file holds no data blocks")
         first = self._piece(0, 1)

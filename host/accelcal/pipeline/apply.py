@@ -41,7 +41,7 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     q = g_to_sample(xyz_g, first)
     one_g = float(1 << cal.out_q)   # the calibrated samples' format, Q(13 - e) g (fixed.py)
     if not spec.effects:  # the twin of cal.apply_samples (tests/bridge/test_vector.py: bit-exact)
-        return twin.apply_params(p_int, q, range_g=range_g) / one_g
+        return twin.apply_params(p_int, q, range_g=range_g, first=first) / one_g
     board = [c for c in spec.columns if c in {q.column for q in COLUMN_QUANTITIES}]
     _check_inputs(spec, temp, board, cols, source)
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q),

@@ -385,6 +385,8 @@ def calibrate_recording(path: str, cfg: runtime.Config, method: str, runtime_nam
     rec.update(quality(sc, m))
     if rec_in.overlapping_pages is not None:   # files/pagetimes.py
         rec["overlapping_pages"] = rec_in.overlapping_pages
+    if rec_in.pages_missing or rec_in.pages_cut:   # a truncated file (files/binpages.py)
+        rec.update(pages_missing=rec_in.pages_missing, pages_cut=rec_in.pages_cut)
     if rec_in.warnings:
         rec["reader_warnings"] = rec_in.warnings
     rec = Fit(g, r, cfg, spec, method, points).record(rec)

@@ -113,6 +113,8 @@ class CalibrationResult(Record):
                 f"{ex['nonwear']} non-wear = {r['nonwear_hours']:.2f} h, {ex['imputed']} imputed, "
                 f"{ex['clipped']} clipped), clipping {r['clipped_pct']:.3f} %"
                 + (f", {tr[0]:.1f}..{tr[1]:.1f} degC" if tr else ", no temperature"))
+            lines += [f"{head}warning: {w}" for w in r.get("reader_warnings", ())
+                      if w.startswith("a truncated file")]    # files/binpages.py
         if not self.ok:
             label = "NOT ENOUGH DATA" if r["status"] == "not_enough_data" else "FAILED"
             lines.append(f"{head}{label}: {r['reason']}")

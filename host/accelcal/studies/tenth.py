@@ -19,7 +19,9 @@ every still window's mean by up to 0.49 mg, the same in every window of a postur
   device_nearest  the device's fit offered means of Q10 samples rounded to the nearest LSB (the
              format before the dither)
   output     the device's parameters through `apply`'s path (the recording's Q10 samples in,
-             the device's Q13 output), each window's mean of the output scored: the written output
+             the device's Q13 output: K - I in Q18 and K o in Q28, the output rounded with
+             its dither, fixed.py "apply"), each window's mean of the output scored: the
+             written output
   output_nearest  the same with the nearest-LSB Q10 samples in (and device_nearest's parameters)
 
 Shares: the bins' points (lsq_bins - lsq_all), the Q10 rounding in the fit's points (device -
