@@ -25,6 +25,7 @@ import numpy as np
 from acal.core import effects as deff
 from acal.core import fixed
 from acal.core import rest as drest
+from acal.core.calibration import _base_params
 from acal.core.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from accelcal import fixedpoint
 
@@ -289,14 +290,12 @@ def _apply_base(p_int, q: np.ndarray, e: int, first: int) -> np.ndarray:
     """calibration._apply_block's base model on the clamped readings q (Q10 g): D = K - I in
     Q(18 - e) and c = K o in Q(28 - e) g as calibration._base_params makes them (its exact
     floors: Python's ints), a = ((x << (18 - e)) + D x + c + r_i) >> 15, r_i the output's
-    dither of sample first + i."""
-    p = [int(v) for v in p_int[:9]]
-    ds = fixed.PARAM_Q - fixed.APPLY_D_Q + e
-    d = [(p[i] - (fixed.PARAM_ONE if i < 3 else 0) + (1 << (ds - 1))) >> ds for i in range(6)]
-    cs = 2 * fixed.PARAM_Q - fixed.APPLY_C_Q + e - 1
+    dither of sample first + i.  D and c are the device's own (_base_params: per calibration,
+    not per sample)."""
+    k = [0] * 9
+    _base_params([int(v) for v in p_int[:9]], k, e)
+    d, c = k[:6], k[6:]
     s = fixed.APPLY_OUT_SHIFT
-    c = [(sum((p[a] * p[b]) >> cs for a, b in row) + 1) >> 1
-         for row in (((0, 6),), ((3, 6), (1, 7)), ((4, 6), (5, 7), (2, 8)))]
     r = ((first + np.arange(len(q), dtype=np.int64)) * fixed.APPLY_DITHER_STEP) & \
         fixed.APPLY_DITHER_MASK
     t = fixed.APPLY_D_Q - e
