@@ -100,13 +100,16 @@ for i in range(3):
 s = HeldScore()
 out = int32s(2)   # results: a returned tuple would itself allocate
 kinds = ()
+ref = int32s(3)   # the references, the points' columns: 25 (Q2 degC), 0, 3300 mV
+ref[0] = 25
+ref[2] = 3300
 
 
 def work(s, p, h, kinds, out):
-    out[0] = s.score(p, kinds, h, 25, 0, 3300)
+    out[0] = s.score(p, kinds, h, ref)
     s.keep_as_base(h.count)
     p[6] = p[6] + 20000
-    s.score(p, kinds, h, 25, 0, 3300)
+    s.score(p, kinds, h, ref)
     out[1] = s.better_blocks(h)
 
 

@@ -1,8 +1,8 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
-                       int32s)
+from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS,
+                            conditions, int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
 from acal.core.fixed import N_PARAMS, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.gaussnewton import GaussNewton
@@ -35,15 +35,14 @@ class Pipeline(Sliced):
 
     kinds: the effects of a composed model (acal.core.effects ids; () is the paper's model).  Their
     bins track temperature, time and the board's supply (bins.py), and the feeder keeps the
-    conditions `now` current (below); a fit takes
-    each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
-    ref_supply), which the calibration keeps.  iterations None: 50 for the
+    conditions `now` current (below); a fit takes each point's conditions relative to the
+    middle of the held points' ranges (`ref`, now's columns), which the calibration keeps.  iterations None: 50 for the
     paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
     NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
 
     A model with a step (effects.STEP; NEWTON only): the model without the step is fitted
     first, acal/core/changepoint.py finds the step's time on its residuals (step_time, 64 s units
-    from ref_time, which the calibration keeps), and the whole model is fitted from there.
+    from ref[C_TIME], which the calibration keeps), and the whole model is fitted from there.
 
     The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
     between FIFO reads), or calibrate() at once; the same integers either way.
@@ -124,9 +123,7 @@ class Pipeline(Sliced):
             self.reference = reference
         # the conditions now (bins.conditions(1): C_TEMP, C_TIME, C_SUPPLY), shared with the feeder
         self.now = conditions(1) if now is None else now
-        self.ref_temp = 0
-        self.ref_time = 0
-        self.ref_supply = 0
+        self.ref = conditions(1)   # a composed fit's references, now's columns (_centre)
         self.on_rest = on_rest
         self.rest_count = 0
         self.worn = True
@@ -202,15 +199,14 @@ class Pipeline(Sliced):
         return not self.kinds and self.plug is None
 
     def _centre(self):
-        # the references, one at a time (a tuple of the three would be the fit's only
-        # allocation), and each point's conditions relative to them
+        # the references, column by column into self.ref, and each point's conditions
+        # relative to them
         aux = self.aux
         n = self.n_fit
         kinds = self.kinds
         r = self.reference
-        self.ref_temp = r.centre(aux, n, 0, r.lowest(kinds, 0))
-        self.ref_time = r.centre(aux, n, 1, r.lowest(kinds, 1))
-        self.ref_supply = r.centre(aux, n, 2, r.lowest(kinds, 2))
+        for c in range(COND):
+            self.ref[c] = r.centre(aux, n, c, r.lowest(kinds, c))
         self.phase = _BEGIN
 
     def _begin(self):

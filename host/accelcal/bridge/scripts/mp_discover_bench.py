@@ -93,7 +93,7 @@ def place(lock=False):
         d.params[k] = 1 << 24      # unit scale (kxx kyy kzz, Q24), no offsets
     d.params[9] = d.params[10] = d.params[11] = 134218   # the step's jumps: 8 mg in Q24 g
     fitted_time = 18 * 225          # after every held-out point
-    d.score.begin(d.params, (effects.STEP,), h, 30, 0, 3300, fitted_time)
+    d.score.begin(d.params, (effects.STEP,), h, (30, 0, 3300), fitted_time)
     pl = d.place
     pl.begin(d.score, h, 0, -1, fitted_time, 100000, discover.BLOCK_SCAN)
     for name in ("gap", "place"):

@@ -116,7 +116,8 @@ class Runner:
                    b.supply_span()])
         status = pipe.calibrate()
         o = pipe.optimiser
-        emit("Z", [pipe.ref_temp, pipe.ref_time, pipe.step_time, pipe.ref_supply])
+        ref = pipe.ref
+        emit("Z", [ref[C_TEMP], ref[C_TIME], pipe.step_time, ref[C_SUPPLY]])
         q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:
