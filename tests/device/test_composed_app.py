@@ -86,7 +86,7 @@ def test_the_board_fits_the_effect_in_integers(ran):
     # c at the board's reference (the held points' middle temperature), in g/degC.
     cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
     assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
-    assert held.temp_span() >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
+    assert held.span(C_TEMP) >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
 
 
 def test_replay_reproduces_cal_and_effect_records(ran):

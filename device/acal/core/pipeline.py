@@ -4,7 +4,7 @@ from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS,
                             conditions, int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
-from acal.core.fixed import N_PARAMS, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import N_PARAMS
 from acal.core.gaussnewton import GaussNewton
 from acal.core import gaussnewton
 from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
@@ -144,7 +144,7 @@ class Pipeline(Sliced):
         plug = self.plug
         if plug is None or plug.offer(self, x, y, z):
             c = self.now
-            s = self.bins.offer(x, y, z, c[C_TEMP], c[C_TIME], c[C_SUPPLY])
+            s = self.bins.offer(x, y, z, c)
         else:
             s = -1
         if self.on_rest is not None:
@@ -318,7 +318,7 @@ def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
     all three conditions, e.g. for a plug's candidates), and the spread weights with them
     (bins.set_differ)."""
-    bins.set_differ(_needed(kinds, 0, every), _needed(kinds, 1, every), _needed(kinds, 2, every))
+    bins.set_differ([_needed(kinds, c, every) for c in range(COND)])
 
 
 def _needed(kinds, c, every):

@@ -50,7 +50,7 @@ def main():
     for b in range(18):
         for k in range(8):
             x, y, z = POSTURES[k]
-            h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300)
+            h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300))
     d = discover.Discover(72, h)
     s = d.score
     for i in range(h.count):
@@ -87,7 +87,7 @@ def place(lock=False):
     for b in range(18):
         for k in range(8):
             x, y, z = POSTURES[k]
-            h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300)
+            h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300))
     d = discover.Discover(72, h)
     for k in range(3):
         d.params[k] = 1 << 24      # unit scale (kxx kyy kzz, Q24), no offsets

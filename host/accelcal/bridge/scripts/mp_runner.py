@@ -112,8 +112,8 @@ class Runner:
                 x, y, z = b.point(s, k)
                 temp, time, supply = b.condition(s, k)
                 emit("S", [x, y, z, temp, time, supply])
-        emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0,
-                   b.supply_span()])
+        emit("Y", [1 if b.ready() else 0, b.span(C_TEMP), b.span(C_TIME), 1 if b.covered() else 0,
+                   b.span(C_SUPPLY)])
         status = pipe.calibrate()
         o = pipe.optimiser
         ref = pipe.ref
