@@ -118,6 +118,7 @@ class GaussNewton(Sliced):
         self.z = int32s(3)
         self.q = int32s(3)
         self.nk = len(self.kinds)
+        self.ncond = COND               # aux's conditions a point, for normal_sums' viper rows
         self.kind_ids = int32s(self.nk)
         for k in range(len(self.kinds)):
             self.kind_ids[k] = self.kinds[k]

@@ -206,7 +206,7 @@ class Pipeline(Sliced):
         kinds = self.kinds
         r = self.reference
         for c in range(COND):
-            self.ref[c] = r.centre(aux, n, c, r.lowest(kinds, c))
+            self.ref[c] = r.centre(aux, n, c, r.lowest(kinds, c), COND)
         self.phase = _BEGIN
 
     def _begin(self):
