@@ -10,20 +10,15 @@
 # (the axis for n/p, the ring's diagonals for 0; badness) when it is nearer: the selection keeps
 # improving while rest data flows (docs/method-and-formats.md).
 # Composed models (docs/model-discovery.md "Bins for composed models"): an effect's parameters are
-# only seen in points that differ in temperature (temp_offset, temp_scale), time (drift) or the
-# board's supply (supply_offset, mV).  With a condition's threshold set (set_differ: `differs`, a
-# threshold a column, fixed.C_TEMP ...: Q2 degC, 64 s units, mV), each slot also holds its point's
-# conditions (COND columns), and:
-#   - a point near a held one in orientation still differs from it when a tracked condition
-#     differs by its threshold or more (the same point seen warmer, or a day later);
-#   - a full subset's slots have two roles: the first half keep well-placed points (CENTRE:
-#     the 9 parameters need them), the second half keep spread (an effect's term gets most
-#     leverage from extremes): a new point replaces the spread slot whose replacement most widens
-#     the subset's spread (each condition's range per its threshold, _spread) by a quarter
-#     threshold or more, of equals the newest (time only grows: keeping the early points keeps
-#     a step's or a drift's leverage), then the worst placed; else, by CENTRE, a placement slot.
-#     No replacement narrows the spread.
-#   - ready() also needs the held points together to span each threshold.
+# only seen in points that differ in the condition it reads (temperature, time, the supply...).
+# With a column's threshold set (set_differ: `differs`, fixed.C_TEMP ...'s order), each slot also
+# holds its point's conditions (COND columns), and: a point near a held one in orientation still
+# differs from it when a tracked condition differs by its threshold or more; a full subset's first
+# half of slots keep well-placed points (CENTRE), the second half spread: a new point replaces the
+# spread slot whose replacement most widens the subset's spread (each column's range per its
+# threshold, _spread) by a quarter threshold or more, of equals the newest (keeping a step's or a
+# drift's leverage), then the worst placed; else, by CENTRE, a placement slot; no replacement
+# narrows the spread; ready() also needs the held points to span each threshold.
 from array import array
 
 from acal.core import hemisphere
@@ -146,6 +141,8 @@ class Bins:
         self.policy = policy
         self.differs = [0] * COND   # the conditions' thresholds (set_differ), COND's order
         self._w = [0] * COND        # the spread's weights (set_differ)
+        self._lo, self._lo2, self._lk = [0] * COND, [0] * COND, [0] * COND  # a subset's extremes
+        self._hi, self._hi2, self._hk = [0] * COND, [0] * COND, [0] * COND  # a column (_extremes)
         self.c = conditions(1)      # an offered point's conditions (offer)
         self.set_differ(self.differs if differs is None else differs)
         self.need_span = True   # False: ready() does not wait for the spreads (acal/discover/search.py)
@@ -263,28 +260,51 @@ class Bins:
                 first = False
         return hi - lo
 
-    def _spread(self, s, skip, src, o):
-        # The spread score of subset s, slot `skip` holding the conditions src[o:o + COND]
-        # instead: each tracked column's range per its threshold times the thresholds' product
-        # over their common divisor (set_differ's weights: 225, 4, 27), < 2**30 for 125 degC,
-        # 2**20 time units, 65 V (tests/device/test_bins.py).
+    def _extremes(self, s):
+        # Per tracked column, subset s's lowest and highest condition, the slot holding each and
+        # the next lowest and highest (of the other slots; None when there is none), for _spread.
         m = self.max_count
         cond = self.cond
+        n = self.counts[s]
+        for c in range(COND):
+            if not self._w[c]:
+                continue
+            lo1 = hi1 = lo2 = hi2 = None
+            lk = hk = -1
+            j = COND * s * m + c
+            for k in range(n):
+                v = cond[j]
+                if lo1 is None or v < lo1:
+                    lo2, lo1, lk = lo1, v, k
+                elif lo2 is None or v < lo2:
+                    lo2 = v
+                if hi1 is None or v > hi1:
+                    hi2, hi1, hk = hi1, v, k
+                elif hi2 is None or v > hi2:
+                    hi2 = v
+                j += COND
+            self._lo[c], self._lo2[c], self._lk[c] = lo1, lo2, lk
+            self._hi[c], self._hi2[c], self._hk[c] = hi1, hi2, hk
+
+    def _spread(self, skip, src, o):
+        # The spread score of the subset _extremes read, slot `skip` holding the conditions
+        # src[o:o + COND] instead: each tracked column's range per its threshold times the
+        # thresholds' product over their common divisor (set_differ's weights: 225, 4, 27),
+        # < 2**30 for 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
         w = self._w
         total = 0
         for c in range(COND):
-            if not w[c]:
+            wc = w[c]
+            if not wc:
                 continue
-            lo = hi = src[o + c]
-            for k in range(self.counts[s]):
-                if k == skip:
-                    continue
-                v = cond[COND * (s * m + k) + c]
-                if v < lo:
-                    lo = v
-                elif v > hi:
-                    hi = v
-            total += (hi - lo) * w[c]
+            v = src[o + c]
+            lo = self._lo2[c] if skip == self._lk[c] else self._lo[c]
+            hi = self._hi2[c] if skip == self._hk[c] else self._hi[c]
+            if lo is None or v < lo:
+                lo = v
+            if hi is None or v > hi:
+                hi = v
+            total += (hi - lo) * wc
         return total
 
     def set_differ(self, differs):
@@ -297,11 +317,10 @@ class Bins:
         g = 0
         for c in range(COND):
             g = _gcd(g, prod // (differs[c] or 1))
-        self.tracked = False
         for c in range(COND):   # untracked: held values count no more (an adoption that ends
             d = differs[c]      # the discovery stops tracking)
             self._w[c] = (prod // d) // g if d else 0
-            self.tracked = self.tracked or d != 0
+        self.tracked = any(self._w)
         self._w_gain = (prod // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
 
     def _far_from_all(self, x, y, z, src, skip):
@@ -321,13 +340,11 @@ class Bins:
                 i = 3 * slot
                 if -d < x - xyz[i] < d and -d < y - xyz[i + 1] < d and -d < z - xyz[i + 2] < d:
                     j = COND * slot
-                    far = False
                     for c in range(COND):
                         dc = differs[c]
                         if dc and not -dc < src[c] - cond[j + c] < dc:
-                            far = True
-                            break
-                    if not far:
+                            break   # far in a tracked condition
+                    else:
                         return False
         return True
 
@@ -375,7 +392,8 @@ class Bins:
                 continue
             now = 0  # the subset's spread as it is: slot 0 "replaced" by itself
             if tracked:
-                now = self._spread(s, 0, self.cond, COND * s * m)
+                self._extremes(s)
+                now = self._spread(0, self.cond, COND * s * m)
             widest = -1
             widest_spread = now + gain - 1
             widest_bad = -1
@@ -383,7 +401,7 @@ class Bins:
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
-                spread = self._spread(s, k, c, 0) if tracked else 0
+                spread = self._spread(k, c, 0) if tracked else 0
                 if spread < now:
                     continue  # would narrow the spread the effects need
                 i = 3 * (s * m + k)
