@@ -143,8 +143,6 @@ SUPPLY_NAMED = {
     "host/accelcal/fixedpoint.py": "its QUANTITIES row",
     "host/accelcal/model/effects.py": "its CATALOGUE effect and recording column",
     "host/accelcal/bridge/boardlog.py": "decodes the SUPPLY record and the EFFECT reference",
-    "host/accelcal/bridge/protocol.py": "DeviceResult's ref_supply / supply_span (Y, Z records)",
-    "host/accelcal/bridge/scripts/mp_runner.py": "the runner's records (no host table there)",
     "host/accelcal/bridge/twin.py": "the vectorised apply's regressor of its source",
     "host/accelcal/pipeline/apply.py": "the difference from its reference handed to the twin",
     "host/accelcal/pipeline/discovered.py": "a discovered supply effect's report",
@@ -167,5 +165,6 @@ def test_the_supply_is_named_only_where_the_list_allows():
     assert named <= set(SUPPLY_NAMED), sorted(named - set(SUPPLY_NAMED))
     # the core's conditions path names no quantity: the references and the offers are columns
     for f in ("device/acal/core/pipeline.py", "device/acal/core/reference.py",
-              "device/acal/discover/heldout.py", "device/acal/discover/plug.py"):
+              "device/acal/discover/heldout.py", "device/acal/discover/plug.py",
+              "host/accelcal/bridge/protocol.py", "host/accelcal/bridge/scripts/mp_runner.py"):
         assert not names_supply(ROOT / f), f

@@ -16,7 +16,7 @@
 # differs from it when a tracked condition differs by its threshold or more; a full subset's first
 # half of slots keep well-placed points (CENTRE), the second half spread: a new point replaces the
 # spread slot whose replacement most widens the subset's spread (each column's range per its
-# threshold, _spread) by a quarter threshold or more, of equals the newest (keeping a step's or a
+# threshold, _extremes) by a quarter threshold or more, of equals the newest (keeping a step's or a
 # drift's leverage), then the worst placed; else, by CENTRE, a placement slot; no replacement
 # narrows the spread; ready() also needs the held points to span each threshold.
 from array import array
@@ -141,8 +141,7 @@ class Bins:
         self.policy = policy
         self.differs = [0] * COND   # the conditions' thresholds (set_differ), COND's order
         self._w = [0] * COND        # the spread's weights (set_differ)
-        self._lo, self._lo2, self._lk = [0] * COND, [0] * COND, [0] * COND  # a subset's extremes
-        self._hi, self._hi2, self._hk = [0] * COND, [0] * COND, [0] * COND  # a column (_extremes)
+        self._ex = [0] * (6 * COND)  # a subset's extremes, 6 a column (_extremes)
         self.c = conditions(1)      # an offered point's conditions (offer)
         self.set_differ(self.differs if differs is None else differs)
         self.need_span = True   # False: ready() does not wait for the spreads (acal/discover/search.py)
@@ -261,13 +260,16 @@ class Bins:
         return hi - lo
 
     def _extremes(self, s):
-        # Per tracked column, subset s's lowest and highest condition, the slot holding each and
-        # the next lowest and highest (of the other slots; None when there is none), for _spread.
-        m = self.max_count
-        cond = self.cond
-        n = self.counts[s]
+        # Per tracked column c, subset s's lowest condition, the next (of the other slots; None:
+        # none), the lowest's slot, and the same for the highest, in self._ex[6 c:6 c + 6]; returns
+        # the subset's spread score as it is (offer's, whose loop reads _ex: a call a slot would
+        # take a heap frame a slot).  The score: each column's range per its threshold times the
+        # thresholds' product over their common divisor (set_differ's weights: 225, 4, 27), < 2**30
+        # at 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
+        m, cond, ex = self.max_count, self.cond, self._ex   # (three: no tuple made)
+        w, n, now = self._w, self.counts[s], 0
         for c in range(COND):
-            if not self._w[c]:
+            if not w[c]:
                 continue
             lo1 = hi1 = lo2 = hi2 = None
             lk = hk = -1
@@ -283,29 +285,11 @@ class Bins:
                 elif hi2 is None or v > hi2:
                     hi2 = v
                 j += COND
-            self._lo[c], self._lo2[c], self._lk[c] = lo1, lo2, lk
-            self._hi[c], self._hi2[c], self._hk[c] = hi1, hi2, hk
-
-    def _spread(self, skip, src, o):
-        # The spread score of the subset _extremes read, slot `skip` holding the conditions
-        # src[o:o + COND] instead: each tracked column's range per its threshold times the
-        # thresholds' product over their common divisor (set_differ's weights: 225, 4, 27),
-        # < 2**30 for 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
-        w = self._w
-        total = 0
-        for c in range(COND):
-            wc = w[c]
-            if not wc:
-                continue
-            v = src[o + c]
-            lo = self._lo2[c] if skip == self._lk[c] else self._lo[c]
-            hi = self._hi2[c] if skip == self._hk[c] else self._hi[c]
-            if lo is None or v < lo:
-                lo = v
-            if hi is None or v > hi:
-                hi = v
-            total += (hi - lo) * wc
-        return total
+            b = 6 * c
+            ex[b], ex[b + 1], ex[b + 2] = lo1, lo2, lk
+            ex[b + 3], ex[b + 4], ex[b + 5] = hi1, hi2, hk
+            now += (hi1 - lo1) * w[c]
+        return now
 
     def set_differ(self, differs):
         """Set the thresholds, one a column (COND of them, 0: untracked; only so): the spread
@@ -385,15 +369,13 @@ class Bins:
         if self.policy != CENTRE:
             return -1
         tracked = self.tracked
+        w, ex = self._w, self._ex
         gain = self._w_gain
         for axis in range(3):
             s = subset_of(x if axis == 0 else (y if axis == 1 else z), axis, self.lo_out)
             if s < 0:
                 continue
-            now = 0  # the subset's spread as it is: slot 0 "replaced" by itself
-            if tracked:
-                self._extremes(s)
-                now = self._spread(0, self.cond, COND * s * m)
+            now = self._extremes(s) if tracked else 0   # the subset's spread as it is
             widest = -1
             widest_spread = now + gain - 1
             widest_bad = -1
@@ -401,7 +383,19 @@ class Bins:
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
-                spread = self._spread(k, c, 0) if tracked else 0
+                spread = 0   # with slot k holding the point instead (_extremes)
+                for j in range(COND if tracked else 0):
+                    wc = w[j]
+                    if wc:
+                        v = c[j]
+                        b = 6 * j
+                        lo = ex[b + 1] if k == ex[b + 2] else ex[b]
+                        hi = ex[b + 4] if k == ex[b + 5] else ex[b + 3]
+                        if lo is None or v < lo:
+                            lo = v
+                        if hi is None or v > hi:
+                            hi = v
+                        spread += (hi - lo) * wc
                 if spread < now:
                     continue  # would narrow the spread the effects need
                 i = 3 * (s * m + k)
