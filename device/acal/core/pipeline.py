@@ -10,9 +10,9 @@ from acal.core import gaussnewton
 from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 
-# the fit's phases: their slices' places in the table (acal/core/slices.py; _DONE their count)
+# the fit's phases: their slices' places in the table (acal/core/status.py; _DONE their count)
 _BASE = 0       # the base fit (a composed model's, NEWTON), a slice a step
 _MODEL = 1      # the model's own fit, a slice a step
 _BASE_END = 2   # the base fit ended: a step's search begun, or the model's own fit

@@ -21,7 +21,7 @@ from acal.core.gaussnewton import GaussNewton
 from acal.discover.score import HeldScore
 from acal.discover.stepplace import StepPlace
 from acal.core.status import OK
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -59,7 +59,7 @@ SCORE_POINTS = const(1)      # held-out points scored (2 took 2.23-2.42 ms as ru
 BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slot's block (a
 # whole pass of CAPACITY took 2.35 and 2.45 ms)
 
-# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
+# the phases: their slices' places in the table (acal/core/status.py; _DONE is their count)
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
 _SEARCH = 2     # a step's change-point search on the base fit
