@@ -9,6 +9,7 @@ import pytest
 from acal.core import effects as deff
 from acal.core.fixed import TEMP_Q
 from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
+from acal.core.bins import COND
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, run_both
@@ -28,6 +29,13 @@ def inputs(rng, n=400):
 STEP_AT = 5 * 86400 // DT_UNIT    # a step's time in the tests, 64 s units
 
 
+def rel(dT, dt, dV):
+    """The relative conditions (now - ref, the columns fixed.C_*) the effect code reads."""
+    d = [0] * COND
+    d[C_TEMP], d[C_TIME], d[C_SUPPLY] = dT, dt, dV
+    return d
+
+
 @pytest.mark.parametrize("name", device_effects())
 def test_fit_and_apply_forms_match_the_float_model(name, rng):
     e = CATALOGUE[name]
@@ -41,13 +49,13 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
     deff.apply_params(e.kind, p, 0, k, 0)
     for (x, y, z), a, b, c_v, w in zip(v, dT, dt, dV, want):
         u = [int(round(c * 2 ** 24)) for c in (x, y, z)]
-        deff.correct_u(e.kind, p, 0, u, int(a), int(b), 0, STEP_AT, int(c_v))
+        deff.correct_u(e.kind, p, 0, u, rel(int(a), int(b), int(c_v)), 0, 0, STEP_AT)
         # Q24: rounding only (the generic offsets' powers: each a floor in Q16)
         assert np.abs(np.array(u) / 2 ** 24 - w).max() < (2e-7 if e.kind not in deff.SHAPES else 5e-6)
         s = [int(round(c * 1024)) for c in (x, y, z)]
         acc = [c << 4 for c in s]
-        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], int(a), int(b), STEP_AT,
-                            int(c_v))
+        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], rel(int(a), int(b), int(c_v)),
+                            STEP_AT)
         # Q14 out, Q10 in (the sample's own rounding, 0.5 mg, is the larger part for q v^2).
         exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([a / TEMP_ONE]),
                           np.array([b * float(DT_UNIT)]), ref,
@@ -67,8 +75,8 @@ def test_apply_path_stays_small_at_the_worst_case(e):
         deff.apply_params(kind, [sign * deff.BOUNDS[kind]] * 3, 0, k, 0)
         for x in (-edge, edge):
             acc = [T(x << (4 - e))] * 3
-            deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x), T(temp), T(far),
-                                T(0), T(far // 100), e)      # supply past its clamp too
+            deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x),
+                                rel(T(temp), T(far), T(far // 100)), T(0), e)   # supply past its clamp too
     assert tr.ops > 100 and tr.max_abs < 2 ** 30, tr.max_abs
 
 
@@ -89,13 +97,17 @@ def test_apply_form_at_larger_full_scales_matches_the_float_model(name, rng):
                           {"supply_mv": dV.astype(float)})
         for row, a, b, c_v, w in zip(s.tolist(), dT.tolist(), dt.tolist(), dV.tolist(), want):
             acc = [c << (4 - e) for c in row]
-            deff.correct_sample(e_.kind, k, 0, acc, row[0], row[1], row[2], a, b, STEP_AT, c_v, e)
+            deff.correct_sample(e_.kind, k, 0, acc, row[0], row[1], row[2], rel(a, b, c_v), STEP_AT,
+                                e)
             # floors in Q(14 - e) and q v^2's in Q(10 - e) g^2: a few LSB of Q(14 - e)
             assert np.abs(np.array(acc) / 2 ** (14 - e) - w).max() < 3e-4 * 2 ** e
 
 
 SCRIPT = r'''
 from acal.core import effects
+from acal.core.bins import COND
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
+d = [0] * COND
 out = []
 for kind in sorted(effects.NAMES):
     p = [rnd(effects.BOUNDS[kind]) for _ in range(3)]
@@ -106,10 +118,11 @@ for kind in sorted(effects.NAMES):
         dT = rnd(160)
         dt = rnd(1 << 15)
         dV = rnd(1500)
-        effects.correct_u(kind, p, 0, u, dT, dt, 0, 1000, dV)
+        d[C_TEMP], d[C_TIME], d[C_SUPPLY] = dT, dt, dV
+        effects.correct_u(kind, p, 0, u, d, 0, 0, 1000)
         x, y, z = rnd(2097), rnd(2097), rnd(2097)
         w = [x << 4, y << 4, z << 4]
-        effects.correct_sample(kind, k, 0, w, x, y, z, dT, dt, 1000, dV)
+        effects.correct_sample(kind, k, 0, w, x, y, z, d, 1000)
         out.append(" ".join(map(str, u + w)))
 print("\n".join(out))
 '''
@@ -213,8 +226,9 @@ def test_an_effect_of_an_existing_form_is_one_table_row(rng):
         for row, d, w in zip(v, dV.tolist(), v - theta * x2):     # the fit's form, Q24
             u = [int(round(c * 2 ** 24)) for c in row]
             a = array("i", u)
-            deff.correct_u(new, p, 0, u, 0, 0, 0, 0, d)
-            deff.correct_kinds(array("i", [new]), 0, 1, array("i", p), 0, a, 0, 0, 0, d, 0)
+            deff.correct_u(new, p, 0, u, rel(0, 0, d), 0, 0, 0)
+            deff.correct_kinds(array("i", [new]), 0, 1, array("i", p), 0, a,
+                               array("i", rel(0, 0, d)), 0, 0, 0)
             assert list(a) == u and np.abs(np.array(u) / 2 ** 24 - w).max() < 2e-6
         ident = [1 << 24] * 3 + [0] * 6
         cal = Calibration((new,))                              # the apply: a block per dV

@@ -17,7 +17,15 @@ from acal.paper import objective
 from acal.core.rest import ALL_AXES, RestDetector
 from accelcal.bridge.ranges import (SMALL_INT_LIMIT, Int32s, TracedArray, Tracer, traced,
                                      traced_gauss_newton, traced_optimiser, viper_casts)
+from acal.core.bins import COND
 from conftest import effect_orders
+
+
+def rel(dT, dt, dV):
+    """The relative conditions (now - ref, the columns fixed.C_*) the effect code reads."""
+    d = [0] * COND
+    d[fixed.C_TEMP], d[fixed.C_TIME], d[fixed.C_SUPPLY] = dT, dt, dV
+    return d
 
 
 @pytest.fixture(autouse=True)
@@ -358,13 +366,14 @@ def test_effects_fit_form_stays_small_at_its_clamps():
                     for dT in (-1000, -effects.APPLY_DT_MAX, -3, 0, 5, effects.APPLY_DT_MAX, 1000):
                         for dt in (-(1 << 28), -effects.FIT_TIME_MAX, 0, effects.FIT_TIME_MAX, 1 << 28):
                             u = [T(u0), T(-u0), T(w)]
-                            effects.correct_u(kind, p, 0, u, T(dT), T(dt), 0, T(0))
+                            effects.correct_u(kind, p, 0, u, rel(T(dT), T(dt), T(0)), 0, 0, T(0))
     for order in effect_orders():
         for sgn in (-1, 1):
             p = [0] * 9 + [T(sgn * 4 * effects.BOUNDS[k]) for k in order for _ in range(3)]
             for u0 in (-w, w):
                 u = [T(u0), T(-u0), T(u0)]
-                model.remove_effects(p, order, u, 0, T(sgn * 1000), T(-sgn * (1 << 28)), T(0))
+                model.remove_effects(p, order, u, 0, rel(T(sgn * 1000), T(-sgn * (1 << 28)), T(0)),
+                                     0, T(0))
                 assert max(abs(int(v)) for v in u) <= w
     assert tr.big == 0, (tr.big, np.log2(tr.max_abs))
 

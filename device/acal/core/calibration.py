@@ -10,7 +10,6 @@ from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIF
 from acal.core import effects
 from acal.core.wide import mul_shift
 from acal.core.bins import int32s, conditions, COND
-from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.model import identity, in_bounds, effects_within
 
@@ -49,6 +48,7 @@ class Calibration:
         self.terms = int32s(4 * len(self.kinds))
         self.terms_valid = False
         self.at = conditions(1)    # the conditions the terms were made at
+        self.rel = conditions(1)   # and relative to the references (now - ref)
         self.x = 0
         self.y = 0
         self.z = 0
@@ -117,17 +117,17 @@ class Calibration:
 
     def _block_terms(self):
         # The effects' forms and terms (effects.block_terms) at the current conditions, last
-        # effect first: at now - ref, column by column.
+        # effect first: at d = now - ref, column by column.
         kinds = self.kinds
         c = self.now
         r = self.ref
-        dT = c[C_TEMP] - r[C_TEMP]
-        dt = c[C_TIME] - r[C_TIME]
-        dV = c[C_SUPPLY] - r[C_SUPPLY]
+        d = self.rel
+        for i in range(COND):
+            d[i] = c[i] - r[i]
         n = len(kinds)
         for j in range(n):
             effects.block_terms(kinds[n - 1 - j], self.k, N_PARAMS + 3 * (n - 1 - j), self.terms,
-                                4 * j, dT, dt, self.step_time, dV, self.e)
+                                4 * j, d, self.step_time, self.e)
         self.terms_valid = True
         for i in range(COND):
             self.at[i] = c[i]

@@ -43,7 +43,7 @@
 #   gaussnewton.py, parameters below 2**22 - the wide products go through acal/core/wide.py, whose
 #   floors equal the plain (a * b) >> s.
 from acal.core.wide import mul_shift
-from acal.core.fixed import TEMP_DT_MAX
+from acal.core.fixed import TEMP_DT_MAX, C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
 from array import array
 try:
@@ -71,6 +71,17 @@ APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the referen
 APPLY_TIME_MAX = const(1048575)   # dt units
 FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
 _G = GENERIC_TIME_MAX
+# THE SOURCES: where each source's value stands in the relative conditions d (a point's or a
+# block's conditions minus their references, bins.COND columns, fixed.C_*: made once a block or a
+# point) and how it becomes the regressor's Q16 base: source: (column, shift, clamp) - the value
+# d[column] clamped to +-clamp (0: the effect row's time reach) and shifted left.  A step reads
+# its column unclamped against ts.  A new board quantity's source is one row here.
+SOURCES = {
+    SOURCE_TEMP: (C_TEMP, 10, APPLY_DT_MAX),    # dT / 16 in Q16 from Q2 degC, <= 2**17
+    SOURCE_TIME: (C_TIME, 3, 0),                # dt / 2**13 in Q16
+    SOURCE_STEP: (C_TIME, 0, 0),                # [dt >= ts]
+    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),   # dV / 1024 in Q16, <= 2**16
+}
 TEMP_OFFSET = const(1)
 TEMP_SCALE = const(2)
 DRIFT = const(3)
@@ -134,16 +145,12 @@ def is_generic(kind):
 
 
 def condition_of(kind):
-    """The condition an effect's regressor reads, as bins.COND orders a point's conditions
-    (0 temperature, 1 time: a step's too, 2 supply; -1 none, NONLINEAR): with bins.DIFFERS,
-    the threshold question that pipeline.spanned asks of the bins' points and discover.testable
-    of the fit points."""
-    source = source_of(kind)
-    if source == SOURCE_TEMP:
-        return 0
-    if source == SOURCE_TIME:
-        return 1
-    return 2 if source == SOURCE_SUPPLY else -1
+    """The condition an effect's regressor reads, its column in a point's conditions (bins.COND,
+    fixed.C_*: a step's is the time's; -1 none, NONLINEAR): with bins.DIFFERS, the threshold
+    question that pipeline.spanned asks of the bins' points and discover.testable of the fit
+    points."""
+    source = EFFECTS[kind][1]
+    return SOURCES[source][0] if source in SOURCES else -1
 
 
 def source_of(kind):
@@ -217,45 +224,35 @@ def model_kinds(code):
     return tuple(kinds)
 
 
-def regressor(kind, dT, dt, ts, dV=0, fit=True):
-    """An offset's or a scale's regressor x (Q16, |x| <= 2**25) at dT (Q2 degC), dt (64 s units),
-    with a step at ts (64 s units, as dt), and the board's integer dV (mV from its reference):
-    the table's row, clamped as the formats above say (a time source to its reach in the fit,
-    or in the apply: fit False); each power an exact floor (acal/core/wide.py)."""
+def regressor(kind, d, da, ts, fit=True):
+    """An offset's or a scale's regressor x (Q16, |x| <= 2**25) at the relative conditions
+    d[da:da + bins.COND] (now - ref by column: dT Q2 degC, dt 64 s units, dV mV...), with a step
+    at ts (64 s units, as dt): the table's row and its source's (SOURCES), clamped as the formats
+    above say (a time source to its reach in the fit, or in the apply: fit False); each power an
+    exact floor (acal/core/wide.py)."""
     row = EFFECTS[kind]
-    source = row[1]
-    if source == SOURCE_STEP:
-        return 65536 if dt >= ts else 0
-    if source == SOURCE_SUPPLY:
-        if dV > SUPPLY_MAX:
-            dV = SUPPLY_MAX
-        elif dV < -SUPPLY_MAX:
-            dV = -SUPPLY_MAX
-        base = dV << 6                    # dV / 1024 in Q16, <= 2**16
-    elif source == SOURCE_TEMP:
-        if dT > APPLY_DT_MAX:
-            dT = APPLY_DT_MAX
-        elif dT < -APPLY_DT_MAX:
-            dT = -APPLY_DT_MAX
-        base = dT << 10                   # dT / 16 in Q16 from Q2 degC, <= 2**17
-    else:
-        reach = row[7][0 if fit else 1]
-        if dt > reach:
-            dt = reach
-        elif dt < -reach:
-            dt = -reach
-        base = dt << 3                    # dt / 2**13 in Q16
+    column, shift, clamp = SOURCES[row[1]]
+    v = d[da + column]
+    if row[1] == SOURCE_STEP:
+        return 65536 if v >= ts else 0
+    if not clamp:
+        clamp = row[7][0 if fit else 1]
+    if v > clamp:
+        v = clamp
+    elif v < -clamp:
+        v = -clamp
+    base = v << shift
     x = base
     for _ in range(row[2] - 1):
         x = mul_shift(x, base, 16)        # <= 2**20
     return x << row[4]
 
 
-def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
+def correct_u(kind, p, j, u, d, da=0, at=0, ts=0):
     """Remove effect `kind` (parameters p[j:j+3], Q24) from the reading u[at:at+3] (Q24 g) in
-    place; the fit's form, by the table's form.  dT and dt are clamped as the apply clamps them
-    (a time source to its fit reach: see the formats above); ts: a step's time (as dt); dV: the
-    board's integer (mV from its reference).  Every intermediate stays below 2**30
+    place; the fit's form, by the table's form.  d[da:da + bins.COND]: the relative conditions
+    (regressor), clamped as the apply clamps them (a time source to its fit reach: see the
+    formats above); ts: a step's time (as dt).  Every intermediate stays below 2**30
     (acal/core/wide.py)."""
     form = EFFECTS[kind][3]
     if form == FORM_NONLINEAR:
@@ -263,7 +260,7 @@ def correct_u(kind, p, j, u, dT, dt, at=0, ts=0, dV=0):
             v = u[at + i]
             u[at + i] = v - mul_shift(p[j + i], mul_shift(v, v, 24), 24)
         return
-    x = regressor(kind, dT, dt, ts, dV)
+    x = regressor(kind, d, da, ts)
     for i in range(3):
         g = mul_shift(p[j + i], x, 16)
         if form == FORM_SCALE:
@@ -279,8 +276,8 @@ def apply_params(kind, p, j, k, m):
         k[m + i] = (p[j + i] + half) >> shift
 
 
-# The apply's forms: what an effect does to a reading w (Q(14 - e) g) once the block's conditions
-# (dT, dt, dV, the step: constant within a block, the feeder sets them per block) are known,
+# The apply's forms: what an effect does to a reading w (Q(14 - e) g) once the block's relative
+# conditions (constant within a block, the feeder sets them per block) are known,
 # with three per-axis terms a (block_terms), k = p >> ps and r = x >> rs:
 #   FORM_OFFSET     w -= a = (k r) >> (26 - ps - rs + e)     the offset, Q(14 - e) g
 #   FORM_SCALE      w -= (a w) >> 18, a = (k r) >> (22 - ps - rs)   the gain, Q18
@@ -288,16 +285,17 @@ def apply_params(kind, p, j, k, m):
 # Each a is the very integer the per-sample form made, so the block's apply is bit-identical to it.
 
 
-def block_terms(kind, k, m, out, at, dT, dt, ts=0, dV=0, e=0):
-    """Effect `kind`'s form and terms (per-sample parameters k[m:m+3]) at the conditions dT (Q2
-    degC), dt (64 s units), the step's time ts and dV (mV), into out[at] (the form) and
-    out[at+1:at+4] (the terms, above), at the full scale's shift e; clamped as the formats say."""
+def block_terms(kind, k, m, out, at, d, ts=0, e=0):
+    """Effect `kind`'s form and terms (per-sample parameters k[m:m+3]) at the relative conditions
+    d (now - ref, bins.COND columns: regressor) and the step's time ts, into out[at] (the form)
+    and out[at+1:at+4] (the terms, above), at the full scale's shift e; clamped as the formats
+    say."""
     row = EFFECTS[kind]
     form = row[3]
     if form == FORM_NONLINEAR:
         r, s = 1, 0
     else:
-        r = regressor(kind, dT, dt, ts, dV, False) >> row[6]
+        r = regressor(kind, d, 0, ts, False) >> row[6]
         s = (26 + e if form == FORM_OFFSET else 22) - row[5] - row[6]
     out[at] = form
     for i in range(3):
@@ -320,28 +318,30 @@ def apply_terms(t, at, w, x, y, z, e=0):
             w[i] -= (a * ((s * s) >> (10 + e))) >> 14
 
 
-def correct_sample(kind, k, m, w, x, y, z, dT, dt, ts=0, dV=0, e=0):
+def correct_sample(kind, k, m, w, x, y, z, d, ts=0, e=0):
     """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
     within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
-    shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result); ts: a step's
-    time (as dt); dV: the board's integer (mV from its reference).  block_terms then
-    apply_terms."""
+    shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result), at the relative
+    conditions d (block_terms); ts: a step's time (as dt).  block_terms then apply_terms."""
     t = [0, 0, 0, 0]
-    block_terms(kind, k, m, t, 0, dT, dt, ts, dV, e)
+    block_terms(kind, k, m, t, 0, d, ts, e)
     apply_terms(t, 0, w, x, y, z, e)
 
 
 # correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
-# table's rows as ints indexed by kind - form << 6 | source << 3 | power, the post shift, the time
-# reach in the fit - made by tables(), with the names, bounds and shapes above.
+# table's rows as ints indexed by kind - form << 6 | source << 3 | power, the post shift, the
+# source's column and shift (SOURCES), its clamp (the time reach in the fit) - made by tables(),
+# with the names, bounds and shapes above.
 _CODES = bytearray(KIND_MAX + 1)
 _POSTS = bytearray(KIND_MAX + 1)
+_COLS = bytearray(KIND_MAX + 1)
+_SHIFTS = bytearray(KIND_MAX + 1)
 _REACH = array("i", bytearray(4 * (KIND_MAX + 1)))   # a kind's clamp on its source's value
 
 
 def tables():
-    """NAMES, BOUNDS, SHAPES and the viper fit's codes, from EFFECTS (at import; again after a
-    row is added at run time)."""
+    """NAMES, BOUNDS, SHAPES and the viper fit's codes, from EFFECTS and SOURCES (at import;
+    again after a row is added at run time)."""
     NAMES.clear()
     BOUNDS.clear()
     SHAPES.clear()
@@ -355,21 +355,24 @@ def tables():
             SHAPES[k] = (source, power)
         _CODES[k] = (form << 6) | (source << 3) | power
         _POSTS[k] = post
-        # the clamp by source, as regressor's (fit=True): dV to +-SUPPLY_MAX, dT to
-        # +-APPLY_DT_MAX, dt to the row's fit reach
-        _REACH[k] = SUPPLY_MAX if source == SOURCE_SUPPLY else (
-            APPLY_DT_MAX if source == SOURCE_TEMP else (reach[0] if reach else 0))
+        # the source's column, shift and clamp, as regressor's (fit=True): a clamp of 0 in
+        # SOURCES is the row's fit reach
+        column, shift, clamp = SOURCES[source] if source in SOURCES else (0, 0, 0)
+        _COLS[k] = column
+        _SHIFTS[k] = shift
+        _REACH[k] = clamp or (reach[0] if reach else 0)
 
 
 tables()
 
 
 @viper
-def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, dt: int,
-                  ts: int, dV: int, clamp: int):
+def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: int, ts: int,
+                  clamp: int):
     # Remove the effects kind_ids[k-1], ..., kind_ids[k0] (an int32 array of ids: the last
     # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
-    # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array); after
+    # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array), at
+    # the relative conditions cond[cj:cj + bins.COND] (an int32 array, regressor's d); after
     # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
     # integers of correct_u, by the table's form (tests/device/test_effects.py checks them against
     # it), each wide.mul_shift written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9);
@@ -377,8 +380,11 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
     ids = ptr32(kind_ids)
     p = ptr32(params)
     u = ptr32(reading)
+    d = ptr32(cond)
     codes = ptr8(_CODES)
     posts = ptr8(_POSTS)
+    cols = ptr8(_COLS)
+    shifts = ptr8(_SHIFTS)
     reach = ptr32(_REACH)
     w = int(SIGN_SHIFT)
     while k > k0:
@@ -389,34 +395,28 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, dT: int, d
         form = code >> 6
         source = (code >> 3) & 7
         x = 0
-        if source == 3:                      # SOURCE_STEP
-            x = 65536 if dt >= ts else 0
-        elif source != 0:                    # SOURCE_TEMP (Q2 degC), SOURCE_TIME, SOURCE_SUPPLY
-            v = dt                           # to Q16 as regressor: dt << 3, dV << 6, dT << 10
-            s = 3
-            if source == 4:
-                v = dV
-                s = 6
-            elif source == 1:
-                v = dT
-                s = 10
-            r = int(reach[kind])             # the source's clamp, from tables()
-            if v > r:
-                v = r
-            elif v < 0 - r:
-                v = 0 - r
-            base = v << s
-            x = base
-            bh = base >> 15
-            bl = base & 0x7FFF
-            n = (code & 7) - 1
-            while n > 0:
-                ah = x >> 15
-                al = x & 0x7FFF
-                m = ah * bl + al * bh
-                x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
-                n -= 1
-            x = x << int(posts[kind])
+        if source != 0:                      # a condition's column (SOURCES), relative
+            v = int(d[cj + int(cols[kind])]) << w >> w
+            if source == 3:                  # SOURCE_STEP
+                x = 65536 if v >= ts else 0
+            else:                            # clamped and to Q16 as regressor
+                r = int(reach[kind])
+                if v > r:
+                    v = r
+                elif v < 0 - r:
+                    v = 0 - r
+                base = v << int(shifts[kind])
+                x = base
+                bh = base >> 15
+                bl = base & 0x7FFF
+                n = (code & 7) - 1
+                while n > 0:
+                    ah = x >> 15
+                    al = x & 0x7FFF
+                    m = ah * bl + al * bh
+                    x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
+                    n -= 1
+                x = x << int(posts[kind])
         bh = x >> 15
         bl = x & 0x7FFF
         c = 0

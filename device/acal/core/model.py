@@ -223,14 +223,14 @@ def residual_jacobian(params, ux: int, uy: int, uz: int, row) -> int:
     return r - 4194304   # 1 g^2 in Q22 (_ONE_G2_Q22)
 
 
-def remove_effects(p, kinds, w, at, dT, dt, ts=0, dV=0):
+def remove_effects(p, kinds, w, at, d, da, ts=0):
     """Remove a composed model's effects (acal.core.effects ids, parameters p[9 + 3k : 12 + 3k]) from
-    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in
-    (ts: a step's time, as dt; dV: the board's integer, mV from its reference).
+    the reading w[at:at+3] (Q24 g) in place, last first: the reverse of the order they act in,
+    at the relative conditions d[da:da + COND] (effects.regressor; ts: a step's time, as dt).
     Each result is clamped to +-FIT_W_MAX, as the apply clamps it (fixed.APPLY_W_MAX)."""
     k = len(kinds) - 1
     while k >= 0:
-        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, dT, dt, at, ts, dV)
+        effects.correct_u(kinds[k], p, N_PARAMS + 3 * k, w, d, da, at, ts)
         for c in range(at, at + 3):
             if w[c] > FIT_W_MAX:
                 w[c] = FIT_W_MAX
@@ -255,8 +255,7 @@ def points_without_effects(p, u, aux, n, kinds, w, ts=0):
     for i in range(3 * n):
         w[i] = u[i]
     for i in range(n):
-        j = COND * i
-        remove_effects(p, kinds, w, 3 * i, aux[j], aux[j + 1], ts, aux[j + 2])
+        remove_effects(p, kinds, w, 3 * i, aux, COND * i, ts)
 
 
 def effects_within(p, kinds, factor):

@@ -315,8 +315,7 @@ def point_residual(fit, params, i: int) -> int:
         v[0] = x
         v[1] = y
         v[2] = z
-        correct_kinds(fit.kind_ids, 0, nk, params, 9, removed, int(aux[j]) << w >> w,
-                      int(aux[j + 1]) << w >> w, int(fit.ts), int(aux[j + 2]) << w >> w,
+        correct_kinds(fit.kind_ids, 0, nk, params, 9, removed, fit.aux, j, int(fit.ts),
                       int(FIT_W_MAX))
         x = int(v[0]) << w >> w
         y = int(v[1]) << w >> w
@@ -341,13 +340,10 @@ def raw_row(fit, params, i: int) -> int:
     q = ptr32(offs)
     moved = fit.z
     z = ptr32(moved)
-    aux = ptr32(fit.aux)
+    aux = fit.aux
     ids = fit.kind_ids
     at = 3 * i
     j = int(fit.ncond) * i
-    dT = int(aux[j]) << w >> w
-    dt = int(aux[j + 1]) << w >> w
-    dV = int(aux[j + 2]) << w >> w
     ts = int(fit.ts)
     c = 0
     while c < 3:
@@ -358,7 +354,7 @@ def raw_row(fit, params, i: int) -> int:
         z[0] = u[at]
         z[1] = u[at + 1]
         z[2] = u[at + 2]
-        correct_kinds(ids, k, k + 1, offs, 0, moved, dT, dt, ts, dV, 0)
+        correct_kinds(ids, k, k + 1, offs, 0, moved, aux, j, ts, 0)
         c = 0
         while c < 3:
             d[9 + 3 * k + c] = (int(z[c]) << w >> w) - (int(u[at + c]) << w >> w)

@@ -7,7 +7,7 @@
 # sum over its points.  All storage preallocated.
 from acal.core import model
 from acal.core.bins import COND, int32s
-from acal.core.fixed import POINT_TO_PARAM_SHIFT, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import POINT_TO_PARAM_SHIFT
 from acal.discover.heldout import CAPACITY
 try:
     from micropython import const
@@ -35,6 +35,7 @@ class HeldScore:
         self.kinds = ()
         self.h = None
         self.ref = [0] * COND   # the fit's references (begin(): copied), the points' columns
+        self.rel = [0] * COND   # a point's conditions minus ref (point())
         self.ts = 0
         self.pos = 0
         self.total = 0
@@ -97,9 +98,10 @@ class HeldScore:
         cond = h.cond
         p = self.p
         r = self.ref
-        model.remove_effects(p, self.kinds, w, 3 * i, cond[j + C_TEMP] - r[C_TEMP],
-                             cond[j + C_TIME] - r[C_TIME], self.ts,
-                             cond[j + C_SUPPLY] - r[C_SUPPLY])
+        d = self.rel
+        for c in range(COND):
+            d[c] = cond[j + c] - r[c]
+        model.remove_effects(p, self.kinds, w, 3 * i, d, 0, self.ts)
         r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
         if r < 0:
             r = -r
