@@ -309,3 +309,13 @@ def good_inputs(d: Path):
         n: (1 << 24 if i < 3 else 0) for i, n in enumerate(
             ["kxx", "kyy", "kzz", "kxy", "kxz", "kyz", "ox", "oy", "oz"])}}))
     return pts, rec, params
+
+
+def relative(n, dT=0, dt=0, dV=0):
+    """(n, COND) relative conditions (the device's now - ref by column, fixed.C_*: dT Q2 degC,
+    dt 64 s units, dV mV of the supply) for bridge/twin.apply_params."""
+    from acal.core.bins import COND
+    from acal.core.fixed import C_SUPPLY, C_TEMP, C_TIME
+    rel = np.zeros((n, COND), np.int64)
+    rel[:, C_TEMP], rel[:, C_TIME], rel[:, C_SUPPLY] = dT, dt, dV
+    return rel

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from accelcal.simulate.stimulus import write_stimulus
-from conftest import ROOT, emulated_chip
+from conftest import ROOT, emulated_chip, relative
 
 MODEL = "base+temp_offset+temp_scale+drift+nonlinear"
 STIM_HZ = 50
@@ -146,8 +146,9 @@ def twin_apply(pull, p, kinds, ref_temp, q, temp, index, block_start, rate, shif
     for j, (start, params, rt, rtime) in enumerate(segments):
         end = segments[j + 1][0] if j + 1 < len(segments) else 1 << 62
         m = (index >= start) & (index < end)
-        out[m] = twin.apply_params(params, q[m], kinds, (temp[m] << fixed.TEMP_Q) - rt,
-                                   time[m] - rtime, 2)
+        out[m] = twin.apply_params(params, q[m], kinds,
+                                   relative(int(m.sum()), (temp[m] << fixed.TEMP_Q) - rt,
+                                            time[m] - rtime), 2)
     return out, len(segments) - 1
 
 

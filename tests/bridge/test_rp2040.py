@@ -9,7 +9,7 @@ import pytest
 
 from accelcal.bridge import rp2040, runtime
 from accelcal.errors import InputError
-from conftest import calibrate_both, emulated_chip, temp_offset_points
+from conftest import calibrate_both, emulated_chip, relative, temp_offset_points
 
 
 @pytest.fixture(scope="session")
@@ -169,6 +169,6 @@ def test_four_effect_app_applies_every_sample_on_the_chip_as_the_twin(chip):
     dT = ((20 + index // n % 12) << 2) - 100
     dt = (start + block_start) // (effects.DT_UNIT_S * 100) - 3
     assert set(dt.tolist()) == {-1, 0}                 # time passes: the drift term changes
-    want = twin.apply_params(p, np.array(raw), kinds, dT, dt)
+    want = twin.apply_params(p, np.array(raw), kinds, relative(len(dT), dT, dt))
     assert got.shape == want.shape == (blocks * n, 3)
     assert np.array_equal(got, want)

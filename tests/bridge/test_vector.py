@@ -10,7 +10,7 @@ from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.calibration import Calibration
 from acal.core.rest import RestDetector
 from accelcal.bridge import twin
-from conftest import run_cli
+from conftest import relative, run_cli
 
 
 def device_segments(q, rate, seconds, threshold, axis, gaps=()):
@@ -216,7 +216,8 @@ def test_composed_apply_equals_the_device_calibration(case):
         cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = a, b, c + 120
         cal.apply(x, y, z)
         dev.append((cal.x, cal.y, cal.z))
-    assert (twin.apply_params(p, q, kinds, dT, dt, range_g, step_time, dV) == np.array(dev)).all()
+    assert (twin.apply_params(p, q, kinds, relative(len(q), dT, dt, dV), range_g, step_time)
+            == np.array(dev)).all()
     # and the block form (apply_samples) gives the one-sample form's integers
     cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = int(dT[-1]), int(dt[-1]), int(dV[-1]) + 120
     buf = q[-50:].ravel().tolist()

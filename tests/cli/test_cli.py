@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from accelcal import simulate
-from conftest import ROOT, run_cli
+from conftest import ROOT, relative, run_cli
 
 
 @pytest.fixture
@@ -236,7 +236,7 @@ def test_apply_composed_at_8_g_at_the_device_outputs_full_resolution(tmp_path, r
     q, temp = g_to_sample(written[:, 1:4]), written[:, 4]
     quarter = 1 << fixed.TEMP_Q     # the device's temperature: Q2 degC
     dT = np.rint(temp * quarter).astype(np.int64) - 25 * quarter
-    want_int = twin.apply_params(p_int, q, spec.kinds, dT, np.zeros(n, np.int64), 8)
+    want_int = twin.apply_params(p_int, q, spec.kinds, relative(n, dT), 8)
     assert (np.rint(a * one_g).astype(np.int64) == want_int).all()
     assert np.abs(a * one_g - want_int).max() < 0.01   # written to 1e-6 g: every step kept
     want = spec.correct(spec.from_int(p_int), q / 1024, np.rint(temp * quarter) / quarter, np.zeros(n),

@@ -12,7 +12,7 @@ from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.bins import COND
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
-from conftest import effect_orders, run_both
+from conftest import effect_orders, relative, run_both
 
 DT_UNIT = deff.DT_UNIT_S
 TEMP_ONE = 1 << TEMP_Q   # the device's dT is Q2 degC
@@ -240,7 +240,7 @@ def test_an_effect_of_an_existing_form_is_one_table_row(rng):
             cal.apply(*row)
             got.append((cal.x, cal.y, cal.z))
         got = np.array(got)
-        assert np.array_equal(got, twin.apply_params(ident + p, q, (new,), dV=dV))
+        assert np.array_equal(got, twin.apply_params(ident + p, q, (new,), relative(len(q), 0, 0, dV)))
         assert np.abs(got / 2 ** cal.out_q - (q / 1024 - theta * x2)).max() < 3e-4
         n = 36                                                  # the fit, on simulated points
         truth = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])

@@ -25,6 +25,7 @@ import numpy as np
 from acal.core import effects as deff
 from acal.core import fixed
 from acal.core import rest as drest
+from acal.core.bins import COND
 from acal.core.calibration import _base_params
 from acal.core.rest import ALL_AXES, AUTO, DEFAULT_SECONDS, DEFAULT_THRESHOLD
 from accelcal import fixedpoint
@@ -253,16 +254,16 @@ def planar_of(axes, first: int = 0) -> np.ndarray:
     return samples_planar(axes[:, 0], axes[:, 1], axes[:, 2], first)
 
 
-def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
-                 step_time: int = 0, dV=None, first: int = 0) -> np.ndarray:
+def apply_params(p_int, q: np.ndarray, kinds=(), rel=None, range_g: int = 2,
+                 step_time: int = 0, first: int = 0) -> np.ndarray:
     """The twin of Calibration(kinds, range_g).set(p, ref) + apply_samples: Q24 parameters
     (9, then 3 per effect), Q10 samples in, calibrated samples out in Q(13 - e) g
     (fixed.apply_out_q(range_g)) (m x 3 int64), the format of the full scale range_g (fixed.py),
-    readings clamped to it.  A composed model also takes each
-    sample's dT (Q2 degC, fixed.TEMP_Q, from the reference temperature) and dt (64 s units from the reference
-    time), as the device's now - ref columns (temperature, time), and dV (mV of the board's supply
-    from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
-    effect); a step from dt >= step_time on.  first: the base model's count of samples applied
+    readings clamped to it.  A composed model also takes each sample's relative conditions rel
+    (m x bins.COND ints, or one row for all: the device's now - ref, column by column -
+    temperature Q2 degC, time 64 s units, the board's quantities; None: zeros), read and clamped
+    as the device reads them (effects.SOURCES; the reading clamped after each effect); a step
+    from the time column >= step_time on.  first: the base model's count of samples applied
     before q's first (the output's dither, fixed.APPLY_DITHER_STEP: the device's
     Calibration.dither after that many)."""
     e = fixed.apply_range_shift(range_g)
@@ -275,7 +276,7 @@ def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int 
     k += [(int(v) + (1 << (shift - 1))) >> shift for v in p_int[6:9]]
     off = np.array(k[6:9], dtype=np.int64)
     u = q << (fixed.APPLY_FROM_SAMPLE_SHIFT - e)
-    _remove_effects(u, q, p_int, kinds, dT, dt, step_time, dV, e)
+    _remove_effects(u, q, p_int, kinds, rel, step_time, e)
     u += off
     s = fixed.APPLY_OUT_SHIFT
     half = 1 << (s - 1)
@@ -307,16 +308,14 @@ def _apply_base(p_int, q: np.ndarray, e: int, first: int) -> np.ndarray:
     return out
 
 
-def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_time: int, dV,
+def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, rel, step_time: int,
                     e: int) -> None:
     """The effects of calibration._apply_composed on every sample, by the table's forms
     (effects.block_terms): out of w (Q(14 - e) g, in place), last first, each clamped after;
-    q: the clamped readings (Q10 g)."""
+    q: the clamped readings (Q10 g); rel: the relative conditions (apply_params)."""
     m = len(q)
-    dT = np.clip(np.broadcast_to(np.asarray(0 if dT is None else dT, np.int64), (m,)),
-                 -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX)[:, None]
-    dt_raw = np.broadcast_to(np.asarray(0 if dt is None else dt, np.int64), (m,))[:, None]
-    dV = np.broadcast_to(np.asarray(0 if dV is None else dV, np.int64), (m,))[:, None]
+    rel = np.zeros(COND, np.int64) if rel is None else np.asarray(rel, np.int64)
+    rel = np.broadcast_to(rel.reshape(-1, COND), (m, COND))
     for j in range(len(kinds) - 1, -1, -1):   # last first, as calibration._apply_composed
         kind = kinds[j]
         _name, _source, _power, form, _post, ps, rs = deff.EFFECTS[kind][:7]
@@ -326,7 +325,7 @@ def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_tim
         if form == deff.FORM_NONLINEAR:    # effects.block_terms' forms, by the table's row
             w -= (ke * ((q * q) >> (10 + e))) >> 14
         else:
-            r = regressor(kind, dT, dt_raw, step_time, dV) >> rs
+            r = regressor(kind, rel, step_time)[:, None] >> rs
             if form == deff.FORM_OFFSET:
                 w -= (ke * r) >> (26 + e - ps - rs)
             else:                          # FORM_SCALE
@@ -334,22 +333,19 @@ def _remove_effects(w: np.ndarray, q: np.ndarray, p_int, kinds, dT, dt, step_tim
         np.clip(w, -fixed.APPLY_W_MAX, fixed.APPLY_W_MAX, out=w)   # after each, as the device
 
 
-def regressor(kind: int, dT: np.ndarray, dt: np.ndarray, step_time: int,
-              dV: np.ndarray | int = 0) -> np.ndarray:
+def regressor(kind: int, rel: np.ndarray, step_time: int) -> np.ndarray:
     """The twin of acal.core.effects.regressor(..., fit=False) (Q16, the apply's clamps),
-    vectorised: a step's indicator, the board's supply (clamped), or the clamped temperature or
-    time to its power (each an exact floor in Q16, as acal/core/wide.py's mul_shift gives it),
-    shifted by the row's post."""
+    vectorised over the rows of rel (m x bins.COND relative conditions): the column of the row's
+    source (effects.SOURCES), a step's indicator or clamped and shifted into Q16 and raised to
+    its power (each an exact floor in Q16, as acal/core/wide.py's mul_shift gives it), shifted
+    by the row's post."""
     _name, source, power, _form, post = deff.EFFECTS[kind][:5]
+    column, shift, clamp = deff.SOURCES[source]
+    v = rel[:, column]
     if source == deff.SOURCE_STEP:
-        return np.where(dt >= step_time, 65536, 0).astype(np.int64)
-    if source == deff.SOURCE_SUPPLY:
-        base = np.clip(np.asarray(dV, np.int64), -deff.SUPPLY_MAX, deff.SUPPLY_MAX) << 6
-    elif source == deff.SOURCE_TEMP:
-        base = np.clip(dT, -deff.APPLY_DT_MAX, deff.APPLY_DT_MAX) << 10   # Q2 degC / 16 in Q16
-    else:
-        reach = deff.EFFECTS[kind][7][1]
-        base = np.clip(dt, -reach, reach) << 3
+        return np.where(v >= step_time, 65536, 0).astype(np.int64)
+    clamp = clamp or deff.EFFECTS[kind][7][1]
+    base = np.clip(v, -clamp, clamp) << shift
     x = base
     for _ in range(power - 1):
         x = (x * base) >> 16      # < 2**37: exact in int64

@@ -12,8 +12,8 @@ from acal.core.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
 from accelcal.files.outputs import atomic
-from accelcal.fixedpoint import COLUMN_QUANTITIES, board_columns, g_to_sample
-from accelcal.model.effects import SUPPLY_COLUMN, ModelSpec, column_ref
+from accelcal.fixedpoint import COLUMN_QUANTITIES, QUANTITIES, board_columns, g_to_sample
+from accelcal.model.effects import ModelSpec, column_ref
 from accelcal.pipeline.results import ApplyResult
 from accelcal.vocabulary import documented
 
@@ -49,16 +49,17 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
     _check_inputs(spec, temp, board, cols, source)
     cond = runtime.device_conditions(temp, t, ref["t0"], len(q),
                                      **board_columns({c: cols[c] for c in board}))
-    follows_supply = SUPPLY_COLUMN in board
-    # the board's supply from its reference (mV), as the device's supply - ref_supply
-    dV = cond[:, 2] - int(round(ref[column_ref(SUPPLY_COLUMN)])) if follows_supply else None
+    rel = cond.copy()        # the device's now - ref, column by column (QUANTITIES' order)
+    rel[:, fixed.C_TEMP] -= ref_temp
+    for i, quantity in enumerate(QUANTITIES):    # a board column's reference, as the device's
+        if quantity.column in board:
+            rel[:, i] -= int(round(ref[column_ref(quantity.column)]))
     step_time = 0
     if spec.change_point:   # from ts on, as the device compares whole 64 s units
         if "ts" not in ref:
             raise InputError(f"model {spec}: the parameters' reference lacks ts, the step's time")
         step_time = int(np.ceil((ref["ts"] - ref["t0"]) / deff.DT_UNIT_S))
-    return twin.apply_params(p_int, q, spec.kinds, cond[:, 0] - ref_temp, cond[:, 1], range_g,
-                             step_time, dV) / one_g
+    return twin.apply_params(p_int, q, spec.kinds, rel, range_g, step_time) / one_g
 
 
 def _check_inputs(spec: ModelSpec, temp, columns, cols: dict | None, source: str) -> None:
