@@ -231,16 +231,15 @@ def regressor(kind, d, da, ts, fit=True):
     above say (a time source to its reach in the fit, or in the apply: fit False); each power an
     exact floor (acal/core/wide.py)."""
     row = EFFECTS[kind]
-    column, shift, clamp = SOURCES[row[1]]
-    v = d[da + column]
+    v = d[da + _COLS[kind]]
     if row[1] == SOURCE_STEP:
         return 65536 if v >= ts else 0
-    if not clamp:
-        clamp = row[7][0 if fit else 1]
+    clamp = _REACH[kind] if fit else _REACH_APPLY[kind]
     if v > clamp:
         v = clamp
     elif v < -clamp:
         v = -clamp
+    shift = _SHIFTS[kind]
     base = v << shift
     x = base
     for _ in range(row[2] - 1):
@@ -337,6 +336,7 @@ _POSTS = bytearray(KIND_MAX + 1)
 _COLS = bytearray(KIND_MAX + 1)
 _SHIFTS = bytearray(KIND_MAX + 1)
 _REACH = array("i", bytearray(4 * (KIND_MAX + 1)))   # a kind's clamp on its source's value
+_REACH_APPLY = array("i", bytearray(4 * (KIND_MAX + 1)))   # and in the apply (regressor)
 
 
 def tables():
@@ -355,12 +355,13 @@ def tables():
             SHAPES[k] = (source, power)
         _CODES[k] = (form << 6) | (source << 3) | power
         _POSTS[k] = post
-        # the source's column, shift and clamp, as regressor's (fit=True): a clamp of 0 in
-        # SOURCES is the row's fit reach
+        # the source's column, shift and clamp (regressor's; correct_kinds' the fit's): a clamp
+        # of 0 in SOURCES is the row's reach, in the fit and in the apply
         column, shift, clamp = SOURCES[source] if source in SOURCES else (0, 0, 0)
         _COLS[k] = column
         _SHIFTS[k] = shift
         _REACH[k] = clamp or (reach[0] if reach else 0)
+        _REACH_APPLY[k] = clamp or (reach[1] if reach else 0)
 
 
 tables()
