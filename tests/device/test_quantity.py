@@ -13,6 +13,8 @@ import sys
 import tokenize
 from pathlib import Path
 
+from accelcal.bridge import runtime
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # A run of the device code: points at three temperatures, seven postures, a fourth condition
@@ -124,6 +126,95 @@ def test_a_fourth_condition_travels_as_a_column_and_changes_nothing_else(tmp_pat
     assert eval(differs) == [12, 675, 100, 50] and int(span) >= 50
 
 
+# The fourth condition read by an effect: an offset linear in it (the quantity's EFFECTS row
+# and its SOURCES row in effects.py, add_humidity_effect).  Rest means of an ideal sensor at nine
+# postures, each with that offset at its humidity; a pipeline fits it (its reference the middle of
+# the held points'), and a Calibration set from the fit applies samples at two humidities.
+FIT = r"""
+from acal.core import effects, fixed
+from acal.core.pipeline import Pipeline
+from acal.core.calibration import Calibration
+H = fixed.C_HUMIDITY
+THETA = (2621, -1966, 1311)          # the offset, Q16 g per (dH / 1024): 0.04, -0.03, 0.02 g
+G = 65536
+posture = [(G, 0, 0), (-G, 0, 0), (0, G, 0), (0, -G, 0), (0, 0, G), (0, 0, -G),
+           (46341, 46341, 0), (0, 46341, 46341), (46341, 0, 46341)]
+pipe = Pipeline(kinds=(effects.HUMIDITY_OFFSET,), fit=1, max_count=4)
+for k in range(36):
+    x, y, z = posture[k % 9]
+    h = 100 + 29 * ((7 * k) % 36)                # 0.1 %RH: 10 .. 111.5 %RH
+    pipe.now[fixed.C_TIME] = 30 * k
+    pipe.now[H] = h
+    o = [(t * (h - 600)) // 1024 for t in THETA]
+    pipe.offer(x + o[0] + (k % 5), y + o[1] - (k % 3), z + o[2])
+status = pipe.calibrate()
+p = list(pipe.optimiser.p)
+print("P", status, p[9:12], pipe.ref[H])
+cal = Calibration(pipe.kinds, now=pipe.now)
+cal.set(p, pipe.ref)
+for h in (150, 1050):                            # a sample at rest on x at two humidities
+    cal.now[H] = h
+    o = [(t * (h - 600)) // 1024 for t in THETA]  # Q16 g
+    cal.apply(1024 + (o[0] >> 6), o[1] >> 6, o[2] >> 6)
+    print("A", h, cal.x, cal.y, cal.z, cal.out_q)
+"""
+
+
+def add_humidity_effect(tree: Path) -> None:
+    """The quantity's effect, as the docs' list says, in effects.py alone: its source (a
+    SOURCE_ id and its SOURCES row: column, shift into Q16, clamp) and its EFFECTS row."""
+    eff = tree / "acal/core/effects.py"
+    text = eff.read_text()
+    for old, new in (
+            ("from acal.core.fixed import TEMP_DT_MAX, C_TEMP, C_TIME, C_SUPPLY\n",
+             "from acal.core.fixed import TEMP_DT_MAX, C_TEMP, C_TIME, C_SUPPLY, C_HUMIDITY\n"),
+            ("SOURCE_SUPPLY = const(4)", "SOURCE_HUMIDITY = const(5)\nSOURCE_SUPPLY = const(4)"),
+            ("    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),",
+             "    SOURCE_HUMIDITY: (C_HUMIDITY, 6, 1024),\n    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),"),
+            ("SUPPLY_OFFSET = const(12)", "SUPPLY_OFFSET = const(12)\nHUMIDITY_OFFSET = const(13)"),
+            ("EFFECTS = {\n", "EFFECTS = {\n    HUMIDITY_OFFSET: (\"humidity_offset\", SOURCE_HUMIDITY, 1, "
+             "FORM_OFFSET, 0, 8, 4, 0, GENERIC_BOUND),\n")):
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    eff.write_text(text)
+
+
+def test_an_effect_of_a_new_quantity_is_fitted_and_applied(tmp_path):
+    """The fourth condition with an offset linear in it, added in the list's device files alone
+    (fixed.py, bins.py, effects.py): the device (CPython and the real MicroPython, the same
+    integers) fits its coefficient from simulated points (against the simulated offset) and the
+    apply removes it (the same posture at two
+    humidities 90 %RH apart calibrates to the same g, and to the posture)."""
+    tree = tmp_path / "four"
+    shutil.copytree(ROOT / "device", tree, ignore=shutil.ignore_patterns("__pycache__"))
+    add_humidity(tree)
+    add_humidity_effect(tree)
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, "-c", FIT], capture_output=True, text=True, env=env,
+                         cwd=tree, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    # the real MicroPython (its viper fit: the new source's column read by correct_kinds) too
+    real = subprocess.run([runtime.micropython_path(), "-c", FIT], capture_output=True,
+                          text=True, env=dict(os.environ, MICROPYPATH=str(tree)), cwd=tree,
+                          timeout=300)
+    assert real.stdout == out.stdout, real.stderr[-3000:]
+    lines = [line.split() for line in out.stdout.splitlines()]
+    status, rest = lines[0][1], " ".join(lines[0][2:])
+    assert status == "0", out.stdout
+    coeffs, ref = eval(rest.rsplit(" ", 1)[0]), int(rest.rsplit(" ", 1)[1])
+    want = (0.04, -0.03, 0.02)            # g per (dH / 1024); the fit's p: Q24 per unit
+    assert 100 <= ref <= 1115
+    for c, w in zip(coeffs, want):
+        assert abs(c / 2 ** 24 - w) < 0.002, (coeffs, want)
+    (_, h1, *a1), (_, h2, *a2) = lines[1], lines[2]
+    q = int(a1[3])
+    g1 = [int(v) / 2 ** q for v in a1[:3]]
+    g2 = [int(v) / 2 ** q for v in a2[:3]]
+    # the raw samples differ by up to 35 mg; calibrated, under 1.5 mg, and both at (1, 0, 0) g
+    assert max(abs(a - b) for a, b in zip(g1, g2)) < 0.0015, (g1, g2)
+    assert max(abs(a - b) for a, b in zip(g1, (1, 0, 0))) < 0.003, g1
+
+
 # Where the supply's names (identifiers containing "supply", not comments or strings) may stand,
 # and why.  A file outside this list that names it means a quantity is named again where the
 # conditions' columns should carry it.
@@ -131,11 +222,9 @@ SUPPLY_NAMED = {
     # device: the docs' list
     "device/acal/core/fixed.py": "its column C_SUPPLY",
     "device/acal/core/bins.py": "its least spread SUPPLY_DIFFER in DIFFERS",
-    "device/acal/core/effects.py": "its source, regressor scale (SUPPLY_MAX) and effect row",
+    "device/acal/core/effects.py": "its source and SOURCES row (column, SUPPLY_MAX) and effect row",
     "device/acal/logger/app.py": "the board's reader (board.supply_mv) writing now[C_SUPPLY]",
-    # device: left (docs/model-discovery.md): the effects' regressors take dT, dt, dV by name
-    "device/acal/core/calibration.py": "the block terms' dV for effects.block_terms",
-    "device/acal/discover/score.py": "the held-out points' dV for model.remove_effects",
+    # device: left (docs/model-discovery.md)
     "device/acal/discover/search.py": "the discovery's candidate list (SUPPLY_OFFSET)",
     "device/acal/logger/log.py": "the SUPPLY capture record (a log format)",
     "device/acal/logger/processor.py": "writes the SUPPLY capture record when it changes",
@@ -143,8 +232,6 @@ SUPPLY_NAMED = {
     "host/accelcal/fixedpoint.py": "its QUANTITIES row",
     "host/accelcal/model/effects.py": "its CATALOGUE effect and recording column",
     "host/accelcal/bridge/boardlog.py": "decodes the SUPPLY record and the EFFECT reference",
-    "host/accelcal/bridge/twin.py": "the vectorised apply's regressor of its source",
-    "host/accelcal/pipeline/apply.py": "the difference from its reference handed to the twin",
     "host/accelcal/pipeline/discovered.py": "a discovered supply effect's report",
     "host/accelcal/simulate/chip/simboard.py": "the simulated board's supply_mv",
     "host/accelcal/simulate/chip/vlis3dh.py": "the simulated chip's board supply",
@@ -163,8 +250,12 @@ def test_the_supply_is_named_only_where_the_list_allows():
     named = {str(p.relative_to(ROOT)) for folder in ("device/acal", "host/accelcal")
              for p in (ROOT / folder).rglob("*.py") if names_supply(p)}
     assert named <= set(SUPPLY_NAMED), sorted(named - set(SUPPLY_NAMED))
-    # the core's conditions path names no quantity: the references and the offers are columns
+    # the core's conditions path names no quantity: the references and the offers are columns,
+    # and the effect code reads its source's column from the relative conditions (SOURCES)
     for f in ("device/acal/core/pipeline.py", "device/acal/core/reference.py",
               "device/acal/discover/heldout.py", "device/acal/discover/plug.py",
+              "device/acal/core/calibration.py", "device/acal/discover/score.py",
+              "device/acal/core/model.py", "device/acal/core/normal_sums.py",
+              "host/accelcal/bridge/twin.py", "host/accelcal/pipeline/apply.py",
               "host/accelcal/bridge/protocol.py", "host/accelcal/bridge/scripts/mp_runner.py"):
         assert not names_supply(ROOT / f), f
