@@ -140,7 +140,9 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
     while (!done()) {
       if (chip.cycles >= chip.stopAt) throw new PowerCut(chip.cycles);
       chip.feed();
-      if (!chip.step(20000) && !done() && chip.sent() && !pendingRead) {
+      // asleep, nothing scheduled, the host's bytes all delivered (a read waiting for more
+      // waits for good): nothing can change
+      if (!chip.step(20000) && !done() && chip.sent() && (!pendingRead || cdc.txFIFO.empty)) {
         if (!chip.step(1)) throw new Error(`stuck waiting for ${what}; got: ${chip.rx.tail(300)}`);
       }
       if (chip.cycles - start > maxCycles) throw new Error(`timeout waiting for ${what}`);
