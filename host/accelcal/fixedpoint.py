@@ -80,8 +80,8 @@ class Quantity:
     """One quantity the board reads with each point, a device condition (acal.core.bins.COND, in
     QUANTITIES' order).  The device holds it as round(x * 2**q) (the temperature: Q2 degC,
     acal.core.fixed.TEMP_Q) or, for a `step` quantity, floor((x - origin) / step) with the group's
-    first time as origin; its name is the device's (ref_NAME,
-    NAME_span, the bins' NAME_differ); `column` is the recording column it is read from, `ref`
+    first time as origin; its place in QUANTITIES is the device's column (DeviceResult's
+    ref and span, the bins' differs); `column` is the recording column it is read from, `ref`
     the key a fitted model stores its reference under (None: the column's, column_ref())."""
     name: str
     column: str

@@ -126,7 +126,7 @@ kinds = proc.kinds
 p = [17000000, 16600000, 16900000, 300000, -200000, 150000, 700000, -500000, 900000]
 for j in range(len(kinds)):
     p += [(effects.BOUNDS[kinds[j]] * (3 - i)) // 4 for i in range(3)]
-proc.calibration.set(p, 100, 3)    # ref_temp 25 degC (Q2), ref_time 3 units
+proc.calibration.set(p, (100, 3, 0))    # references: 25 degC (Q2), 3 time units
 proc.calibrations = 1              # applied from the first block on
 proc.index = %d                    # samples so far: a 64 s time unit ends mid-run
 def show(b, n):

@@ -210,7 +210,7 @@ def composed_cases(draw):
 def test_composed_apply_equals_the_device_calibration(case):
     kinds, p, q, dT, dt, step_time, dV, range_g = case
     cal = Calibration(kinds, range_g)
-    cal.set(p, 0, 0, step_time, 120)
+    cal.set(p, (0, 0, 120), step_time)
     dev = []
     for (x, y, z), a, b, c in zip(q.tolist(), dT.tolist(), dt.tolist(), dV.tolist()):
         cal.now[C_TEMP], cal.now[C_TIME], cal.now[C_SUPPLY] = a, b, c + 120

@@ -257,9 +257,9 @@ def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
 
     def offer(bins, i):
         x, y, z = (int(round(c * 65536)) for c in pts[i])
-        bins.offer(x, y, z, int(temps[i]), 50 * i, 3300)
+        bins.offer(x, y, z, (int(temps[i]), 50 * i, 3300))
 
-    b = Bins(2, 8, temp_differ=12, time_differ=675, coverage=True, room=14)
+    b = Bins(2, 8, differs=(12, 675, 0), coverage=True, room=14)
     for i in range(200):
         offer(b, i)
     held = {(s, k): (b.point(s, k), b.condition(s, k)) for s in range(9) for k in range(b.counts[s])}
@@ -269,7 +269,7 @@ def test_grown_bins_keep_every_point_and_then_fill_as_fresh_ones():
     assert b.max_count == 14 and b.counts == counts
     assert {(s, k): (b.point(s, k), b.condition(s, k))
             for s in range(9) for k in range(b.counts[s])} == held
-    fresh = Bins(2, 14, temp_differ=12, time_differ=675, coverage=True)
+    fresh = Bins(2, 14, differs=(12, 675, 0), coverage=True)
     for (s, k), (p, c) in held.items():
         j = s * 14 + k
         fresh.xyz[3 * j:3 * j + 3] = type(fresh.xyz)("i", p)

@@ -3,10 +3,16 @@ import numpy as np
 
 from acal.core import bins
 from acal.core.bins import Bins, subset_of
+from acal.core.fixed import C_SUPPLY, C_TEMP, C_TIME
 from acal.core.fixed import TEMP_Q
 from accelcal.fixedpoint import g_to_point
 
 G = 65536
+
+
+def at(temp=0, time=0, supply=0):
+    """A point's conditions, the columns bins.offer takes (C_TEMP, C_TIME, C_SUPPLY)."""
+    return [temp, time, supply]
 
 
 def test_subset_limits():
@@ -73,32 +79,33 @@ def test_centre_is_closer_to_axes_than_first(rng):
 
 
 def test_composed_bins_keep_the_same_orientation_seen_warmer_or_later():
-    b = Bins(2, 4, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER)
+    b = Bins(2, 4, differ=G // 10, differs=(bins.TEMP_DIFFER, bins.TIME_DIFFER, 0))
     q = 1 << TEMP_Q                                     # temperatures in Q2 degC
-    assert b.offer(G, 0, 0, 25 * q, 0) >= 0
-    assert b.offer(G, 0, 0, 27 * q + 3, 100) == -1      # 2.75 degC, 1.8 h: the same point
-    assert b.offer(G, 0, 0, 28 * q, 100) >= 0           # 3 degC warmer: differs
-    assert b.offer(G, 0, 0, 26 * q, 100 + bins.TIME_DIFFER) >= 0  # 12 h after both: differs
-    assert b.total() == 3 and b.temp_span() == 3 * q and b.time_span() == 100 + bins.TIME_DIFFER
+    assert b.offer(G, 0, 0, at(25 * q, 0)) >= 0
+    assert b.offer(G, 0, 0, at(27 * q + 3, 100)) == -1      # 2.75 degC, 1.8 h: the same point
+    assert b.offer(G, 0, 0, at(28 * q, 100)) >= 0           # 3 degC warmer: differs
+    assert b.offer(G, 0, 0, at(26 * q, 100 + bins.TIME_DIFFER)) >= 0  # 12 h after both: differs
+    assert b.total() == 3 and b.span(C_TEMP) == 3 * q and b.span(C_TIME) == 100 + bins.TIME_DIFFER
     plain = Bins(2, 4, differ=G // 10)                  # the paper's model: conditions ignored
-    assert plain.offer(G, 0, 0, 25, 0) >= 0 and plain.offer(G, 0, 0, 40, 10 ** 5) == -1
-    assert plain.temp_span() == 0
+    assert plain.offer(G, 0, 0, at(25, 0)) >= 0 and plain.offer(G, 0, 0, at(40, 10 ** 5)) == -1
+    assert plain.span(C_TEMP) == 0
 
 
 def test_a_full_composed_subset_takes_points_that_widen_its_spread():
-    b = Bins(1, 2, differ=G // 10, temp_differ=3)
+    b = Bins(1, 2, differ=G // 10, differs=(3, 0, 0))
 
     def only_xp(x, y, z):  # y and z between the bands: these points belong to C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30) == 2 and b.offer(*only_xp(0.8, 0.55, 0.3), 31) == 2
-    assert b.offer(*only_xp(0.8, 0.45, 0.35), 38) == 2  # full; widens 30..31 -> 30..38
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(30)) == 2
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), at(31)) == 2
+    assert b.offer(*only_xp(0.8, 0.45, 0.35), at(38)) == 2  # full; widens 30..31 -> 30..38
     assert sorted(b.condition(2, k)[0] for k in range(2)) == [30, 38] and b.replaced == 1
-    assert b.offer(*only_xp(0.8, 0.3, 0.5), 34) == -1   # inside the range, no better placed
+    assert b.offer(*only_xp(0.8, 0.3, 0.5), at(34)) == -1   # inside the range, no better placed
     # Slot 0 keeps placement, slot 1 spread: 20 degC widens 30..38 to 20..30 through slot 1.
-    assert b.offer(*only_xp(0.8, 0.5, 0.5), 20) == 2
+    assert b.offer(*only_xp(0.8, 0.5, 0.5), at(20)) == 2
     assert [b.condition(2, k)[0] for k in range(2)] == [30, 20] and b.total() == 2
-    assert b.offer(*only_xp(0.8, 0.35, 0.45), 25) == -1  # would narrow: refused
+    assert b.offer(*only_xp(0.8, 0.35, 0.45), at(25)) == -1  # would narrow: refused
 
 
 def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
@@ -106,19 +113,19 @@ def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
     whole degC it was 0, taken as 1): a point that only keeps the range does not replace a spread
     slot (before that rule every such point did, and the placement slots kept the first points
     ever seen); a better placed one replaces the placement slot (the CENTRE rule)."""
-    b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER)
+    b = Bins(1, 2, differ=G // 10, differs=(bins.TEMP_DIFFER, 0, 0))
     q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30 * q) == 2
-    assert b.offer(*only_xp(0.8, 0.55, 0.3), 31 * q) == 2
-    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q) == -1   # keeps 30..31, placed worse
-    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 2) == -1   # widens by 0.5 degC: too little
-    assert b.offer(*only_xp(0.9, 0.45, 0.6), 30 * q) == 2     # keeps 30..31, placed better
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(30 * q)) == 2
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), at(31 * q)) == 2
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), at(31 * q)) == -1   # keeps 30..31, placed worse
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), at(31 * q + 2)) == -1   # widens by 0.5 degC: too little
+    assert b.offer(*only_xp(0.9, 0.45, 0.6), at(30 * q)) == 2     # keeps 30..31, placed better
     assert b.point(2, 0)[0] == int(0.9 * G) and b.condition(2, 1)[0] == 31 * q
-    assert b.offer(*only_xp(0.78, 0.45, 0.6), 31 * q + 3) == 2   # widens by 0.75 degC: taken
+    assert b.offer(*only_xp(0.78, 0.45, 0.6), at(31 * q + 3)) == 2   # widens by 0.75 degC: taken
     assert b.condition(2, 1)[0] == 31 * q + 3
 
 
@@ -128,17 +135,17 @@ def test_a_full_time_subset_keeps_its_early_spread_points():
     forward.  When it replaced the worst placed, the better placed points of later days took
     every spread slot in turn, and a wrist's shock 19 h into 3 days had 8 of 110 fit points
     before it (docs/model-discovery.md "Bins for composed models")."""
-    b = Bins(2, 8, differ=G // 10, time_differ=bins.TIME_DIFFER)
+    b = Bins(2, 8, differ=G // 10, differs=(0, bins.TIME_DIFFER, 0))
     ys = (0.3, 0.4, 0.5, 0.6, -0.3, -0.4, -0.5, -0.6)   # y and z between the bands: C_xp alone
 
     def only_xp(x, y):
         return int(x * G), int(y * G), int(0.4 * G)
 
     for k, y in enumerate(ys):                # the first hour: 8 points placed 0.2 g off the axis
-        assert b.offer(*only_xp(0.8, y), 0, 7 * k) == 2
+        assert b.offer(*only_xp(0.8, y), at(0, 7 * k)) == 2
     later = [bins.TIME_DIFFER // 2 * (i + 1) for i in range(6)]   # every 6 h for 3 days
     for i, t in enumerate(later):             # placed 0.05 g off the axis: better
-        assert b.offer(*only_xp(0.95, ys[i % 8]), 0, t) == 2
+        assert b.offer(*only_xp(0.95, ys[i % 8]), at(0, t)) == 2
     held = sorted(b.condition(2, k)[1] for k in range(8))
     assert held == [7 * k for k in range(7)] + [later[-1]], held
 
@@ -149,29 +156,29 @@ def test_a_condition_no_longer_tracked_does_not_freeze_the_points_that_hold_it()
     values weigh nothing in the spread any more: a better placed point replaces the placement
     slot holding a stale time.  When they still counted, that slot could not be replaced (its
     time range would "narrow") and the point was refused."""
-    b = Bins(1, 2, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER)
+    b = Bins(1, 2, differ=G // 10, differs=(bins.TEMP_DIFFER, bins.TIME_DIFFER, 0))
     q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 30 * q, 2 * bins.TIME_DIFFER) == 2   # placement
-    assert b.offer(*only_xp(0.8, 0.55, 0.3), 34 * q, 0) == 2                     # spread
-    b.set_differ(bins.TEMP_DIFFER, 0, 0)         # time no longer tracked
-    assert b.offer(*only_xp(0.95, 0.45, 0.35), 30 * q, 5 * bins.TIME_DIFFER) == 2
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(30 * q, 2 * bins.TIME_DIFFER)) == 2   # placement
+    assert b.offer(*only_xp(0.8, 0.55, 0.3), at(34 * q, 0)) == 2                     # spread
+    b.set_differ((bins.TEMP_DIFFER, 0, 0))         # time no longer tracked
+    assert b.offer(*only_xp(0.95, 0.45, 0.35), at(30 * q, 5 * bins.TIME_DIFFER)) == 2
     assert b.point(2, 0)[0] == int(0.95 * G) and b.condition(2, 0) == (30 * q, 0, 0)
 
 
 def test_composed_bins_are_ready_only_with_the_spread():
-    b = Bins(1, 1, temp_differ=3)
+    b = Bins(1, 1, differs=(3, 0, 0))
     for s, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),
                                    (0, G, 0), (0, 0, -G), (G, G // 10, 0), (0, 0, G)]):
-        b.offer(x, y, z, 30)
+        b.offer(x, y, z, at(30))
     assert min(b.counts) == 1 and not b.ready()       # every subset held, all at 30 degC
-    b2 = Bins(1, 1, temp_differ=3)
+    b2 = Bins(1, 1, differs=(3, 0, 0))
     for k, (x, y, z) in enumerate([(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G),
                                    (0, G, 0), (0, 0, -G), (G, G // 10, 0), (0, 0, G)]):
-        b2.offer(x, y, z, 30 + (k == 4) * 4)
+        b2.offer(x, y, z, at(30 + (k == 4) * 4))
     assert min(b2.counts) == 1 and b2.ready()
 
 
@@ -179,28 +186,28 @@ def test_the_board_supply_is_a_third_condition():
     """With supply_differ (a model following the board's supply, mV) the same orientation at a
     supply 100 mV away differs, a full subset widens its supply range, and ready() needs the
     span; without it the supply is ignored."""
-    b = Bins(1, 2, differ=G // 10, supply_differ=bins.SUPPLY_DIFFER)
+    b = Bins(1, 2, differ=G // 10, differs=(0, 0, bins.SUPPLY_DIFFER))
 
     def only_xp(x, y, z):
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 3900) == 2
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 3950) == -1       # 50 mV: the same point
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), 0, 0, 4000) == 2        # 100 mV: differs
-    assert b.offer(*only_xp(0.8, 0.45, 0.35), 0, 0, 3700) == 2      # full: widens 3900..4000
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(0, 0, 3900)) == 2
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(0, 0, 3950)) == -1       # 50 mV: the same point
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(0, 0, 4000)) == 2        # 100 mV: differs
+    assert b.offer(*only_xp(0.8, 0.45, 0.35), at(0, 0, 3700)) == 2      # full: widens 3900..4000
     assert sorted(b.condition(2, k)[2] for k in range(2)) == [3700, 3900]
-    assert b.supply_span() == 200 and b.temp_span() == 0
-    r = Bins(1, 1, supply_differ=bins.SUPPLY_DIFFER)
+    assert b.span(C_SUPPLY) == 200 and b.span(C_TEMP) == 0
+    r = Bins(1, 1, differs=(0, 0, bins.SUPPLY_DIFFER))
     pts = [(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G), (0, G, 0),
            (0, 0, -G), (G, G // 10, 0), (0, 0, G)]
     for k, p in enumerate(pts):
-        r.offer(*p, 30, 0, 3900 + (k == 4) * 60)
+        r.offer(*p, at(30, 0, 3900 + (k == 4) * 60))
     assert min(r.counts) == 1 and not r.ready()            # 60 mV: not spread enough
     r.remove(*pts[4])
-    r.offer(*pts[4], 30, 0, 4000)
+    r.offer(*pts[4], at(30, 0, 4000))
     assert r.ready()
     plain = Bins(2, 4, differ=G // 10)
-    assert plain.offer(G, 0, 0, 0, 0, 3900) >= 0 and plain.offer(G, 0, 0, 0, 0, 4500) == -1
+    assert plain.offer(G, 0, 0, at(0, 0, 3900)) >= 0 and plain.offer(G, 0, 0, at(0, 0, 4500)) == -1
 
 
 def test_the_spread_score_stays_small_with_three_conditions():
@@ -212,15 +219,15 @@ def test_the_spread_score_stays_small_with_three_conditions():
     from accelcal.bridge.ranges import Tracer, traced
     tr = Tracer()
     T = traced(tr)
-    b = Bins(2, 4, differ=G // 10, temp_differ=bins.TEMP_DIFFER, time_differ=bins.TIME_DIFFER,
-             supply_differ=bins.SUPPLY_DIFFER)
+    b = Bins(2, 4, differ=G // 10, differs=bins.DIFFERS)
     b.cond = [T(0)] * len(b.cond)
+    b.c = [T(0)] * bins.COND    # the offered point's conditions, traced too
     x, z = int(0.8 * G), int(0.4 * G)        # y and z between the bands: C_xp alone
     q = 1 << TEMP_Q
     for k, (temp, time, mv) in enumerate([(-40, 0, 0), (85, 1 << 20, 65535), (20, 5, 3900),
                                           (30, 1 << 19, 4100), (-40, 1 << 20, 0),
                                           (85, 0, 65535), (-40, 1 << 20, 65535)]):
-        b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), T(temp * q), T(time), T(mv))
+        b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), [T(temp * q), T(time), T(mv)])
     assert b.counts[2] == 4             # full: the last three offers score the spread
     a, t, c = bins.TEMP_DIFFER, bins.TIME_DIFFER, bins.SUPPLY_DIFFER
     g = math.gcd(t * c, a * c, a * t)
@@ -238,13 +245,13 @@ def test_the_bins_and_the_fit_points_answer_the_span_question_alike(rng):
     from acal.core.pipeline import spanned
     reads = {"temp": 0, "time": 1, "drift": 1, "step": 1, "supply": 2}
     for trial in range(40):
-        b = Bins(2, 4, differ=G // 10, temp_differ=1, time_differ=1, supply_differ=1)
+        b = Bins(2, 4, differ=G // 10, differs=(1, 1, 1))
         lo = [int(v) for v in rng.integers(0, 5000, 3)]
         width = [int(d + rng.integers(-2, 3)) for d in bins.DIFFERS]
         for k, (x, y, z) in enumerate([(G, 0, 0), (-G, 0, 0), (0, G, 0), (0, -G, 0), (0, 0, G)]):
             cond = [lo[c] + (width[c] if k == 1 else 0 if k == 0 else rng.integers(0, width[c] + 1))
                     for c in range(3)]
-            assert b.offer(x, y, z, *(int(v) for v in cond)) >= 0
+            assert b.offer(x, y, z, [int(v) for v in cond]) >= 0
         flat = bins.conditions(b.total())
         n = b.gather(bins.int32s(3 * b.total()), flat)
         for kind, name in effects.NAMES.items():

@@ -21,7 +21,7 @@ from simboard import SimBoard  # noqa: E402
 
 from acal.logger import log  # noqa: E402
 from acal.core.bins import TEMP_DIFFER  # noqa: E402
-from acal.core.fixed import C_TEMP, TEMP_Q  # noqa: E402
+from acal.core.fixed import C_TEMP, C_TIME, TEMP_Q  # noqa: E402
 from acal.logger.app import App, Processor  # noqa: E402
 from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
 
@@ -86,7 +86,7 @@ def test_the_board_fits_the_effect_in_integers(ran):
     # c at the board's reference (the held points' middle temperature), in g/degC.
     cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
     assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
-    assert held.temp_span() >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
+    assert held.span(C_TEMP) >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
 
 
 def test_replay_reproduces_cal_and_effect_records(ran):
@@ -105,7 +105,7 @@ def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
     c, e = last_ok(d)
     # the reference in Q2 degC: the middle of the held points' whole degrees (the chip's OUT_ADC3,
     # scaled by the Processor), a quarter degree apart when their range is odd
-    assert proc.calibration.ref_temp == e["ref_temp"] == app.proc.calibration.ref_temp
+    assert proc.calibration.ref[C_TEMP] == e["ref_temp"] == app.proc.calibration.ref[C_TEMP]
     # one conditions value, the app's, held by the calibration and the pipeline: the chip's
     # whole degrees in Q2
     now = app.proc.now
@@ -114,7 +114,7 @@ def test_stored_composed_calibration_resumes_after_a_reboot(ran, tmp_path):
     temps = [app.proc.pipe.bins.condition(s, k)[0] for s in range(9)
              for k in range(app.proc.pipe.bins.counts[s])]
     assert all(t % (1 << TEMP_Q) == 0 for t in temps)   # whole degrees, held in Q2
-    assert proc.calibration.ref_time == e["ref_time"] - c["index"] // (64 * RATE)
+    assert proc.calibration.ref[C_TIME] == e["ref_time"] - c["index"] // (64 * RATE)
     # flashed as base: starts uncalibrated, numbering on from the stored calibration
     other = Processor(log.Log(str(tmp_path / "log2.bin")), RATE, store=store)
     assert other.calibrations == app.proc.calibrations
@@ -127,7 +127,7 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
     theta = SPEC.from_int(app.proc.params)
     v = rng.uniform(-1.5, 1.5, (300, 3))
     # quarter degrees (Q2 degC), |dT| within the apply's +-32 degC clamp
-    temps = cal.ref_temp + rng.integers(-15 << TEMP_Q, (15 << TEMP_Q) + 1, 300)
+    temps = cal.ref[C_TEMP] + rng.integers(-15 << TEMP_Q, (15 << TEMP_Q) + 1, 300)
     got = []
     for (x, y, z), temp in zip(np.rint(v * 1024).astype(int).tolist(), temps.tolist()):
         cal.now[C_TEMP] = temp
@@ -135,7 +135,7 @@ def test_per_sample_apply_removes_the_effect_like_the_float_model(ran, rng):
         got.append((cal.x, cal.y, cal.z))
     q = float(1 << TEMP_Q)
     want = SPEC.correct(theta, np.rint(v * 1024) / 1024, temps / q, None,
-                        {"T0": cal.ref_temp / q, "t0": 0.0})
+                        {"T0": cal.ref[C_TEMP] / q, "t0": 0.0})
     # Q13 out: the parameters' Q14 and the effect's rounding, a step of 0.12 mg
     assert np.abs(np.array(got) / (1 << cal.out_q) - want).max() < 0.0004
 
@@ -156,7 +156,7 @@ for m, (kinds, r) in enumerate((((1, 3, 4), 2),
          rnd(200000), rnd(200000), rnd(200000), rnd(900000), rnd(900000), rnd(900000)]
     for k in kinds:
         p += [rnd(effects.BOUNDS[k]) for _ in range(3)]
-    cal.set(p, 30, 5000, 2000)
+    cal.set(p, (30, 5000, 0), 2000)
     for j in range(10):
         cal.now[C_TEMP] = rnd(60) + 30
         cal.now[C_TIME] = 5000 + (rnd(1 << 21) if m != 1 else rnd(1 << 15))

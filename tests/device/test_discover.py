@@ -343,7 +343,7 @@ try:
             lo = t
         if SHOCK <= t < hi:
             hi = t
-    r = pipe.ref_time
+    r = pipe.ref[1]   # C_TIME
     print("OK", status, d.kind, int(d.adopted), d.before, d.step_unplaced, d.fitted_time + r,
           d.step_time + r, d.gap_n, d.placed_insample, d.placed_loo, lo, hi,
           " ".join(str(v) for v in d.params), d.errs[6])

@@ -141,7 +141,7 @@ def test_apply_stays_small_in_every_composition_and_order():
             cal = Calibration(order, range_g)
             p = [sign * v if i >= 3 else v for i, v in enumerate(base)]
             p += [sign * deff.BOUNDS[k] for k in order for _ in range(3)]
-            cal.set(p, 0, 0, -sign * 10)      # a step on either side of the reference
+            cal.set(p, None, -sign * 10)      # a step on either side of the reference
             cal.k = [T(v) for v in cal.k]
             cal.w = [0, 0, 0]                 # lists: what is stored there stays traced
             cal.terms = [0] * len(cal.terms)

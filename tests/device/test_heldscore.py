@@ -16,7 +16,7 @@ def _held(rng, n=40):
         v = rng.normal(size=3)
         v /= np.linalg.norm(v)
         v *= 1 + rng.normal(scale=0.02)
-        h.offer(*(int(round(c * 65536)) for c in v), temp=25, time=t, supply=3300)
+        h.offer(*(int(round(c * 65536)) for c in v), (25, t, 3300))
         t += 17
     return h
 
@@ -42,7 +42,7 @@ def test_error_per_point_is_the_float_formula():
 def test_better_blocks_counts_blocks_whose_sum_falls():
     h = heldout.HeldOut()
     for i, t in enumerate((120, 130, 400, 410, 620)):        # blocks 1, 1, 3, 3, 5
-        h.offer(65536 if i % 2 else 0, 0 if i % 2 else 65536, 0, time=t)   # two postures
+        h.offer(65536 if i % 2 else 0, 0 if i % 2 else 65536, 0, (0, t, 0))   # two postures
     s = heldscore.HeldScore()
     for i, v in enumerate((10, 10, 10, 10, 10)):
         s.err[i] = v
@@ -60,7 +60,7 @@ def test_slot_by_slot_scans_count_what_whole_passes_count(rng):
         n = int(rng.integers(1, heldout.CAPACITY + 1))
         for i in range(n):
             h.offer(int(rng.integers(-70000, 70000)), int(rng.integers(-70000, 70000)),
-                    int(rng.integers(-70000, 70000)), time=int(rng.integers(0, 4000)))
+                    int(rng.integers(-70000, 70000)), (0, int(rng.integers(0, 4000)), 0))
         s = heldscore.HeldScore()
         for i in range(h.count):
             s.base[i] = int(rng.integers(0, 200))
@@ -92,7 +92,7 @@ for i in range(72):
     a = [0, 0, 0]
     a[i % 3] = 66000 if (i // 3) % 2 else -65000
     a[(i + 1) % 3] = 700 * (i % 11)
-    h.offer(a[0], a[1], a[2], 25 + i % 5, 113 + 5 * i, 3300)
+    h.offer(a[0], a[1], a[2], (25 + i % 5, 113 + 5 * i, 3300))
 p = int32s(9)
 for i in range(3):
     p[i] = 16777216 + 1000 * i
@@ -100,13 +100,16 @@ for i in range(3):
 s = HeldScore()
 out = int32s(2)   # results: a returned tuple would itself allocate
 kinds = ()
+ref = int32s(3)   # the references, the points' columns: 25 (Q2 degC), 0, 3300 mV
+ref[0] = 25
+ref[2] = 3300
 
 
 def work(s, p, h, kinds, out):
-    out[0] = s.score(p, kinds, h, 25, 0, 3300)
+    out[0] = s.score(p, kinds, h, ref)
     s.keep_as_base(h.count)
     p[6] = p[6] + 20000
-    s.score(p, kinds, h, 25, 0, 3300)
+    s.score(p, kinds, h, ref)
     out[1] = s.better_blocks(h)
 
 

@@ -524,7 +524,7 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
     h = heldout.HeldOut()
     g125 = 5 * (1 << 16) // 4
     for i in range(h.capacity):      # 144 points in 72 blocks, each its own posture
-        h.offer(g125 * (-1) ** i, -g125, g125 * (-1) ** (i >> 1), 0, (2 * (i >> 1) + 1) * 113)
+        h.offer(g125 * (-1) ** i, -g125, g125 * (-1) ** (i >> 1), (0, (2 * (i >> 1) + 1) * 113, 0))
     assert h.count == h.capacity
     for name in ("xyz", "cond", "block", "weight"):
         setattr(h, name, [T(v) for v in getattr(h, name)])
@@ -542,7 +542,7 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
             for sgn in (-1, 1):
                 p = [T(k)] * 3 + [T(sgn * fixed.FIT_K_OFF_MAX)] * 3 + [T(o)] * 3 + \
                     [T(sgn * 4 * effects.BOUNDS[kd]) for kd in kinds for _ in range(3)]
-                total = s.score(p, kinds, h, T(-1000), T(-(1 << 28)), T(65535), T(1 << 28))
+                total = s.score(p, kinds, h, (T(-1000), T(-(1 << 28)), T(65535)), T(1 << 28))
                 totals.append(int(total))
                 s.keep_as_base(h.count)
                 assert s.better_blocks(h) == 0

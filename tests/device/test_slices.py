@@ -1,9 +1,9 @@
-"""The slice mechanism written once (device/acal/core/slices.py; issue 48 part 2): every sliced
+"""The slice mechanism written once (device/acal/core/status.py; issue 48 part 2): every sliced
 computation of the device package is a Sliced, its phases numbered by their slices' places
 (its module's _DONE their count), and step() runs exactly the current slice."""
 import importlib
 
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 
 
 class _Two(Sliced):
@@ -63,13 +63,13 @@ def test_every_sliced_computation_is_a_sliced_with_its_phases_numbered_by_the_ta
 
 def test_no_module_hand_rolls_a_phase_machine():
     """A module that moves a phase (self.phase = ...) does it on Sliced, and no module but
-    slices.py dispatches on one (an `if ph == _X` chain)."""
+    status.py (its Sliced) dispatches on one (an `if ph == _X` chain)."""
     import pathlib
     import re
     root = pathlib.Path(__file__).parents[2] / "device" / "acal"
     for p in root.rglob("*.py"):
         text = p.read_text()
-        if p.name == "slices.py":
+        if p.name == "status.py":
             continue
         if "self.phase = " in text:
             assert "(Sliced):" in text, p

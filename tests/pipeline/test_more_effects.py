@@ -170,6 +170,7 @@ def test_a_stored_step_or_supply_resumes_after_a_reboot(tmp_path, kind):
     from acal.core import effects as deff
     from acal.logger import log
     from acal.logger.app import Processor
+    from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
     rate = 25
     unit = deff.DT_UNIT_S * rate
     store = log.CalStore(str(tmp_path / "a.bin"), str(tmp_path / "b.bin"))
@@ -181,11 +182,11 @@ def test_a_stored_step_or_supply_resumes_after_a_reboot(tmp_path, kind):
     proc = Processor(log.Log(str(tmp_path / "log.bin")), rate, store=store,
                      model="base+drift+" + kind)
     c = proc.calibration
-    assert c.ref_time == 80 - 100 and c.ref_temp == 30
+    assert c.ref[C_TIME] == 80 - 100 and c.ref[C_TEMP] == 30
     if kind == "step":
-        assert c.step_time == 150 - 80 and c.ref_supply == 0
+        assert c.step_time == 150 - 80 and c.ref[C_SUPPLY] == 0
     else:
-        assert c.ref_supply == 3912 and c.step_time == 0
+        assert c.ref[C_SUPPLY] == 3912 and c.step_time == 0
     assert proc.params[-6:] == [1000, -1000, 0, 20000, 0, -20000]
 
 

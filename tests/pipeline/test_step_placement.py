@@ -78,7 +78,7 @@ def held(xyz, t, weight=None):
 def scored_at(xyz, t, p_int, ts):
     """The step model's held-out error with its step at ts, every point scored (HeldScore)."""
     from array import array
-    return HeldScore().score(array("i", p_int), (effects.STEP,), held(xyz, t), 0, 0, 0, ts)
+    return HeldScore().score(array("i", p_int), (effects.STEP,), held(xyz, t), None, ts)
 
 
 def board(xyz, t, p_int, weight=None):
@@ -89,8 +89,8 @@ def board(xyz, t, p_int, weight=None):
     p = array("i", p_int)
     kinds = (effects.STEP,)
     s = HeldScore()
-    err = s.score(p, kinds, h, 0, 0, 0, HI)
-    s.begin(p, kinds, h, 0, 0, 0, HI)
+    err = s.score(p, kinds, h, None, HI)
+    s.begin(p, kinds, h, None, HI)
     place = StepPlace()
     place.begin(s, h, 0, LO, HI, err, 48)
     while not place.step():

@@ -10,24 +10,20 @@
 # (the axis for n/p, the ring's diagonals for 0; badness) when it is nearer: the selection keeps
 # improving while rest data flows (docs/method-and-formats.md).
 # Composed models (docs/model-discovery.md "Bins for composed models"): an effect's parameters are
-# only seen in points that differ in temperature (temp_offset, temp_scale), time (drift) or the
-# board's supply (supply_offset, mV).  With temp_differ (Q2 degC, fixed.TEMP_Q), time_differ (64 s
-# units) or supply_differ (mV) set (set_differ), each slot also holds its point's conditions, and:
-#   - a point near a held one in orientation still differs from it when |dT| >= temp_differ,
-#     |dt| >= time_differ or |dV| >= supply_differ (the same point seen warmer, or a day later);
-#   - a full subset's slots have two roles: the first half keep well-placed points (CENTRE:
-#     the 9 parameters need them), the second half keep spread (an effect's term gets most
-#     leverage from extremes): a new point replaces the spread slot whose replacement most widens
-#     the subset's spread (each condition's range per its threshold, _spread) by a quarter
-#     threshold or more, of equals the newest (time only grows: keeping the early points keeps
-#     a step's or a drift's leverage), then the worst placed; else, by CENTRE, a placement slot.
-#     No replacement narrows the spread.
-#   - ready() also needs the held points together to span each threshold.
+# only seen in points that differ in the condition it reads (temperature, time, the supply...).
+# With a column's threshold set (set_differ: `differs`, fixed.C_TEMP ...'s order), each slot also
+# holds its point's conditions (COND columns), and: a point near a held one in orientation still
+# differs from it when a tracked condition differs by its threshold or more; a full subset's first
+# half of slots keep well-placed points (CENTRE), the second half spread: a new point replaces the
+# spread slot whose replacement most widens the subset's spread (each column's range per its
+# threshold, _extremes) by a quarter threshold or more, of equals the newest (keeping a step's or a
+# drift's leverage), then the worst placed; else, by CENTRE, a placement slot; no replacement
+# narrows the spread; ready() also needs the held points to span each threshold.
 from array import array
 
 from acal.core import hemisphere
 from acal.core.emit import copy_ints
-from acal.core.fixed import POINT_ONE_G, TEMP_Q
+from acal.core.fixed import POINT_ONE_G, TEMP_Q, C_TIME
 try:
     from micropython import const
 except ImportError:
@@ -129,12 +125,12 @@ def badness(x, y, z, s):
 class Bins:
     """The nine subsets of calibration points.  min_count / max_count: points per subset (paper:
     2 and 2 -> 18 points); differ: minimum max-norm distance to every held point, Q16 g (default
-    0.1 g); policy: FIRST or CENTRE; temp_differ (Q2 degC), time_differ (64 s units),
-    supply_differ (mV): 0, or the spreads a composed model needs (see above); room: slots a
+    0.1 g); policy: FIRST or CENTRE; differs: None, or a threshold per condition column
+    (DIFFERS' order; 0: untracked), the spreads a composed model needs (see above); room: slots a
     subset has, when more than max_count (a discovering board's: acal/discover/plug.py)."""
 
     def __init__(self, min_count=2, max_count=2, differ=DEFAULT_DIFFER, policy=CENTRE,
-                 temp_differ=0, time_differ=0, coverage=False, supply_differ=0, room=0):
+                 differs=None, coverage=False, room=0):
         if not 1 <= min_count <= max_count:
             raise ValueError("need 1 <= min_count <= max_count")
         self.coverage = coverage
@@ -143,13 +139,17 @@ class Bins:
         self.max_count = max_count
         self.differ = differ
         self.policy = policy
-        self.set_differ(temp_differ, time_differ, supply_differ)
+        self.differs = [0] * COND   # the conditions' thresholds (set_differ), COND's order
+        self._w = [0] * COND        # the spread's weights (set_differ)
+        self._ex = [0] * (6 * COND)  # a subset's extremes, 6 a column (_extremes)
+        self.c = conditions(1)      # an offered point's conditions (offer)
+        self.set_differ(self.differs if differs is None else differs)
         self.need_span = True   # False: ready() does not wait for the spreads (acal/discover/search.py)
         self.counts = [0] * N_SUBSETS
         n = N_SUBSETS * (room if room > max_count else max_count)
         # Subset s, slot k, component c at xyz[3 * (s * max_count + k) + c].
         self.xyz = int32s(3 * n)
-        # Temperature, time, supply of slot k of subset s at cond[COND * (s * max_count + k) + 0..2]
+        # The conditions of slot k of subset s at cond[COND * (s * max_count + k) + column]
         self.cond = conditions(n)
         self.offered = 0
         self.kept = 0
@@ -176,7 +176,7 @@ class Bins:
         """True when every subset holds at least min_count points, or with `coverage` when the
         held points cover every axis (covered()), and with `coverage` never on points all on
         one side of a plane through 0 g (hemisphere.py); and, for a composed model, when the held
-        points span temp_differ, time_differ and supply_differ.  The answer is kept until the
+        points span each condition's threshold (differs).  The answer is kept until the
         held points change (the app asks once a block: 222 us of bytecode on an RP2040)."""
         if self.ready_at != self.changes:
             self.ready_now = self._ready()
@@ -196,8 +196,10 @@ class Bins:
             return False
         if not self.need_span:
             return True
-        return self.temp_span() >= self.temp_differ and self.time_span() >= self.time_differ \
-            and self.supply_span() >= self.supply_differ
+        for c in range(COND):
+            if self.span(c) < self.differs[c]:
+                return False
+        return True
 
     def covered(self):
         """True when at least COVER_POINTS points are held, on every axis at least COVER_SIDE
@@ -235,16 +237,15 @@ class Bins:
                 if self.xyz[i] == x and self.xyz[i + 1] == y and self.xyz[i + 2] == z:
                     for j in range(k + 1, n):  # the later slots move down one
                         i = 3 * (s * m + j)
-                        c = COND * (s * m + j)
                         self._store(s * m + j - 1, self.xyz[i], self.xyz[i + 1], self.xyz[i + 2],
-                                    self.cond[c], self.cond[c + 1], self.cond[c + 2])
+                                    self.cond, COND * (s * m + j))
                     self.counts[s] = n - 1
                     self.changes += 1
                     return True
         return False
 
     def span(self, c):
-        """Range of condition c (0 temperature, 1 time, 2 supply) over every held point."""
+        """Range of condition c (a column: fixed.C_TEMP ...) over every held point."""
         lo = hi = 0
         first = True
         m = self.max_count
@@ -258,70 +259,59 @@ class Bins:
                 first = False
         return hi - lo
 
-    def temp_span(self):
-        """Temperature range of the held points (Q2 degC; 0 unless temperature is tracked)."""
-        return self.span(0)
-
-    def time_span(self):
-        """Time range of the held points (64 s units; 0 unless time is tracked)."""
-        return self.span(1)
-
-    def supply_span(self):
-        """Supply range of the held points (mV; 0 unless the supply is tracked)."""
-        return self.span(2)
-
-    def _spread(self, s, skip, temp, time, supply):
-        # The spread score of subset s, slot `skip` holding (temp, time, supply) instead: each
-        # range per its threshold times the thresholds' product over their common divisor
-        # (set_differ's weights: 225, 4, 27), < 2**30 for 125 degC, 2**20 time units, 65 V
-        # (tests/device/test_bins.py).
-        m = self.max_count
-        cond = self.cond
-        t_lo = t_hi = temp
-        u_lo = u_hi = time
-        v_lo = v_hi = supply
-        for k in range(self.counts[s]):
-            if k == skip:
+    def _extremes(self, s):
+        # Per tracked column c, subset s's lowest condition, the next (of the other slots; None:
+        # none), the lowest's slot, and the same for the highest, in self._ex[6 c:6 c + 6]; returns
+        # the subset's spread score as it is (offer's, whose loop reads _ex: a call a slot would
+        # take a heap frame a slot).  The score: each column's range per its threshold times the
+        # thresholds' product over their common divisor (set_differ's weights: 225, 4, 27), < 2**30
+        # at 125 degC, 2**20 time units, 65 V (tests/device/test_bins.py).
+        m, cond, ex = self.max_count, self.cond, self._ex   # (three: no tuple made)
+        w, n, now = self._w, self.counts[s], 0
+        for c in range(COND):
+            if not w[c]:
                 continue
-            j = COND * (s * m + k)
-            v = cond[j]
-            if v < t_lo:
-                t_lo = v
-            elif v > t_hi:
-                t_hi = v
-            v = cond[j + 1]
-            if v < u_lo:
-                u_lo = v
-            elif v > u_hi:
-                u_hi = v
-            v = cond[j + 2]
-            if v < v_lo:
-                v_lo = v
-            elif v > v_hi:
-                v_hi = v
-        return (t_hi - t_lo) * self._w_temp + (u_hi - u_lo) * self._w_time + \
-            (v_hi - v_lo) * self._w_supply
+            lo1 = hi1 = lo2 = hi2 = None
+            lk = hk = -1
+            j = COND * s * m + c
+            for k in range(n):
+                v = cond[j]
+                if lo1 is None or v < lo1:
+                    lo2, lo1, lk = lo1, v, k
+                elif lo2 is None or v < lo2:
+                    lo2 = v
+                if hi1 is None or v > hi1:
+                    hi2, hi1, hk = hi1, v, k
+                elif hi2 is None or v > hi2:
+                    hi2 = v
+                j += COND
+            b = 6 * c
+            ex[b], ex[b + 1], ex[b + 2] = lo1, lo2, lk
+            ex[b + 3], ex[b + 4], ex[b + 5] = hi1, hi2, hk
+            now += (hi1 - lo1) * w[c]
+        return now
 
-    def set_differ(self, temp_differ, time_differ, supply_differ):
-        """Set the three thresholds (only so): the spread weights follow here, not per offer."""
-        self.temp_differ = temp_differ
-        self.time_differ = time_differ
-        self.supply_differ = supply_differ
-        a = temp_differ or 1
-        b = time_differ or 1
-        c = supply_differ or 1
-        g = _gcd(_gcd(b * c, a * c), a * b)
-        self._w_temp = (b * c) // g if temp_differ else 0     # untracked: held values count
-        self._w_time = (a * c) // g if time_differ else 0     # no more (an adoption that ends
-        self._w_supply = (a * b) // g if supply_differ else 0  # the discovery stops tracking)
-        self._w_gain = ((a * b * c) // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
+    def set_differ(self, differs):
+        """Set the thresholds, one a column (COND of them, 0: untracked; only so): the spread
+        weights follow here, not per offer."""
+        prod = 1
+        for c in range(COND):
+            self.differs[c] = differs[c]
+            prod *= differs[c] or 1
+        g = 0
+        for c in range(COND):
+            g = _gcd(g, prod // (differs[c] or 1))
+        for c in range(COND):   # untracked: held values count no more (an adoption that ends
+            d = differs[c]      # the discovery stops tracking)
+            self._w[c] = (prod // d) // g if d else 0
+        self.tracked = any(self._w)
+        self._w_gain = (prod // g) >> 2 or 1  # a quarter threshold (3 degC: 0.75)
 
-    def _far_from_all(self, x, y, z, temp, time, supply, skip):
-        # max-norm distance >= differ from every held point but slot `skip`, or far in a condition
+    def _far_from_all(self, x, y, z, src, skip):
+        # max-norm distance >= differ from every held point but slot `skip`, or far in a
+        # tracked condition (src[0:COND] the point's)
         d = self.differ
-        dT = self.temp_differ
-        dt = self.time_differ
-        dV = self.supply_differ
+        differs = self.differs
         xyz = self.xyz
         cond = self.cond
         m = self.max_count
@@ -334,37 +324,33 @@ class Bins:
                 i = 3 * slot
                 if -d < x - xyz[i] < d and -d < y - xyz[i + 1] < d and -d < z - xyz[i + 2] < d:
                     j = COND * slot
-                    if dT and not -dT < temp - cond[j] < dT:
-                        continue
-                    if dt and not -dt < time - cond[j + 1] < dt:
-                        continue
-                    if dV and not -dV < supply - cond[j + 2] < dV:
-                        continue
-                    return False
+                    for c in range(COND):
+                        dc = differs[c]
+                        if dc and not -dc < src[c] - cond[j + c] < dc:
+                            break   # far in a tracked condition
+                    else:
+                        return False
         return True
 
-    def _store(self, slot, x, y, z, temp, time, supply):
+    def _store(self, slot, x, y, z, src, o):
         self.changes += 1   # every change of the held points passes here or clear()
         i = 3 * slot
         self.xyz[i] = x
         self.xyz[i + 1] = y
         self.xyz[i + 2] = z
         j = COND * slot
-        self.cond[j] = temp
-        self.cond[j + 1] = time
-        self.cond[j + 2] = supply
+        cond = self.cond
+        for c in range(COND):
+            cond[j + c] = src[o + c]
 
-    def offer(self, x, y, z, temp=0, time=0, supply=0):
-        """Offer a rest mean (Q16 g) seen at temperature `temp` (Q2 degC), time `time` (64 s
-        units) and the board's supply (mV; each ignored unless tracked). Returns the subset
-        index it was kept in, or -1."""
+    def offer(self, x, y, z, cond=None):
+        """Offer a rest mean (Q16 g) seen at the conditions `cond` (conditions(1)'s columns:
+        fixed.C_TEMP ...; each ignored unless tracked; None: none).  Returns the subset index
+        it was kept in, or -1."""
         self.offered += 1
-        if not self.temp_differ:
-            temp = 0
-        if not self.time_differ:
-            time = 0
-        if not self.supply_differ:
-            supply = 0
+        c = self.c   # the point's conditions, the untracked zeroed (cond itself untouched)
+        for i in range(COND):
+            c[i] = cond[i] if cond is not None and self.differs[i] else 0
         if not gravity(x, y, z):
             return -1
         m = self.max_count
@@ -374,25 +360,22 @@ class Bins:
             if s >= 0 and self.counts[s] < m and (best < 0 or self.counts[s] < self.counts[best]):
                 best = s
         if best >= 0:
-            if not self._far_from_all(x, y, z, temp, time, supply, -1):
+            if not self._far_from_all(x, y, z, c, -1):
                 return -1
-            self._store(best * m + self.counts[best], x, y, z, temp, time, supply)
+            self._store(best * m + self.counts[best], x, y, z, c, 0)
             self.counts[best] += 1
             self.kept += 1
             return best
         if self.policy != CENTRE:
             return -1
-        tracked = self.temp_differ or self.time_differ or self.supply_differ
+        tracked = self.tracked
+        w, ex = self._w, self._ex
         gain = self._w_gain
         for axis in range(3):
-            c = x if axis == 0 else (y if axis == 1 else z)
-            s = subset_of(c, axis, self.lo_out)
+            s = subset_of(x if axis == 0 else (y if axis == 1 else z), axis, self.lo_out)
             if s < 0:
                 continue
-            now = 0  # the subset's spread as it is: slot 0 "replaced" by itself
-            if tracked:
-                j = COND * s * m
-                now = self._spread(s, 0, self.cond[j], self.cond[j + 1], self.cond[j + 2])
+            now = self._extremes(s) if tracked else 0   # the subset's spread as it is
             widest = -1
             widest_spread = now + gain - 1
             widest_bad = -1
@@ -400,14 +383,26 @@ class Bins:
             worst = -1
             worst_bad = badness(x, y, z, s)
             for k in range(self.counts[s]):
-                spread = self._spread(s, k, temp, time, supply) if tracked else 0
+                spread = 0   # with slot k holding the point instead (_extremes)
+                for j in range(COND if tracked else 0):
+                    wc = w[j]
+                    if wc:
+                        v = c[j]
+                        b = 6 * j
+                        lo = ex[b + 1] if k == ex[b + 2] else ex[b]
+                        hi = ex[b + 4] if k == ex[b + 5] else ex[b + 3]
+                        if lo is None or v < lo:
+                            lo = v
+                        if hi is None or v > hi:
+                            hi = v
+                        spread += (hi - lo) * wc
                 if spread < now:
                     continue  # would narrow the spread the effects need
                 i = 3 * (s * m + k)
                 b = badness(self.xyz[i], self.xyz[i + 1], self.xyz[i + 2], s)
                 if tracked and k >= (m >> 1):
                     # A spread slot: the widest; of equals the newest, then the worst placed
-                    t = self.cond[COND * (s * m + k) + 1]
+                    t = self.cond[COND * (s * m + k) + C_TIME]
                     if spread > widest_spread or (widest >= 0 and spread == widest_spread and (
                             t > widest_time or (t == widest_time and b > widest_bad))):
                         widest_spread = spread
@@ -418,8 +413,8 @@ class Bins:
                     worst_bad = b
                     worst = k
             k = widest if widest >= 0 else worst
-            if k >= 0 and self._far_from_all(x, y, z, temp, time, supply, s * m + k):
-                self._store(s * m + k, x, y, z, temp, time, supply)
+            if k >= 0 and self._far_from_all(x, y, z, c, s * m + k):
+                self._store(s * m + k, x, y, z, c, 0)
                 self.replaced += 1
                 return s
         return -1
@@ -430,13 +425,13 @@ class Bins:
         return self.xyz[i], self.xyz[i + 1], self.xyz[i + 2]
 
     def condition(self, s, k):
-        """(temperature, time, supply) of slot k of subset s: Q2 degC, 64 s units, mV."""
+        """The conditions of slot k of subset s, a tuple in the columns' order (fixed.C_TEMP ...)."""
         j = COND * (s * self.max_count + k)
-        return self.cond[j], self.cond[j + 1], self.cond[j + 2]
+        return tuple(self.cond[j + c] for c in range(COND))
 
     def gather(self, out, cond=None):
         """Copy the held points into the flat int32 array `out` (x y z per point) and, if given,
-        their temperature, time and supply into `cond` (COND per point); return the count.  (A
+        their conditions into `cond` (COND per point); return the count.  (A
         host may pass lists: emit.copy_ints is viper only on a board.)"""
         n = 0
         m = self.max_count

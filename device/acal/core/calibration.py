@@ -9,7 +9,7 @@ from acal.core.fixed import (N_PARAMS, APPLY_FROM_SAMPLE_SHIFT, APPLY_PARAM_SHIF
                         PARAM_ONE, apply_range_shift)
 from acal.core import effects
 from acal.core.wide import mul_shift
-from acal.core.bins import int32s, conditions
+from acal.core.bins import int32s, conditions, COND
 from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.model import identity, in_bounds, effects_within
@@ -28,9 +28,9 @@ class Calibration:
     kinds: a composed model's effects (acal.core.effects ids).  Their parameters follow the nine in
     p and are kept in their per-sample form (acal/core/effects.py); the feeder keeps the conditions
     `now` current (bins.conditions(1), given or a zeroed one of its own: C_TEMP Q2 degC, C_TIME
-    64 s units, C_SUPPLY mV, the board's), and the effects are removed with dT = temp - ref_temp,
-    dt = time - ref_time and dV = supply - ref_supply, the references the fit used (set()); a
-    step at dt >= step_time."""
+    64 s units, C_SUPPLY mV, the board's), and the effects are removed at now - ref, column by
+    column, `ref` (the same columns) the references the fit used (set()); a step at
+    dt >= step_time."""
 
     def __init__(self, kinds=(), range_g=2, now=None):
         self.kinds = tuple(kinds)
@@ -41,18 +41,14 @@ class Calibration:
         self.k = int32s(self.n_params)   # an int32 array: _apply_block's typed pointer
         self.w = int32s(3)   # one sample (apply()), or a reading after its effects, Q(14 - e)
         self.now = conditions(1) if now is None else now
-        self.ref_temp = 0
-        self.ref_time = 0
-        self.ref_supply = 0
+        self.ref = conditions(1)   # the fit's references, now's columns (set())
         self.step_time = 0
         # the effects' forms and terms at the block's conditions (effects.block_terms), in the
-        # order they are removed (the last effect first), 4 ints each: made when temp, time or
-        # supply changes (per block, not per sample), read by _apply_composed's one viper loop
+        # order they are removed (the last effect first), 4 ints each: made when a condition
+        # changes (per block, not per sample), read by _apply_composed's one viper loop
         self.terms = int32s(4 * len(self.kinds))
         self.terms_valid = False
-        self.t_temp = 0
-        self.t_time = 0
-        self.t_supply = 0
+        self.at = conditions(1)    # the conditions the terms were made at
         self.x = 0
         self.y = 0
         self.z = 0
@@ -61,9 +57,10 @@ class Calibration:
         identity(p)
         self.set(p)
 
-    def set(self, p, ref_temp=0, ref_time=0, step_time=0, ref_supply=0):
-        """Take Q24 parameters (and a step's time, 64 s units from ref_time; the supply's
-        reference, mV); ValueError outside the bounds (the range proof needs them)."""
+    def set(self, p, ref=None, step_time=0):
+        """Take Q24 parameters, the references the fit used (`ref`, now's columns, copied;
+        None: zeros) and a step's time (64 s units from ref[C_TIME]); ValueError outside the
+        bounds (the range proof needs them)."""
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             raise ValueError("parameters outside the calibration bounds")
         if not self.kinds:
@@ -73,10 +70,9 @@ class Calibration:
             self.k[i] = (p[i] + (1 << (shift - 1))) >> shift
         for j in range(len(self.kinds)):
             effects.apply_params(self.kinds[j], p, N_PARAMS + 3 * j, self.k, N_PARAMS + 3 * j)
-        self.ref_temp = ref_temp
-        self.ref_time = ref_time
+        for c in range(COND):
+            self.ref[c] = 0 if ref is None else ref[c]
         self.step_time = step_time
-        self.ref_supply = ref_supply
         self.terms_valid = False
 
     def apply(self, x, y, z):
@@ -105,8 +101,12 @@ class Calibration:
                                        self.dither, SIGN_SHIFT)
         else:   # one viper loop a block: the effects' terms made once for its conditions
             c = self.now
-            if not self.terms_valid or c[C_TEMP] != self.t_temp or c[C_TIME] != self.t_time or \
-                    c[C_SUPPLY] != self.t_supply:
+            t = self.at
+            moved = not self.terms_valid
+            for j in range(COND):   # a condition changed since the terms were made
+                if c[j] != t[j]:
+                    moved = True
+            if moved:
                 self._block_terms()
             _apply_composed(src, buf, i, end, self.k, self.terms, 4 * len(self.kinds),
                             self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e, self.e, APPLY_W_MAX,
@@ -117,20 +117,20 @@ class Calibration:
 
     def _block_terms(self):
         # The effects' forms and terms (effects.block_terms) at the current conditions, last
-        # effect first: dT = temp - ref_temp, dt = time - ref_time, dV = supply - ref_supply.
+        # effect first: at now - ref, column by column.
         kinds = self.kinds
         c = self.now
-        dT = c[C_TEMP] - self.ref_temp
-        dt = c[C_TIME] - self.ref_time
-        dV = c[C_SUPPLY] - self.ref_supply
+        r = self.ref
+        dT = c[C_TEMP] - r[C_TEMP]
+        dt = c[C_TIME] - r[C_TIME]
+        dV = c[C_SUPPLY] - r[C_SUPPLY]
         n = len(kinds)
         for j in range(n):
             effects.block_terms(kinds[n - 1 - j], self.k, N_PARAMS + 3 * (n - 1 - j), self.terms,
                                 4 * j, dT, dt, self.step_time, dV, self.e)
         self.terms_valid = True
-        self.t_temp = c[C_TEMP]
-        self.t_time = c[C_TIME]
-        self.t_supply = c[C_SUPPLY]
+        for i in range(COND):
+            self.at[i] = c[i]
 
 
 def _base_params(p, k, e):

@@ -32,7 +32,7 @@
 # (docs/model-discovery.md "Discovery on the board").  The same operations in the same
 # order as whole passes: the result is the same to the bit.
 from acal.core.bins import COND
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 
 MIN_SIDE_SHIFT = 3
 READ_SLICE = 8
@@ -45,7 +45,7 @@ SCALE_BITS = 9
 GUARD_SHIFT = 8
 NONE = -1 << 29      # a split not scored
 
-_READ = 0    # the kept points (the phases: their slices' places, acal/core/slices.py)
+_READ = 0    # the kept points (the phases: their slices' places, acal/core/status.py)
 _SORT = 1    # their order in time
 _SCAN = 2    # the backward pass
 _DONE = 3

@@ -39,7 +39,7 @@ except ImportError:  # CPython
         return x
 from acal.core.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.core.solve import Solver
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 from acal.core.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
                                insert_abs, q24, above, rhs_from_limbs, point_residual)
 
@@ -63,7 +63,7 @@ REJECT_MUL = 6
 REJECT_MIN = (8 << model.GN_R_Q) // 1000
 REJECT_ROUNDS = 3
 
-# the phases: their slices' places in the table (acal/core/slices.py; const: compiled in)
+# the phases: their slices' places in the table (acal/core/status.py; const: compiled in)
 _ACCUM = const(0)   # residuals and Jacobian rows at p, point by point
 _SOLVE = const(1)   # the damped normal equations, scaled (solve.Solver.begin)
 _ELIM = const(2)    # ... and solved, a few rows a step -> a trial step
@@ -118,12 +118,13 @@ class GaussNewton(Sliced):
         self.z = int32s(3)
         self.q = int32s(3)
         self.nk = len(self.kinds)
+        self.ncond = COND               # aux's conditions a point, for normal_sums' viper rows
         self.kind_ids = int32s(self.nk)
         for k in range(len(self.kinds)):
             self.kind_ids[k] = self.kinds[k]
         self.solver = Solver(np_)
         self.status = OK
-        # the phases' slices, in their order (acal/core/slices.py; _DONE is their count)
+        # the phases' slices, in their order (acal/core/status.py; _DONE is their count)
         self.sliced((self._accum, self._solve, self._elim, self._trial, self._sort, self._reject))
         self.iterations = 0
         self.max_iterations = DEFAULT_ITERATIONS

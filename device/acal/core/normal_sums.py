@@ -311,7 +311,7 @@ def point_residual(fit, params, i: int) -> int:
         removed = fit.w
         v = ptr32(removed)
         aux = ptr32(fit.aux)
-        j = 3 * i                 # COND per point
+        j = int(fit.ncond) * i    # bins.COND per point (a viper loop takes no other module's const)
         v[0] = x
         v[1] = y
         v[2] = z
@@ -344,7 +344,7 @@ def raw_row(fit, params, i: int) -> int:
     aux = ptr32(fit.aux)
     ids = fit.kind_ids
     at = 3 * i
-    j = 3 * i
+    j = int(fit.ncond) * i
     dT = int(aux[j]) << w >> w
     dt = int(aux[j + 1]) << w >> w
     dV = int(aux[j + 2]) << w >> w

@@ -1,18 +1,18 @@
 # The calibration pipeline: samples -> rest detection -> bins -> optimiser.
 # One object, allocated once; the app feeds it FIFO reads, the host feeds it recordings.
 from acal.core.rest import RestDetector, DEFAULT_SECONDS, DEFAULT_THRESHOLD
-from acal.core.bins import (Bins, CENTRE, DEFAULT_DIFFER, DIFFERS, N_SUBSETS, conditions,
-                       int32s)
+from acal.core.bins import (Bins, CENTRE, COND, DEFAULT_DIFFER, DIFFERS, N_SUBSETS,
+                            conditions, int32s)
 from acal.core.status import OK, BASE_KEPT_FAILED, BASE_KEPT_WORSE
-from acal.core.fixed import N_PARAMS, C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import N_PARAMS
 from acal.core.gaussnewton import GaussNewton
 from acal.core import gaussnewton
 from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 
-# the fit's phases: their slices' places in the table (acal/core/slices.py; _DONE their count)
+# the fit's phases: their slices' places in the table (acal/core/status.py; _DONE their count)
 _BASE = 0       # the base fit (a composed model's, NEWTON), a slice a step
 _MODEL = 1      # the model's own fit, a slice a step
 _BASE_END = 2   # the base fit ended: a step's search begun, or the model's own fit
@@ -35,15 +35,14 @@ class Pipeline(Sliced):
 
     kinds: the effects of a composed model (acal.core.effects ids; () is the paper's model).  Their
     bins track temperature, time and the board's supply (bins.py), and the feeder keeps the
-    conditions `now` current (below); a fit takes
-    each point's dT, dt and dV from the middle of the held points' ranges (ref_temp, ref_time,
-    ref_supply), which the calibration keeps.  iterations None: 50 for the
+    conditions `now` current (below); a fit takes each point's conditions relative to the
+    middle of the held points' ranges (`ref`, now's columns), which the calibration keeps.  iterations None: 50 for the
     paper's model, 200 for a composed one (50 leave the effect terms under-converged); with
     NEWTON at most gaussnewton.DEFAULT_ITERATIONS steps per round (it stops when converged).
 
     A model with a step (effects.STEP; NEWTON only): the model without the step is fitted
     first, acal/core/changepoint.py finds the step's time on its residuals (step_time, 64 s units
-    from ref_time, which the calibration keeps), and the whole model is fitted from there.
+    from ref[C_TIME], which the calibration keeps), and the whole model is fitted from there.
 
     The fit is sliced: begin_fit() then fit_step() until it returns True (the app does one step
     between FIFO reads), or calibrate() at once; the same integers either way.
@@ -124,9 +123,7 @@ class Pipeline(Sliced):
             self.reference = reference
         # the conditions now (bins.conditions(1): C_TEMP, C_TIME, C_SUPPLY), shared with the feeder
         self.now = conditions(1) if now is None else now
-        self.ref_temp = 0
-        self.ref_time = 0
-        self.ref_supply = 0
+        self.ref = conditions(1)   # a composed fit's references, now's columns (_centre)
         self.on_rest = on_rest
         self.rest_count = 0
         self.worn = True
@@ -147,7 +144,7 @@ class Pipeline(Sliced):
         plug = self.plug
         if plug is None or plug.offer(self, x, y, z):
             c = self.now
-            s = self.bins.offer(x, y, z, c[C_TEMP], c[C_TIME], c[C_SUPPLY])
+            s = self.bins.offer(x, y, z, c)
         else:
             s = -1
         if self.on_rest is not None:
@@ -202,15 +199,14 @@ class Pipeline(Sliced):
         return not self.kinds and self.plug is None
 
     def _centre(self):
-        # the references, one at a time (a tuple of the three would be the fit's only
-        # allocation), and each point's conditions relative to them
+        # the references, column by column into self.ref, and each point's conditions
+        # relative to them
         aux = self.aux
         n = self.n_fit
         kinds = self.kinds
         r = self.reference
-        self.ref_temp = r.centre(aux, n, 0, r.lowest(kinds, 0))
-        self.ref_time = r.centre(aux, n, 1, r.lowest(kinds, 1))
-        self.ref_supply = r.centre(aux, n, 2, r.lowest(kinds, 2))
+        for c in range(COND):
+            self.ref[c] = r.centre(aux, n, c, r.lowest(kinds, c), COND)
         self.phase = _BEGIN
 
     def _begin(self):
@@ -322,7 +318,7 @@ def track(bins, kinds, every=False):
     """Set the bins' least differences (bins.py) to what the effects' regressors need (every:
     all three conditions, e.g. for a plug's candidates), and the spread weights with them
     (bins.set_differ)."""
-    bins.set_differ(_needed(kinds, 0, every), _needed(kinds, 1, every), _needed(kinds, 2, every))
+    bins.set_differ([_needed(kinds, c, every) for c in range(COND)])
 
 
 def _needed(kinds, c, every):

@@ -1,23 +1,24 @@
-# A composed fit's reference conditions: the temperature, time and supply its effect terms are
-# measured from (dT, dt, dV), the middle of the fit points' ranges, so that the effect terms do
-# not trade with the offsets.  Conditions are flat int32 arrays, bins.COND per point (Q2 degC,
-# 64 s units, mV); the references are the same units.  Pipeline centres its fit points with
+# A composed fit's reference conditions: the conditions its effect terms are measured from, the
+# middle of the fit points' ranges, so that the effect terms do not trade with the offsets.
+# Conditions are flat int32 arrays, bins.COND columns per point (fixed.C_TEMP Q2 degC, C_TIME
+# 64 s units, C_SUPPLY mV, ...); the references are the same columns.  Pipeline centres its fit points with
 # centre() (its phase _CENTRE); the host reads references() for a fit it reports.
 from acal.core import effects
+from acal.core.bins import COND
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 
 
 def references(cond, n, kinds):
-    """A composed fit's reference temperature, time and supply over n points' conditions (flat:
-    temp, time, supply per point, bins.COND): the middle of each range (floor), so that dT, dt
-    and dV are centred and the effect terms do not trade with the offsets; for a model with a
-    power of time above 1, the earliest time (effects.time_from_first)."""
-    return reference(cond, n, kinds, 0), reference(cond, n, kinds, 1), reference(cond, n, kinds, 2)
+    """A composed fit's references over n points' conditions (flat, bins.COND columns a point:
+    fixed.C_TEMP ...), a tuple in the columns' order: the middle of each range (floor), so that
+    the conditions are centred and the effect terms do not trade with the offsets; for a model
+    with a power of time above 1, the earliest time (effects.time_from_first)."""
+    return tuple(reference(cond, n, kinds, c) for c in range(COND))
 
 
 def reference(cond, n, kinds, c):
-    """references()' condition c (0 temperature, 1 time, 2 supply)."""
-    return middle(cond, n, c, lowest(kinds, c))
+    """references()' condition c (a column: fixed.C_TEMP ...)."""
+    return middle(cond, n, c, lowest(kinds, c), COND)
 
 
 def lowest(kinds, c):
@@ -27,9 +28,9 @@ def lowest(kinds, c):
 
 
 @viper
-def middle(cond, n: int, c: int, lowest: int) -> int:
+def middle(cond, n: int, c: int, lowest: int, k: int) -> int:
     # the middle (floor; lowest: the lowest) of condition c over n points' conditions (an int32
-    # array, COND per point, written 3 below: a viper loop takes no other module's const; a host
+    # array, k = bins.COND per point, passed: a viper loop takes no other module's const; a host
     # may pass a list), 0 for none; viper on ports with emitters
     if n == 0:
         return 0
@@ -39,7 +40,7 @@ def middle(cond, n: int, c: int, lowest: int) -> int:
     hi = lo
     i = 1
     while i < n:
-        v = int(p[3 * i + c]) << w >> w
+        v = int(p[k * i + c]) << w >> w
         if v < lo:
             lo = v
         elif v > hi:
@@ -51,14 +52,14 @@ def middle(cond, n: int, c: int, lowest: int) -> int:
 
 
 @viper
-def centre(cond, n: int, c: int, lowest: int) -> int:
+def centre(cond, n: int, c: int, lowest: int, k: int) -> int:
     # Condition c of n points (as middle's) made relative to their middle (references()); returns
     # it: the fit's centring (Pipeline phase _CENTRE), viper on ports with emitters
-    ref = int(middle(cond, n, c, lowest))
+    ref = int(middle(cond, n, c, lowest, k))
     p = ptr32(cond)
     w = int(SIGN_SHIFT)
     i = 0
     while i < n:
-        p[3 * i + c] = (int(p[3 * i + c]) << w >> w) - ref
+        p[k * i + c] = (int(p[k * i + c]) << w >> w) - ref
         i += 1
     return ref

@@ -108,7 +108,7 @@ class Solver:
     def step(self):
         """About STEP_WORK products of work: rows prepared (a slice of their own), or rows
         eliminated and unknowns back-substituted (_run); True when done (ok says whether x
-        holds the solution).  Not on acal/core/slices.py: no phase, one test inline, and it
+        holds the solution).  Not on acal/core/status.py: no phase, one test inline, and it
         runs inside GaussNewton's _ELIM slice, where a call more cost 5 % of the wear base
         fit on the emulated Pico (docs/notes/boards-and-logs.md "One slice machine")."""
         if self.prep < self.n:

@@ -14,6 +14,7 @@
 # tests/device/test_heldout.py checks it).  The counts keep choosing the point to replace
 # linear in the points (a count per offer was CAPACITY**2 comparisons).
 from acal.core.bins import COND, int32s
+from acal.core.fixed import C_TIME
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -80,8 +81,10 @@ class HeldOut:
     def clear(self):
         self.count = 0
 
-    def offer(self, x, y, z, temp=0, time=0, supply=0):
-        """Keep a rest mean when its time falls in a held-out block; True when kept."""
+    def offer(self, x, y, z, cond):
+        """Keep a rest mean seen at the conditions `cond` (bins.conditions(1)'s columns) when
+        its time falls in a held-out block; True when kept."""
+        time = cond[C_TIME]
         if not held_out(time):
             return False
         b = block_of(time)
@@ -99,9 +102,8 @@ class HeldOut:
         self.xyz[3 * s] = x
         self.xyz[3 * s + 1] = y
         self.xyz[3 * s + 2] = z
-        self.cond[COND * s] = temp
-        self.cond[COND * s + 1] = time
-        self.cond[COND * s + 2] = supply
+        for c in range(COND):
+            self.cond[COND * s + c] = cond[c]
         if near < 0:
             self.weight[s] = 1
             self.block[s] = b

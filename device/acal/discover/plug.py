@@ -16,7 +16,7 @@
 # Formats as the pipeline's: points Q16 g, conditions as bins.py (COND a point).
 from acal.core import effects
 from acal.core.bins import COND, N_SUBSETS, gravity
-from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import C_TIME
 from acal.core.pipeline import spanned, track
 from acal.core.profile import NEWTON, adopted_max_count
 from acal.discover.heldout import HeldOut
@@ -71,7 +71,7 @@ class Plug:
         if held is None or not held.takes(c[C_TIME]):
             return True
         if gravity(x, y, z):
-            held.offer(x, y, z, c[C_TEMP], c[C_TIME], c[C_SUPPLY])
+            held.offer(x, y, z, c)
         return self.early
 
     def ready(self, b):

@@ -7,7 +7,7 @@
 # sum over its points.  All storage preallocated.
 from acal.core import model
 from acal.core.bins import COND, int32s
-from acal.core.fixed import POINT_TO_PARAM_SHIFT
+from acal.core.fixed import POINT_TO_PARAM_SHIFT, C_TEMP, C_TIME, C_SUPPLY
 from acal.discover.heldout import CAPACITY
 try:
     from micropython import const
@@ -34,9 +34,7 @@ class HeldScore:
         self.p = None
         self.kinds = ()
         self.h = None
-        self.ref_temp = 0
-        self.ref_time = 0
-        self.ref_supply = 0
+        self.ref = [0] * COND   # the fit's references (begin(): copied), the points' columns
         self.ts = 0
         self.pos = 0
         self.total = 0
@@ -47,22 +45,23 @@ class HeldScore:
         self.sum_base = 0
         self.sum_err = 0
 
-    def score(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
+    def score(self, p, kinds, h, ref=None, ts=0):
         """The held-out error (Q16 g^2, summed) of parameters p (int32 array, Q24) with effects
-        `kinds` on the points of h; -1 when a point lies past the fit's domain."""
-        self.begin(p, kinds, h, ref_temp, ref_time, ref_supply, ts)
+        `kinds` on the points of h, their conditions taken from the references `ref` (COND
+        columns, as the fit's, pipeline.ref; None: zeros) and a step at ts; -1 when a point
+        lies past the fit's domain."""
+        self.begin(p, kinds, h, ref, ts)
         while not self.part(h.count):
             pass
         return self.total
 
-    def begin(self, p, kinds, h, ref_temp=0, ref_time=0, ref_supply=0, ts=0):
+    def begin(self, p, kinds, h, ref=None, ts=0):
         """Start scoring p with `kinds` on h (score's arguments)."""
         self.p = p
         self.kinds = kinds
         self.h = h
-        self.ref_temp = ref_temp
-        self.ref_time = ref_time
-        self.ref_supply = ref_supply
+        for c in range(COND):
+            self.ref[c] = 0 if ref is None else ref[c]
         self.ts = ts
         self.pos = 0
         self.total = 0
@@ -97,9 +96,10 @@ class HeldScore:
         j = COND * i
         cond = h.cond
         p = self.p
-        model.remove_effects(p, self.kinds, w, 3 * i, cond[j] - self.ref_temp,
-                             cond[j + 1] - self.ref_time, self.ts,
-                             cond[j + 2] - self.ref_supply)
+        r = self.ref
+        model.remove_effects(p, self.kinds, w, 3 * i, cond[j + C_TEMP] - r[C_TEMP],
+                             cond[j + C_TIME] - r[C_TIME], self.ts,
+                             cond[j + C_SUPPLY] - r[C_SUPPLY])
         r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
         if r < 0:
             r = -r

@@ -16,12 +16,12 @@
 from acal.discover import candidates, rule as discovery
 from acal.core import effects
 from acal.core.bins import COND, DIFFERS, int32s
-from acal.core.fixed import N_PARAMS
+from acal.core.fixed import N_PARAMS, C_TIME
 from acal.core.gaussnewton import GaussNewton
 from acal.discover.score import HeldScore
 from acal.discover.stepplace import StepPlace
 from acal.core.status import OK
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -59,7 +59,7 @@ SCORE_POINTS = const(1)      # held-out points scored (2 took 2.23-2.42 ms as ru
 BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slot's block (a
 # whole pass of CAPACITY took 2.35 and 2.45 ms)
 
-# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
+# the phases: their slices' places in the table (acal/core/status.py; _DONE is their count)
 _BASE = 0       # the base model scored on the held-out points
 _FIT = 1        # candidate i's fit, a slice a step
 _SEARCH = 2     # a step's change-point search on the base fit
@@ -217,8 +217,7 @@ class Discover(Sliced):
                 self.phase = _DONE
                 return
             pipe = self.pipe
-            s.begin(pipe.optimiser.p, self.base, h, pipe.ref_temp, pipe.ref_time,
-                    pipe.ref_supply, pipe.step_time)
+            s.begin(pipe.optimiser.p, self.base, h, pipe.ref, pipe.step_time)
             self.pos = 1
         if not s.part(SCORE_POINTS):
             return
@@ -317,8 +316,7 @@ class Discover(Sliced):
             self.all_params[N_ALL * i + k] = fit.p[k]
         self.ts[i] = fit.ts
         pipe = self.pipe
-        self.score.begin(fit.p, fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
-                         pipe.ref_supply, fit.ts)
+        self.score.begin(fit.p, fit.kinds, self.held, pipe.ref, fit.ts)
         self.phase = _SCORE
 
     def _score_candidate(self):
@@ -349,9 +347,8 @@ class Discover(Sliced):
         # the step's time placed among the held-out points of its gap before the choice, so
         # that the step is chosen (or not) on its placed error, as diagnose chooses
         pipe = self.pipe
-        self.score.begin(self.fit.p, self.fit.kinds, self.held, pipe.ref_temp, pipe.ref_time,
-                         pipe.ref_supply, self.ts[i])
-        self.place.begin(self.score, self.held, pipe.ref_time, self.gap_lo, self.ts[i],
+        self.score.begin(self.fit.p, self.fit.kinds, self.held, pipe.ref, self.ts[i])
+        self.place.begin(self.score, self.held, pipe.ref[C_TIME], self.gap_lo, self.ts[i],
                          self.errs[i], BLOCK_SCAN)
         self.phase = _PLACE
 

@@ -10,7 +10,7 @@
 # them < 2**27, and the step's error (<= discover.ERR_MAX < 2**23) less and plus such sums
 # stays within +-2**28 (search.py saturates the placed errors as its others).
 from acal.core.bins import COND, int32s
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -47,7 +47,7 @@ class StepPlace(Sliced):
         self.score = None
         self.held = None
         self.ref_time = 0
-        self.sliced((self._gather, self._place))   # the phases' slices (acal/core/slices.py)
+        self.sliced((self._gather, self._place))   # the phases' slices (acal/core/status.py)
         self.pos = 0
         self.scan = 0          # held-out slots scanned a gathering step
         self.loo = 0           # the gap's leave-one-out errors summed so far

@@ -134,26 +134,25 @@ class Processor:
                 p[N_PARAMS + 3 * j + i] = store.effects[j][4 + i]
         if not in_bounds(p) or (self.kinds and not effects_within(p, self.kinds, 1)):
             return   # a record the checksum passed but no fit could have made: not applied
-        ref_temp = 0
-        ref_time = 0
-        ref_supply = 0
+        ref = conditions(1)   # the references, now's columns (once, at a restore)
         step_at = 0
         for j in range(len(self.kinds)):
             e = store.effects[j]
-            ref_temp = e[2]
+            ref[C_TEMP] = e[2]
             at = e[3] - rec[0] // self.time_unit_samples  # resumed where it was saved
+            c = effects.condition_of(self.kinds[j])
             if self.kinds[j] == effects.STEP:
                 step_at = at     # a step's record holds its time, not the reference
-            elif self.kinds[j] == effects.SUPPLY_OFFSET:
-                ref_supply = e[3]   # a supply's record holds its reference (mV)
+            elif c > C_TIME:
+                ref[c] = e[3]    # a board column's record holds its reference (_log_calibration)
             else:
-                ref_time = at
+                ref[C_TIME] = at
             for i in range(3):
                 self.params[N_PARAMS + 3 * j + i] = e[4 + i]
         for i in range(N_PARAMS):
             self.params[i] = rec[7 + i]
-        step_time = step_at - ref_time if effects.STEP in self.kinds else 0
-        self.calibration.set(self.params, ref_temp, ref_time, step_time, ref_supply)
+        step_time = step_at - ref[C_TIME] if effects.STEP in self.kinds else 0
+        self.calibration.set(self.params, ref, step_time)
 
     def _on_rest(self, x, y, z, subset):
         index = self.batch_start + self.pipe.position
@@ -278,12 +277,14 @@ class Processor:
         extra = []
         for j in range(len(self.kinds)):
             e = N_PARAMS + 3 * j
-            at = pipe.ref_time   # a step's record holds the step's time instead
+            ref = pipe.ref
+            at = ref[C_TIME]   # a step's record holds the step's time instead
+            c = effects.condition_of(self.kinds[j])
             if self.kinds[j] == effects.STEP:
                 at += pipe.step_time
-            elif self.kinds[j] == effects.SUPPLY_OFFSET:
-                at = pipe.ref_supply   # and a supply's its reference (mV)
-            extra.append((self.index, self.kinds[j], pipe.ref_temp, at, p[e], p[e + 1], p[e + 2]))
+            elif c > C_TIME:
+                at = ref[c]    # and an effect of a board column (the supply) its reference
+            extra.append((self.index, self.kinds[j], ref[C_TEMP], at, p[e], p[e + 1], p[e + 2]))
             self.log.write(log.EFFECT, *extra[j])
         return values, extra
 
@@ -293,8 +294,7 @@ class Processor:
         self.calibrations = values[1]
         for i in range(len(self.params)):
             self.params[i] = pipe.optimiser.p[i]
-        self.calibration.set(self.params, pipe.ref_temp, pipe.ref_time, pipe.step_time,
-                             pipe.ref_supply)
+        self.calibration.set(self.params, pipe.ref, pipe.step_time)
         if self.store is not None:
             self.store.save(values, extra)
 

@@ -24,7 +24,7 @@ from acal.core.fixed import (OBJ_Q, H_PARAM, N_PARAMS, ALPHA_DEN, ALPHA_SCALE,
                         ALPHA_MISALIGN, ALPHA_OFFSET)
 from acal.core import model
 from acal.core.emit import SIGN_SHIFT
-from acal.core.slices import Sliced
+from acal.core.status import Sliced
 from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_above, LIMBS, MAX_POINTS,
                             CACHE, PLAIN, BASE, GRADIENT)
 
@@ -38,7 +38,7 @@ DEFAULT_ITERATIONS = 50
 COMPOSED_ITERATIONS = 200  # composed models: the effect terms converge more slowly
 
 
-# the phases: their slices' places in the table (acal/core/slices.py; _DONE is their count)
+# the phases: their slices' places in the table (acal/core/status.py; _DONE is their count)
 _START = const(0)      # the objective at p0
 _GRADIENT = const(1)   # the gradient's objectives (a composed model's: one a slice)
 _UPDATE = const(2)     # the update and the objective at the new parameters
@@ -87,7 +87,7 @@ class Optimiser(Sliced):
         self.max_iterations = 0
         self.den = 1
         self.i = 0           # the gradient's next parameter
-        # the phases' slices (acal/core/slices.py): the objective at p0, the gradient, the update
+        # the phases' slices (acal/core/status.py): the objective at p0, the gradient, the update
         self.sliced((self._start, self._gradient, self._update))
 
     def __getattr__(self, name):

@@ -22,7 +22,6 @@ package(
         "core/profile.py",
         "core/reference.py",
         "core/rest.py",
-        "core/slices.py",
         "core/solve.py",
         "core/status.py",
         "core/wide.py",

@@ -68,7 +68,7 @@ def _held(b: dbins.Bins):
 
 def _differs(b: dbins.Bins) -> list[int]:
     # the bins' least differences of each condition (0: not tracked), in QUANTITIES' order
-    return [getattr(b, f"{q.name}_differ") for q in QUANTITIES]
+    return list(b.differs)
 
 
 def refused(b: dbins.Bins, q: np.ndarray, cond: np.ndarray) -> np.ndarray:

@@ -103,14 +103,13 @@ class DeviceResult:
     counts: list[int] = field(default_factory=list)
     rest_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z subset temp time supply
     selected_int: list[tuple[int, ...]] = field(default_factory=list)  # x y z temp time supply
-    ref_temp: int = 0
-    ref_time: int = 0
-    step_time: int = 0       # a step's time, 64 s units from ref_time
-    ref_supply: int = 0      # mV
+    # the fit's references, a column each (acal.core.bins.COND, QUANTITIES' order: Q2 degC,
+    # 64 s units, mV), as the device's Pipeline.ref
+    ref: list[int] = field(default_factory=lambda: [0] * dbins.COND)
+    step_time: int = 0       # a step's time, 64 s units from ref[C_TIME]
     ready: bool = False      # the bins' own verdict (counts, and a composed model's spread)
-    temp_span: int = 0       # of the held points: Q2 degC (acal.core.fixed.TEMP_Q)
-    time_span: int = 0       # 64 s units
-    supply_span: int = 0     # mV
+    # the held points' range of each condition, the same columns (Bins.span)
+    span: list[int] = field(default_factory=lambda: [0] * dbins.COND)
     covered: bool = False    # the held points cover every axis (bins.covered())
     kept: list[int] | None = None   # NEWTON: per selected point, 1 kept by the fit, 0 an outlier
     threshold: int | None = None    # AUTO: the rest threshold at the end, Q10 g
@@ -119,7 +118,7 @@ class DeviceResult:
     # discover: each later round's V record and its W records (after an adoption)
     rounds: list[tuple[list[int], list]] = field(default_factory=list)
     candidates: list[tuple[int, int, int]] = field(default_factory=list)  # W: kind err betters
-    heldout: list[list[int]] = field(default_factory=list)  # H: x y z temp time supply weight
+    heldout: list[list[int]] = field(default_factory=list)  # H: x y z, COND conditions, weight
 
     @property
     def status_name(self) -> str:
@@ -194,10 +193,10 @@ class Collector:
         elif tag == "S":
             cur.selected_int.append(tuple(v[:3 + dbins.COND]))
         elif tag == "Z":
-            cur.ref_temp, cur.ref_time, cur.step_time, cur.ref_supply = v[0], v[1], v[2], v[3]
+            cur.step_time, cur.ref = v[0], list(v[1:1 + dbins.COND])
         elif tag == "Y":
-            cur.ready, cur.temp_span, cur.time_span = v[0] == 1, v[1], v[2]
-            cur.covered, cur.supply_span = v[3] == 1, v[4]
+            cur.ready, cur.covered = v[0] == 1, v[1] == 1
+            cur.span = list(v[2:2 + dbins.COND])
         elif tag == "K":
             cur.counts = list(v)
         elif tag == "D":
@@ -212,7 +211,7 @@ class Collector:
         elif tag == "W":
             (cur.rounds[-1][1] if cur.rounds else cur.candidates).append(tuple(v[:3]))
         elif tag == "H":
-            cur.heldout.append(list(v[:7]))
+            cur.heldout.append(list(v[:4 + dbins.COND]))
         elif tag == "F":
             cur.status, cur.iterations, cur.objective_start, cur.objective = v[:4]
             cur.params_int = list(v[4:])

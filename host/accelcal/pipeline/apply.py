@@ -7,6 +7,7 @@ import numpy as np
 
 from acal.core import effects as deff
 from acal.core import fixed
+from acal.core.bins import conditions
 from acal.core.calibration import Calibration
 from accelcal.bridge import runtime, twin
 from accelcal.errors import InputError
@@ -32,8 +33,10 @@ def apply_to_samples(p_int: list[int], xyz_g: np.ndarray, model: str = "base", t
         return _apply_on_host(spec, p_int, xyz_g, temp, t, ref, source, cols)
     cal = Calibration(spec.kinds, range_g)
     ref_temp = int(round(ref["T0"] * (1 << fixed.TEMP_Q))) if spec.effects else 0   # Q2 degC
+    refs = conditions(1)   # the device's references, its columns (bins.COND)
+    refs[fixed.C_TEMP] = ref_temp
     try:
-        cal.set(p_int, ref_temp, 0)
+        cal.set(p_int, refs)
     except ValueError:
         raise InputError("parameters outside the device's calibration bounds (k 0.75..1.25, "
                          "|misalignment| <= 0.125, |offset| <= 0.25 g, effects within their "

@@ -101,7 +101,7 @@ def spread_report(spec: ModelSpec, r: runtime.DeviceResult) -> str | None:
         return None
     for e in spec.parts:
         q = e.quantity
-        why = q and span_reason(q, getattr(r, f"{q.name}_span"))
+        why = q and span_reason(q, r.span[QUANTITIES.index(q)])
         if why:
             return f"{e.name}: {why}"
     return "the bins are not ready"
@@ -235,7 +235,7 @@ class Fit:
         so.  `--save`, `apply` and `--json` then carry the discovered model."""
         base = {k: rec[k] for k in ("model", "scale", "params_int", "params", "error_after_mg")}
         fit = replace(self, spec=ModelSpec.parse(model))
-        ref = fit._reference([getattr(self.result, f"ref_{q.name}") for q in QUANTITIES])
+        ref = fit._reference(list(self.result.ref))
         if step_time_s is not None:
             ref["ts"] = float(step_time_s)
         rec = fit._params_record(rec, p_int, ref)
@@ -312,7 +312,7 @@ class Fit:
         spec, r = self.spec, self.result
         if spec.effects:
             if ref is None:   # the device fit's references, and a step's time it found
-                ref = self._reference([getattr(r, f"ref_{q.name}") for q in QUANTITIES])
+                ref = self._reference(list(r.ref))
                 if spec.change_point:
                     ref["ts"] = ref["t0"] + seconds(r.step_time)
             rec.update(model=str(spec), method=self.method,

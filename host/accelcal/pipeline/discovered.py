@@ -74,11 +74,11 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
         out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
         out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
         if deff.STEP in deff.model_kinds(closest):
-            out["step_time_s"] = t_first + seconds(r.ref_time + step_time)
+            out["step_time_s"] = t_first + seconds(r.ref[fixed.C_TIME] + step_time)
             if placed_insample >= 0:
                 # the step's time placed in its gap (acal/discover/stepplace.py): its error (after) the
                 # placed one's, leave-one-out; the fit's time's and in-sample beside it
-                out["step_time_fitted_s"] = t_first + seconds(r.ref_time + fitted_time)
+                out["step_time_fitted_s"] = t_first + seconds(r.ref[fixed.C_TIME] + fitted_time)
                 out["step_gap_points"] = gap_n
                 out["heldout_unplaced"] = unplaced
                 out["heldout_error_unplaced_mg"] = heldout_mg(unplaced, weight)

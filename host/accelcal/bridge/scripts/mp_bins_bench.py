@@ -40,18 +40,22 @@ def rest_means(n):
 
 def main(repeat):
     from acal.core import bins
-    b = bins.Bins(2, 8, policy=bins.CENTRE, coverage=True, temp_differ=bins.TEMP_DIFFER,
-                  time_differ=bins.TIME_DIFFER, supply_differ=bins.SUPPLY_DIFFER)
+    b = bins.Bins(2, 8, policy=bins.CENTRE, coverage=True, differs=bins.DIFFERS)
     pts = rest_means(2 * N_OFFER)
+    c = bins.conditions(1)   # the conditions now, written as the board writes them
     for i in range(N_OFFER):
         j = 6 * i
-        b.offer(pts[j], pts[j + 1], pts[j + 2], pts[j + 3], pts[j + 4], pts[j + 5])
+        c[0], c[1], c[2] = pts[j + 3], pts[j + 4], pts[j + 5]
+        b.offer(pts[j], pts[j + 1], pts[j + 2], c)
     best = 1 << 40
     for _ in range(repeat):
         t0 = ticks()
         for i in range(N_OFFER, 2 * N_OFFER):
             j = 6 * i
-            b.offer(pts[j], pts[j + 1], pts[j + 2], pts[j + 3], pts[j + 4], pts[j + 5])
+            c[0] = pts[j + 3]
+            c[1] = pts[j + 4]
+            c[2] = pts[j + 5]
+            b.offer(pts[j], pts[j + 1], pts[j + 2], c)
         best = min(best, us(t0))
     print("bins_offer_us_per_1000", best * 1000 // N_OFFER)
 

@@ -50,7 +50,7 @@ def main():
     for b in range(18):
         for k in range(8):
             x, y, z = POSTURES[k]
-            h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300)
+            h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300))
     d = discover.Discover(72, h)
     s = d.score
     for i in range(h.count):
@@ -87,13 +87,13 @@ def place(lock=False):
     for b in range(18):
         for k in range(8):
             x, y, z = POSTURES[k]
-            h.offer(x, y, z, 30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300)
+            h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300))
     d = discover.Discover(72, h)
     for k in range(3):
         d.params[k] = 1 << 24      # unit scale (kxx kyy kzz, Q24), no offsets
     d.params[9] = d.params[10] = d.params[11] = 134218   # the step's jumps: 8 mg in Q24 g
     fitted_time = 18 * 225          # after every held-out point
-    d.score.begin(d.params, (effects.STEP,), h, 30, 0, 3300, fitted_time)
+    d.score.begin(d.params, (effects.STEP,), h, (30, 0, 3300), fitted_time)
     pl = d.place
     pl.begin(d.score, h, 0, -1, fitted_time, 100000, discover.BLOCK_SCAN)
     for name in ("gap", "place"):

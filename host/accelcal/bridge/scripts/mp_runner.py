@@ -24,10 +24,10 @@
 #                              kept) and the conditions it was seen at
 #   K c0 ... c8                points per subset
 #   S x y z temp time supply   every point the bins hold at the end (Q16 g)
-#   Y ready temp_span time_span covered supply_span   the bins' verdict (1/0), the held
-#                              points' spread, and whether they cover every axis (bins.covered())
-#   Z ref_temp ref_time step_time ref_supply   the fit's reference conditions (composed
-#                              models) and a step's time
+#   Y ready covered span...    the bins' verdict (1/0), whether the held points cover every
+#                              axis (bins.covered()), and their range of each condition (COND)
+#   Z step_time ref...         a step's time and the fit's references, a condition each (COND;
+#                              composed models)
 #   F status iterations objective_start objective p0 ... p8 [3 per effect]
 #   D n k0 ... k(n-1)          NEWTON: the points the fit was given (in S order) kept (1) or
 #                              rejected as outliers (0)
@@ -49,7 +49,6 @@ from array import array
 
 from acal.core.bins import COND
 
-from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.pipeline import Pipeline
 from acal.core.profile import NEWTON
 
@@ -77,7 +76,7 @@ class Runner:
         emit = self.emit
 
         def on_rest(x, y, z, s):
-            emit("R", [x, y, z, s, pipe.now[C_TEMP], pipe.now[C_TIME], pipe.now[C_SUPPLY]])
+            emit("R", [x, y, z, s] + [pipe.now[c] for c in range(COND)])
 
         pipe = Pipeline(rate_hz=v[0], seconds=v[1], threshold=v[2], axis=v[3], min_count=v[4],
                         max_count=v[5], differ=v[6], policy=v[7], iterations=v[8], fit=v[9],
@@ -85,10 +84,10 @@ class Runner:
                         plug=_plug() if v[10] == 1 else None)
         self.pipe = pipe
 
-    def conditions(self, temp, time, supply):
-        self.pipe.now[C_TEMP] = temp
-        self.pipe.now[C_TIME] = time
-        self.pipe.now[C_SUPPLY] = supply
+    def conditions(self, *cond):
+        """The conditions now, a value a column (COND: fixed.C_TEMP ...)."""
+        for c in range(COND):
+            self.pipe.now[c] = cond[c]
 
     def point(self, x, y, z):
         self.pipe.offer(x, y, z)
@@ -109,14 +108,12 @@ class Runner:
         emit("K", list(b.counts))
         for s in range(9):
             for k in range(b.counts[s]):
-                x, y, z = b.point(s, k)
-                temp, time, supply = b.condition(s, k)
-                emit("S", [x, y, z, temp, time, supply])
-        emit("Y", [1 if b.ready() else 0, b.temp_span(), b.time_span(), 1 if b.covered() else 0,
-                   b.supply_span()])
+                emit("S", list(b.point(s, k)) + list(b.condition(s, k)))
+        emit("Y", [1 if b.ready() else 0, 1 if b.covered() else 0] +
+             [b.span(c) for c in range(COND)])
         status = pipe.calibrate()
         o = pipe.optimiser
-        emit("Z", [pipe.ref_temp, pipe.ref_time, pipe.step_time, pipe.ref_supply])
+        emit("Z", [pipe.step_time] + [pipe.ref[c] for c in range(COND)])
         q = 40 - o.OBJ_Q   # the host reads Q40 g^4 (fixed.OBJ_Q) from either fit
         emit("F", [status, o.iterations, o.objective_start << q, o.objective << q] + list(o.p))
         if pipe.fit == NEWTON:
@@ -134,9 +131,8 @@ class Runner:
                  [d.fitted_time, d.step_unplaced, d.placed_insample, d.gap_n])
             h = d.held
             for j in range(h.count if first else 0):
-                c = COND * j
-                emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2], h.cond[c],
-                           h.cond[c + 1], h.cond[c + 2], h.weight[j]])
+                emit("H", [h.xyz[3 * j], h.xyz[3 * j + 1], h.xyz[3 * j + 2]] +
+                     [h.cond[COND * j + c] for c in range(COND)] + [h.weight[j]])
             for j in range(len(d.errs)):
                 if d.kind_ids[j]:   # (a second round has no curve pair)
                     emit("W", [d.kind_ids[j], d.errs[j], d.betters[j]])
@@ -174,7 +170,7 @@ def run(lines, emit):
         elif tag == "W":
             r.worn(f[1] == "1")
         elif tag == "T":
-            r.conditions(int(f[1]), int(f[2]), int(f[3]))
+            r.conditions(*[int(f[1 + c]) for c in range(COND)])
         elif tag == "P":
             r.point(int(f[1]), int(f[2]), int(f[3]))
         elif tag == "G":
