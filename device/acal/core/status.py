@@ -7,10 +7,13 @@
 # the app runs one step between FIFO drains and the host runs every step at once, the same
 # integers either way.
 #
-# A sliced class derives from Sliced and hands its slices (bound methods, in order) to
-# sliced() once, at construction: a bound method made there is never made again, so a step
-# allocates nothing.  Its phases are numbered by their place in that tuple, and the number
-# after the last (the tuple's length: `ended`) means ended.  self.phase is the slice the next
+# A sliced class derives from Sliced, lists its slices (its own methods, in order) in a tuple
+# in its class body (SLICES) and hands that to sliced() at construction; step() calls the
+# current one with the instance, so a step allocates nothing, and neither does an instance: a
+# tuple of bound methods per instance cost 80 to 192 B each, 1.2 kB on a discovering board's
+# heap (docs/notes/boards-and-logs.md "The discovering board's heap").  Its phases are
+# numbered by their place in that tuple, and the number after the last (the tuple's length:
+# `ended`) means ended.  self.phase is the slice the next
 # step() runs; a slice moves it on (or to `ended`) itself.  The first step() after begin runs
 # the first slice: a slice's worst time is its own code's, the dispatch one tuple look-up.
 #
@@ -51,7 +54,8 @@ class Sliced:
     and says whether the computation has ended (phase == ended); finish() runs the rest."""
 
     def sliced(self, slices):
-        """slices: the phases' bound methods, in phase order; the computation starts ended."""
+        """slices: the phases' functions (the class's SLICES: each called with the instance), in
+        phase order; the computation starts ended."""
         self.slices = slices
         self.ended = len(slices)
         self.phase = self.ended
@@ -60,7 +64,7 @@ class Sliced:
         """One slice; True when the computation has ended."""
         ph = self.phase
         if ph < self.ended:
-            self.slices[ph]()
+            self.slices[ph](self)
         return self.phase == self.ended
 
     def finish(self):

@@ -88,7 +88,7 @@ class Optimiser(Sliced):
         self.den = 1
         self.i = 0           # the gradient's next parameter
         # the phases' slices (acal/core/status.py): the objective at p0, the gradient, the update
-        self.sliced((self._start, self._gradient, self._update))
+        self.sliced(self.SLICES)
 
     def __getattr__(self, name):
         # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
@@ -229,3 +229,7 @@ class Optimiser(Sliced):
         elif not model.in_bounds(self.p) or \
                 (self.kinds and not model.effects_within(self.p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
+
+    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
+    # the class holds, so an instance allocates no bound method for them
+    SLICES = (_start, _gradient, _update)
