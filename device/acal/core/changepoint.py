@@ -65,7 +65,7 @@ class ChangePoint(Sliced):
         self.j = -1               # where a paused insertion stands (-1: none under way)
         self.v = 0                # the point it inserts, and its time
         self.tv = 0
-        self.sliced(self.SLICES)
+        self.sliced()
         self.fit = None
         self.found = False
         self.ts = 0
@@ -249,9 +249,10 @@ class ChangePoint(Sliced):
             self.ts = self._time(k)
             self.at = k
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_read, _sort, _scan)
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_read, _sort, _scan)
+    ended = len(slices)
 
 
 def _shift_to(v, bits):

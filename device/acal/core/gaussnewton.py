@@ -125,7 +125,7 @@ class GaussNewton(Sliced):
         self.solver = Solver(np_)
         self.status = OK
         # the phases' slices, in their order (acal/core/status.py; _DONE is their count)
-        self.sliced(self.SLICES)
+        self.sliced()
         self.iterations = 0
         self.max_iterations = DEFAULT_ITERATIONS
         self.objective = 0
@@ -377,9 +377,10 @@ class GaussNewton(Sliced):
             self.status = OK
         self.phase = _DONE
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_accum, _solve, _elim, _trial, _sort, _reject)
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_accum, _solve, _elim, _trial, _sort, _reject)
+    ended = len(slices)
 
 
 @viper

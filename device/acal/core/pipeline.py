@@ -130,7 +130,7 @@ class Pipeline(Sliced):
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
         # the fit's phases (_BASE ... above), in their order
-        self.sliced(self.SLICES)
+        self.sliced()
         self.from_base = False   # the model's own fit starts from the base fit's parameters
         self.n_fit = 0     # points gathered for the fit
         if plug is not None:
@@ -312,9 +312,10 @@ class Pipeline(Sliced):
         o.objective = b.objective
         o.status = why
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_base, _model, _base_end, _search, _load, _centre, _begin)
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_base, _model, _base_end, _search, _load, _centre, _begin)
+    ended = len(slices)
 
 
 def track(bins, kinds, every=False):

@@ -8,9 +8,10 @@
 # integers either way.
 #
 # A sliced class derives from Sliced, lists its slices (its own methods, in order) in a tuple
-# in its class body (SLICES) and hands that to sliced() at construction; step() calls the
-# current one with the instance, so a step allocates nothing, and neither does an instance: a
-# tuple of bound methods per instance cost 80 to 192 B each, 1.2 kB on a discovering board's
+# in its class body (`slices`, and their count `ended`) and calls sliced() at construction;
+# step() calls the current one with the instance, so a step allocates nothing, and neither
+# does an instance: a tuple of bound methods per instance cost 80 to 192 B each, and two
+# attributes more (a larger table for some), 1.3 kB on a discovering board's
 # heap (docs/notes/boards-and-logs.md "The discovering board's heap").  Its phases are
 # numbered by their place in that tuple, and the number after the last (the tuple's length:
 # `ended`) means ended.  self.phase is the slice the next
@@ -50,14 +51,12 @@ def usable(status):
 
 
 class Sliced:
-    """Base of every sliced computation: sliced(slices) once; step() runs self.phase's slice
+    """Base of every sliced computation: sliced() once; step() runs self.phase's slice
     and says whether the computation has ended (phase == ended); finish() runs the rest."""
 
-    def sliced(self, slices):
-        """slices: the phases' functions (the class's SLICES: each called with the instance), in
-        phase order; the computation starts ended."""
-        self.slices = slices
-        self.ended = len(slices)
+    def sliced(self):
+        """The computation starts ended (its class's `slices`: the phases' functions, in phase
+        order, each called with the instance; `ended`: their count)."""
         self.phase = self.ended
 
     def step(self):

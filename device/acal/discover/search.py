@@ -136,7 +136,7 @@ class Discover(Sliced):
         self.all_params = int32s(N_CANDIDATES * N_ALL)
         self.ts = int32s(N_CANDIDATES)
         self.params = int32s(N_ALL)
-        self.sliced(self.SLICES)   # the phases' slices
+        self.sliced()   # the phases' slices
         self.i = 0
         self.pos = 0           # where a sliced score or block comparison stands
         self.pipe = None
@@ -403,10 +403,11 @@ class Discover(Sliced):
         self.begin(pipe)
         self.finish()
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_score_base, _fit_slice, _search_slice, _score_candidate, _count_blocks,
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_score_base, _fit_slice, _search_slice, _score_candidate, _count_blocks,
               _compare_blocks, _place, _try, _begin_fit)
+    ended = len(slices)
 
 
 def _rekind(fit, kinds):

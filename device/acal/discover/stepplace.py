@@ -47,7 +47,7 @@ class StepPlace(Sliced):
         self.score = None
         self.held = None
         self.ref_time = 0
-        self.sliced(self.SLICES)   # the phases' slices (acal/core/status.py)
+        self.sliced()   # the phases' slices (acal/core/status.py)
         self.pos = 0
         self.scan = 0          # held-out slots scanned a gathering step
         self.loo = 0           # the gap's leave-one-out errors summed so far
@@ -201,7 +201,8 @@ class StepPlace(Sliced):
         self.placed_loo = self.outside + self.loo
         self.phase = _DONE
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_gather, _place)
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_gather, _place)
+    ended = len(slices)
 

@@ -88,7 +88,7 @@ class Optimiser(Sliced):
         self.den = 1
         self.i = 0           # the gradient's next parameter
         # the phases' slices (acal/core/status.py): the objective at p0, the gradient, the update
-        self.sliced(self.SLICES)
+        self.sliced()
 
     def __getattr__(self, name):
         # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
@@ -230,6 +230,7 @@ class Optimiser(Sliced):
                 (self.kinds and not model.effects_within(self.p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
 
-    # the phases' slices, in phase order (acal/core/status.py): plain functions, one tuple
-    # the class holds, so an instance allocates no bound method for them
-    SLICES = (_start, _gradient, _update)
+    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
+    # plain functions, so an instance holds neither, nor a bound method for each
+    slices = (_start, _gradient, _update)
+    ended = len(slices)
