@@ -17,6 +17,9 @@ BUS = "auto"
 I2C_ADDRESS = 0x18
 I2C_FREQ = 400000
 TEMP_REF_C = None
+# CircuitPython has no viper: the FIFO's codes convert through two tables the driver builds once
+# (4 kB of heap; 1.9 ms a drain of 25 samples on the emulated Feather, 3.1 ms without)
+FIFO_TABLES = True
 
 _spi = None
 _i2c = None

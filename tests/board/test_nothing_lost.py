@@ -12,7 +12,8 @@ from conftest import ROOT, emulated_chip
 TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
 APP = """import acal.logger.app
 app = acal.logger.app.main(seconds={seconds}, verbose=False, rate_hz={rate}, profile=1)
-print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors)
+print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors,
+      int(app.sensor._fifo_v0 is not None))
 """
 BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5"),
           "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3")}
@@ -46,7 +47,8 @@ def run_default_app(tmp_path, which, rate, seconds):
     r = emulated.run([APP.format(seconds=seconds, rate=rate)], stimulus=stim, fw=fw, i2c=i2c,
                      puts={"acal_board.py": (ROOT / "boards" / board_file).read_bytes()},
                      timeout=max(1800, 6 * seconds))
-    samples, lost, overruns, bus_errors = map(int, r.out.split("ACAL_DONE")[1].split()[:4])
+    samples, lost, overruns, bus_errors, tables = map(int, r.out.split("ACAL_DONE")[1].split()[:5])
+    assert tables == (which == "feather")   # the FIFO tables where the board file asks (FIFO_TABLES)
     chip = r.report["lis3dh"]
     print(f"\n{which} {rate} Hz, {seconds} emulated s: {samples} samples, {lost} lost, "
           f"{overruns} overruns; the chip converted {chip['converted']}, dropped {chip['dropped']}")

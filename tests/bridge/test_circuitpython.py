@@ -287,10 +287,10 @@ def site_package(name):
     return [root] if root.name != "__init__.py" else sorted(root.parent.glob("*.py"))
 
 
-# slow (~100-160 s). In stop 37 it did not end on one fresh clone's flash image (22 min, twice), whose
-# bytes differed from the main checkout's (the .mpy files named the paths they were compiled from).
-# Not reproduced since: 7 images from other paths and temporary names, and the deterministic one
-# (mpy-cross -s, test_rp2040.py) all pass; cause not found.
+# slow (~70-160 s). In stop 37 and after 5a6019c it did not end on some images and code (22 min): the
+# emulated core slept in a WFI with CircuitPython's TIMER interrupt already pending (the alarm
+# fired between its arming and the WFI, interrupts off), which rp2040js slept through for good;
+# bridge/scripts/rp2040.mjs lets such a WFI run on, as the hardware does (docs/boards-and-logs.md).
 @pytest.mark.slow
 def test_the_app_on_the_feather_calibrates_and_its_log_replays(tmp_path, chip):
     """boards/feather_rp2040.py and the app, unchanged, on CircuitPython on the emulated chip,
@@ -369,7 +369,6 @@ CP_FIFO_SCRIPT = r'''
 from array import array
 from acal.logger import lis3dh
 b = bytes(%r)
-print('TABLES', lis3dh._TABLES)
 for so_mg in (1, 2, 4, 12):
     for mid in (0, 3):
         so = so_mg * 16777
@@ -381,21 +380,21 @@ for so_mg in (1, 2, 4, 12):
 
 
 def test_the_fifo_tables_on_circuitpython_give_the_documented_values(rng, chip):
-    """On CircuitPython (no emitters) the driver converts the FIFO through its tables
-    (lis3dh._TABLES): there, every 10-bit code at every range, HR or not, from the dither 16000
-    on, gives CPython's fifo_codes_q10 values (held to LIS3DH._fifo_to_q10 in
-    tests/device/test_lis3dh.py) and the same next dither."""
+    """On CircuitPython (no emitters) the driver converts the FIFO through its tables (where the
+    board file says FIFO_TABLES, as the Feather's does: tests/board/test_nothing_lost.py): there,
+    every 10-bit code at every range, HR or not, from the dither 16000 on, gives CPython's
+    fifo_codes_q10 values (held to LIS3DH._fifo_to_q10 in tests/device/test_lis3dh.py) and the
+    same next dither."""
     from acal.core.fixed import SAMPLE_MAX
     from acal.logger import lis3dh
     from test_lis3dh import fifo_codes_every_value
     _, data = fifo_codes_every_value(rng)
     r = rp2040.run_script(CP_FIFO_SCRIPT % (data, SAMPLE_MAX), fw=FW)
     lines = r.out.strip().splitlines()
-    assert lines[0].split() == ["TABLES", "True"]
     want = []
     for so_mg in (1, 2, 4, 12):
         for mid in (0, 3):
             out = [7] * 1026
             nxt = lis3dh.fifo_codes_q10(data, 1023, out, 1, mid, so_mg * 16777, SAMPLE_MAX, 16000)
             want.append(out + [nxt])
-    assert [list(map(int, line.split())) for line in lines[1:]] == want
+    assert [list(map(int, line.split())) for line in lines] == want

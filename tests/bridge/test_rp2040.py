@@ -172,3 +172,44 @@ def test_four_effect_app_applies_every_sample_on_the_chip_as_the_twin(chip):
     want = twin.apply_params(p, np.array(raw), kinds, dT, dt)
     assert got.shape == want.shape == (blocks * n, 3)
     assert np.array_equal(got, want)
+
+
+# Interrupts off, an interrupt made pending (TIMER alarm 3 forced, enabled in the NVIC), then
+# WFI: an ARMv6-M core does not sleep (it wakes on a pending interrupt that would be taken,
+# PRIMASK ignored), and then nothing is taken while interrupts stay off.  Everything is put back
+# before they are on again.
+WFI_PENDING = """import machine, micropython, time
+@micropython.asm_thumb
+def wfi():
+    wfi()
+TIMER = 0x40054000
+INTE = TIMER + 0x38
+INTF = TIMER + 0x3C
+ISER = 0xE000E100
+ICER = 0xE000E180
+ICPR = 0xE000E280
+inte = machine.mem32[INTE]
+iser = machine.mem32[ISER]
+s = machine.disable_irq()
+machine.mem32[INTE] = inte | 8
+machine.mem32[ISER] = 8
+machine.mem32[INTF] = 8
+t0 = time.ticks_us()
+wfi()
+t1 = time.ticks_us()
+machine.mem32[INTF] = 0
+machine.mem32[INTE] = inte
+if not iser & 8:
+    machine.mem32[ICER] = 8
+machine.mem32[ICPR] = 8
+machine.enable_irq(s)
+print('WOKE', time.ticks_diff(t1, t0))
+"""
+
+
+def test_a_wfi_with_an_interrupt_pending_does_not_sleep(chip):
+    """bridge/scripts/rp2040.mjs's fix 5: rp2040js slept through such a WFI until a new interrupt
+    came (CircuitPython's sleep, 'interrupts off, arm an alarm, WFI', then never woke when the
+    alarm fired before the WFI: the Feather's end to end stuck); here it runs on at once."""
+    out = chip.run_script(WFI_PENDING, timeout=120).out.split()
+    assert out[0] == "WOKE" and 0 <= int(out[1]) < 50, out

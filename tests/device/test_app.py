@@ -334,8 +334,9 @@ def test_fourteen_worst_case_days_fit_in_one_megabyte(tmp_path):
 
 
 def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
-    """The CircuitPython board's bus (busio.I2C through adafruit_bus_device, as
-    boards/feather_rp2040.py wires it) gives the app the same samples, hence the same log."""
+    """The CircuitPython board's bus (busio.I2C through adafruit_bus_device) and FIFO conversion
+    (the tables its FIFO_TABLES asks for), as boards/feather_rp2040.py wires them, give the app
+    the same samples, hence the same log; only a board that asks gets the tables."""
     from vbus import BusioI2C
     from acal.logger.lis3dh_cp import BusioRegisters
     path, _ = stim
@@ -347,10 +348,18 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
         if name == "busio":
             regs = BusioRegisters(BusioI2C({0x18: b.chip}), 0x18)
             b.i2c = lambda: regs
-        run_app(d, b)
+            b.FIFO_TABLES = True
+        app = run_app(d, b)
+        assert (app.sensor._fifo_v0 is not None) == (name == "busio")
         logs.append(boardlog.decode(d / "log.bin"))
     for rtype in (log.REST, log.CAL):
         assert logs[0].of(rtype) == logs[1].of(rtype) and len(logs[0].of(rtype)) > 0
+    b = board(path)
+    b.FIFO_TABLES = True   # the output registers (fifo=False) convert no FIFO codes: no tables
+    d = tmp_path / "registers"
+    d.mkdir()
+    os.chdir(d)
+    assert App(b, rate_hz=RATE, fifo=False).sensor._fifo_v0 is None
 
 
 def test_setup_retries_bus_faults_and_says_why_when_the_chip_is_absent(tmp_path, stim):

@@ -4,9 +4,17 @@ preallocated storage is the written byte budget; once full it follows the wear (
 of the fullest block replaced, so every block seen keeps points);
 and keeping a point allocates nothing under the real MicroPython, 64- and 32-bit ports."""
 from acal.discover import heldout
-from acal.core.bins import COND
+from acal.core.bins import COND, conditions
+from acal.core.fixed import C_SUPPLY, C_TEMP, C_TIME
 
 from accelcal.bridge import runtime
+
+
+def offer(h, x, y, z, temp=0, time=0, supply=0):
+    """h.offer with the conditions as the board's one array (bins.conditions(1))."""
+    cond = conditions(1)
+    cond[C_TEMP], cond[C_TIME], cond[C_SUPPLY] = temp, time, supply
+    return h.offer(x, y, z, cond)
 
 
 def test_held_out_blocks_are_the_hosts_odd_two_hour_blocks():
@@ -27,9 +35,9 @@ def test_byte_budget_is_the_preallocated_storage():
 def test_offer_keeps_odd_block_points_with_their_conditions():
     h = heldout.HeldOut(capacity=4)
     even, odd = 10, 120                       # 640 s (block 0), 7680 s (block 1)
-    assert not h.offer(1, 2, 3, temp=20, time=even, supply=3300)
+    assert not offer(h, 1, 2, 3, temp=20, time=even, supply=3300)
     assert h.count == 0
-    assert h.offer(65536, -5, 7, temp=31, time=odd, supply=3100)
+    assert offer(h, 65536, -5, 7, temp=31, time=odd, supply=3100)
     assert h.count == 1
     assert list(h.xyz[0:3]) == [65536, -5, 7]
     assert list(h.cond[0:COND]) == [31, odd, 3100]
@@ -40,7 +48,7 @@ def test_a_full_set_replaces_its_oldest_point_and_counts_blocks():
     h = heldout.HeldOut(capacity=3)
     times = [120, 130, 400, 620]              # blocks 1, 1, 3, 5 (all odd)
     for i, t in enumerate(times):
-        assert h.offer(i, 0, 0, time=t)
+        assert offer(h, i, 0, 0, time=t)
     assert h.count == 3
     assert sorted(h.xyz[3 * s] for s in range(3)) == [1, 2, 3]   # point 0 was the oldest
     assert h.blocks() == 3                    # blocks 1, 3, 5 remain
@@ -48,11 +56,11 @@ def test_a_full_set_replaces_its_oldest_point_and_counts_blocks():
 
 def test_the_same_posture_in_a_block_is_one_point():
     h = heldout.HeldOut(capacity=8)
-    h.offer(65536, 0, 0, temp=30, time=120)
-    h.offer(65536 + 6553, 100, -100, temp=31, time=125)     # within 0.1 g: replaces it
+    offer(h, 65536, 0, 0, temp=30, time=120)
+    offer(h, 65536 + 6553, 100, -100, temp=31, time=125)     # within 0.1 g: replaces it
     assert h.count == 1 and h.xyz[0] == 65536 + 6553 and h.cond[0] == 31
-    h.offer(65536 + 6553 + 6554, 0, 0, time=126)            # 0.1 g away: a point of its own
-    h.offer(65536, 0, 0, time=400)                          # the same posture, another block
+    offer(h, 65536 + 6553 + 6554, 0, 0, time=126)            # 0.1 g away: a point of its own
+    offer(h, 65536, 0, 0, time=400)                          # the same posture, another block
     assert h.count == 3 and h.blocks() == 2
     assert list(h.weight[:3]) == [2, 1, 1] and h.total_weight() == 4
 
@@ -60,9 +68,9 @@ def test_the_same_posture_in_a_block_is_one_point():
 def test_a_point_weighs_the_rest_means_it_stands_for_up_to_the_cap():
     h = heldout.HeldOut(capacity=4)
     for k in range(heldout.WEIGHT_CAP + 5):                 # one posture held for long
-        h.offer(65536, k, 0, time=120 + k % 3)
+        offer(h, 65536, k, 0, time=120 + k % 3)
     assert h.count == 1 and h.weight[0] == heldout.WEIGHT_CAP
-    h.offer(0, 65536, 0, time=400)                          # a new point starts at 1
+    offer(h, 0, 65536, 0, time=400)                          # a new point starts at 1
     assert h.weight[1] == 1 and h.total_weight() == heldout.WEIGHT_CAP + 1
 
 
@@ -73,7 +81,7 @@ def test_a_full_set_stays_spread_over_the_blocks():
     postures = ((65536, 0, 0), (0, 65536, 0), (0, 0, 65536), (-65536, 0, 0))
     for b in range(1, 36, 2):
         for k in range(4):
-            h.offer(*postures[k], time=(b * 225 + 1) // 2 + 10 * k)
+            offer(h, *postures[k], time=(b * 225 + 1) // 2 + 10 * k)
     blocks = sorted(h.block[i] for i in range(h.count))
     assert h.count == 8 and h.blocks() == 7, blocks
     assert blocks == [23, 25, 27, 29, 31, 33, 35, 35]
@@ -82,21 +90,26 @@ def test_a_full_set_stays_spread_over_the_blocks():
 SCRIPT = r'''
 import micropython
 from acal.discover.heldout import HeldOut
+from acal.core.bins import conditions
 h = HeldOut()
+cond = conditions(1)
 kept = 0   # a new module global made under the lock would itself allocate
 
 
-def work(h):
+def work(h, cond):
     kept = 0
     for i in range(300):
-        if h.offer(65536 - i, i, -i, 25 + (i & 7), 3 * i, 3300 - i):
+        cond[0] = 25 + (i & 7)      # fixed.C_TEMP, C_TIME, C_SUPPLY
+        cond[1] = 3 * i
+        cond[2] = 3300 - i
+        if h.offer(65536 - i, i, -i, cond):
             kept += 1
     return kept
 
 
 micropython.heap_lock()
 try:
-    kept = work(h)
+    kept = work(h, cond)
     micropython.heap_unlock()
     print("OK", kept, h.count, h.blocks())
 except MemoryError:
@@ -107,7 +120,7 @@ except MemoryError:
 
 def _expected():
     h = heldout.HeldOut()
-    kept = sum(h.offer(65536 - i, i, -i, 25 + (i & 7), 3 * i, 3300 - i) for i in range(300))
+    kept = sum(offer(h, 65536 - i, i, -i, 25 + (i & 7), 3 * i, 3300 - i) for i in range(300))
     return ["OK", str(kept), str(h.count), str(h.blocks())]
 
 

@@ -80,7 +80,8 @@ class MsTicksClock:
 
 
 class App:
-    """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock);
+    """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock and
+    FIFO_TABLES: True where the FIFO's codes convert faster through tables, LIS3DH(tables=));
     settings: rate_hz, range_g, fifo (default: the FIFO; False: the output registers, 12 bits,
     one read a sample), bus (None: the board file's BUS; "i2c", "spi", "auto": the LIS3DH's bus,
     where the board file offers sensor_bus), capture_bytes, log_budget, plus Processor settings."""
@@ -122,7 +123,7 @@ class App:
             try:
                 regs = board.sensor_bus(bus) if hasattr(board, "sensor_bus") else board.i2c()
                 self.sensor = LIS3DH(regs, board.I2C_ADDRESS, rate_hz, range_g, True, fifo,
-                                     DRAIN - 1)
+                                     DRAIN - 1, fifo and getattr(board, "FIFO_TABLES", False))
                 break
             except (OSError, LIS3DHError) as e:
                 self.bus_errors += 1

@@ -25,16 +25,16 @@ except ImportError:
     def const(x):
         return x
 
-import sys
 from array import array
 
 from acal.core.fixed import SAMPLE_MAX
 from acal.core.emit import viper, ptr8, ptr32
 
-# CircuitPython has no emitters (no viper): there the FIFO's conversion reads two tables built
-# once per configuration (fifo_codes_table), 1.9 ms a drain of 25 samples on the emulated Feather
-# instead of fifo_codes_q10's 3.1 ms as bytecode.  Elsewhere viper (boards) or CPython (host).
-_TABLES = sys.implementation.name == "circuitpython"
+# The FIFO's codes convert by fifo_codes_q10: viper on ports with emitters, CPython on the host.
+# A port without emitters (CircuitPython) converts faster through two tables built once per
+# configuration (fifo_codes_table, 4 kB: 1.9 ms a drain of 25 samples on the emulated Feather
+# instead of fifo_codes_q10's 3.1 ms as bytecode): LIS3DH(tables=True), which the app passes
+# where the board file says FIFO_TABLES = True (boards/feather_rp2040.py).
 
 ADDRESS = const(0x18)        # SDO/SA0 low; 0x19 when high
 WHO_AM_I_VALUE = const(0x33)
@@ -159,11 +159,12 @@ def open_bus(bus, spi, i2c):
 class LIS3DH:
     """rate_hz: output data rate (1..400); range_g: 2, 4, 8 or 16; high_res: 12-bit outputs;
     fifo: stream-mode FIFO; fth: its watermark, FTH (0..31): FIFO_SRC_REG's WTM (self.wtm after
-    fifo_level()) says more than fth samples wait.  After read_sample() the sample is in x, y, z
-    (Q10 g)."""
+    fifo_level()) says more than fth samples wait; tables: the FIFO's codes convert through
+    fifo_tables' tables (use_fifo_tables: for ports without emitters).  After read_sample() the
+    sample is in x, y, z (Q10 g)."""
 
     def __init__(self, i2c, address=ADDRESS, rate_hz=100, range_g=2, high_res=True, fifo=False,
-                 fth=0):
+                 fth=0, tables=False):
         if rate_hz not in ODR_CODES:
             raise ValueError("rate_hz must be one of 1, 10, 25, 50, 100, 200, 400")
         if range_g not in RANGES_G:
@@ -200,7 +201,7 @@ class LIS3DH:
         self._fifo_mid = 3 if high_res else 0
         self._fifo_v0 = None     # fifo_codes_table's tables (use_fifo_tables)
         self._fifo_carry = None
-        if _TABLES:
+        if tables:
             self.use_fifo_tables()
         self.check()
         self.configure()

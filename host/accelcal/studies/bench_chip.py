@@ -108,6 +108,7 @@ def paths_and_fits(fw: rp2040.Firmware, e: str, prefix: str = "") -> dict:
         e + "heap_total_bytes": paths["heap_total"],
         e + "heap_free_before_app_bytes": paths["heap_free_before_app"],
         e + "heap_free_app_largest_bytes": paths["heap_free_app_largest"],
+        e + "fifo_tables_bytes": paths["fifo_tables_bytes"],
     }
     for line in _on_chip("mp_fit_bench.py", "", fw, prefix).splitlines():
         if not line.strip():
@@ -305,6 +306,9 @@ def format_chip(m: dict) -> str:
             line(f"{label} heap: total / free before the app / with App(four effects)",
                  f"{m[fw + 'heap_total_bytes']:,} / {m[fw + 'heap_free_before_app_bytes']:,} / "
                  f"{m[fw + 'heap_free_app_largest_bytes']:,} bytes")
+            if fw == CP and fw + "fifo_tables_bytes" in m:
+                line("  the FIFO tables (the Feather's FIFO_TABLES)",
+                     f"{m[fw + 'fifo_tables_bytes']:,} bytes more")
         alloc = [f"{n} {m[fw + f'fit_{n}_bytes']}" for n in FIT_CASES if fw + f"fit_{n}_bytes" in m]
         if alloc:
             line(f"bytes a fit allocates, {label}", ", ".join(alloc))

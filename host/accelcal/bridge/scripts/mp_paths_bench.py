@@ -4,7 +4,8 @@
 # folder; on the chip, main('/', 1) is appended.
 # Prints "key value" lines: import time, per-sample apply (base, the largest composed model),
 # the log's append per record, the Processor (all the app does after acquisition) per sample,
-# and the heap free after the app starts with the largest model.
+# the heap free after the app starts with the largest model, and what the FIFO's conversion
+# tables (a board file's FIFO_TABLES) take of it.
 import gc
 import os
 import sys
@@ -140,11 +141,18 @@ def main(work, repeat):
     lg = None
     gc.collect()
     before = gc.mem_free()
+    print("heap_free_before_app", before)
     a = app.App(Board(), model=LARGEST)
     gc.collect()
     print("heap_total", gc.mem_free() + gc.mem_alloc())
-    print("heap_free_before_app", before)
     print("heap_free_app_largest", gc.mem_free())
+    # what the FIFO's conversion tables add to it where a board file says FIFO_TABLES (as
+    # boards/feather_rp2040.py): the app's driver builds them (LIS3DH(tables=True) does so)
+    gc.collect()     # the prints' garbage
+    free = gc.mem_free()
+    a.sensor.use_fifo_tables()
+    gc.collect()
+    print("fifo_tables_bytes", free - gc.mem_free())
     a.log.close()
     remove(("log.bin", "cal_a.bin", "cal_b.bin"))
 

@@ -24,6 +24,11 @@
 //     fires inside this synchronous loop; the Feather's NeoPixel is driven through PIO at boot.
 //  4. (CircuitPython) BOOTSEL released: the button is sensed on the flash chip-select line,
 //     which rp2040js leaves low ("pressed").
+//  5. WFI with an interrupt already pending does not sleep (ARMv6-M: WFI wakes on a pending
+//     interrupt that would be taken ignoring PRIMASK; rp2040js sleeps until a new one arrives).
+//     CircuitPython sleeps as `disable interrupts; arm a TIMER alarm; WFI; enable`: an alarm
+//     that fired before the WFI left the emulated core asleep for good, no alarm scheduled
+//     (the Feather's 74-s end-to-end run stuck at 61.7 emulated s, on some heap layouts).
 import fs from 'node:fs';
 import { parseArgs } from 'node:util';
 import { pathToFileURL } from 'node:url';
@@ -36,6 +41,7 @@ export const HZ = 125e6;
 const NS_PER_CYCLE = 8;
 export const FLASH_SIZE = 2 * 1024 * 1024; // RPI_PICO; CircuitPython falls back to 2 MB here too
 const PROMPT = 'raw REPL; CTRL-B to exit\r\n>';
+const WFI = 0xbf30; // the Thumb encoding
 
 export async function loadEmulator(indexJs) {
   return import(pathToFileURL(indexJs).href);
@@ -120,6 +126,9 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
       }
       const c = core.executeInstruction();
       chip.cycles += c;
+      // 5. WFI with an interrupt already pending does not sleep
+      if (core.waiting && (core.pendingInterrupts & core.enabledInterrupts)
+          && mcu.readUint16((core.PC - 2) >>> 0) === WFI) core.waiting = false;
       clock.tick(c * NS_PER_CYCLE);
       for (const p of pios) if (!p.stopped) for (let i = 0; i < c; i++) p.step();
     }
@@ -131,7 +140,9 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
     while (!done()) {
       if (chip.cycles >= chip.stopAt) throw new PowerCut(chip.cycles);
       chip.feed();
-      if (!chip.step(20000) && !done() && chip.sent() && !pendingRead) {
+      // asleep, nothing scheduled, the host's bytes all delivered (a read waiting for more
+      // waits for good): nothing can change
+      if (!chip.step(20000) && !done() && chip.sent() && (!pendingRead || cdc.txFIFO.empty)) {
         if (!chip.step(1)) throw new Error(`stuck waiting for ${what}; got: ${chip.rx.tail(300)}`);
       }
       if (chip.cycles - start > maxCycles) throw new Error(`timeout waiting for ${what}`);
