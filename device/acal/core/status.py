@@ -39,10 +39,8 @@ UNDETERMINED = 4    # the points do not pin every parameter (acal/core/gaussnewt
 # effects at zero (acal/core/pipeline.py, the wear profile).
 BASE_KEPT_FAILED = 5
 BASE_KEPT_WORSE = 6
-STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
-                "parameters not determined by the points",
-                "composed fit failed: base calibration kept",
-                "composed fit worse than the base fit: base calibration kept")
+# (their names: acal/paper/optimiser.py's STATUS_NAMES, which the host reads; a board that
+# never loads the paper's fit keeps no string of them)
 
 
 def usable(status):

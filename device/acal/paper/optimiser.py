@@ -31,7 +31,12 @@ from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_abo
 # The fits' status codes live in acal/core/status.py (a wear-profile board does not load this module
 # nor acal/paper/objective.py: their code would sit in its RAM); here for the paper profile's callers.
 from acal.core.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
-                         BASE_KEPT_FAILED, BASE_KEPT_WORSE, STATUS_NAMES, usable)
+                         BASE_KEPT_FAILED, BASE_KEPT_WORSE, usable)
+# the status codes' names (acal/core/status.py), for the host's logs and reports
+STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
+                "parameters not determined by the points",
+                "composed fit failed: base calibration kept",
+                "composed fit worse than the base fit: base calibration kept")
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50
