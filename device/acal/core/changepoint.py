@@ -249,10 +249,9 @@ class ChangePoint(Sliced):
             self.ts = self._time(k)
             self.at = k
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_read, _sort, _scan)
-    ended = len(slices)
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_read, _sort, _scan)
 
 
 def _shift_to(v, bits):

@@ -377,10 +377,9 @@ class GaussNewton(Sliced):
             self.status = OK
         self.phase = _DONE
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_accum, _solve, _elim, _trial, _sort, _reject)
-    ended = len(slices)
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_accum, _solve, _elim, _trial, _sort, _reject)
 
 
 @viper

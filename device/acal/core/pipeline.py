@@ -313,10 +313,9 @@ class Pipeline(Sliced):
         o.objective = b.objective
         o.status = why
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_base, _model, _base_end, _search, _load, _centre, _begin)
-    ended = len(slices)
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_base, _model, _base_end, _search, _load, _centre, _begin)
 
 
 def track(bins, kinds, every=False):

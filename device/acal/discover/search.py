@@ -403,11 +403,10 @@ class Discover(Sliced):
         self.begin(pipe)
         self.finish()
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_score_base, _fit_slice, _search_slice, _score_candidate, _count_blocks,
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_score_base, _fit_slice, _search_slice, _score_candidate, _count_blocks,
               _compare_blocks, _place, _try, _begin_fit)
-    ended = len(slices)
 
 
 def _rekind(fit, kinds):

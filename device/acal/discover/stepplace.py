@@ -201,8 +201,7 @@ class StepPlace(Sliced):
         self.placed_loo = self.outside + self.loo
         self.phase = _DONE
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_gather, _place)
-    ended = len(slices)
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_gather, _place)
 

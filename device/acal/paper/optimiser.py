@@ -235,7 +235,6 @@ class Optimiser(Sliced):
                 (self.kinds and not model.effects_within(self.p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
 
-    # the phases' slices, in phase order, and their count (acal/core/status.py): the class's,
-    # plain functions, so an instance holds neither, nor a bound method for each
-    slices = (_start, _gradient, _update)
-    ended = len(slices)
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_start, _gradient, _update)
