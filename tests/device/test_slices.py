@@ -10,7 +10,7 @@ class _Two(Sliced):
     # two phases: the first counts to three a step at a time, the second once
     def __init__(self):
         self.log = []
-        self.sliced((self._count, self._last))
+        self.sliced()
 
     def begin(self):
         self.n = 0
@@ -25,6 +25,8 @@ class _Two(Sliced):
     def _last(self):
         self.log.append("l")
         self.phase = 2
+
+    SLICES = (_count, _last)
 
 
 def test_a_step_runs_the_current_slice_and_says_when_it_has_ended():
@@ -53,11 +55,15 @@ def test_every_sliced_computation_is_a_sliced_with_its_phases_numbered_by_the_ta
         obj = make(getattr(m, name))
         assert isinstance(obj, Sliced), name
         assert obj.ended == m._DONE == len(obj.slices) and obj.phase == obj.ended, name
+        # the class's one tuple of its own functions: an instance allocates no bound method
+        assert obj.slices is type(obj).SLICES, name
+        assert all(vars(type(obj))[f.__name__] is f for f in obj.slices), name
         assert "step" not in vars(type(obj)), f"{name} writes its own step()"
     from acal.discover.heldout import HeldOut
     from acal.discover import search
     d = search.Discover(72, HeldOut())
     assert isinstance(d, Sliced) and d.ended == search._DONE == len(d.slices)
+    assert d.slices is search.Discover.SLICES
     assert "step" not in vars(search.Discover)
 
 

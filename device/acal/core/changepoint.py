@@ -65,7 +65,7 @@ class ChangePoint(Sliced):
         self.j = -1               # where a paused insertion stands (-1: none under way)
         self.v = 0                # the point it inserts, and its time
         self.tv = 0
-        self.sliced((self._read, self._sort, self._scan))
+        self.sliced()
         self.fit = None
         self.found = False
         self.ts = 0
@@ -248,6 +248,10 @@ class ChangePoint(Sliced):
             self.found = True
             self.ts = self._time(k)
             self.at = k
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_read, _sort, _scan)
 
 
 def _shift_to(v, bits):

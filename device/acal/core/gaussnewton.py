@@ -125,7 +125,7 @@ class GaussNewton(Sliced):
         self.solver = Solver(np_)
         self.status = OK
         # the phases' slices, in their order (acal/core/status.py; _DONE is their count)
-        self.sliced((self._accum, self._solve, self._elim, self._trial, self._sort, self._reject))
+        self.sliced()
         self.iterations = 0
         self.max_iterations = DEFAULT_ITERATIONS
         self.objective = 0
@@ -376,6 +376,10 @@ class GaussNewton(Sliced):
         else:
             self.status = OK
         self.phase = _DONE
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_accum, _solve, _elim, _trial, _sort, _reject)
 
 
 @viper

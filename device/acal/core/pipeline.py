@@ -21,6 +21,7 @@ _LOAD = 4       # the model's own fit loading its points
 _CENTRE = 5     # a composed model's points' conditions centred
 _BEGIN = 6      # the optimiser (or the base fit) begun on the gathered points
 _DONE = 7
+_reference = None   # acal/core/reference.py once a composed or discovering Pipeline is made
 
 
 class Pipeline(Sliced):
@@ -117,10 +118,10 @@ class Pipeline(Sliced):
         self.iterations = iterations
         self.points = int32s(3 * capacity)
         self.aux = conditions(capacity)  # dT, dt, dV per point (composed models)
-        self.reference = None
         if self.kinds or plug is not None:   # the fit's references (_centre), imported here:
-            from acal.core import reference  # the base model's board never loads the module
-            self.reference = reference
+            global _reference                # the base model's board never loads the module
+            from acal.core import reference  # (a module global: an instance attribute more
+            _reference = reference           # took Pipeline's table from 23 slots to 29)
         # the conditions now (bins.conditions(1): C_TEMP, C_TIME, C_SUPPLY), shared with the feeder
         self.now = conditions(1) if now is None else now
         self.ref = conditions(1)   # a composed fit's references, now's columns (_centre)
@@ -130,8 +131,7 @@ class Pipeline(Sliced):
         self.excluded = 0
         self.position = 0  # samples of the current add_samples call consumed so far
         # the fit's phases (_BASE ... above), in their order
-        self.sliced((self._base, self._model, self._base_end, self._search, self._load,
-                     self._centre, self._begin))
+        self.sliced()
         self.from_base = False   # the model's own fit starts from the base fit's parameters
         self.n_fit = 0     # points gathered for the fit
         if plug is not None:
@@ -204,7 +204,7 @@ class Pipeline(Sliced):
         aux = self.aux
         n = self.n_fit
         kinds = self.kinds
-        r = self.reference
+        r = _reference
         for c in range(COND):
             self.ref[c] = r.centre(aux, n, c, r.lowest(kinds, c), COND)
         self.phase = _BEGIN
@@ -312,6 +312,10 @@ class Pipeline(Sliced):
         o.iterations = b.iterations
         o.objective = b.objective
         o.status = why
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_base, _model, _base_end, _search, _load, _centre, _begin)
 
 
 def track(bins, kinds, every=False):

@@ -136,9 +136,7 @@ class Discover(Sliced):
         self.all_params = int32s(N_CANDIDATES * N_ALL)
         self.ts = int32s(N_CANDIDATES)
         self.params = int32s(N_ALL)
-        self.sliced((self._score_base, self._fit_slice, self._search_slice,
-                     self._score_candidate, self._count_blocks, self._compare_blocks,
-                     self._place, self._try, self._begin_fit))   # the phases' slices
+        self.sliced()   # the phases' slices
         self.i = 0
         self.pos = 0           # where a sliced score or block comparison stands
         self.pipe = None
@@ -404,6 +402,11 @@ class Discover(Sliced):
         """begin() and every step at once."""
         self.begin(pipe)
         self.finish()
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_score_base, _fit_slice, _search_slice, _score_candidate, _count_blocks,
+              _compare_blocks, _place, _try, _begin_fit)
 
 
 def _rekind(fit, kinds):

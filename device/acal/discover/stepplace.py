@@ -47,7 +47,7 @@ class StepPlace(Sliced):
         self.score = None
         self.held = None
         self.ref_time = 0
-        self.sliced((self._gather, self._place))   # the phases' slices (acal/core/status.py)
+        self.sliced()   # the phases' slices (acal/core/status.py)
         self.pos = 0
         self.scan = 0          # held-out slots scanned a gathering step
         self.loo = 0           # the gap's leave-one-out errors summed so far
@@ -200,4 +200,8 @@ class StepPlace(Sliced):
             return
         self.placed_loo = self.outside + self.loo
         self.phase = _DONE
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_gather, _place)
 

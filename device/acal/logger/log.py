@@ -72,9 +72,8 @@ EFFECT = 7
 STORE = 8
 SUPPLY = 9
 DISCOVERY = 10
-TYPE_NAMES = {BOOT: "boot", REST: "rest", CAL: "cal", COUNTERS: "counters", SAMPLES: "samples",
-              GAP: "gap", EFFECT: "effect", STORE: "store", SUPPLY: "supply",
-              DISCOVERY: "discovery"}
+# (the kinds' names and the older layouts by kind: the host's, bridge/boardlog.py; a board's
+# heap keeps neither)
 BOOT_V1A = "<IHHBHBBBBBHBI"    # the first app's (9562c53): no temperature reference, model
 BOOT_V1B = "<IHHBHBBBBBHBIb"   # with the temperature reference (a3c88e0): no model
 BOOT_V1 = "<IHHBHBBBBBHBIbH"
@@ -87,10 +86,9 @@ SAMPLES_HEAD = "<IBb"
 _CAL_SIZE = struct.calcsize(FORMATS[CAL])        # 53
 _EFFECT_SIZE = struct.calcsize(FORMATS[EFFECT])  # 23: a STORE of 4 effects is 145 bytes
 _EFFECT_V1_SIZE = struct.calcsize(EFFECT_V1)     # 22
-# every older layout a record of each kind was written with (unpack reads each; sizes:
-# BOOT 23, 24, 26, 27 beside 28 now; EFFECT 22 beside 23; DISCOVERY 28 beside 29)
-OLD_FORMATS = {BOOT: (BOOT_V1A, BOOT_V1B, BOOT_V1, BOOT_V2), EFFECT: (EFFECT_V1,),
-               DISCOVERY: (DISCOVERY_V1,)}
+# every older layout a record of each kind was written with: unpack reads each (sizes: BOOT 23,
+# 24, 26, 27 beside 28 now; EFFECT 22 beside 23; DISCOVERY 28 beside 29), the host's
+# bridge/boardlog.py OLD_FORMATS lists them by kind
 MAX_PAYLOAD = 255
 SAMPLES_PER_RECORD = 41  # (255 - 6) // 6
 OVERHEAD = 7             # sync, type, length, CRC

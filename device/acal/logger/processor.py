@@ -31,6 +31,7 @@ REST_RESERVE_BYTES = 4000       # of each day's allowance, kept for points the b
 COUNTERS_SECONDS = 3600
 CAPTURE_FLUSH_RECORDS = 32  # ~8 kB: a flush per record would cost more than the processing
 FIT_STEPS_PER_FEED = 4      # fit slices per block fed (41 samples): the fit runs between FIFO reads
+_REST_SIZE = struct.calcsize(log.FORMATS[log.REST]) + log.OVERHEAD   # a REST record's bytes
 
 
 class Processor:
@@ -64,8 +65,6 @@ class Processor:
         self.log = logger
         self.capture = capture
         self.store = store
-        self.rate_hz = rate_hz
-        self.range_g = range_g
         self.kinds = effects.parse_model(model)
         if discover and store is not None and not self.kinds:
             adopted = _adopted_before(store)
@@ -108,8 +107,6 @@ class Processor:
         self.rest_logged = 0
         self.rest_skipped = 0
         self.capture_full = False
-        self._rest_size = struct.calcsize(log.FORMATS[log.REST]) + log.OVERHEAD
-        self._cap_mv = None
         if store is not None:
             self._resume(store)
 
@@ -165,13 +162,13 @@ class Processor:
         allowance = (REST_BUDGET_BYTES // REST_BUDGET_DAYS) * (1 + index // self.day_samples)
         if subset < 0:
             allowance -= REST_RESERVE_BYTES
-        if self.rest_bytes + self._rest_size > allowance:
+        if self.rest_bytes + _REST_SIZE > allowance:
             self.rest_skipped += 1
             self.merged += 1
             return
         if self.log.write(log.REST, index, x, y, z, self.now[C_TEMP] >> TEMP_Q, subset,
                           self.merged):
-            self.rest_bytes += self._rest_size
+            self.rest_bytes += _REST_SIZE
             self.rest_logged += 1
         self.merged = 0
         last[0] = x
@@ -316,7 +313,8 @@ class Processor:
         plug.adopt(pipe)
         self.kinds = pipe.kinds
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
-        self.calibration = Calibration(self.kinds, self.range_g, self.now)
+        # at the full scale the first was made for (2 * 2**e g: fixed.apply_range_shift)
+        self.calibration = Calibration(self.kinds, 2 << self.calibration.e, self.now)
         self.params = [0] * self.calibration.n_params
         values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
                                               f[4 * i + 3])

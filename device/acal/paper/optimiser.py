@@ -31,7 +31,12 @@ from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_abo
 # The fits' status codes live in acal/core/status.py (a wear-profile board does not load this module
 # nor acal/paper/objective.py: their code would sit in its RAM); here for the paper profile's callers.
 from acal.core.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
-                         BASE_KEPT_FAILED, BASE_KEPT_WORSE, STATUS_NAMES, usable)
+                         BASE_KEPT_FAILED, BASE_KEPT_WORSE, usable)
+# the status codes' names (acal/core/status.py), for the host's logs and reports
+STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
+                "parameters not determined by the points",
+                "composed fit failed: base calibration kept",
+                "composed fit worse than the base fit: base calibration kept")
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50
@@ -88,7 +93,7 @@ class Optimiser(Sliced):
         self.den = 1
         self.i = 0           # the gradient's next parameter
         # the phases' slices (acal/core/status.py): the objective at p0, the gradient, the update
-        self.sliced((self._start, self._gradient, self._update))
+        self.sliced()
 
     def __getattr__(self, name):
         # objective and objective_start, read from their limbs (a long past 2**30 on a 32-bit
@@ -229,3 +234,7 @@ class Optimiser(Sliced):
         elif not model.in_bounds(self.p) or \
                 (self.kinds and not model.effects_within(self.p, self.kinds, 1)):
             self.status = OUT_OF_BOUNDS
+
+    # the phases' slices, in phase order (acal/core/status.py): the class's one tuple of plain
+    # functions, so an instance holds no bound method for them (only a reference to this)
+    SLICES = (_start, _gradient, _update)

@@ -94,13 +94,20 @@ def decode(path: str | Path) -> Decoded:
 
 
 _SIZES = {t: struct.calcsize(f) for t, f in log.FORMATS.items()}
+# the record kinds' names, and every older layout a record of each kind was written with (the
+# device's log.unpack reads each by its length): the host's alone, a board's heap keeps neither
+TYPE_NAMES = {log.BOOT: "boot", log.REST: "rest", log.CAL: "cal", log.COUNTERS: "counters",
+              log.SAMPLES: "samples", log.GAP: "gap", log.EFFECT: "effect", log.STORE: "store",
+              log.SUPPLY: "supply", log.DISCOVERY: "discovery"}
+OLD_FORMATS = {log.BOOT: (log.BOOT_V1A, log.BOOT_V1B, log.BOOT_V1, log.BOOT_V2),
+               log.EFFECT: (log.EFFECT_V1,), log.DISCOVERY: (log.DISCOVERY_V1,)}
 _STATUS_COUNT = len(optimiser.STATUS_NAMES)
 
 
 def malformed(rtype: int, payload: bytes) -> str | None:
     """Why a record that passed its CRC is still not one the app writes (its length for its
     kind, a field out of its range), or None."""
-    name = log.TYPE_NAMES.get(rtype)
+    name = TYPE_NAMES.get(rtype)
     if name is None or rtype == log.STORE:
         return f"unknown record type {rtype}"
     n = len(payload)
@@ -108,8 +115,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         if n < 6 or (n - 6) % 6 or payload[4] != (n - 6) // 6 or payload[4] > log.SAMPLES_PER_RECORD:
             return f"{name} record of {n} bytes does not hold the samples it counts"
         return None
-    # every layout the app ever wrote (log.OLD_FORMATS; docs/boards-and-logs.md "Record layouts")
-    sizes = (_SIZES[rtype], *(struct.calcsize(f) for f in log.OLD_FORMATS.get(rtype, ())))
+    # every layout the app ever wrote (OLD_FORMATS; docs/boards-and-logs.md "Record layouts")
+    sizes = (_SIZES[rtype], *(struct.calcsize(f) for f in OLD_FORMATS.get(rtype, ())))
     if n not in sizes:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)
