@@ -12,10 +12,15 @@ from acal.core import effects
 from acal.core.bins import COND, int32s
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from array import array
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
 
 _ONE_G2_Q56 = 1 << (2 * A_Q)
 POINT_LIMIT = 1 << 20    # |point| < 16 g in Q16: the exact objective's domain (acal/paper/objective.py)
-_ARG_LIMIT = 1 << 29
+_ARG_LIMIT = const(1 << 29)
 _P = array("i", [0] * N_PARAMS)   # objective()'s parameters
 _LIMBS = []                       # ... and its limbs, made on first use
 

@@ -19,6 +19,11 @@ from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
                             REST_RESERVE_BYTES, COUNTERS_SECONDS, CAPTURE_FLUSH_RECORDS,
                             FIT_STEPS_PER_FEED)
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(x):
+        return x
 
 # FIFO drains: DRAIN samples after the last, with the watermark FTH = DRAIN - 1 (WTM: at least
 # DRAIN wait); 7 of the FIFO's 32 levels are the slack for a late drain (a fit slice, a flash
@@ -46,7 +51,7 @@ class RealClock:
         self.time.sleep_ms(ms)
 
 
-_TICKS_HALF = 1 << 29   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
+_TICKS_HALF = const(1 << 29)   # time.ticks_us wraps at 2^30 (MicroPython's small ints)
 
 
 class MsTicksClock:
