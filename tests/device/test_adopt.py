@@ -12,6 +12,7 @@ paper profile's fit keeps its counts."""
 import numpy as np
 import pytest
 
+from accelcal.bridge.boardlog import model_kinds
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
 from acal.core import effects, profile
@@ -175,7 +176,7 @@ def test_adopted_bins_take_a_composed_models_points_as_a_fresh_pipeline(tmp_path
     assert v["BASE"][:3] == ["0", "72", "8"], want    # the base fit on the base model's 72 points
     kind, count, fit_points, base_points, kept = map(int, v["ADOPTED"])
     want_kinds = (effects.TEMP_OFFSET, effects.DRIFT) if rounds == 2 else (effects.TEMP_OFFSET,)
-    assert set(effects.model_kinds(kind)) == set(want_kinds), want
+    assert set(model_kinds(kind)) == set(want_kinds), want
     # grown to the wear profile's composed count, every held point kept in its subset and slot
     assert count == profile.WEAR_COMPOSED_MAX_COUNT and fit_points == base_points == 126
     assert kept == 1

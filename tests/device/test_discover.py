@@ -9,6 +9,7 @@ points either side of it, allocating nothing either."""
 import numpy as np
 import pytest
 
+from accelcal.bridge.boardlog import model_kinds
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
 from acal.discover import search as discover
@@ -96,7 +97,7 @@ def test_processor_adopts_a_second_effect_and_keeps_both(tmp_path):
     found = [f for f in boardlog.decode(tmp_path / "cpython.bin").dicts(log.DISCOVERY)
              if f["adopted"]]
     both = (effects.TEMP_OFFSET, effects.DRIFT)
-    assert [effects.model_kinds(f["adopted"]) for f in found] == [both[:1], both], found
+    assert [model_kinds(f["adopted"]) for f in found] == [both[:1], both], found
     assert found[1]["heldout_after"] < 0.9 * found[1]["heldout_before"]
     # each DISCOVERY record carries the effect its round adopted and that effect's parameters:
     # the first round's temp_offset, the second's drift, as in the EFFECT records after it
@@ -299,8 +300,8 @@ def test_a_second_round_adds_the_second_effect_and_allocates_nothing(tmp_path, m
     assert discover.PAIR not in tried and first not in [discover.KINDS[i][0] for i in tried]
     assert len(tried) >= 5, errs
     if drift == "two":
-        assert {first} | set(effects.model_kinds(kind)) == {effects.TEMP_OFFSET, effects.DRIFT}
-        assert adopted == 1 and effects.model_kinds(kind)[0] == first, want
+        assert {first} | set(model_kinds(kind)) == {effects.TEMP_OFFSET, effects.DRIFT}
+        assert adopted == 1 and model_kinds(kind)[0] == first, want
         assert 0 <= errs[chosen] < 0.9 * before
     else:
         assert first == effects.TEMP_OFFSET and adopted == 0 and kind == 0, want

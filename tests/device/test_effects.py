@@ -11,6 +11,7 @@ from acal.core.fixed import TEMP_Q
 from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
 from acal.core.bins import COND
 from accelcal.model.effects import CATALOGUE, device_effects
+from accelcal.bridge.boardlog import model_kinds
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, relative, run_both
 
@@ -189,7 +190,7 @@ def test_effect_kinds_fit_the_logs_model_field():
     assert all(0 < k <= E.KIND_MAX == (1 << E.KIND_BITS) - 1 for k in E.NAMES)
     longest = tuple(sorted(E.NAMES)[-E.MODEL_EFFECTS_MAX:])
     code = E.model_code(longest)
-    assert E.model_kinds(code) == longest
+    assert model_kinds(code) == longest
     struct.pack(log.FORMATS[log.BOOT][-3:-1], code, 0)          # the field holds it
     with pytest.raises(ValueError):
         E.model_code(tuple(sorted(E.NAMES)[:E.MODEL_EFFECTS_MAX + 1]))
@@ -217,7 +218,7 @@ def test_an_effect_of_an_existing_form_is_one_table_row(rng):
     deff.tables()
     try:
         assert deff.parse_model("base+supply_offset2") == (new,)
-        assert deff.model_kinds(deff.model_code((new,))) == (new,)
+        assert model_kinds(deff.model_code((new,))) == (new,)
         theta = np.array([0.03, -0.02, 0.04])                 # g per (dV / 1024)^2
         p = [int(round(c * 2 ** 24)) for c in theta]
         dV = rng.integers(-1024, 1025, 300)

@@ -16,6 +16,7 @@ from acal.paper.optimiser import Optimiser
 from acal.core.pipeline import Pipeline
 from acal.core.profile import WEAR, settings
 from accelcal.bridge import runtime
+from accelcal.bridge.boardlog import STATUS_NAMES
 from accelcal import simulate
 from test_runtimes import random_recording
 
@@ -287,4 +288,4 @@ def test_a_composed_fit_that_fails_keeps_the_base_calibration(rng):
     assert b.status == optimiser.OK
     assert list(pipe.optimiser.p[:9]) == list(b.p[:9]) and list(pipe.optimiser.p[9:]) == [0, 0, 0]
     assert np.abs(np.array(b.p) / 2.0 ** 24 - truth).max() < 2e-3   # and it is a good one
-    assert "base calibration kept" in optimiser.STATUS_NAMES[status]
+    assert "base calibration kept" in STATUS_NAMES[status]

@@ -153,23 +153,6 @@ def condition_of(kind):
     return SOURCES[source][0] if source in SOURCES else -1
 
 
-def source_of(kind):
-    """Where an effect's regressor comes from: SOURCE_TEMP, SOURCE_TIME (a step's too),
-    SOURCE_SUPPLY, or 0 for the reading itself (NONLINEAR)."""
-    source = EFFECTS[kind][1]
-    return SOURCE_TIME if source == SOURCE_STEP else source
-
-
-def kind_of(source, power, form):
-    """The kind the table declares with this source, power and form (a step: SOURCE_STEP, 1),
-    0 when none: the host's device_kind."""
-    for k in EFFECTS:
-        row = EFFECTS[k]
-        if row[1] == source and row[2] == power and row[3] == form:
-            return k
-    return 0
-
-
 def uses_source(kinds, source):
     """True when a model has a generic offset whose regressor comes from `source`."""
     for k in kinds:
@@ -204,7 +187,8 @@ def parse_model(spec):
 
 def model_code(kinds):
     """The effect ids as one int for the log: kinds[i] in bits 4i..4i+3; ValueError past
-    MODEL_EFFECTS_MAX effects or an id past KIND_MAX (the log's field would wrap)."""
+    MODEL_EFFECTS_MAX effects or an id past KIND_MAX (the log's field would wrap).  Its inverse
+    is the host's (accelcal/model/effects.py model_kinds): a board never reads a model code."""
     if len(kinds) > MODEL_EFFECTS_MAX:
         raise ValueError("the log holds a model of at most 4 effects")
     code = 0
@@ -213,15 +197,6 @@ def model_code(kinds):
             raise ValueError("an effect id the log cannot hold")
         code |= kinds[i] << (KIND_BITS * i)
     return code
-
-
-def model_kinds(code):
-    """model_code's inverse."""
-    kinds = []
-    while code:
-        kinds.append(code & KIND_MAX)
-        code >>= KIND_BITS
-    return tuple(kinds)
 
 
 def regressor(kind, d, da, ts, fit=True):

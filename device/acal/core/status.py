@@ -38,8 +38,8 @@ UNDETERMINED = 4    # the points do not pin every parameter (acal/core/gaussnewt
 # effects at zero (acal/core/pipeline.py, the wear profile).
 BASE_KEPT_FAILED = 5
 BASE_KEPT_WORSE = 6
-# (their names: acal/paper/optimiser.py's STATUS_NAMES, which the host reads; a board that
-# never loads the paper's fit keeps no string of them)
+# (their names: the host's alone, accelcal/bridge/boardlog.py STATUS_NAMES; a board keeps no
+# string of them)
 
 
 def usable(status):

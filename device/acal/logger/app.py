@@ -157,16 +157,6 @@ class App:
                        effects.model_code(self.proc.kinds), p.fit,
                        0 if p.plug is None else 1)
 
-    def _retry(self, fn):
-        for attempt in range(RETRIES):
-            try:
-                return fn()
-            except OSError:
-                self.bus_errors += 1
-                if attempt + 1 < RETRIES:
-                    self.bus_retries += 1
-        return None
-
     def _elapsed(self):
         # Samples the chip has produced since it was configured (exact while both clocks agree).
         now = self.clock.ticks_us()

@@ -32,11 +32,7 @@ from acal.paper.objective import (objective_limbs, update, from_limbs, limbs_abo
 # nor acal/paper/objective.py: their code would sit in its RAM); here for the paper profile's callers.
 from acal.core.status import (OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED,  # noqa: F401
                          BASE_KEPT_FAILED, BASE_KEPT_WORSE, usable)
-# the status codes' names (acal/core/status.py), for the host's logs and reports
-STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
-                "parameters not determined by the points",
-                "composed fit failed: base calibration kept",
-                "composed fit worse than the base fit: base calibration kept")
+# (the status codes' names: the host's alone, accelcal/bridge/boardlog.py STATUS_NAMES)
 
 MIN_POINTS = N_PARAMS
 DEFAULT_ITERATIONS = 50

@@ -15,7 +15,6 @@ from acal.core import bins as dbins
 from acal.core import effects as deff
 from acal.core import fixed
 from acal.logger import log
-from acal.paper import optimiser
 from acal.logger.app import Processor
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_regular, note_input
@@ -101,7 +100,29 @@ TYPE_NAMES = {log.BOOT: "boot", log.REST: "rest", log.CAL: "cal", log.COUNTERS: 
               log.SUPPLY: "supply", log.DISCOVERY: "discovery"}
 OLD_FORMATS = {log.BOOT: (log.BOOT_V1A, log.BOOT_V1B, log.BOOT_V1, log.BOOT_V2),
                log.EFFECT: (log.EFFECT_V1,), log.DISCOVERY: (log.DISCOVERY_V1,)}
-_STATUS_COUNT = len(optimiser.STATUS_NAMES)
+# the fits' status codes' names (acal/core/status.py), for the host's logs and reports: the
+# host's alone, a board keeps no string of them
+STATUS_NAMES = ("ok", "diverged", "too few points", "out of calibration bounds",
+                "parameters not determined by the points",
+                "composed fit failed: base calibration kept",
+                "composed fit worse than the base fit: base calibration kept")
+_STATUS_COUNT = len(STATUS_NAMES)
+
+
+def model_kinds(code: int) -> tuple[int, ...]:
+    """The effect ids of a model code of the board's log (acal.core.effects.model_code's
+    inverse: KIND_BITS an effect, the first lowest); the host's alone, a board never reads one."""
+    kinds = []
+    while code:
+        kinds.append(code & deff.KIND_MAX)
+        code >>= deff.KIND_BITS
+    return tuple(kinds)
+
+
+def model_name(code: int) -> str | None:
+    """A model code of the board's (acal.core.effects.model_code: one effect, or a pair such as the
+    curve) as its effects' names joined by '+'; None for 0 (no effect)."""
+    return "+".join(deff.NAMES[k] for k in model_kinds(code)) or None
 
 
 def malformed(rtype: int, payload: bytes) -> str | None:
@@ -121,7 +142,7 @@ def malformed(rtype: int, payload: bytes) -> str | None:
         return f"{name} record of {n} bytes (a {name} record has {_SIZES[rtype]})"
     v = log.unpack(rtype, payload)
     if rtype == log.BOOT:
-        kinds = deff.model_kinds(v[14])
+        kinds = model_kinds(v[14])
         checks = [(1 <= v[2] <= 5376, "rate_hz"), (v[5] <= 3, "axis"),
                   (1 <= v[3] and v[2] * v[3] <= 65535, "seconds (a segment of 1..65535 samples)"),
                   (all(k in deff.NAMES for k in kinds) and len(set(kinds)) == len(kinds), "model"),
@@ -135,8 +156,8 @@ def malformed(rtype: int, payload: bytes) -> str | None:
     elif rtype == log.EFFECT:
         checks = [(v[1] in deff.NAMES, "effect")]
     elif rtype == log.DISCOVERY:
-        checks = [(all(k in deff.NAMES for k in deff.model_kinds(v[1])), "adopted"),
-                  (all(k in deff.NAMES for k in deff.model_kinds(v[2])), "closest"),
+        checks = [(all(k in deff.NAMES for k in model_kinds(v[1])), "adopted"),
+                  (all(k in deff.NAMES for k in model_kinds(v[2])), "closest"),
                   (v[5] <= v[6], "blocks"), ((v[7] in deff.NAMES) == (v[2] != 0), "effect")]
     else:
         checks = []
@@ -171,7 +192,7 @@ def read_capture(dirpath: Path) -> Capture:
 def _processor(lg, b: dict, profile: str | None):
     """The device Processor with a BOOT record's settings (profile: that profile's pipeline
     settings instead)."""
-    model = "+".join(["base"] + [deff.NAMES[k] for k in deff.model_kinds(b["model"])])
+    model = "+".join(["base"] + [deff.NAMES[k] for k in model_kinds(b["model"])])
     if profile is None:
         return Processor(lg, b["rate_hz"], recal_seconds=b["recal_seconds"], seconds=b["seconds"],
                          threshold=b["threshold"], axis=b["axis"], min_count=b["min_count"],
@@ -267,7 +288,7 @@ def summary(dirpath: str | Path) -> dict:
         for n in fixed.PARAM_NAMES:
             c[n] = c[n] / fixed.PARAM_ONE
         code = c["status"]
-        c["status"] = (optimiser.STATUS_NAMES[code] if code < len(optimiser.STATUS_NAMES)
+        c["status"] = (STATUS_NAMES[code] if code < len(STATUS_NAMES)
                        else f"status {code}")
         for e in effects:  # a composed model's EFFECT records follow their CAL, same index
             if e["index"] == c["index"] and e["effect"] in deff.NAMES:
@@ -309,7 +330,6 @@ def _discovery(d: dict, catalogue) -> dict:
     """A DISCOVERY record for people: the effects by name, the held-out errors (the board's
     integers: heldscore's sums of | |a|^2 - 1 |, Q16 g^2) and their change in %, the closest
     candidate's parameters in their report units."""
-    from accelcal.model.effects import model_name
     out = {"index": d["index"], "adopted": model_name(d["adopted"]),
            "closest": model_name(d["closest"]),
            "heldout_before": d["heldout_before"], "heldout_after": d["heldout_after"],

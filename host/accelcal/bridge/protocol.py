@@ -14,6 +14,7 @@ from acal.core import fixed, gaussnewton, rest
 from acal.paper import objective, optimiser
 from acal.core import profile as dprofile
 from accelcal.bridge.scripts.mp_runner import SETTINGS
+from accelcal.bridge.boardlog import STATUS_NAMES
 from accelcal.errors import InputError
 # the groups and the conditions' conversion, re-exported: what the protocol carries
 from accelcal.bridge.groups import (Group, PointsGroup, RestMeans, SamplesGroup,  # noqa: F401
@@ -122,7 +123,7 @@ class DeviceResult:
 
     @property
     def status_name(self) -> str:
-        return optimiser.STATUS_NAMES[self.status]
+        return STATUS_NAMES[self.status]
 
     @property
     def rest_g(self) -> np.ndarray:

@@ -168,10 +168,13 @@ class Effect:
         return ref
 
 
-def model_name(code: int) -> str | None:
-    """A model code of the board's (acal.core.effects.model_code: one effect, or a pair such as the
-    curve) as its effects' names joined by '+'; None for 0 (no effect)."""
-    return "+".join(deff.NAMES[k] for k in deff.model_kinds(code)) or None
+def kind_of(source: int, power: int, form: int) -> int:
+    """The kind the device's table (acal.core.effects.EFFECTS) declares with this source, power
+    and form (a step: SOURCE_STEP, 1), 0 when none."""
+    for k, row in deff.EFFECTS.items():
+        if row[1] == source and row[2] == power and row[3] == form:
+            return k
+    return 0
 
 
 def column_ref(name: str) -> str:
@@ -185,20 +188,20 @@ _FORMS = {"offset": deff.FORM_OFFSET, "gain": deff.FORM_SCALE}
 
 def device_kind(needs: str | None, power: int, form: str, change_point: bool) -> int | None:
     """The device kind that computes an effect of this shape, from the device's table
-    (acal.core.effects.EFFECTS, kind_of), None when it has none: offsets in a power of
+    (acal.core.effects.EFFECTS: kind_of), None when it has none: offsets in a power of
     temperature or time (1..4) or a step in time, a gain linear in temperature, an offset in
     the squared reading.  Gains in time, higher gains in temperature and other powers of the
     reading run on the host only."""
     if form not in _FORMS:
         return None
     if needs is None:   # the reading itself: its own form
-        return deff.kind_of(deff.SOURCE_READING, power, deff.FORM_NONLINEAR) or None \
+        return kind_of(deff.SOURCE_READING, power, deff.FORM_NONLINEAR) or None \
             if form == "offset" else None
     if needs not in _SOURCES:
         return None
     if needs == "t" and change_point:   # a step: its indicator, whatever the power
-        return deff.kind_of(deff.SOURCE_STEP, 1, _FORMS[form]) or None
-    return deff.kind_of(_SOURCES[needs], power, _FORMS[form]) or None
+        return kind_of(deff.SOURCE_STEP, 1, _FORMS[form]) or None
+    return kind_of(_SOURCES[needs], power, _FORMS[form]) or None
 
 
 _GENERIC_DAYS = (1 << deff.GENERIC_TIME_SHIFT) * deff.DT_UNIT_S / 86400.0   # 6.07 days

@@ -10,7 +10,8 @@ from acal.core import fixed
 from acal.discover.search import MIN_BLOCKS, MIN_HELD, N_ALL
 from accelcal.bridge import runtime
 from accelcal.fixedpoint import physical, seconds
-from accelcal.model.effects import ModelSpec, model_name
+from accelcal.bridge.boardlog import model_kinds, model_name
+from accelcal.model.effects import ModelSpec
 
 
 def heldout_mg(err: int, weight: int) -> float | None:
@@ -73,7 +74,7 @@ def _round(r: runtime.DeviceResult, v: list[int], cands: list, t_first: float,
         out["model"] = str(spec) if adopted else base
         out["params_int"] = dict(zip(spec.param_names, map(int, p_int)))
         out["params"] = dict(zip(spec.param_names, spec.from_int(p_int).tolist()))
-        if deff.STEP in deff.model_kinds(closest):
+        if deff.STEP in model_kinds(closest):
             out["step_time_s"] = t_first + seconds(r.ref[fixed.C_TIME] + step_time)
             if placed_insample >= 0:
                 # the step's time placed in its gap (acal/discover/stepplace.py): its error (after) the
