@@ -2,6 +2,7 @@
 (host/accelcal/model/effects.py, the same first-order model), bit-identical under MicroPython, and
 inside 2**30 on the per-sample path at the worst case."""
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.boardlog import model_kinds
 from accelcal.bridge.ranges import Tracer, traced
 from conftest import effect_orders, relative, run_both
+import effects_per_sample
+from effects_per_sample import correct_sample
 
 DT_UNIT = deff.DT_UNIT_S
 TEMP_ONE = 1 << TEMP_Q   # the device's dT is Q2 degC
@@ -55,7 +58,7 @@ def test_fit_and_apply_forms_match_the_float_model(name, rng):
         assert np.abs(np.array(u) / 2 ** 24 - w).max() < (2e-7 if e.kind not in deff.SHAPES else 5e-6)
         s = [int(round(c * 1024)) for c in (x, y, z)]
         acc = [c << 4 for c in s]
-        deff.correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], rel(int(a), int(b), int(c_v)),
+        correct_sample(e.kind, k, 0, acc, s[0], s[1], s[2], rel(int(a), int(b), int(c_v)),
                             STEP_AT)
         # Q14 out, Q10 in (the sample's own rounding, 0.5 mg, is the larger part for q v^2).
         exact = e.correct(np.array([s]) / 1024.0, e.from_int(p), np.array([a / TEMP_ONE]),
@@ -76,7 +79,7 @@ def test_apply_path_stays_small_at_the_worst_case(e):
         deff.apply_params(kind, [sign * deff.BOUNDS[kind]] * 3, 0, k, 0)
         for x in (-edge, edge):
             acc = [T(x << (4 - e))] * 3
-            deff.correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x),
+            correct_sample(kind, [T(c) for c in k], 0, acc, T(x), T(x), T(x),
                                 rel(T(temp), T(far), T(far // 100)), T(0), e)   # supply past its clamp too
     assert tr.ops > 100 and tr.max_abs < 2 ** 30, tr.max_abs
 
@@ -98,7 +101,7 @@ def test_apply_form_at_larger_full_scales_matches_the_float_model(name, rng):
                           {"supply_mv": dV.astype(float)})
         for row, a, b, c_v, w in zip(s.tolist(), dT.tolist(), dt.tolist(), dV.tolist(), want):
             acc = [c << (4 - e) for c in row]
-            deff.correct_sample(e_.kind, k, 0, acc, row[0], row[1], row[2], rel(a, b, c_v), STEP_AT,
+            correct_sample(e_.kind, k, 0, acc, row[0], row[1], row[2], rel(a, b, c_v), STEP_AT,
                                 e)
             # floors in Q(14 - e) and q v^2's in Q(10 - e) g^2: a few LSB of Q(14 - e)
             assert np.abs(np.array(acc) / 2 ** (14 - e) - w).max() < 3e-4 * 2 ** e
@@ -123,14 +126,15 @@ for kind in sorted(effects.NAMES):
         effects.correct_u(kind, p, 0, u, d, 0, 0, 1000)
         x, y, z = rnd(2097), rnd(2097), rnd(2097)
         w = [x << 4, y << 4, z << 4]
-        effects.correct_sample(kind, k, 0, w, x, y, z, d, 1000)
+        correct_sample(kind, k, 0, w, x, y, z, d, 1000)
         out.append(" ".join(map(str, u + w)))
 print("\n".join(out))
 '''
 
 
 def test_micropython_gives_the_same_integers(tmp_path, mp):
-    got, host = run_both(SCRIPT, tmp_path, mp)
+    # the per-sample apply (tests' alone: effects_per_sample.py) defined in the script itself
+    got, host = run_both(Path(effects_per_sample.__file__).read_text() + SCRIPT, tmp_path, mp)
     from acal.core import effects
     assert got.split() == host.split() and len(got.splitlines()) == 100 * len(effects.NAMES)
 

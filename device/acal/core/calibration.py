@@ -201,8 +201,8 @@ def _apply_composed(source, dest, i: int, end: int, coef, terms, nt: int, m: int
     # v = x << s in Q(14 - e) g; the effects removed by their forms (effects.py "the apply's
     # forms": terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm (APPLY_W_MAX) after
     # each (fixed.py: a reading's range, so the next product and K's stay below 2**30); then
-    # a = K (v + o) rounded to Q(13 - e) g as _apply_block.  Bit-identical to effects.apply_terms
-    # per sample (tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
+    # a = K (v + o) rounded to Q(13 - e) g as _apply_block.  Bit-identical to the per-sample form
+    # (tests/device/effects_per_sample.py; tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
     # and test_rv32.py on the chips); every value below 2**30
     # (tests/device/test_effects.py traces it at the worst case).
     # Its setup (K's nine loads, the clamp to +-m) repeats _apply_block's on purpose (duplicates

@@ -276,32 +276,6 @@ def block_terms(kind, k, m, out, at, d, ts=0, e=0):
         out[at + 1 + i] = (k[m + i] * r) >> s
 
 
-def apply_terms(t, at, w, x, y, z, e=0):
-    """One effect's form and terms t[at:at+4] (block_terms) applied to the reading w (list of 3,
-    Q(14 - e) g), x y z the sample (Q10 g): the per-sample reading of what the apply's viper loop
-    (calibration._apply_composed) does."""
-    form = t[at]
-    for i in range(3):
-        a = t[at + 1 + i]
-        if form == FORM_OFFSET:
-            w[i] -= a
-        elif form == FORM_SCALE:
-            w[i] -= (a * w[i]) >> 18
-        else:
-            s = x if i == 0 else (y if i == 1 else z)
-            w[i] -= (a * ((s * s) >> (10 + e))) >> 14
-
-
-def correct_sample(kind, k, m, w, x, y, z, d, ts=0, e=0):
-    """Remove effect `kind` (per-sample parameters k[m:m+3]) from the sample x, y, z (Q10 g,
-    within the full scale), accumulating into w (list of 3, Q(14 - e) g at the full scale's
-    shift e (fixed.py), holding x y z << (4 - e) or an earlier effect's result), at the relative
-    conditions d (block_terms); ts: a step's time (as dt).  block_terms then apply_terms."""
-    t = [0, 0, 0, 0]
-    block_terms(kind, k, m, t, 0, d, ts, e)
-    apply_terms(t, 0, w, x, y, z, e)
-
-
 # correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
 # table's rows as ints indexed by kind - form << 6 | source << 3 | power, the post shift, the
 # source's column and shift (SOURCES), its clamp (the time reach in the fit) - made by tables(),
