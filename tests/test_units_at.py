@@ -21,6 +21,34 @@ def test_bad_input_is_one_line(args, says):
     assert r.stderr.count("\n") == 1 and says in r.stderr and "Traceback" not in r.stderr
 
 
+def test_the_module_order_imports_one_module_at_a_time():
+    """--modules imports the package one module at a time so that each import's heap is that
+    module's alone: in the order import_order gives, CPython's own import system loads exactly
+    the module named at each step, and every module of the package but lis3dh_cp is named."""
+    code = (
+        "import importlib, sys\n"
+        f"sys.path[:0] = [{str(ROOT / 'tools')!r}, {str(ROOT / 'host')!r}, {str(ROOT / 'device')!r}]\n"
+        "import units_at\n"
+        "from accelcal.locations import DEVICE_PACKAGE\n"
+        "order = units_at.import_order(DEVICE_PACKAGE)\n"
+        "for k in [k for k in sys.modules if k.split('.')[0] == 'acal']:\n"
+        "    del sys.modules[k]\n"
+        "for name in order:\n"
+        "    before = set(sys.modules)\n"
+        "    importlib.import_module(name)\n"
+        "    print(name, *sorted(set(sys.modules) - before))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    steps = [line.split() for line in r.stdout.splitlines()]
+    for name, *loaded in steps:
+        assert [m for m in loaded if m.split(".")[0] == "acal"] == [name], (name, loaded)
+    files = {".".join(("acal", *p.relative_to(ROOT / "device" / "acal").with_suffix("").parts))
+             for p in (ROOT / "device" / "acal").rglob("*.py")}
+    named = {s[0] for s in steps}
+    assert named >= (files - {"acal.__init__", "acal.logger.lis3dh_cp"}) | {"acal"}
+    assert "acal.logger.lis3dh_cp" not in named and len(named) == len(steps)
+
+
 @pytest.mark.slow
 def test_a_revision_with_this_package_gives_its_figures():
     # HEAD's device/acal is the checkout's when the tree holds no change to it
