@@ -2,6 +2,8 @@
 pseudo-random cycles while the device appends to its log and while it saves calibrations,
 powered up again on the flash as the cut left it.  0 acknowledged records lost, 0 damaged,
 0 mixed calibrations, 0 failed boots; and the judge sees each of those when it is there."""
+import struct
+
 import pytest
 
 from acal.logger import log
@@ -14,12 +16,17 @@ def emulator():
     emulated_chip()
 
 
+def _encode_values(rtype, values):
+    # a record of rtype's layout (log.FORMATS) holding values, framed as the board writes it
+    return log.encode(rtype, struct.pack(log.FORMATS[rtype], *values))
+
+
 def _log_bytes(values):
-    return b"".join(log._encode_values(log.REST, v) for v in values)
+    return b"".join(_encode_values(log.REST, v) for v in values)
 
 
 def _store_bytes(values):
-    return log.encode(log.STORE, log._encode_values(log.CAL, values)[3:-4])
+    return log.encode(log.STORE, _encode_values(log.CAL, values)[3:-4])
 
 
 def test_the_judge_sees_lost_damaged_and_mixed(tmp_path):
@@ -27,7 +34,7 @@ def test_the_judge_sees_lost_damaged_and_mixed(tmp_path):
     of looking."""
     good = [powercut.rest_values(i) for i in range(5)]
     resumed = "ACAL_RESUMED 0 0\n"
-    boot = log._encode_values(log.BOOT, (0, 2, 100, 5, 0, 0, 2, 1, 2, 2, 0, 50, 0, -128, 0, 0, 0))
+    boot = _encode_values(log.BOOT, (0, 2, 100, 5, 0, 0, 2, 1, 2, 2, 0, 50, 0, -128, 0, 0, 0))
     after = (_log_bytes(good[:3]) + boot).hex()
     rec = {"out": "W 0\nW 1\nW 2\nW 3\n", "resume_out": resumed,
            "before": {"log.bin": _log_bytes(good[:3]).hex()}, "after": {"log.bin": after}}

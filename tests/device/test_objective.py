@@ -21,6 +21,15 @@ H = F.H_PARAM
 U_MAX = 1 << 28      # 16 g in Q24
 
 
+def to_limbs(v, f, at):
+    """An objective (an int >= 0, below 2**73) into limbs f[at:at+LIMBS] (14 bits each, the
+    top one holding the rest), as the device's objective() writes them."""
+    for j in range(LIMBS - 1):
+        f[at + j] = v & 0x3FFF
+        v >>= 14
+    f[at + LIMBS - 1] = v
+
+
 def reference(p, u, n):
     """The paper objective as the device computed it before: Python ints, longs past 2**30."""
     total = 0
@@ -140,7 +149,7 @@ def test_update_is_the_gradient_step(rng):
         if trial % 3 == 0:
             fs[:9] = [max(0, fs[9] + r.randrange(-(1 << 30), 1 << 30)) for _ in range(9)]
         for k in range(10):
-            objective.to_limbs(fs[k], f, LIMBS * k)
+            to_limbs(fs[k], f, LIMBS * k)
         alpha = [r.randrange(512) for _ in range(9)]
         den = r.randrange(1, 1 << 15)
         p = [r.randrange(lo - (1 << 20), hi - H + (1 << 20)) for lo, hi in b]

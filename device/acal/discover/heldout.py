@@ -66,11 +66,6 @@ class HeldOut:
         without discovery loads none)."""
         return held_out(time)
 
-    def nbytes(self):
-        """The bytes of the preallocated arrays."""
-        return SLOT_BYTES * (len(self.xyz) + len(self.cond) + len(self.block) + len(self.held) +
-                             len(self.weight))
-
     def total_weight(self):
         """The rest means the kept points stand for (the sum of their weights)."""
         n = 0

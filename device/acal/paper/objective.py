@@ -329,13 +329,6 @@ def from_limbs(f, at):
     return (((((f[at + 3] << 14) + f[at + 2]) << 14) + f[at + 1]) << 14) + f[at]
 
 
-def to_limbs(v, f, at):
-    """An objective (an int >= 0, below 2**73) into limbs f[at:at+LIMBS]."""
-    for j in range(LIMBS - 1):
-        f[at + j] = v & 0x3FFF
-        v >>= 14
-    f[at + LIMBS - 1] = v
-
 
 def limbs_above(f, a, b):
     """True when the objective in limbs at f[a:] is larger than the one at f[b:]."""
