@@ -36,8 +36,8 @@ class Calibration:
         self.e = apply_range_shift(range_g)  # fixed.py: the format by full scale
         self.out_q = APPLY_OUT_Q - self.e
         self.in_max = APPLY_IN_MAX << self.e
-        self.n_params = N_PARAMS + 3 * len(self.kinds)
-        self.k = int32s(self.n_params)   # an int32 array: _apply_block's typed pointer
+        n = N_PARAMS + 3 * len(self.kinds)
+        self.k = int32s(n)   # an int32 array: _apply_block's typed pointer
         self.w = int32s(3)   # one sample (apply()), or a reading after its effects, Q(14 - e)
         self.now = conditions(1) if now is None else now
         self.ref = conditions(1)   # the fit's references, now's columns (set())
@@ -53,7 +53,7 @@ class Calibration:
         self.y = 0
         self.z = 0
         self.dither = 0   # the base apply's output dither's phase (fixed.py APPLY_DITHER_STEP)
-        p = [0] * self.n_params
+        p = [0] * n
         identity(p)
         self.set(p)
 

@@ -93,7 +93,7 @@ class Processor:
         # wearable's own use of the data hooks in there.
         self.on_samples = None
         self.calibrated = array("i", bytearray(12 * log.SAMPLES_PER_RECORD))
-        self.params = [0] * self.calibration.n_params
+        self.params = [0] * len(self.calibration.k)
         self.index = 0              # samples fed so far (lost ones included)
         self.batch_start = 0
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
@@ -123,7 +123,7 @@ class Processor:
         for j in range(len(self.kinds)):
             if store.effects[j][1] != self.kinds[j]:
                 return
-        p = [0] * self.calibration.n_params   # the stored parameters, checked before any is taken
+        p = [0] * len(self.calibration.k)   # the stored parameters, checked before any is taken
         for i in range(N_PARAMS):
             p[i] = rec[7 + i]
         for j in range(len(self.kinds)):
@@ -315,7 +315,7 @@ class Processor:
         self.uses_supply = effects.uses_source(self.kinds, effects.SOURCE_SUPPLY)
         # at the full scale the first was made for (2 * 2**e g: fixed.apply_range_shift)
         self.calibration = Calibration(self.kinds, 2 << self.calibration.e, self.now)
-        self.params = [0] * self.calibration.n_params
+        self.params = [0] * len(self.calibration.k)
         values, extra = self._log_calibration(OK, f[4 * i], f[4 * i + 1], f[4 * i + 2],
                                               f[4 * i + 3])
         self._take(values, extra)
