@@ -10,12 +10,14 @@ on a fresh boot per tree and case, as `accelcal bench --runtime rp2040` does for
 The emulator's clock is the chip's cycles: a tree gives the same figures on every run.  Prints
 one line a figure: `units_{case}_{figure} REV_value this_value change_percent`.  With --modules,
 each module of the package (lis3dh_cp, CircuitPython's, left out) imported alone on one fresh
-boot a tree, after the modules it imports (MODULES): the heap it takes, one
+boot a tree, after the modules it imports (MODULES): the heap it takes (the qstr area's chunks
+counted apart, its own qstrs' text in), one
 line a module, `module_{name} REV_bytes this_bytes change_bytes` (- where a tree has none).
 """
 import argparse
 import ast
 import io
+import re
 import shutil
 import subprocess
 import sys
@@ -92,25 +94,40 @@ def import_order(root: Path) -> list[str]:
     return order
 
 
-# each module imported alone (the modules it imports already loaded), collected before and after:
-# on the chip, its own script (mp_units_bench.py's text is in the heap while it runs: a longer
-# one would move every units_ figure)
-MODULES = """import gc
+# each module imported alone (the modules it imports already loaded), collected before and after,
+# with the qstr area after it (micropython.qstr_info(): its pools grow in chunks, each chunk
+# allocated by whichever import fills the last); on the chip, its own script (mp_units_bench.py's
+# text is in the heap while it runs: a longer one would move every units_ figure)
+MODULES = """import gc, micropython
+micropython.qstr_info()
 for name in ORDER:
     gc.collect()
     free = gc.mem_free()
     __import__(name)
     gc.collect()
     print("module_%s %d" % (name, free - gc.mem_free()))
+    micropython.qstr_info()
 """
+_QSTR = re.compile(r"n_str_data_bytes=(\d+), n_total_bytes=(\d+)")
 
 
 def module_heap(image: Path, root: Path) -> dict:
-    """MODULES on a fresh boot of image, in import_order(root): each module's own heap, bytes."""
+    """MODULES on a fresh boot of image, in import_order(root): each module's own heap, bytes -
+    what its import took less the qstr area's growth, plus its new qstrs' text (the area's
+    chunks land on whichever import fills the last: its growth is not the module's)."""
     code = f"ORDER = {import_order(root)!r}\n" + MODULES
     out = rp2040.run_script(code, image=image).out
-    return {k[len("module_"):]: int(v) for k, v in
-            (line.split()[:2] for line in out.splitlines() if line.startswith("module_"))}
+    res, last, name = {}, None, None
+    for line in out.splitlines():
+        if line.startswith("module_"):
+            name, took = line.split()[:2]
+            res[name[len("module_"):]] = int(took)
+        elif m := _QSTR.search(line):
+            text, area = int(m[1]), int(m[2])
+            if name is not None:
+                res[name[len("module_"):]] += -(area - last[1]) + (text - last[0])
+            last, name = (text, area), None
+    return res
 
 
 def main(argv: list[str]) -> int:
