@@ -32,8 +32,8 @@ print('ACAL_DONE', app.samples, app.lost)
 """
 E = "rp2040_emulated_"
 # the emulated boards: board file, firmware, the chip's I2C and SPI wiring (pico.mjs), key prefix,
-# the instruction its firmware waits in (MicroPython's mp_hal_delay_ms: WFE; CircuitPython's
-# port_idle_until_interrupt: WFI, interrupts masked around it)
+# the instruction its firmware waits in (MicroPython's mp_hal_delay_ms: WFE; CircuitPython 10.2.1's
+# idle, as the emulator sees it execute: WFI with interrupts masked around it)
 BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5", "SPI_PICO", E, "WFE"),
           "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3", "SPI_FEATHER",
                       "rp2040_circuitpython_", "WFI")}
