@@ -55,8 +55,10 @@ def main():
     s = d.score
     for i in range(h.count):
         s.err[i] = 120      # the base model's errors, kept as base while marking
-    d._next = lambda i: setattr(d, "phase", discover._DONE)   # the two phases alone
-    d.phase = discover._BLOCKS
+    # the phases by their places (PHASES; search.py's are const(), not module attributes on
+    # the chip)
+    d._next = lambda i: setattr(d, "phase", PHASES.index("done"))   # the two phases alone
+    d.phase = PHASES.index("blocks")
     s.firsts = 0
     steps, worst = _phase(d, d._count_blocks)
     print("discover_blocks", d.blocks)
@@ -64,7 +66,7 @@ def main():
     print("discover_mark_worst_us", worst)
     for i in range(h.count):
         s.err[i] = 100 + (i * 37) % 50 if (i // 8) % 3 else 60
-    d.phase = discover._BETTER
+    d.phase = PHASES.index("better")
     d.pos = 0
     steps, worst = _phase(d, d._compare_blocks)
     print("discover_better_blocks", d.betters[0])
