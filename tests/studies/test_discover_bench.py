@@ -104,8 +104,8 @@ def test_the_rounds_count_what_steps_allocate_across_collections(tmp_path):
 
 def test_the_block_phases_alone_run_on_micropython(tmp_path):
     """main(): the block marking and comparing alone on a full held-out set, its phases set by
-    their places in PHASES (search.py's are const(): no module attribute on MicroPython): 18 odd
-    blocks held out, and the candidate better in the third of them it was made better in."""
+    their places in PHASES: 18 odd blocks held out, and the candidate better in the third of
+    them it was made better in."""
     out = runtime_kv(_run(tmp_path, "main()"))
     assert out["discover_blocks"] == 18 and out["discover_better_blocks"] == 6, out
     assert out["discover_mark_steps"] > 0 and out["discover_compare_steps"] > 0

@@ -33,11 +33,6 @@
 # order as whole passes: the result is the same to the bit.
 from acal.core.bins import COND
 from acal.core.status import Sliced
-try:
-    from micropython import const
-except ImportError:  # CPython
-    def const(x):
-        return x
 
 MIN_SIDE_SHIFT = 3
 READ_SLICE = 8
@@ -50,10 +45,10 @@ SCALE_BITS = 9
 GUARD_SHIFT = 8
 NONE = -1 << 29      # a split not scored
 
-_READ = const(0)    # the kept points (the phases: their slices' places, acal/core/status.py)
-_SORT = const(1)    # their order in time
-_SCAN = const(2)    # the backward pass
-_DONE = const(3)
+_READ = 0    # the kept points (the phases: their slices' places, acal/core/status.py)
+_SORT = 1    # their order in time
+_SCAN = 2    # the backward pass
+_DONE = 3
 
 
 class ChangePoint(Sliced):

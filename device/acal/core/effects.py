@@ -286,6 +286,12 @@ _COLS = bytearray(KIND_MAX + 1)
 _SHIFTS = bytearray(KIND_MAX + 1)
 _REACH = array("i", bytearray(4 * (KIND_MAX + 1)))   # a kind's clamp on its source's value
 _REACH_APPLY = array("i", bytearray(4 * (KIND_MAX + 1)))   # and in the apply (regressor)
+# Room in this module's globals table: MicroPython fills a table to its last slot before it grows
+# it (73, 97 ... slots), and a name looked up there probes on to its slot or an empty one.  With
+# 69 names the table was 73 slots, 95 % full, and the discovery's longest fit step, whose effect
+# code reads these globals per point, took 10 % longer on the emulated Pico; five names more keep
+# it at 97 slots as before (docs/notes/boards-and-logs.md "Every module's heap").
+_ROOM0 = _ROOM1 = _ROOM2 = _ROOM3 = _ROOM4 = None
 
 
 def tables():

@@ -11,21 +11,16 @@ from acal.core.fixed import ALPHA_SCALE, ALPHA_MISALIGN, ALPHA_OFFSET
 from acal.core.profile import GRADIENT, NEWTON
 from acal.core import effects
 from acal.core.status import Sliced
-try:
-    from micropython import const
-except ImportError:  # CPython
-    def const(x):
-        return x
 
 # the fit's phases: their slices' places in the table (acal/core/status.py; _DONE their count)
-_BASE = const(0)       # the base fit (a composed model's, NEWTON), a slice a step
-_MODEL = const(1)      # the model's own fit, a slice a step
-_BASE_END = const(2)   # the base fit ended: a step's search begun, or the model's own fit
-_SEARCH = const(3)     # a step's change-point search on the base fit
-_LOAD = const(4)       # the model's own fit loading its points
-_CENTRE = const(5)     # a composed model's points' conditions centred
-_BEGIN = const(6)      # the optimiser (or the base fit) begun on the gathered points
-_DONE = const(7)
+_BASE = 0       # the base fit (a composed model's, NEWTON), a slice a step
+_MODEL = 1      # the model's own fit, a slice a step
+_BASE_END = 2   # the base fit ended: a step's search begun, or the model's own fit
+_SEARCH = 3     # a step's change-point search on the base fit
+_LOAD = 4       # the model's own fit loading its points
+_CENTRE = 5     # a composed model's points' conditions centred
+_BEGIN = 6      # the optimiser (or the base fit) begun on the gathered points
+_DONE = 7
 _reference = None   # acal/core/reference.py once a composed or discovering Pipeline is made
 
 

@@ -23,30 +23,25 @@
 from acal.core.bins import int32s
 from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from acal.core.wide import div_shift
-try:
-    from micropython import const
-except ImportError:  # CPython
-    def const(x):
-        return x
 
 DIAG_BITS = 24
 RHS_BITS = 19
 MUL_Q = 20
 GUARD_SHIFT = 12
 STEP_WORK = 208        # products a step() does, about (docs/method-and-formats.md "Sliced fit")
-_Y_MAX_SHIFT = const(3)      # |y| < m_ii 2**3 2**-MUL_Q ... i.e. |y| < 2**(MUL_Q + 3)
-_T_MAX = const(1 << 28)      # bound of a back-substitution partial sum
-_MAX_RESCALES = const(8)
+_Y_MAX_SHIFT = 3      # |y| < m_ii 2**3 2**-MUL_Q ... i.e. |y| < 2**(MUL_Q + 3)
+_T_MAX = 1 << 28      # bound of a back-substitution partial sum
+_MAX_RESCALES = 8
 # Solver.state's slots and _run's answers
-_I = const(0)
-_J = const(1)
-_E = const(2)
-_RESCALES = const(3)
-_BACK = const(4)
-_STATE = const(5)
-_MORE = const(0)
-_SOLVED = const(1)
-_FAILED = const(2)
+_I = 0
+_J = 1
+_E = 2
+_RESCALES = 3
+_BACK = 4
+_STATE = 5
+_MORE = 0
+_SOLVED = 1
+_FAILED = 2
 
 
 class Solver:
@@ -147,7 +142,7 @@ class Solver:
         self.prep = end
 
 
-_SAT = const(1 << 29)
+_SAT = 1 << 29
 
 
 def _shift_sat(v, s):

@@ -60,16 +60,16 @@ BLOCK_SCAN = const(48)       # held-out slots scanned to mark or compare one slo
 # whole pass of CAPACITY took 2.35 and 2.45 ms)
 
 # the phases: their slices' places in the table (acal/core/status.py; _DONE is their count)
-_BASE = const(0)       # the base model scored on the held-out points
-_FIT = const(1)        # candidate i's fit, a slice a step
-_SEARCH = const(2)     # a step's change-point search on the base fit
-_SCORE = const(3)      # candidate i scored
-_BLOCKS = const(4)     # the held-out blocks counted
-_BETTER = const(5)     # candidate i's blocks compared with the base model's
-_PLACE = const(6)      # the step: its time placed among its gap's held-out points (stepplace)
-_NEXT = const(7)       # candidate i's testability (a pass over the fit points' conditions) a step
-_BEGIN = const(8)      # candidate i's fit begun (a step of its own: 1.3 ms on an RP2040, as testable)
-_DONE = const(9)
+_BASE = 0       # the base model scored on the held-out points
+_FIT = 1        # candidate i's fit, a slice a step
+_SEARCH = 2     # a step's change-point search on the base fit
+_SCORE = 3      # candidate i scored
+_BLOCKS = 4     # the held-out blocks counted
+_BETTER = 5     # candidate i's blocks compared with the base model's
+_PLACE = 6      # the step: its time placed among its gap's held-out points (stepplace)
+_NEXT = 7       # candidate i's testability (a pass over the fit points' conditions) a step
+_BEGIN = 8      # candidate i's fit begun (a step of its own: 1.3 ms on an RP2040, as testable)
+_DONE = 9
 
 
 def adoptable(kinds):

@@ -23,9 +23,9 @@ except ImportError:  # CPython
 # point and a kept one of the same time (the calibration would step the dropped one).
 GAP_MAX = const(32)
 
-_GATHER = const(0)     # the gap's held-out points gathered and scored either side of the step
-_PLACE = const(1)      # the step's time placed among them, and each scored leave-one-out
-_DONE = const(2)
+_GATHER = 0     # the gap's held-out points gathered and scored either side of the step
+_PLACE = 1      # the step's time placed among them, and each scored leave-one-out
+_DONE = 2
 
 
 class StepPlace(Sliced):

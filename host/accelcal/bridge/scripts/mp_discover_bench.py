@@ -55,8 +55,7 @@ def main():
     s = d.score
     for i in range(h.count):
         s.err[i] = 120      # the base model's errors, kept as base while marking
-    # the phases by their places (PHASES; search.py's are const(), not module attributes on
-    # the chip)
+    # the phases by their places (PHASES, in search.py's order: tests/device/test_slices.py)
     d._next = lambda i: setattr(d, "phase", PHASES.index("done"))   # the two phases alone
     d.phase = PHASES.index("blocks")
     s.firsts = 0
