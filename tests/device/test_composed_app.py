@@ -20,7 +20,7 @@ sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal.logger import log  # noqa: E402
-from acal.core.bins import TEMP_DIFFER  # noqa: E402
+from acal.core.fixed import TEMP_DIFFER  # noqa: E402
 from acal.core.fixed import C_TEMP, C_TIME, TEMP_Q  # noqa: E402
 from acal.logger.app import App, Processor  # noqa: E402
 from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402

@@ -13,7 +13,7 @@ from array import array
 
 from acal.core import effects
 from acal.logger import log
-from acal.core.fixed import C_TEMP, C_SUPPLY, TEMP_Q
+from acal.core.fixed import C_TEMP, TEMP_Q, BOARD_READERS
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
 from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
@@ -79,6 +79,23 @@ class MsTicksClock:
         return d + _TICKS_HALF + _TICKS_HALF if d < -_TICKS_HALF else d
 
 
+def board_readers(board, kinds):
+    """The board file's readers of the columns it may read (fixed.BOARD_READERS), as
+    (column, function, low, high) for those it defines; ValueError, one line, when the model
+    (its effect kinds) follows a column whose function the board file lacks."""
+    rows = []
+    for column, name, lo, hi in BOARD_READERS:
+        read = getattr(board, name, None)
+        if read is not None:
+            rows.append((column, read, lo, hi))
+            continue
+        for k in kinds:
+            if effects.condition_of(k) == column:
+                raise ValueError("model's %s follows a column the board reads: its board file "
+                                 "needs %s()" % (effects.NAMES[k], name))
+    return tuple(rows)
+
+
 class App:
     """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock and
     FIFO_TABLES: True where the FIFO's codes convert faster through tables, LIS3DH(tables=));
@@ -139,11 +156,9 @@ class App:
         # file's TEMP_REF_C (an int, from one thermometer reading) temperatures are absolute.
         ref = getattr(board, "TEMP_REF_C", None)
         self.temp_ref = 0 if ref is None else ref
-        # the board's supply in mV (an optional supply_mv() in its board file), read once per
-        # block: what a supply_offset model follows
-        self.supply_mv = getattr(board, "supply_mv", None)
-        if self.proc.uses_supply and self.supply_mv is None:
-            raise ValueError("model follows the board's supply: its board file needs supply_mv()")
+        # the columns the board file reads (fixed.BOARD_READERS: the supply's supply_mv()...),
+        # each (column, function, low, high), read once a block (_read_conditions)
+        self.readers = board_readers(board, self.proc.kinds)
         p = self.proc.pipe
         self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
@@ -181,18 +196,24 @@ class App:
         if self.fill == BLOCK:
             self._flush()
 
-    def _flush(self):
-        if self.fill:
-            try:  # one try: a failed temperature read keeps the last value
-                self.now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
+    def _read_conditions(self):
+        # the block's conditions: the chip's temperature and the board file's columns, each
+        # clamped; a failed read (OSError) keeps the last value.  Allocates nothing.
+        now = self.now
+        try:
+            now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
+        except OSError:
+            self.bus_errors += 1
+        for column, read, lo, hi in self.readers:
+            try:
+                v = read()
+                now[column] = lo if v < lo else (hi if v > hi else v)
             except OSError:
                 self.bus_errors += 1
-            if self.supply_mv is not None:
-                try:  # as the temperature: a failed read keeps the last value
-                    mv = self.supply_mv()
-                    self.now[C_SUPPLY] = 0 if mv < 0 else (65535 if mv > 65535 else mv)
-                except OSError:
-                    self.bus_errors += 1
+
+    def _flush(self):
+        if self.fill:
+            self._read_conditions()
             self.proc.feed(self.block, self.fill)
             self.fill = 0
 
