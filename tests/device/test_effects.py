@@ -8,7 +8,7 @@ import pytest
 
 from acal.core import effects as deff
 from acal.core.fixed import TEMP_Q
-from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY, SUPPLY_MAX
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY, SOURCES, SOURCE_SUPPLY
 from acal.core.bins import COND
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.ranges import Tracer, traced
@@ -16,6 +16,7 @@ from conftest import effect_orders, relative, run_both
 
 DT_UNIT = deff.DT_UNIT_S
 TEMP_ONE = 1 << TEMP_Q   # the device's dT is Q2 degC
+SUPPLY_MAX = SOURCES[SOURCE_SUPPLY][2]   # mV: the supply's clamp, its regressor's unit
 
 
 def inputs(rng, n=400):

@@ -88,11 +88,11 @@ if H >= 0 and EVERY:
 HUMIDITY_IN_FIXED = (
     ("C_SUPPLY = const(2)", "C_SUPPLY = const(2)\nC_HUMIDITY = const(3)  # 0.1 %RH"),
     ("COND = const(3)", "COND = const(4)"),
-    ("DIFFERS = (TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER)",
-     "HUMIDITY_DIFFER = 50\nDIFFERS = (TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER, HUMIDITY_DIFFER)"),
+    ("    100,            # C_SUPPLY: mV\n",
+     "    100,            # C_SUPPLY: mV\n    50,             # C_HUMIDITY: 5 %RH\n"),
     ("SOURCE_SUPPLY = const(4)", "SOURCE_SUPPLY = const(4)\nSOURCE_HUMIDITY = const(5)"),
-    ("    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),",
-     "    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),\n    SOURCE_HUMIDITY: (C_HUMIDITY, 6, 1024),"),
+    ("    SOURCE_SUPPLY: (C_SUPPLY, 6, 1024),",
+     "    SOURCE_SUPPLY: (C_SUPPLY, 6, 1024),\n    SOURCE_HUMIDITY: (C_HUMIDITY, 6, 1024),"),
     ("    (C_SUPPLY, \"supply_mv\", 0, 65535),",
      "    (C_SUPPLY, \"supply_mv\", 0, 65535),\n    (C_HUMIDITY, \"humidity_dmrh\", 0, 1000),"),
 )

@@ -34,7 +34,7 @@
 #   below 2**30 at every full scale (tests/device/test_effects.py runs the worst case).
 #   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (dT / 16 is
 #   dT << 10 in Q16 from Q2; x <= 2**20 for (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
-#   or dV clamped to +-fixed.SUPPLY_MAX (1024 mV: x <= 2**16);
+#   or dV clamped to +-1024 mV (fixed.SOURCES: x <= 2**16);
 #   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
 #   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> (14 + e), k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit

@@ -79,23 +79,6 @@ class MsTicksClock:
         return d + _TICKS_HALF + _TICKS_HALF if d < -_TICKS_HALF else d
 
 
-def board_readers(board, kinds):
-    """The board file's readers of the columns it may read (fixed.BOARD_READERS), as
-    (column, function, low, high) for those it defines; ValueError, one line, when the model
-    (its effect kinds) follows a column whose function the board file lacks."""
-    rows = []
-    for column, name, lo, hi in BOARD_READERS:
-        read = getattr(board, name, None)
-        if read is not None:
-            rows.append((column, read, lo, hi))
-            continue
-        for k in kinds:
-            if effects.condition_of(k) == column:
-                raise ValueError("model's %s follows a column the board reads: its board file "
-                                 "needs %s()" % (effects.NAMES[k], name))
-    return tuple(rows)
-
-
 class App:
     """board: a module from boards/ (sensor_bus(bus) or i2c(), I2C_ADDRESS, optional clock and
     FIFO_TABLES: True where the FIFO's codes convert faster through tables, LIS3DH(tables=));
@@ -156,9 +139,19 @@ class App:
         # file's TEMP_REF_C (an int, from one thermometer reading) temperatures are absolute.
         ref = getattr(board, "TEMP_REF_C", None)
         self.temp_ref = 0 if ref is None else ref
-        # the columns the board file reads (fixed.BOARD_READERS: the supply's supply_mv()...),
-        # each (column, function, low, high), read once a block (_read_conditions)
-        self.readers = board_readers(board, self.proc.kinds)
+        # the columns the board file reads (fixed.BOARD_READERS: the supply's supply_mv()...):
+        # (column, function, low, high) for each function it defines, read once a block
+        # (_read_conditions); a model following a column whose function it lacks is refused
+        readers = []
+        for column, name, lo, hi in BOARD_READERS:
+            read = getattr(board, name, None)
+            if read is not None:
+                readers.append((column, read, lo, hi))
+            for k in self.proc.kinds:
+                if read is None and effects.condition_of(k) == column:
+                    raise ValueError("model's %s follows a column the board reads: its board "
+                                     "file needs %s()" % (effects.NAMES[k], name))
+        self.readers = tuple(readers)
         p = self.proc.pipe
         self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acal.core import effects as deff
-from acal.core.fixed import PARAM_NAMES, TEMP_DIFFER, TEMP_Q, TIME_DIFFER
+from acal.core.fixed import C_TEMP, C_TIME, DIFFERS, PARAM_NAMES, TEMP_Q
 from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
@@ -386,9 +386,9 @@ class ModelSpec:
         """ValueError, one line, when the data cannot support the model: a temperature effect
         without temperatures or with too little spread, a drift over too short a span, a column
         effect without its column or with a column that does not vary.  The thresholds are the
-        device bins' (acal.core.fixed.TEMP_DIFFER, TIME_DIFFER: 3 degC (12 in Q2), 12 h)."""
-        need_temp = TEMP_DIFFER / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
-        need_h = hours(TIME_DIFFER)
+        device bins' (acal.core.fixed.DIFFERS: 3 degC (12 in Q2), 12 h)."""
+        need_temp = DIFFERS[C_TEMP] / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
+        need_h = hours(DIFFERS[C_TIME])
         cols = cols or {}
         for e in self.parts:
             n = e.name
