@@ -334,6 +334,84 @@ def test_the_app_reads_a_new_quantity_from_the_board_file(tmp_path):
     assert lock[0] == "L" and int(lock[2]) == min(1000, max(0, (37 * int(lock[1])) % 1200 - 100))
 
 
+# The host's side: the quantity's QUANTITIES row added in fixedpoint.py alone (on a copy of the
+# host package beside the edited device tree).  Its built-in effect, the conditions' column and the
+# twin's apply follow from the row: the twin applies samples at moving humidities as the device's
+# Calibration does.
+HUMIDITY_IN_QUANTITIES = (
+    ("\n)\n# the ones read from a recording's further columns",
+     """
+    Quantity("humidity", "humidity_dmrh", fixed.DIFFERS[fixed.C_HUMIDITY], None,
+             ("{} dmRH of humidity_dmrh", "{}"), kind=deff.HUMIDITY_OFFSET,
+             per=fixed.SOURCES[fixed.SOURCE_HUMIDITY][2], unit="dmRH",
+             effect=("h", 1e6, "mg/kdmRH", "The zero-g level follows the humidity.")),
+)
+# the ones read from a recording's further columns"""),
+)
+HOST = r"""
+import numpy as np
+import accelcal
+from acal.core import effects as deff, fixed
+from acal.core.calibration import Calibration
+from accelcal.fixedpoint import QUANTITIES, device_conditions
+from accelcal.model.effects import CATALOGUE, ModelSpec, device_effects
+from accelcal.bridge import twin
+print("F", accelcal.__file__)
+e = CATALOGUE["humidity_offset"]
+q = QUANTITIES[fixed.C_HUMIDITY]
+print("Q", q.name, e.quantity is q, e.kind, e.needs, e.column, e.unit, e.int_scale / 2 ** 24,
+      round(e.bound * 1024 / 0.05, 6), "humidity_offset" in device_effects(),
+      [x.name for x in ModelSpec.parse("base+humidity_offset").parts])
+h = np.array([120.0, 480.4, 999.6])
+print("C", device_conditions(np.array([20.0] * 3), np.zeros(3), 0.0, 3, humidity=h)[:, 3].tolist())
+rng = np.random.default_rng(5)
+p = [16777216 + 20000, 16777216 - 15000, 16777216 + 9000, 3000, -2000, 1000, 70000, -50000,
+     30000] + e.to_int([0.03 / 1024, -0.02 / 1024, 0.01 / 1024])
+ref = [0, 0, 0, 500]
+cal = Calibration((deff.HUMIDITY_OFFSET,))
+cal.set(p, ref)
+samples = rng.integers(-1500, 1500, (40, 3))
+hs = rng.integers(0, 1001, 40)
+dev, at_ref = [], []
+for (x, y, z), hv in zip(samples.tolist(), hs.tolist()):
+    for now, out in ((hv, dev), (ref[fixed.C_HUMIDITY], at_ref)):
+        cal.now[fixed.C_HUMIDITY] = now
+        cal.apply(x, y, z)
+        out.append([cal.x, cal.y, cal.z])
+rel = np.zeros((40, fixed.COND), dtype=np.int64)
+rel[:, fixed.C_HUMIDITY] = hs - ref[fixed.C_HUMIDITY]
+host = twin.apply_params(p, samples, (deff.HUMIDITY_OFFSET,), rel)
+print("T", host.tolist() == dev, int(np.abs(np.array(dev) - np.array(at_ref)).max()))
+"""
+
+
+def test_the_host_takes_a_new_quantity_from_its_quantities_row(tmp_path):
+    """The quantity added in the list's files (device: fixed.py, effects.py; host: its
+    QUANTITIES row in fixedpoint.py alone): the host's catalogue has its built-in effect (the
+    device's kind and name, Q24 per 1024 units, 0.05 g per 1024 units), a model names it, the
+    host's conditions carry its column, and the twin applies it as the device's Calibration
+    does (the same integers, samples at moving humidities)."""
+    tree = tmp_path / "device"
+    shutil.copytree(ROOT / "device", tree, ignore=shutil.ignore_patterns("__pycache__"))
+    add_humidity(tree)
+    add_humidity_effect(tree)
+    host = tmp_path / "host"
+    shutil.copytree(ROOT / "host", host, ignore=shutil.ignore_patterns("__pycache__"))
+    edit(host / "accelcal/fixedpoint.py", HUMIDITY_IN_QUANTITIES)
+    out = subprocess.run([sys.executable, "-c", HOST], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=300,
+                         env=dict(os.environ, PYTHONPATH=f"{tree}:{host}"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = {line[0]: line[2:] for line in out.stdout.splitlines()}
+    assert lines["F"].startswith(str(host)), lines["F"]            # the edited copy
+    assert lines["Q"].split() == ["humidity", "True", "13", "col", "humidity_dmrh",
+                                  "g/dmRH", "1024.0", "1.0", "True", "['humidity_offset']"]
+    assert eval(lines["C"]) == [120, 480, 1000]
+    same, moved = lines["T"].split()
+    # 0.03 g per 1024 units, up to 500 units from the reference: up to 120 LSB of Q13 g
+    assert same == "True" and 60 < int(moved) <= 125, lines["T"]
+
+
 # Where the supply's names (identifiers containing "supply", not comments or strings) may stand,
 # and why.  A file outside this list that names it means a quantity is named again where the
 # conditions' columns should carry it.
