@@ -106,12 +106,14 @@ class Quantity:
 
 
 QUANTITIES = (
-    Quantity("temp", "temp", fixed.DIFFERS[fixed.C_TEMP], "T0", ("{:g} degC of temperature", "{:g}"),
-             q=fixed.TEMP_Q),
-    Quantity("time", "t", fixed.DIFFERS[fixed.C_TIME], "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
+    Quantity("temp", "temp", fixed.DIFFERS[fixed.C_TEMP], "T0",
+             ("{:g} degC of temperature", "{:g}"), q=fixed.TEMP_Q),
+    Quantity("time", "t", fixed.DIFFERS[fixed.C_TIME], "t0", ("{:.1f} h", "{:g} h"),
+             step=deff.DT_UNIT_S),
     # the board's supply in mV (acal.core.effects.SUPPLY_OFFSET): a recording column the board reads
-    Quantity("supply", "supply_mv", fixed.DIFFERS[fixed.C_SUPPLY], None, ("{} mV of supply_mv", "{}"),
-             kind=deff.SUPPLY_OFFSET, per=fixed.SOURCES[fixed.SOURCE_SUPPLY][2], unit="mV",
+    Quantity("supply", "supply_mv", fixed.DIFFERS[fixed.C_SUPPLY], None,
+             ("{} mV of supply_mv", "{}"), kind=deff.SUPPLY_OFFSET,
+             per=fixed.SOURCES[fixed.SOURCE_SUPPLY][2], unit="mV",
              effect=("v", 1e6, "mg/V",
                      "The zero-g level follows the supply: the readout's reference is not fully "
                      "ratiometric, so rest readings shift as the battery runs down - a trend in "
