@@ -31,10 +31,12 @@ app.run({seconds})
 print('ACAL_DONE', app.samples, app.lost)
 """
 E = "rp2040_emulated_"
-# the emulated boards: board file, firmware, the chip's I2C and SPI wiring (pico.mjs), key prefix
-BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5", "SPI_PICO", E),
+# the emulated boards: board file, firmware, the chip's I2C and SPI wiring (pico.mjs), key prefix,
+# the instruction its firmware waits in (MicroPython's mp_hal_delay_ms: WFE; CircuitPython 10.2.1's
+# idle, as the emulator sees it execute: WFI with interrupts masked around it)
+BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5", "SPI_PICO", E, "WFE"),
           "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3", "SPI_FEATHER",
-                      "rp2040_circuitpython_")}
+                      "rp2040_circuitpython_", "WFI")}
 # RP2040 datasheet 5.7.2 Table 637, typical average DVDD current, mA
 RUN_MA = 9.4        # BOOTSEL mode - Active (48 MHz)
 SLEEP_MA = 0.39     # Sleep (hello_sleep)
@@ -50,7 +52,7 @@ def key(bus: str, what: str, rate: int, board: str = "pico") -> str:
 def _run(stimulus: Path, rate: int, seconds: int, bus: str = "i2c",
          board: str = "pico") -> tuple[int, int, float, int]:
     from accelcal.board import emulated
-    board_file, fw, i2c, spi, _ = BOARDS[board]
+    board_file, fw, i2c, spi = BOARDS[board][:4]
     r = emulated.run([APP.format(rate=rate, seconds=seconds, bus=bus)], stimulus=stimulus,
                      fw=getattr(rp2040, fw), i2c=i2c,
                      spi=getattr(emulated, spi) if bus == "spi" else None,
@@ -107,9 +109,10 @@ def format_sleep(m: dict) -> str:
 
 def _format_board(m: dict, board: str, what: str) -> list[str]:
     k = lambda bus, w, rate: m[key(bus, w, rate, board)]   # noqa: E731
+    wait = BOARDS[board][5]
     lines = ["", f"the app as deployed (FIFO, base model, wear profile) on {what}, "
              f"{LONG_S} s less {SHORT_S} s of emulated time: the core awake / waits ended by an "
-             "alarm a second (WFE between drains), the LIS3DH on I2C and on SPI:"]
+             f"alarm a second ({wait} between drains), the LIS3DH on I2C and on SPI:"]
     for bus in BUSES:
         if key(bus, "awake_pct", RATES[0], board) not in m:
             continue
@@ -124,5 +127,5 @@ def _format_board(m: dict, board: str, what: str) -> list[str]:
         if key(bus, "awake_pct", RATES[0], board) in m:
             lines.append(f"  {bus.upper()}: " + ", ".join(
                 f"{rate} Hz ~{current_ma(k(bus, 'awake_pct', rate)):.2f} mA" for rate in RATES)
-                + " (the WFE waits today keep every clock running: more)")
+                + f" (the {wait} waits today keep every clock running: more)")
     return lines
