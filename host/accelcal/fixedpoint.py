@@ -8,7 +8,6 @@ from dataclasses import dataclass, make_dataclass
 
 import numpy as np
 
-from acal.core import bins as dbins
 from acal.core import effects as deff
 from acal.core import fixed
 
@@ -94,6 +93,11 @@ class Quantity:
     kind: int | None = None
     per: int = 1
     q: int = 0           # fraction bits the device keeps (round(x * 2**q))
+    unit: str = ""       # a board column's physical unit (its effect's parameter: g per unit)
+    # a board column's built-in effect, the offset linear in it that `kind` runs
+    # (model/effects.py CATALOGUE makes it, named as the device names the kind):
+    # (parameter symbol, report scale, report unit, the physics in a sentence)
+    effect: tuple = ()
 
     def to_physical(self, v):
         """A span or value of the device's integers in physical units, 0 based (a step
@@ -102,12 +106,18 @@ class Quantity:
 
 
 QUANTITIES = (
-    Quantity("temp", "temp", dbins.TEMP_DIFFER, "T0", ("{:g} degC of temperature", "{:g}"),
-             q=fixed.TEMP_Q),
-    Quantity("time", "t", dbins.TIME_DIFFER, "t0", ("{:.1f} h", "{:g} h"), step=deff.DT_UNIT_S),
+    Quantity("temp", "temp", fixed.DIFFERS[fixed.C_TEMP], "T0",
+             ("{:g} degC of temperature", "{:g}"), q=fixed.TEMP_Q),
+    Quantity("time", "t", fixed.DIFFERS[fixed.C_TIME], "t0", ("{:.1f} h", "{:g} h"),
+             step=deff.DT_UNIT_S),
     # the board's supply in mV (acal.core.effects.SUPPLY_OFFSET): a recording column the board reads
-    Quantity("supply", "supply_mv", dbins.SUPPLY_DIFFER, None, ("{} mV of supply_mv", "{}"),
-             kind=deff.SUPPLY_OFFSET, per=deff.SUPPLY_MAX),
+    Quantity("supply", "supply_mv", fixed.DIFFERS[fixed.C_SUPPLY], None,
+             ("{} mV of supply_mv", "{}"), kind=deff.SUPPLY_OFFSET,
+             per=fixed.SOURCES[fixed.SOURCE_SUPPLY][2], unit="mV",
+             effect=("v", 1e6, "mg/V",
+                     "The zero-g level follows the supply: the readout's reference is not fully "
+                     "ratiometric, so rest readings shift as the battery runs down - a trend in "
+                     "the board's supply (mV), which repeats with every charge, not in time.")),
 )
 # the ones read from a recording's further columns (not t and temp, which every file may have)
 COLUMN_QUANTITIES = tuple(q for q in QUANTITIES if q.ref is None)

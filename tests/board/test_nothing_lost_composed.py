@@ -204,7 +204,7 @@ def test_a_four_effect_model_applied_loses_nothing_at_400_hz(tmp_path, which):
 
 
 # A refit within the run: the bins' least time spread for the drift term, 12 h
-# (bins.TIME_DIFFER), made one 64 s unit, so they are ready as a resumed board's are once it has
+# (fixed.DIFFERS[C_TIME]), made one 64 s unit, so they are ready as a resumed board's are once it has
 # worn the model 12 h; rest judged against a fixed threshold (60 mg, Q10 g) over 2 s segments
 # (the wear profile's noise gauge judges nothing still before 80 s of quiet segments).
 EARLY_BINS = "app.proc.pipe.bins.set_differ((app.proc.pipe.bins.differs[0], 1, 0))"

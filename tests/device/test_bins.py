@@ -1,10 +1,12 @@
 """Bins: the nine subsets, counts, the differs-enough test, first-come and centre policies."""
 import numpy as np
 
-from acal.core import bins
+from acal.core import bins, fixed
 from acal.core.bins import Bins, subset_of
 from acal.core.fixed import C_SUPPLY, C_TEMP, C_TIME
 from acal.core.fixed import TEMP_Q
+
+TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER = fixed.DIFFERS   # C_TEMP, C_TIME, C_SUPPLY
 from accelcal.fixedpoint import g_to_point
 
 G = 65536
@@ -79,13 +81,13 @@ def test_centre_is_closer_to_axes_than_first(rng):
 
 
 def test_composed_bins_keep_the_same_orientation_seen_warmer_or_later():
-    b = Bins(2, 4, differ=G // 10, differs=(bins.TEMP_DIFFER, bins.TIME_DIFFER, 0))
+    b = Bins(2, 4, differ=G // 10, differs=(TEMP_DIFFER, TIME_DIFFER, 0))
     q = 1 << TEMP_Q                                     # temperatures in Q2 degC
     assert b.offer(G, 0, 0, at(25 * q, 0)) >= 0
     assert b.offer(G, 0, 0, at(27 * q + 3, 100)) == -1      # 2.75 degC, 1.8 h: the same point
     assert b.offer(G, 0, 0, at(28 * q, 100)) >= 0           # 3 degC warmer: differs
-    assert b.offer(G, 0, 0, at(26 * q, 100 + bins.TIME_DIFFER)) >= 0  # 12 h after both: differs
-    assert b.total() == 3 and b.span(C_TEMP) == 3 * q and b.span(C_TIME) == 100 + bins.TIME_DIFFER
+    assert b.offer(G, 0, 0, at(26 * q, 100 + TIME_DIFFER)) >= 0  # 12 h after both: differs
+    assert b.total() == 3 and b.span(C_TEMP) == 3 * q and b.span(C_TIME) == 100 + TIME_DIFFER
     plain = Bins(2, 4, differ=G // 10)                  # the paper's model: conditions ignored
     assert plain.offer(G, 0, 0, at(25, 0)) >= 0 and plain.offer(G, 0, 0, at(40, 10 ** 5)) == -1
     assert plain.span(C_TEMP) == 0
@@ -113,7 +115,7 @@ def test_a_full_temperature_subset_keeps_its_spread_slots_without_a_gain():
     whole degC it was 0, taken as 1): a point that only keeps the range does not replace a spread
     slot (before that rule every such point did, and the placement slots kept the first points
     ever seen); a better placed one replaces the placement slot (the CENTRE rule)."""
-    b = Bins(1, 2, differ=G // 10, differs=(bins.TEMP_DIFFER, 0, 0))
+    b = Bins(1, 2, differ=G // 10, differs=(TEMP_DIFFER, 0, 0))
     q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
@@ -135,7 +137,7 @@ def test_a_full_time_subset_keeps_its_early_spread_points():
     forward.  When it replaced the worst placed, the better placed points of later days took
     every spread slot in turn, and a wrist's shock 19 h into 3 days had 8 of 110 fit points
     before it (docs/model-discovery.md "Bins for composed models")."""
-    b = Bins(2, 8, differ=G // 10, differs=(0, bins.TIME_DIFFER, 0))
+    b = Bins(2, 8, differ=G // 10, differs=(0, TIME_DIFFER, 0))
     ys = (0.3, 0.4, 0.5, 0.6, -0.3, -0.4, -0.5, -0.6)   # y and z between the bands: C_xp alone
 
     def only_xp(x, y):
@@ -143,7 +145,7 @@ def test_a_full_time_subset_keeps_its_early_spread_points():
 
     for k, y in enumerate(ys):                # the first hour: 8 points placed 0.2 g off the axis
         assert b.offer(*only_xp(0.8, y), at(0, 7 * k)) == 2
-    later = [bins.TIME_DIFFER // 2 * (i + 1) for i in range(6)]   # every 6 h for 3 days
+    later = [TIME_DIFFER // 2 * (i + 1) for i in range(6)]   # every 6 h for 3 days
     for i, t in enumerate(later):             # placed 0.05 g off the axis: better
         assert b.offer(*only_xp(0.95, ys[i % 8]), at(0, t)) == 2
     held = sorted(b.condition(2, k)[1] for k in range(8))
@@ -156,16 +158,16 @@ def test_a_condition_no_longer_tracked_does_not_freeze_the_points_that_hold_it()
     values weigh nothing in the spread any more: a better placed point replaces the placement
     slot holding a stale time.  When they still counted, that slot could not be replaced (its
     time range would "narrow") and the point was refused."""
-    b = Bins(1, 2, differ=G // 10, differs=(bins.TEMP_DIFFER, bins.TIME_DIFFER, 0))
+    b = Bins(1, 2, differ=G // 10, differs=(TEMP_DIFFER, TIME_DIFFER, 0))
     q = 1 << TEMP_Q
 
     def only_xp(x, y, z):  # y and z between the bands: C_xp alone
         return int(x * G), int(y * G), int(z * G)
 
-    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(30 * q, 2 * bins.TIME_DIFFER)) == 2   # placement
+    assert b.offer(*only_xp(0.8, 0.4, 0.4), at(30 * q, 2 * TIME_DIFFER)) == 2   # placement
     assert b.offer(*only_xp(0.8, 0.55, 0.3), at(34 * q, 0)) == 2                     # spread
-    b.set_differ((bins.TEMP_DIFFER, 0, 0))         # time no longer tracked
-    assert b.offer(*only_xp(0.95, 0.45, 0.35), at(30 * q, 5 * bins.TIME_DIFFER)) == 2
+    b.set_differ((TEMP_DIFFER, 0, 0))         # time no longer tracked
+    assert b.offer(*only_xp(0.95, 0.45, 0.35), at(30 * q, 5 * TIME_DIFFER)) == 2
     assert b.point(2, 0)[0] == int(0.95 * G) and b.condition(2, 0) == (30 * q, 0, 0)
 
 
@@ -186,7 +188,7 @@ def test_the_board_supply_is_a_third_condition():
     """With supply_differ (a model following the board's supply, mV) the same orientation at a
     supply 100 mV away differs, a full subset widens its supply range, and ready() needs the
     span; without it the supply is ignored."""
-    b = Bins(1, 2, differ=G // 10, differs=(0, 0, bins.SUPPLY_DIFFER))
+    b = Bins(1, 2, differ=G // 10, differs=(0, 0, SUPPLY_DIFFER))
 
     def only_xp(x, y, z):
         return int(x * G), int(y * G), int(z * G)
@@ -197,7 +199,7 @@ def test_the_board_supply_is_a_third_condition():
     assert b.offer(*only_xp(0.8, 0.45, 0.35), at(0, 0, 3700)) == 2      # full: widens 3900..4000
     assert sorted(b.condition(2, k)[2] for k in range(2)) == [3700, 3900]
     assert b.span(C_SUPPLY) == 200 and b.span(C_TEMP) == 0
-    r = Bins(1, 1, differs=(0, 0, bins.SUPPLY_DIFFER))
+    r = Bins(1, 1, differs=(0, 0, SUPPLY_DIFFER))
     pts = [(-G, 0, 0), (0, G, G // 10), (G, 0, 0), (0, -G, 0), (G // 10, 0, G), (0, G, 0),
            (0, 0, -G), (G, G // 10, 0), (0, 0, G)]
     for k, p in enumerate(pts):
@@ -229,7 +231,7 @@ def test_the_spread_score_stays_small_with_three_conditions():
                                           (85, 0, 65535), (-40, 1 << 20, 65535)]):
         b.offer(T(x), T(int((0.3 + 0.02 * k) * G)), T(z), [T(temp * q), T(time), T(mv)])
     assert b.counts[2] == 4             # full: the last three offers score the spread
-    a, t, c = bins.TEMP_DIFFER, bins.TIME_DIFFER, bins.SUPPLY_DIFFER
+    a, t, c = TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER
     g = math.gcd(t * c, a * c, a * t)
     whole = (125 * q * t * c + (1 << 20) * a * c + 65535 * a * t) // g
     assert tr.ops > 50 and whole <= tr.max_abs < 2 ** 30, (whole, tr.max_abs)

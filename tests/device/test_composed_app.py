@@ -20,7 +20,7 @@ sys.path.insert(0, str(CHIP_DIR))
 from simboard import SimBoard  # noqa: E402
 
 from acal.logger import log  # noqa: E402
-from acal.core.bins import TEMP_DIFFER  # noqa: E402
+from acal.core.fixed import DIFFERS  # noqa: E402
 from acal.core.fixed import C_TEMP, C_TIME, TEMP_Q  # noqa: E402
 from acal.logger.app import App, Processor  # noqa: E402
 from acal.core.profile import GRADIENT, PAPER, WEAR, WEAR_COMPOSED_MAX_COUNT  # noqa: E402
@@ -86,7 +86,7 @@ def test_the_board_fits_the_effect_in_integers(ran):
     # c at the board's reference (the held points' middle temperature), in g/degC.
     cfit = CATALOGUE["temp_offset"].from_int([e["p0"], e["p1"], e["p2"]])
     assert np.abs(cfit - C_TRUE).max() < 0.00015, cfit
-    assert held.span(C_TEMP) >= TEMP_DIFFER == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
+    assert held.span(C_TEMP) >= DIFFERS[C_TEMP] == 3 << TEMP_Q  # the spread the fit needs (Q2 degC)
 
 
 def test_replay_reproduces_cal_and_effect_records(ran):

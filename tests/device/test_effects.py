@@ -9,7 +9,7 @@ import pytest
 
 from acal.core import effects as deff
 from acal.core.fixed import TEMP_Q
-from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY
+from acal.core.fixed import C_TEMP, C_TIME, C_SUPPLY, SOURCES, SOURCE_SUPPLY
 from acal.core.bins import COND
 from accelcal.model.effects import CATALOGUE, device_effects
 from accelcal.bridge.boardlog import model_kinds
@@ -20,13 +20,14 @@ from effects_per_sample import correct_sample
 
 DT_UNIT = deff.DT_UNIT_S
 TEMP_ONE = 1 << TEMP_Q   # the device's dT is Q2 degC
+SUPPLY_MAX = SOURCES[SOURCE_SUPPLY][2]   # mV: the supply's clamp, its regressor's unit
 
 
 def inputs(rng, n=400):
     v = rng.uniform(-2.0, 2.0, (n, 3))
     dT = rng.integers(-20 * TEMP_ONE, 20 * TEMP_ONE + 1, n)   # Q2 degC: quarter degrees
     dt = rng.integers(0, 12 * 86400 // DT_UNIT, n)   # inside the generic offsets' clamp
-    dV = rng.integers(-deff.SUPPLY_MAX, deff.SUPPLY_MAX + 1, n)   # mV, inside the clamp
+    dV = rng.integers(-SUPPLY_MAX, SUPPLY_MAX + 1, n)   # mV, inside the clamp
     return v, dT, dt, dV
 
 

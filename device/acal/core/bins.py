@@ -23,14 +23,8 @@ from array import array
 
 from acal.core import hemisphere
 from acal.core.emit import copy_ints
-from acal.core.fixed import POINT_ONE_G, TEMP_Q, C_TIME
-try:
-    from micropython import const
-except ImportError:
-    def const(x):
-        return x
-
-COND = const(3)     # conditions per point, flat: temperature (Q2 degC), time (64 s), supply (mV)
+# COND columns of conditions a point and their least spreads DIFFERS (fixed.py "conditions")
+from acal.core.fixed import POINT_ONE_G, C_TIME, COND, DIFFERS
 
 
 def int32s(n):
@@ -65,10 +59,6 @@ _LO_OUT = (3 * POINT_ONE_G) // 4  # 0.75 g
 _HI_OUT = (5 * POINT_ONE_G) // 4  # 1.25 g
 _HI_MID = POINT_ONE_G // 4        # 0.25 g
 DEFAULT_DIFFER = POINT_ONE_G // 10  # 0.1 g
-TEMP_DIFFER = 3 << TEMP_Q  # 3 degC in Q2: what a temperature effect needs (host diagnose: the same)
-TIME_DIFFER = 675   # 64 s units: 12 h (host diagnose: the same 12 h)
-SUPPLY_DIFFER = 100  # mV: what an effect of the board's supply needs
-DIFFERS = (TEMP_DIFFER, TIME_DIFFER, SUPPLY_DIFFER)   # per condition, in COND's order
 # A rest mean is gravity seen through the sensor errors: |v| within [0.5, 1.5] g, else it is
 # not kept (it would be false rest, and it bounds the optimiser's ranges).  Compared in Q24 g^2
 # after a 4-bit shift, so the squares stay below 2**30 for points up to +-2 g.

@@ -34,7 +34,7 @@
 #   below 2**30 at every full scale (tests/device/test_effects.py runs the worst case).
 #   The generic offsets (regressor()): x in Q16, from dT clamped to +-32 degC (dT / 16 is
 #   dT << 10 in Q16 from Q2; x <= 2**20 for (dT/16)^4), dt clamped to +-GENERIC_TIME_MAX (2**14 units, 12.1 days: (dt/2**13)^4 <= 16)
-#   or dV clamped to +-SUPPLY_MAX (1024 mV: x <= 2**16);
+#   or dV clamped to +-1024 mV (fixed.SOURCES: x <= 2**16);
 #   p per unit x in Q24, bounded by 0.05 g; fit u -= floor(p x 2**-16) (wide), apply with p in
 #   Q16 (param >> 8) and x in Q12 (x >> 4): w -= (k x) >> (14 + e), k x < 2**28 at the bound.
 #   The fit form keeps below 2**30 too (the default profile's fit allocates nothing on a 32-bit
@@ -43,7 +43,10 @@
 #   gaussnewton.py, parameters below 2**22 - the wide products go through acal/core/wide.py, whose
 #   floors equal the plain (a * b) >> s.
 from acal.core.wide import mul_shift
-from acal.core.fixed import TEMP_DT_MAX, C_TEMP, C_TIME, C_SUPPLY
+# the sources of the regressors and their SOURCES rows stand with their columns (fixed.py
+# "conditions"): a board quantity's is there, its effect's row here
+from acal.core.fixed import (TEMP_DT_MAX, SOURCES, SOURCE_TEMP, SOURCE_TIME, SOURCE_STEP,
+                             SOURCE_SUPPLY)
 from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
 from array import array
 try:
@@ -57,31 +60,15 @@ except ImportError:
 FORM_OFFSET = const(1)      # u -= p x            x: the regressor, from its source to its power
 FORM_SCALE = const(2)       # u -= (p x) u        a gain (first order)
 FORM_NONLINEAR = const(3)   # u -= p u^2          per axis, u^2 with its sign lost
-SOURCE_READING = const(0)   # the reading itself (FORM_NONLINEAR)
-SOURCE_TEMP = const(1)      # dT, Q2 degC from the reference; clamped to +-APPLY_DT_MAX
-SOURCE_TIME = const(2)      # dt, 64 s units from the reference; clamped to +-the row's reach
-SOURCE_STEP = const(3)      # [dt >= ts]: a step at ts (acal/core/changepoint.py finds it)
-SOURCE_SUPPLY = const(4)    # dV, mV of the board's supply from its reference; +-SUPPLY_MAX
+SOURCE_READING = const(0)   # the reading itself (FORM_NONLINEAR); the others: fixed.SOURCES
 GENERIC_TIME_MAX = const(16384)   # dt units (12.1 days) either side of the reference
 GENERIC_TIME_SHIFT = const(13)    # the time regressor's unit: 2**13 dt units (6.07 days)
 GENERIC_BOUND = const(838861)     # 0.05 g per unit of x, Q24
-SUPPLY_MAX = const(1024)          # mV either side of the reference (the regressor's unit)
 DT_UNIT_S = const(64)
 APPLY_DT_MAX = TEMP_DT_MAX        # Q2 degC (32 degC) either side of the reference
 APPLY_TIME_MAX = const(1048575)   # dt units
 FIT_TIME_MAX = const(262143)      # dt units (194 days) in the fit: d dt stays below 2**29
 _G = GENERIC_TIME_MAX
-# THE SOURCES: where each source's value stands in the relative conditions d (a point's or a
-# block's conditions minus their references, bins.COND columns, fixed.C_*: made once a block or a
-# point) and how it becomes the regressor's Q16 base: source: (column, shift, clamp) - the value
-# d[column] clamped to +-clamp (0: the effect row's time reach) and shifted left.  A step reads
-# its column unclamped against ts.  A new board quantity's source is one row here.
-SOURCES = {
-    SOURCE_TEMP: (C_TEMP, 10, APPLY_DT_MAX),    # dT / 16 in Q16 from Q2 degC, <= 2**17
-    SOURCE_TIME: (C_TIME, 3, 0),                # dt / 2**13 in Q16
-    SOURCE_STEP: (C_TIME, 0, 0),                # [dt >= ts]
-    SOURCE_SUPPLY: (C_SUPPLY, 6, SUPPLY_MAX),   # dV / 1024 in Q16, <= 2**16
-}
 TEMP_OFFSET = const(1)
 TEMP_SCALE = const(2)
 DRIFT = const(3)

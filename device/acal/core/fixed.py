@@ -46,14 +46,51 @@ DITHER_STEP = const(10127)   # round(0.6180339887 * 2**14) = 10126, made odd: 10
 # scales it (temp << TEMP_Q); a recording's temperatures are rounded to Q2 on the host
 # (fixedpoint.device_conditions).  Range: |temp| <= 125 degC -> 500 (absolute, with a board's
 # TEMP_REF_C; relative otherwise); dT is clamped to +-TEMP_DT_MAX (effects.py) before any product.
-TEMP_Q = const(2)
+TEMP_Q = const(2)         # 1 degC: 4
+TEMP_DT_MAX = const(128)  # 32 degC: dT's clamp either side of the reference (effects.py)
+
+# --- conditions: the quantities a point is taken at, a column each ------------------------------
+# Every fact of a column stands here, a line in each table below: its index C_* and unit, its
+# least spread (DIFFERS), its regressor's source (SOURCES) and, for a quantity the board file
+# reads, its reader (BOARD_READERS).  A new board quantity is these lines, its reader function in
+# the board file, its effect's row in effects.py (EFFECTS) and the host's row in
+# fixedpoint.QUANTITIES (docs/model-discovery.md "How to add a board quantity").
 # The board's conditions now (bins.conditions(1), the Processor's `now`) and each point's, by
-# column (bins.COND; effects.condition_of's order; the host's fixedpoint.QUANTITIES):
+# column (effects.condition_of's order; the host's fixedpoint.QUANTITIES):
 C_TEMP = const(0)    # Q2 degC (TEMP_Q): the LIS3DH's OUT_ADC3 + the board's TEMP_REF_C
 C_TIME = const(1)    # 64 s units (effects.DT_UNIT_S) from the first sample
 C_SUPPLY = const(2)  # mV, the board's supply (board.supply_mv), clamped to 0..65535
-TEMP_ONE = const(4)      # 1 degC
-TEMP_DT_MAX = const(128)  # 32 degC: dT's clamp either side of the reference (effects.py)
+COND = const(3)      # columns: the conditions a point (flat arrays of COND apiece, bins.py)
+# The least spread of each column the bins' held points need for an effect that reads it (the
+# bins' thresholds: pipeline.track, bins.set_differ; the host's diagnose asks the same), by column
+# (no name apiece: a board holds this module's every name, and past 73 its table grows by 192 B):
+DIFFERS = (
+    3 << TEMP_Q,    # C_TEMP: 3 degC in Q2
+    675,            # C_TIME: 64 s units, 12 h
+    100,            # C_SUPPLY: mV
+)
+# The sources of the effects' regressors (effects.py EFFECTS' source; 0 there: the reading
+# itself) and where each stands in the relative conditions d (a point's or a block's conditions
+# minus their references, made once a block or a point): source: (column, shift, clamp) - the
+# value d[column] clamped to +-clamp (0: the effect row's time reach) and shifted left into the
+# regressor's Q16 base (effects.regressor).  A step reads its column unclamped against ts.
+SOURCE_TEMP = const(1)      # dT, Q2 degC from the reference; clamped to +-TEMP_DT_MAX
+SOURCE_TIME = const(2)      # dt, 64 s units from the reference; clamped to +-the row's reach
+SOURCE_STEP = const(3)      # [dt >= ts]: a step at ts (acal/core/changepoint.py finds it)
+SOURCE_SUPPLY = const(4)    # dV, mV of the board's supply from its reference; +-1024 mV
+SOURCES = {
+    SOURCE_TEMP: (C_TEMP, 10, TEMP_DT_MAX),     # dT / 16 in Q16 from Q2 degC, <= 2**17
+    SOURCE_TIME: (C_TIME, 3, 0),                # dt / 2**13 in Q16
+    SOURCE_STEP: (C_TIME, 0, 0),                # [dt >= ts]
+    SOURCE_SUPPLY: (C_SUPPLY, 6, 1024),         # dV / 1024 in Q16 (the unit: 1024 mV), <= 2**16
+}
+# The columns a board file may read: (column, its function's name, low clamp, high clamp).  The
+# app reads each the board file defines once a block, clamped, before the block is fed (a failed
+# read, OSError, keeps the last value); a model with an effect of a column whose function the
+# board file lacks is refused (logger/app.py).  The temperature is the chip's (the driver's).
+BOARD_READERS = (
+    (C_SUPPLY, "supply_mv", 0, 65535),
+)
 
 # --- segments -----------------------------------------------------------------------------
 # Segment sums: sum of <= SEGMENT_MAX_SAMPLES samples, so |sum| <= 16383 * 65535 < 2**30.

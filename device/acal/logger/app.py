@@ -13,7 +13,7 @@ from array import array
 
 from acal.core import effects
 from acal.logger import log
-from acal.core.fixed import C_TEMP, C_SUPPLY, TEMP_Q
+from acal.core.fixed import C_TEMP, TEMP_Q, BOARD_READERS
 # the Processor and its settings, here too for the app's callers (boards, host scripts)
 from acal.logger.processor import (Processor, VERSION, BLOCK, RETRIES, REST_LOG_DIFFER,  # noqa: F401
                             REST_LOG_SECONDS, REST_BUDGET_BYTES, REST_BUDGET_DAYS,
@@ -144,11 +144,19 @@ class App:
         # file's TEMP_REF_C (an int, from one thermometer reading) temperatures are absolute.
         ref = getattr(board, "TEMP_REF_C", None)
         self.temp_ref = 0 if ref is None else ref
-        # the board's supply in mV (an optional supply_mv() in its board file), read once per
-        # block: what a supply_offset model follows
-        self.supply_mv = getattr(board, "supply_mv", None)
-        if self.proc.uses_supply and self.supply_mv is None:
-            raise ValueError("model follows the board's supply: its board file needs supply_mv()")
+        # the columns the board file reads (fixed.BOARD_READERS: the supply's supply_mv()...):
+        # (column, function, low, high) for each function it defines, read once a block
+        # (_read_conditions); a model following a column whose function it lacks is refused
+        readers = []
+        for column, name, lo, hi in BOARD_READERS:
+            read = getattr(board, name, None)
+            if read is not None:
+                readers.append((column, read, lo, hi))
+            for k in self.proc.kinds:
+                if read is None and effects.condition_of(k) == column:
+                    raise ValueError("model's %s follows a column the board reads: its board "
+                                     "file needs %s()" % (effects.NAMES[k], name))
+        self.readers = tuple(readers)
         p = self.proc.pipe
         self.log.write(log.BOOT, self.log.size, VERSION, rate_hz, p.rest.length // rate_hz,
                        p.rest.threshold, p.rest.axis, range_g, 1 if fifo else 0, p.bins.min_count,
@@ -176,18 +184,24 @@ class App:
         if self.fill == BLOCK:
             self._flush()
 
-    def _flush(self):
-        if self.fill:
-            try:  # one try: a failed temperature read keeps the last value
-                self.now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
+    def _read_conditions(self):
+        # the block's conditions: the chip's temperature and the board file's columns, each
+        # clamped; a failed read (OSError) keeps the last value.  Allocates nothing.
+        now = self.now
+        try:
+            now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
+        except OSError:
+            self.bus_errors += 1
+        for column, read, lo, hi in self.readers:
+            try:
+                v = read()
+                now[column] = lo if v < lo else (hi if v > hi else v)
             except OSError:
                 self.bus_errors += 1
-            if self.supply_mv is not None:
-                try:  # as the temperature: a failed read keeps the last value
-                    mv = self.supply_mv()
-                    self.now[C_SUPPLY] = 0 if mv < 0 else (65535 if mv > 65535 else mv)
-                except OSError:
-                    self.bus_errors += 1
+
+    def _flush(self):
+        if self.fill:
+            self._read_conditions()
             self.proc.feed(self.block, self.fill)
             self.fill = 0
 

@@ -32,9 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from acal.core import bins as dbins
 from acal.core import effects as deff
-from acal.core.fixed import PARAM_NAMES, TEMP_Q
+from acal.core.fixed import C_TEMP, C_TIME, DIFFERS, PARAM_NAMES, TEMP_Q
 from accelcal.fixedpoint import QUANTITIES, Quantity, hours, params_to_float, params_to_int
 from accelcal.methods import correct as base_correct
 
@@ -208,6 +207,16 @@ _GENERIC_DAYS = (1 << deff.GENERIC_TIME_SHIFT) * deff.DT_UNIT_S / 86400.0   # 6.
 _GENERIC_BOUND = deff.GENERIC_BOUND / float(1 << 24)                        # 0.05 g
 
 
+def _board_column(q: Quantity) -> Effect:
+    # A board column's built-in effect from its QUANTITIES row (q.effect): the offset linear in
+    # the column that the device kind q.kind runs, named as the device names it, its bound the
+    # device's 0.05 g per q.per units (the regressor's normalisation).
+    symbol, scale, report_unit, explanation = q.effect
+    return Effect(deff.NAMES[q.kind], symbol, f"g/{q.unit}", scale, report_unit,
+                  _GENERIC_BOUND / q.per, (0.05 / q.per / 10, 0.05 / q.per / 4), "col", q.column,
+                  explanation, column=q.column)
+
+
 def _shape(name: str, needs: str, power: int, unit: str, report_unit: str, bound: float,
            what: str) -> Effect:
     # One of the device's generic offsets as a built-in effect (not a diagnose candidate).
@@ -257,13 +266,8 @@ CATALOGUE: dict[str, Effect] = {e.name: e for e in (
            "the cube of temperature"),
     _shape("temp_offset4", "temp", 4, "g/degC^4", "mg/degC^4", _GENERIC_BOUND / 16 ** 4,
            "the fourth power of temperature"),
-    # the board's own supply, a column of its recordings (files/recordings.py SUPPLY_COLUMN)
-    Effect("supply_offset", "v", "g/mV", 1e6, "mg/V", _GENERIC_BOUND / deff.SUPPLY_MAX,
-           (0.05 / deff.SUPPLY_MAX / 10, 0.05 / deff.SUPPLY_MAX / 4), "col", SUPPLY_COLUMN,
-           "The zero-g level follows the supply: the readout's reference is not fully "
-           "ratiometric, so rest readings shift as the battery runs down - a trend in the "
-           "board's supply (mV), which repeats with every charge, not in time.",
-           column=SUPPLY_COLUMN),
+    # the board's own columns (the supply: supply_offset), each from its QUANTITIES row
+    *(_board_column(q) for q in QUANTITIES if q.effect),
 )}
 
 
@@ -385,9 +389,9 @@ class ModelSpec:
         """ValueError, one line, when the data cannot support the model: a temperature effect
         without temperatures or with too little spread, a drift over too short a span, a column
         effect without its column or with a column that does not vary.  The thresholds are the
-        device bins' (acal.core.bins.TEMP_DIFFER, TIME_DIFFER: 3 degC (12 in Q2), 12 h)."""
-        need_temp = dbins.TEMP_DIFFER / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
-        need_h = hours(dbins.TIME_DIFFER)
+        device bins' (acal.core.fixed.DIFFERS: 3 degC (12 in Q2), 12 h)."""
+        need_temp = DIFFERS[C_TEMP] / (1 << TEMP_Q)   # the device bins' Q2 degC in degC
+        need_h = hours(DIFFERS[C_TIME])
         cols = cols or {}
         for e in self.parts:
             n = e.name
