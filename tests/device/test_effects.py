@@ -263,3 +263,15 @@ def test_an_effect_of_an_existing_form_is_one_table_row(rng):
         del deff.EFFECTS[new]
         deff.tables()
     assert new not in deff.NAMES
+
+
+def test_the_globals_table_has_room(tmp_path):
+    """MicroPython grows a module's globals table only when it is full (py/map.c: ... 73, 97
+    slots), and a lookup probes on to the name's slot or an empty one: effects' table, which the
+    fit's effect code reads per point, is grown to at least ROOM_NAMES names (97 slots) at the
+    module's end on the real interpreter, whatever the table above it declares."""
+    from accelcal.bridge import runtime
+    f = tmp_path / "room.py"
+    f.write_text("from acal.core import effects\nprint(len(effects.__dict__), effects.ROOM_NAMES)\n")
+    names, room = map(int, runtime.run_micropython_script(str(f)).split())
+    assert room == 74 and 74 <= names < 97, names
