@@ -324,7 +324,7 @@ class CalStore:
         return target
 
 
-
+@viper
 def pack_int16(source, n: int, dest, at: int):
     # n ints of source (an int32 array, each within int16) into the bytes dest[at:at + 2 n],
     # little-endian: a SAMPLES record's payload, the capture's per-sample hot loop (viper on
