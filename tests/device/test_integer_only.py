@@ -122,3 +122,33 @@ def test_circuitpython_builds_drop_only_the_marked_functions_casts():
                 assert any(s <= i + 1 <= e for s, e in spans), (f.name, i + 1, x)
                 changed += 1
     assert changed > 100
+
+
+# The device's hot loops, each marked @viper (acal/core/emit.py): a marker lost changes no integer
+# (the unmarked function runs as bytecode), so only this list catches it - log.pack_int16 lost its
+# marker once with a neighbour's removal and boards ran the capture's per-sample loop as bytecode.
+HOT_LOOPS = {
+    "acal.core.calibration": ("_apply_block", "_apply_composed"),
+    "acal.core.effects": ("correct_kinds",),
+    "acal.core.emit": ("copy_ints",),
+    "acal.core.gaussnewton": ("load_points", "clear_sums"),
+    "acal.core.model": ("residual_jacobian",),
+    "acal.core.normal_sums": ("accumulate", "accum_points", "trial_points", "insert_abs",
+                              "scale_row", "grow_columns", "rhs_from_limbs", "point_residual",
+                              "raw_row"),
+    "acal.core.reference": ("middle", "centre"),
+    "acal.core.rest": ("_scan_one", "_scan_all"),
+    "acal.core.solve": ("_eliminate_rows", "_prepare_rows", "_back_substitute",
+                        "_diagonal_scales", "_rhs_shift", "_run", "_scale_rhs"),
+    "acal.core.wide": ("mul_shift", "div_shift"),
+    "acal.logger.lis3dh": ("fifo_codes_q10",),
+    "acal.logger.log": ("pack_int16",),
+    "acal.paper.objective": ("objective_limbs", "update"),
+}
+
+
+def test_every_hot_loop_keeps_its_viper_marker():
+    from accelcal.bridge.ranges import device_viper_functions
+    marked = set(device_viper_functions().values())
+    missing = [f"{m}.{f}" for m, fs in HOT_LOOPS.items() for f in fs if f"{m}.{f}" not in marked]
+    assert not missing, f"hot loops without @viper (bytecode on every board): {missing}"
