@@ -24,6 +24,7 @@ CASES = [
      "    from acal.discover import search as discover, rule as discovery, heldout, score as heldscore\n"
      "    from acal.core import effects"),
     ("from acal import objective as limbs", "from acal.paper import objective as limbs"),
+    ("from acal import candidates", "from acal.discover import rule as candidates"),   # folded into rule
     ("from acal import __version__", "from acal import __version__"),
     ('code = "from acal import fixed, app\\nprint(1)"',
      'code = "from acal.core import fixed; from acal.logger import app\\nprint(1)"'),

@@ -42,7 +42,7 @@ MOVES = {
     # discover: the board's own model discovery
     "discover": ("discover", "search"), "discovery": ("discover", "rule"),
     "heldout": ("discover", "heldout"), "heldscore": ("discover", "score"),
-    "candidates": ("discover", "candidates"), "stepplace": ("discover", "stepplace"),
+    "candidates": ("discover", "rule"), "stepplace": ("discover", "stepplace"),
     "grow": ("discover", "plug"),
     # logger: the sensor drivers, the log on flash, the app and its processor
     "lis3dh": ("logger", "lis3dh"), "lis3dh_cp": ("logger", "lis3dh_cp"),

@@ -175,7 +175,7 @@ import micropython
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
 from acal.core import profile
-from acal.discover import candidates, search as discover
+from acal.discover import rule, search as discover
 from acal.core.bins import int32s
 
 ''' + FEED + r'''# the rule at its largest errors: every candidate saturated, one just below
@@ -190,10 +190,10 @@ def work(d, errs, betters, out):
     for i in range(discover.N_CANDIDATES):
         errs[i] = discover.ERR_MAX - i
         betters[i] = 72
-    out[0] = candidates.best(d.kind_ids, errs, discover.N_SINGLE)
-    out[1] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
+    out[0] = rule.best(d.kind_ids, errs, discover.N_SINGLE)
+    out[1] = 1 if rule.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
     errs[0] = 0
-    out[2] = 1 if candidates.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0
+    out[2] = 1 if rule.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0
 
 
 micropython.heap_lock()

@@ -525,7 +525,7 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
     at the fit region's corners and effects at 4x their bounds (every point's error at ERR_CAP),
     its blocks compared, the rule on errors at discover.ERR_MAX and every block count the sign
     test takes, and the conditions' ranges: no intermediate reaches 2^30."""
-    from acal.discover import search as discover, rule as discovery, heldout, score as heldscore
+    from acal.discover import search as discover, rule, heldout, score as heldscore
     from acal.core import effects
     from acal.core.bins import COND
     tr = Tracer()
@@ -557,10 +557,10 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
                 assert s.better_blocks(h) == 0
     assert max(totals) == h.count * heldout.WEIGHT_CAP * heldscore.ERR_CAP   # every point capped
     e = T(discover.ERR_MAX)
-    assert discovery.names(e, T(0), T(72), T(72)) and discovery.plain_preferred(e, e)
-    for blocks in range(1, discovery.SIGN_BLOCKS + 2):
+    assert rule.names(e, T(0), T(72), T(72)) and rule.plain_preferred(e, e)
+    for blocks in range(1, rule.SIGN_BLOCKS + 2):
         for better in range(blocks + 1):
-            discovery.clear(T(better), T(blocks))
+            rule.clear(T(better), T(blocks))
     for c in range(COND):
         assert discover._range(h.cond, h.count, c) > 0
     assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))

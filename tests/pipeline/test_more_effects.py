@@ -340,23 +340,23 @@ def test_a_curve_the_device_would_fit_as_a_chord_is_named_as_the_device_fits_it(
     fallback); the fallback is then judged with the every-point judge silenced: diagnose judges
     the curve again as the device fits it, in both folds of its split (pipeline/foldjudge.py),
     and names it: the effect the simulation hid."""
-    from acal.discover import rule as discovery
+    from acal.discover import rule
     from accelcal.pipeline import diagnose as dg
     plain = diagnose(recordings["curve4"], "base+temp_offset")
     assert plain["missing_effect"] == "temp_offset2", plain["explanation"]
     c = next(x for x in plain["candidates"] if x["effect"] == "temp_offset2")
-    assert discovery.names(plain["heldout_error_mg"], c["heldout_error_mg"], c["blocks_improved"],
-                           c["blocks"])   # the every-point judge alone
+    assert rule.names(plain["heldout_error_mg"], c["heldout_error_mg"], c["blocks_improved"],
+                      c["blocks"])   # the every-point judge alone
 
     class EveryPointSilent:   # the rule, but the every-point judge names nothing
         def __getattr__(self, name):
-            return getattr(discovery, name)
+            return getattr(rule, name)
 
         @staticmethod
         def names(*args):
             return False
 
-    monkeypatch.setattr(dg, "discovery", EveryPointSilent())
+    monkeypatch.setattr(dg, "rule", EveryPointSilent())
     out = dg.diagnose(str(recordings["curve4"]), "base+temp_offset")
     assert out["missing_effect"] == "temp_offset2", out["explanation"]
     c = next(x for x in out["candidates"] if x["effect"] == "temp_offset2")

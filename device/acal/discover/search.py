@@ -2,7 +2,7 @@
 # after a usable calibration of the paper's model (the wear profile's fit), each candidate effect
 # of the catalogue the board can run is fitted on the same gathered fit points, from the base
 # fit's parameters, scored on the held-out rest points (heldout.py, score.py) and the
-# choice made as `diagnose` makes it (candidates.py, rule.py's rule).
+# choice made as `diagnose` makes it (rule.py: best, adopted).
 #
 # Sliced as the fit: begin() then step() until it returns True, each step one slice of a
 # candidate's fit (gaussnewton.py's), its testability or begin, a step's change-point search
@@ -13,7 +13,7 @@
 # base effect for a second round), and the results go to preallocated int32 arrays.
 # Formats: errors score.py's (Q16 g^2, summed), saturated at ERR_MAX so that rule.py's products
 # (100 x an error, 15 x an error) stay below 2**30 (score.py's reach 144 x 2**22); params Q24.
-from acal.discover import candidates, rule as discovery
+from acal.discover import rule
 from acal.core import effects
 from acal.core.bins import COND, DIFFERS, int32s
 from acal.core.fixed import N_PARAMS, C_TIME
@@ -35,7 +35,7 @@ except ImportError:  # CPython
 KINDS = ((effects.TEMP_OFFSET,), (effects.TEMP_SCALE,), (effects.DRIFT,),
          (effects.NONLINEAR,), (effects.TEMP_OFFSET2,), (effects.SUPPLY_OFFSET,),
          (effects.STEP,), (effects.TEMP_OFFSET, effects.TEMP_OFFSET2))
-N_SINGLE = const(7)          # the single effects, among which candidates.best chooses
+N_SINGLE = const(7)          # the single effects, among which rule.best chooses
 PAIR = const(7)              # the curve with its straight part
 N_CANDIDATES = const(8)
 N_ALL = const(15)            # N_PARAMS + 6: the largest candidate's parameters
@@ -46,7 +46,7 @@ MAX_EFFECTS = const(2)
 MIN_HELD = const(30)         # held-out points needed (diagnose: >= 30 each half)
 # Held-out blocks needed before a board tries (a day of wear: 6 odd 2-hour blocks).  A board
 # tries again after each calibration, and nobody confirms what it adopts: it adopts an effect
-# only on clear evidence (discovery.clear), where `diagnose` also names weak evidence for a
+# only on clear evidence (rule.clear), where `diagnose` also names weak evidence for a
 # person to confirm on a longer recording.
 MIN_BLOCKS = const(6)
 UNTESTABLE = const(-1)
@@ -99,7 +99,7 @@ def testable(kind, cond, n):
 class Discover(Sliced):
     """After a run (begin(), step() until True): before (the base model's held-out error),
     errs[i] (candidate i's, -1 not testable), betters[i], blocks, chosen (the index
-    candidates.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
+    rule.best gives, or PAIR as diagnose prefers the curve; -1: none testable), adopted
     (True when the rule names it), kind (its effects.model_code, 0: none; kind_ids: every
     candidate's), params (its parameters, Q24) and step_time (a step's).
 
@@ -351,12 +351,12 @@ class Discover(Sliced):
         self.phase = _PLACE
 
     def _choose(self):
-        i = candidates.best(self.kind_ids, self.errs, N_SINGLE)
-        named = (candidates.adopted(self.before, self.errs, self.betters, self.blocks, i)
-                 and discovery.clear(self.betters[i], self.blocks))
-        if candidates.adopted(self.before, self.errs, self.betters, self.blocks, PAIR) and \
-                discovery.clear(self.betters[PAIR], self.blocks) and self.errs[PAIR] >= 0 and \
-                (not named or not discovery.plain_preferred(self.errs[PAIR], self.errs[i])):
+        i = rule.best(self.kind_ids, self.errs, N_SINGLE)
+        named = (rule.adopted(self.before, self.errs, self.betters, self.blocks, i)
+                 and rule.clear(self.betters[i], self.blocks))
+        if rule.adopted(self.before, self.errs, self.betters, self.blocks, PAIR) and \
+                rule.clear(self.betters[PAIR], self.blocks) and self.errs[PAIR] >= 0 and \
+                (not named or not rule.plain_preferred(self.errs[PAIR], self.errs[i])):
             i = PAIR      # diagnose: the curve unless the best single comes within 1.5x
             named = True
         self.chosen = i

@@ -8,7 +8,6 @@ include("../core")
 package(
     "acal",
     files=[
-        "discover/candidates.py",
         "discover/heldout.py",
         "discover/plug.py",
         "discover/rule.py",

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from acal.discover import rule as discovery
+from acal.discover import rule
+from acal.core.effects import STEP
 
 from accelcal.errors import InputError
 from accelcal.files.outputs import check_output, check_output_dir, save_figure, write_text
@@ -43,15 +44,15 @@ from accelcal.pipeline.results import DiagnoseResult
 from accelcal.vocabulary import documented
 
 # the acceptance rule, shared with the board's own discovery (acal/discover/rule.py)
-MIN_IMPROVEMENT_PCT = discovery.MIN_IMPROVEMENT_PCT
-MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
+MIN_IMPROVEMENT_PCT = rule.MIN_IMPROVEMENT_PCT
+MIN_BLOCK_SHARE = rule.MIN_BLOCK_SHARE_PCT / 100
 # A share of few blocks is weak evidence (3 of 3 better: one time in eight by chance alone):
-# discovery.clear, the sign test in integers, shared with the board.
+# rule.clear, the sign test in integers, shared with the board.
 # A step's time is searched over every split of the training points, and the 2-hour held-out
 # blocks sit between training ones: a step can pass for a drift or a temperature pattern there.
 # So a change-point effect is preferred only when it beats the best effect without one by this
 # factor in held-out error.
-STEP_PARSIMONY = discovery.STEP_PARSIMONY_TENTHS / 10
+STEP_PARSIMONY = rule.STEP_PARSIMONY_TENTHS / 10
 
 
 
@@ -125,16 +126,15 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
             and (e.needs != "col" or e.column in p.cols)}
     cands = [candidate(spec.with_effect(e), p, train, test, test_block, ref, r, err, theta)
              for e in pool.values()]
-    testable = [c for c in cands if c["heldout_error_mg"] is not None]
-    best = min(testable, key=lambda c: c["heldout_error_mg"]) if testable else None
-    plain = [c for c in testable if not pool[c["effect"]].change_point]
-    if best and pool[best["effect"]].change_point and plain:
-        alt = min(plain, key=lambda c: c["heldout_error_mg"])
-        if discovery.plain_preferred(best["heldout_error_mg"], alt["heldout_error_mg"]):
-            best = alt
+    # the board's choice (rule.best): the lowest held-out error, a change point (the device's
+    # STEP, whatever its form) giving way to the best effect without one by the parsimony rule
+    kinds = [STEP if pool[c["effect"]].change_point else pool[c["effect"]].kind for c in cands]
+    errs = [-1 if c["heldout_error_mg"] is None else c["heldout_error_mg"] for c in cands]
+    i = rule.best(kinds, errs, len(cands))
+    best = cands[i] if i >= 0 else None
     named = None
-    if best and discovery.names(err, best["heldout_error_mg"], best["blocks_improved"],
-                                best["blocks"]):
+    if best and rule.names(err, best["heldout_error_mg"], best["blocks_improved"],
+                           best["blocks"]):
         named = best["effect"]
     parts = {c["effect"]: [pool[c["effect"]]] for c in cands}
     for line, curve in curves(pool):   # a curve's two parts, tried together
@@ -145,10 +145,10 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
         single = best["heldout_error_mg"] if best else None
         if single and c["heldout_error_mg"]:
             c["single_ratio"] = single / c["heldout_error_mg"]
-        if c["heldout_error_mg"] is not None and discovery.names(
+        if c["heldout_error_mg"] is not None and rule.names(
                 err, c["heldout_error_mg"], c["blocks_improved"], c["blocks"]) and (
-                named is None or not discovery.plain_preferred(c["heldout_error_mg"],
-                                                               best["heldout_error_mg"])):
+                named is None or not rule.plain_preferred(c["heldout_error_mg"],
+                                                          best["heldout_error_mg"])):
             named, best = c["effect"], c
     if named is None:   # a curve on its straight part, judged again as the device fits it
         named, best = curve_as_device(spec, pool, cands, halves, best)
@@ -255,7 +255,7 @@ def candidate(cspec: ModelSpec, p, train, test, test_block, ref: dict, r, err: f
            "blocks": len(blocks),
            # judged where the share would name it: few blocks are weak evidence (block_evidence)
            "evidence": block_evidence(better, len(blocks))
-           if discovery.share_holds(int(better), len(blocks)) else None,
+           if rule.share_holds(int(better), len(blocks)) else None,
            "params": {k: v for i, e in enumerate(new) for k, v in zip(
                e.param_names, (th[len(th) - 3 * (added - i):][:3] * e.scale).round(4).tolist())},
            "param_unit": new[0].report_unit if added == 1 else ", ".join(
@@ -317,9 +317,9 @@ def place_step(cspec: ModelSpec, theta, train, test, cref: dict) -> dict:
 
 def block_evidence(better: int, blocks: int) -> str:
     """"clear" when `better` of `blocks` held-out blocks improving is a share the rule names and
-    more than chance (discovery.clear: a one-sided sign test, each block a coin toss, at one
-    time in discovery.CHANCE_ONE_IN), else "weak"."""
-    return "clear" if discovery.clear(int(better), int(blocks)) else "weak"
+    more than chance (rule.clear: a one-sided sign test, each block a coin toss, at one
+    time in rule.CHANCE_ONE_IN), else "weak"."""
+    return "clear" if rule.clear(int(better), int(blocks)) else "weak"
 
 
 def regressors(spec, theta, test, ref) -> dict[str, np.ndarray]:

@@ -3,7 +3,7 @@ named and how far what remains stands above the floors (pipeline/diagnose.py bui
 figures; the rule is acal/discover/rule.py's)."""
 from __future__ import annotations
 
-from acal.discover import rule as discovery
+from acal.discover import rule
 from accelcal.files.recordings import sensor_of
 from accelcal.model.effects import ModelSpec
 
@@ -19,10 +19,10 @@ def noise_text(noise: float | None) -> str:
 
 
 def few_blocks(blocks: int) -> str:
-    """When even the least share of blocks the rule names would be weak evidence (discovery.
+    """When even the least share of blocks the rule names would be weak evidence (rule.
     clear: a count chance alone gives too often), that a longer recording would tell."""
-    least = -(-discovery.MIN_BLOCK_SHARE_PCT * blocks // 100)
-    return "" if discovery.clear(least, blocks) else (
+    least = -(-rule.MIN_BLOCK_SHARE_PCT * blocks // 100)
+    return "" if rule.clear(least, blocks) else (
         f"; with {blocks} held-out blocks even {least} of {blocks} better would be weak "
         "evidence: a longer recording (more 2-hour blocks) would tell")
 
@@ -57,7 +57,7 @@ def named_text(spec: ModelSpec, named: str, parts: list, best: dict, err: float,
     both = "" if len(parts) == 1 or "single_ratio" not in best else (
         f" Both parts at once: with its straight part the curve leaves "
         f"{best['single_ratio']:.1f}x less held-out error than the best single effect "
-        f"({discovery.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
+        f"({rule.STEP_PARSIMONY_TENTHS / 10:g}x needed).")
     gain = (f"Adding it lowers the held-out error from {err:.2f} to "
             f"{best['heldout_error_mg']:.2f} mg, better in {best['blocks_improved']} of "
             f"{best['blocks']} held-out blocks ({noise_text(floor)})")

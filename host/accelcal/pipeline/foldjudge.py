@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from acal.discover import rule as discovery
+from acal.discover import rule
 from acal.core import fixed
 from acal.core.bins import COND
 from accelcal.fixedpoint import physical
@@ -71,5 +71,5 @@ def device_folds(spec: ModelSpec, cspec: ModelSpec, halves: Halves) -> dict:
     blocks = len(np.unique(test_block)) + len(np.unique(halves.train_block))
     return {"before_mg": before, "after_mg": after,
             "improvement_pct": 100 * (before - after) / before, "blocks_improved": better,
-            "blocks": blocks, "named": bool(discovery.names(before, after, better, blocks)),
-            "clear": bool(discovery.clear(int(better), blocks))}
+            "blocks": blocks, "named": bool(rule.names(before, after, better, blocks)),
+            "clear": bool(rule.clear(int(better), blocks))}

@@ -24,15 +24,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from acal.discover import rule as discovery
+from acal.discover import rule
 
 MIN_EXPLAINED = 0.05   # a shape explaining less than this share of the variance is not a finding
 STEP_MARGIN = 1.2      # a step's R^2 (or held-out gain) must be this many times the parabola's
 CURVE_MARGIN = 1.1     # a parabola's must be this many times the line's
 MIN_SIDE = 0.05        # a step leaves at least this share of the points on either side
 # held out: as diagnose's naming rule (acal/discover/rule.py)
-MIN_GAIN_PCT = discovery.MIN_IMPROVEMENT_PCT
-MIN_BLOCK_SHARE = discovery.MIN_BLOCK_SHARE_PCT / 100
+MIN_GAIN_PCT = rule.MIN_IMPROVEMENT_PCT
+MIN_BLOCK_SHARE = rule.MIN_BLOCK_SHARE_PCT / 100
 # a step has a free split: on complete models steps in a reading or temperature gained 10-14 %
 # in 72-89 % of blocks (the postures' own idiosyncrasies); a true shock 37 %
 STEP_MIN_GAIN_PCT = 20.0

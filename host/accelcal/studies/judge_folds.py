@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acal.discover import rule as discovery
+from acal.discover import rule
 from accelcal.model.effects import CATALOGUE, ModelSpec
 from accelcal.pipeline.foldjudge import fold_gain
 from accelcal.pipeline.restpoints import BLOCK_S
@@ -59,7 +59,7 @@ def row(how, fold, points, r0, rc, better, blocks) -> dict:
     before, after = float(r0.mean() * 1e3), float(rc.mean() * 1e3)
     return {"fit": how, "train": fold, "points": points, "before_mg": before, "after_mg": after,
             "improvement_pct": 100 * (before - after) / before, "blocks_improved": better,
-            "blocks": blocks, "named": bool(discovery.names(before, after, better, blocks))}
+            "blocks": blocks, "named": bool(rule.names(before, after, better, blocks))}
 
 
 def main(argv=None) -> int:
