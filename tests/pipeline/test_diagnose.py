@@ -2,6 +2,7 @@
 thresholds): diagnose names the effect, adding it brings the held-out error within 1.5x of what
 the true sensor model achieves on the same points; on clean recordings it names nothing; two
 effects are found one after the other.  Bad model specs and unsupported data: exit 2, one line."""
+import dataclasses
 import json
 from pathlib import Path
 
@@ -9,7 +10,8 @@ import numpy as np
 import pytest
 
 from accelcal.bridge.runtime import Config
-from accelcal.pipeline.diagnose import heldout_error_of
+from accelcal.pipeline.diagnose import chosen, heldout_error_of
+from accelcal.model.effects import CATALOGUE
 from accelcal.pipeline.job import calibrate as calibrate_api
 from acal.core.fixed import PARAM_NAMES
 from conftest import ROOT, run_cli, run_main, simulate_wrists
@@ -364,3 +366,26 @@ def test_the_naming_rule_over_seeds(tmp_path_factory):
     assert both >= 11, both
     for s in SWEEP_SLOW:
         assert calibrate_api(str(rec[f"clean{s}"]), cfg=DISCOVER)["discovery"]["effects"] == [], s
+
+
+def test_the_single_candidate_is_chosen_as_the_board_chooses():
+    """diagnose chooses among its single candidates by the device's rule.best (acal/discover/
+    rule.py), on held-out errors in mg: the lowest, untestable ones skipped, a change point giving
+    way to the best effect without one within 1.5x of it - a change point the device cannot run
+    (a gain step: no device kind) as well as the step."""
+    gain_step = dataclasses.replace(CATALOGUE["step"], name="gain_step", form="gain")
+    assert gain_step.kind is None and gain_step.change_point
+    pool = {e.name: e for e in (CATALOGUE["temp_offset"], CATALOGUE["drift"], CATALOGUE["step"],
+                                gain_step)}
+
+    def c(name, err):
+        return {"effect": name, "heldout_error_mg": err}
+
+    assert chosen(pool, [c("temp_offset", 0.8), c("drift", 0.6)])["effect"] == "drift"
+    assert chosen(pool, [c("temp_offset", None), c("drift", 0.6)])["effect"] == "drift"
+    assert chosen(pool, [c("temp_offset", None), c("drift", None)]) is None
+    assert chosen(pool, [c("drift", 0.6), c("temp_offset", 0.6)])["effect"] == "drift"  # a tie: the first
+    for step in ("step", "gain_step"):
+        assert chosen(pool, [c("temp_offset", 1.5), c(step, 1.0)])["effect"] == "temp_offset"
+        assert chosen(pool, [c("temp_offset", 1.51), c(step, 1.0)])["effect"] == step
+        assert chosen(pool, [c(step, 1.0), c("drift", None)])["effect"] == step   # none plain

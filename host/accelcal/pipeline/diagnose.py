@@ -126,12 +126,7 @@ def diagnose_points(spec: ModelSpec, p, path: str, plots: str | None = None) -> 
             and (e.needs != "col" or e.column in p.cols)}
     cands = [candidate(spec.with_effect(e), p, train, test, test_block, ref, r, err, theta)
              for e in pool.values()]
-    # the board's choice (rule.best): the lowest held-out error, a change point (the device's
-    # STEP, whatever its form) giving way to the best effect without one by the parsimony rule
-    kinds = [STEP if pool[c["effect"]].change_point else pool[c["effect"]].kind for c in cands]
-    errs = [-1 if c["heldout_error_mg"] is None else c["heldout_error_mg"] for c in cands]
-    i = rule.best(kinds, errs, len(cands))
-    best = cands[i] if i >= 0 else None
+    best = chosen(pool, cands)
     named = None
     if best and rule.names(err, best["heldout_error_mg"], best["blocks_improved"],
                            best["blocks"]):
@@ -216,6 +211,17 @@ def curve_as_device(spec: ModelSpec, pool: dict, cands: list[dict], halves, best
             c["evidence"] = "clear" if judged["clear"] else "weak"
             return c["effect"], c
     return None, best
+
+
+def chosen(pool: dict, cands: list[dict]) -> dict | None:
+    """The single candidate to name (None: none testable), chosen as the board chooses
+    (acal.discover.rule.best, on the held-out errors in mg): the lowest error, a change point
+    (the device's STEP, whatever its form) giving way to the best effect without one by the
+    rule's parsimony factor."""
+    kinds = [STEP if pool[c["effect"]].change_point else pool[c["effect"]].kind for c in cands]
+    errs = [-1 if c["heldout_error_mg"] is None else c["heldout_error_mg"] for c in cands]
+    i = rule.best(kinds, errs, len(cands))
+    return cands[i] if i >= 0 else None
 
 
 def curves(pool: dict) -> list[tuple]:
