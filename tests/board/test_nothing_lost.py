@@ -13,7 +13,7 @@ TRUTH = np.array([1.02, 0.98, 1.01, 0.01, -0.01, 0.005, 0.03, -0.02, 0.04])
 APP = """import acal.logger.app
 app = acal.logger.app.main(seconds={seconds}, verbose=False, rate_hz={rate}, profile=1)
 print('ACAL_DONE', app.samples, app.lost, app.fifo_overruns, app.bus_errors,
-      int(app.sensor._fifo_v0 is not None))
+      int(app.sensor.fifo_tables is not None))
 """
 BOARDS = {"pico": ("pico.py", "MICROPYTHON", "0,4,5"),
           "feather": ("feather_rp2040.py", "CIRCUITPYTHON", "1,2,3")}

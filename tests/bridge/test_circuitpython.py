@@ -367,14 +367,14 @@ class ChipRemote:
 
 CP_FIFO_SCRIPT = r'''
 from array import array
-from acal.logger import lis3dh
+from acal.logger.lis3dh_cp import FifoTables
 b = bytes(%r)
 for so_mg in (1, 2, 4, 12):
     for mid in (0, 3):
         so = so_mg * 16777
-        v0, carry = lis3dh.fifo_tables(mid, so, %d)
+        t = FifoTables(mid, so, %d)
         out = array("i", [7] * 1026)
-        nxt = lis3dh.fifo_codes_table(b, 1023, out, 1, v0, carry, 16000)
+        nxt = t.convert(b, 1023, out, 1, 16000)
         print(" ".join(str(v) for v in out), nxt)
 '''
 

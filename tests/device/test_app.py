@@ -350,7 +350,7 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
             b.i2c = lambda: regs
             b.FIFO_TABLES = True
         app = run_app(d, b)
-        assert (app.sensor._fifo_v0 is not None) == (name == "busio")
+        assert (app.sensor.fifo_tables is not None) == (name == "busio")
         logs.append(boardlog.decode(d / "log.bin"))
     for rtype in (log.REST, log.CAL):
         assert logs[0].of(rtype) == logs[1].of(rtype) and len(logs[0].of(rtype)) > 0
@@ -359,7 +359,7 @@ def test_circuitpython_board_path_logs_the_same(tmp_path, stim):
     d = tmp_path / "registers"
     d.mkdir()
     os.chdir(d)
-    assert App(b, rate_hz=RATE, fifo=False).sensor._fifo_v0 is None
+    assert App(b, rate_hz=RATE, fifo=False).sensor.fifo_tables is None
 
 
 def test_setup_retries_bus_faults_and_says_why_when_the_chip_is_absent(tmp_path, stim):

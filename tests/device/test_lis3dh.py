@@ -222,7 +222,7 @@ def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
 
 
 def test_fifo_tables_give_the_same_values_for_every_code_and_dither(rng):
-    """CircuitPython's conversion (no emitters: lis3dh.fifo_tables and fifo_codes_table) gives
+    """CircuitPython's conversion (no emitters: lis3dh_cp.fifo_tables and fifo_codes_table, as FifoTables.convert) gives
     what fifo_codes_q10 gives: the tables against the formula for every 10-bit code and every
     dither (2**14), at every range, HR or not, clamped at SAMPLE_MAX; and the loop over the
     every-code data of the test above, from the dither 16000 on, the same values and the same
@@ -235,14 +235,14 @@ def test_fifo_tables_give_the_same_values_for_every_code_and_dither(rng):
     for so_mg in (1, 2, 4, 12):
         for mid in (0, 3):
             so = so_mg * 16777
-            v0, carry = lis3dh.fifo_tables(mid, so, SAMPLE_MAX)
+            v0, carry = lis3dh_cp.fifo_tables(mid, so, SAMPLE_MAX)
             want = np.clip(((r * 8 + mid) * so + d2) >> 15, -SAMPLE_MAX, SAMPLE_MAX)
             got = np.array(v0, dtype=np.int64)[:, None] + (d2 >= np.array(carry)[:, None])
             assert np.array_equal(got, want), (so_mg, mid)
             ref = [7] * 1026
             nxt = lis3dh.fifo_codes_q10(data, 1024, ref, 1, mid, so, SAMPLE_MAX, 16000)
             out = [7] * 1026
-            assert lis3dh.fifo_codes_table(data, 1023, out, 1, v0, carry, 16000) == \
+            assert lis3dh_cp.FifoTables(mid, so, SAMPLE_MAX).convert(data, 1023, out, 1, 16000) == \
                 lis3dh.fifo_codes_q10(data, 1023, [0] * 1024, 0, mid, so, SAMPLE_MAX, 16000)
             assert out[:1024] == ref[:1024] and out[1024:] == [7, 7]
     assert nxt == (16000 + 341 * 10127) & 16383
@@ -272,7 +272,7 @@ def test_read_fifo_is_its_raw_read_and_conversions_in_parts(chip):
             d.fifo_convert(parts, 1, 0, 7)
             d.fifo_convert(parts, 8, 7, n - 7)
             assert parts == whole and d.dither == after
-        d._fifo_v0 = d._fifo_carry = None     # without the tables again
+        d.fifo_tables = None     # without the tables again
 
 
 # ---------------------------------------------------------------- SPI (DocID17530 6.2)

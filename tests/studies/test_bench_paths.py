@@ -6,7 +6,7 @@ from accelcal.studies import bench_chip
 
 
 def test_the_fifo_tables_take_their_two_arrays_of_the_apps_heap():
-    """lis3dh.fifo_tables: 1024 16-bit values and 1024 16-bit carries, 4096 bytes of data; the
+    """lis3dh_cp.fifo_tables: 1024 16-bit values and 1024 16-bit carries, 4096 bytes of data; the
     rest is the two array objects and the heap's 16-byte blocks."""
     kv = bench_chip._unix_paths()
     assert 4096 <= kv["fifo_tables_bytes"] <= 4096 + 256, kv

@@ -25,16 +25,15 @@ except ImportError:
     def const(x):
         return x
 
-from array import array
-
 from acal.core.fixed import SAMPLE_MAX
 from acal.core.emit import viper, ptr8, ptr32
 
 # The FIFO's codes convert by fifo_codes_q10: viper on ports with emitters, CPython on the host.
 # A port without emitters (CircuitPython) converts faster through two tables built once per
-# configuration (fifo_codes_table, 4 kB: 1.9 ms a drain of 25 samples on the emulated Feather
+# configuration (lis3dh_cp.FifoTables, 4 kB: 1.9 ms a drain of 25 samples on the emulated Feather
 # instead of fifo_codes_q10's 3.1 ms as bytecode): LIS3DH(tables=True), which the app passes
-# where the board file says FIFO_TABLES = True (boards/feather_rp2040.py).
+# where the board file says FIFO_TABLES = True (boards/feather_rp2040.py).  The tables' code is
+# lis3dh_cp's, which only CircuitPython boards get: a board with emitters holds none of it.
 
 ADDRESS = const(0x18)        # SDO/SA0 low; 0x19 when high
 WHO_AM_I_VALUE = const(0x33)
@@ -160,7 +159,7 @@ class LIS3DH:
     """rate_hz: output data rate (1..400); range_g: 2, 4, 8 or 16; high_res: 12-bit outputs;
     fifo: stream-mode FIFO; fth: its watermark, FTH (0..31): FIFO_SRC_REG's WTM (self.wtm after
     fifo_level()) says more than fth samples wait; tables: the FIFO's codes convert through
-    fifo_tables' tables (use_fifo_tables: for ports without emitters).  After read_sample() the
+    lis3dh_cp.FifoTables (use_fifo_tables: for ports without emitters).  After read_sample() the
     sample is in x, y, z (Q10 g)."""
 
     def __init__(self, i2c, address=ADDRESS, rate_hz=100, range_g=2, high_res=True, fifo=False,
@@ -199,8 +198,7 @@ class LIS3DH:
         # is read as the middle of its four (+1.5 digits = 3 half digits), else it is exact
         self._fifo_so_mg = _SO_MG[RANGES_G.index(range_g)]    # mg a 12-bit digit
         self._fifo_mid = 3 if high_res else 0
-        self._fifo_v0 = None     # fifo_codes_table's tables (use_fifo_tables)
-        self._fifo_carry = None
+        self.fifo_tables = None   # lis3dh_cp.FifoTables (use_fifo_tables)
         if tables:
             self.use_fifo_tables()
         self.check()
@@ -306,19 +304,19 @@ class LIS3DH:
         dither)."""
         # a viper loop on ports with emitters (fifo_codes_q10): 92 us a sample as a bytecode
         # loop on the emulated Pico; CircuitPython's tables (above)
-        if self._fifo_v0 is not None:
-            self.dither = fifo_codes_table(self._fifo_from[first], 3 * n, out, 3 * start,
-                                           self._fifo_v0, self._fifo_carry, self.dither)
+        if self.fifo_tables is not None:
+            self.dither = self.fifo_tables.convert(self._fifo_from[first], 3 * n, out, 3 * start,
+                                                   self.dither)
             return
         self.dither = fifo_codes_q10(self._fifo_from[first], 3 * n, out, 3 * start,
                                      self._fifo_mid, self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX,
                                      self.dither)
 
     def use_fifo_tables(self):
-        """Convert FIFO codes through two tables (fifo_codes_table, 4 kB) from now on: for ports
-        without emitters, where they take ~60 % of fifo_codes_q10's time; the same values."""
-        self._fifo_v0, self._fifo_carry = fifo_tables(self._fifo_mid,
-                                                      self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX)
+        """Convert FIFO codes through two tables (lis3dh_cp.FifoTables, 4 kB) from now on: for
+        ports without emitters, where they take ~60 % of fifo_codes_q10's time; the same values."""
+        from acal.logger.lis3dh_cp import FifoTables
+        self.fifo_tables = FifoTables(self._fifo_mid, self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX)
 
     def temperature(self):
         """Temperature change from the chip's reference, whole degC (OUT_ADC3, 8 bits)."""
@@ -356,40 +354,3 @@ def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int, dith: 
             dith = (dith + _DITHER_STEP) & _DITHER_MASK
     return dith
 
-
-def fifo_tables(mid, so, top):
-    """fifo_codes_q10's conversion of a 10-bit FIFO code u (0..1023, the code r read unsigned:
-    r + 1024 when negative) as two tables: v0[u], the value with the carry of the dither's
-    rounding not taken, clamped to +-top, and carry[u], the least doubled dither 2d (0..32766)
-    that adds 1; 32768 (never) where the clamp absorbs it.  With A = (8 r + mid) so = 32768 q +
-    m (m in 0..32767): (A + 2d) >> 15 is q + 1 when m + 2d >= 32768, else q (m + 2d < 65536)."""
-    v0 = array("h", bytearray(2048))
-    carry = array("H", bytearray(2048))
-    for u in range(1024):
-        a = ((u - 1024 if u & 512 else u) * 8 + mid) * so    # < 8.3e8 < 2**30 (fifo_codes_q10)
-        q = a >> 15
-        lo = -top if q < -top else (top if q > top else q)
-        hi = -top if q + 1 < -top else (top if q + 1 > top else q + 1)
-        v0[u] = lo
-        carry[u] = 32768 if hi == lo else 32768 - (a - (q << 15))
-    return v0, carry
-
-
-def fifo_codes_table(b, nv, out, at, v0, carry, dith):
-    # fifo_codes_q10 through fifo_tables' tables (nv a multiple of 3): the code's top 10 bits
-    # read unsigned as the index, a sample's three values unrolled (CircuitPython's bytecode:
-    # 1.9 ms for 25 samples on the emulated Feather, against 2.25 ms without the tables)
-    j = 0
-    end = at + nv
-    while at < end:
-        d2 = dith << 1
-        u = (b[j] >> 6) | (b[j + 1] << 2)
-        out[at] = v0[u] + (d2 >= carry[u])
-        u = (b[j + 2] >> 6) | (b[j + 3] << 2)
-        out[at + 1] = v0[u] + (d2 >= carry[u])
-        u = (b[j + 4] >> 6) | (b[j + 5] << 2)
-        out[at + 2] = v0[u] + (d2 >= carry[u])
-        at += 3
-        j += 6
-        dith = (dith + _DITHER_STEP) & _DITHER_MASK
-    return dith

@@ -147,7 +147,9 @@ def main(work, repeat):
     print("heap_total", gc.mem_free() + gc.mem_alloc())
     print("heap_free_app_largest", gc.mem_free())
     # what the FIFO's conversion tables add to it where a board file says FIFO_TABLES (as
-    # boards/feather_rp2040.py): the app's driver builds them (LIS3DH(tables=True) does so)
+    # boards/feather_rp2040.py): the app's driver builds them (LIS3DH(tables=True) does so);
+    # their code's module is loaded first, as the Feather's board file has it (its bus registers)
+    import acal.logger.lis3dh_cp  # noqa: F401
     gc.collect()     # the prints' garbage
     free = gc.mem_free()
     a.sensor.use_fifo_tables()
