@@ -238,11 +238,11 @@ def test_the_spread_score_stays_small_with_three_conditions():
 
 
 def test_the_bins_and_the_fit_points_answer_the_span_question_alike(rng):
-    """pipeline.spanned (the bins' held points) and discover.testable (the same points gathered
+    """pipeline.spanned (the bins' held points) and search.testable (the same points gathered
     flat for the fit) ask one question through effects.condition_of and bins.DIFFERS: for every
     effect kind, on points whose ranges straddle each threshold, they answer alike, and as the
     threshold of the condition the effect's regressor reads says (by name, independently)."""
-    from acal.discover import search as discover
+    from acal.discover import search
     from acal.core import effects
     from acal.core.pipeline import spanned
     reads = {"temp": 0, "time": 1, "drift": 1, "step": 1, "supply": 2}
@@ -261,4 +261,4 @@ def test_the_bins_and_the_fit_points_answer_the_span_question_alike(rng):
             if name == "nonlinear":
                 want = -1
             expect = want < 0 or width[want] >= bins.DIFFERS[want]
-            assert spanned(b, (kind,)) == discover.testable(kind, flat, n) == expect, (name, width)
+            assert spanned(b, (kind,)) == search.testable(kind, flat, n) == expect, (name, width)

@@ -12,7 +12,7 @@ import pytest
 from accelcal.bridge.boardlog import model_kinds
 from accelcal import simulate
 from accelcal.bridge import boardlog, runtime
-from acal.discover import search as discover
+from acal.discover import search
 from acal.core import effects
 from acal.logger import log
 from acal.core.fixed import PARAM_NAMES
@@ -175,25 +175,25 @@ import micropython
 from acal.core.pipeline import Pipeline
 from acal.discover.plug import Plug
 from acal.core import profile
-from acal.discover import rule, search as discover
+from acal.discover import rule, search
 from acal.core.bins import int32s
 
 ''' + FEED + r'''# the rule at its largest errors: every candidate saturated, one just below
-errs = int32s(discover.N_CANDIDATES)
-betters = int32s(discover.N_CANDIDATES)
+errs = int32s(search.N_CANDIDATES)
+betters = int32s(search.N_CANDIDATES)
 out = int32s(4)
 
 
 def work(d, errs, betters, out):
     while not d.step():
         pass
-    for i in range(discover.N_CANDIDATES):
-        errs[i] = discover.ERR_MAX - i
+    for i in range(search.N_CANDIDATES):
+        errs[i] = search.ERR_MAX - i
         betters[i] = 72
-    out[0] = rule.best(d.kind_ids, errs, discover.N_SINGLE)
-    out[1] = 1 if rule.adopted(discover.ERR_MAX, errs, betters, 72, out[0]) else 0
+    out[0] = rule.best(d.kind_ids, errs, search.N_SINGLE)
+    out[1] = 1 if rule.adopted(search.ERR_MAX, errs, betters, 72, out[0]) else 0
     errs[0] = 0
-    out[2] = 1 if rule.adopted(discover.ERR_MAX, errs, betters, 72, 0) else 0
+    out[2] = 1 if rule.adopted(search.ERR_MAX, errs, betters, 72, 0) else 0
 
 
 micropython.heap_lock()
@@ -261,7 +261,7 @@ def test_candidate_fits_and_scores_allocate_nothing_on_the_32_bit_port(tmp_path,
 # single effect added to it (the change-point search too), heap-locked after its begin (which
 # makes the round's effect tuples, once).
 ROUND2 = r'''
-if d.adopted and discover.more(d.kinds[d.chosen]):
+if d.adopted and search.more(d.kinds[d.chosen]):
     pipe.plug.adopt(pipe)
     d.begin(pipe)
     micropython.heap_lock()
@@ -293,11 +293,11 @@ def test_a_second_round_adds_the_second_effect_and_allocates_nothing(tmp_path, m
     r = want.index("ROUND2")
     first = int(want[6])
     rnd, before, blocks, chosen, adopted, kind = map(int, want[r + 1:r + 7])
-    errs = list(map(int, want[r + 7:r + 7 + discover.N_CANDIDATES]))
-    assert rnd == 2 and before > 0 and blocks >= discover.MIN_BLOCKS, want
+    errs = list(map(int, want[r + 7:r + 7 + search.N_CANDIDATES]))
+    assert rnd == 2 and before > 0 and blocks >= search.MIN_BLOCKS, want
     # tried: every single effect but the adopted one (no curve pair: the limit)
-    tried = [i for i in range(discover.N_CANDIDATES) if errs[i] >= 0]
-    assert discover.PAIR not in tried and first not in [discover.KINDS[i][0] for i in tried]
+    tried = [i for i in range(search.N_CANDIDATES) if errs[i] >= 0]
+    assert search.PAIR not in tried and first not in [search.KINDS[i][0] for i in tried]
     assert len(tried) >= 5, errs
     if drift == "two":
         assert {first} | set(model_kinds(kind)) == {effects.TEMP_OFFSET, effects.DRIFT}

@@ -523,9 +523,9 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
     set (144 points at +-1.25 g per axis, past what gravity() keeps, each standing for
     heldout.WEIGHT_CAP rest means, conditions far past the fit's clamps) scored with parameters
     at the fit region's corners and effects at 4x their bounds (every point's error at ERR_CAP),
-    its blocks compared, the rule on errors at discover.ERR_MAX and every block count the sign
+    its blocks compared, the rule on errors at search.ERR_MAX and every block count the sign
     test takes, and the conditions' ranges: no intermediate reaches 2^30."""
-    from acal.discover import search as discover, rule, heldout, score as heldscore
+    from acal.discover import search, rule, heldout, score
     from acal.core import effects
     from acal.core.bins import COND
     tr = Tracer()
@@ -541,10 +541,10 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
         h.weight[i] = T(heldout.WEIGHT_CAP)
         h.cond[COND * i: COND * i + COND] = [T((-1) ** i * 1000), T((1 << 28) * (-1) ** i),
                                              T((-1) ** i * 65535)]
-    s = heldscore.HeldScore()
+    s = score.HeldScore()
     for name in ("w", "err", "base", "first"):
         setattr(s, name, [T(0)] * len(getattr(s, name)))
-    kinds = discover.KINDS[discover.PAIR]
+    kinds = search.KINDS[search.PAIR]
     totals = []
     with viper_casts():
         for k, o in ((fixed.FIT_K_DIAG_MAX, fixed.FIT_O_MAX), (fixed.FIT_K_DIAG_MIN, -fixed.FIT_O_MAX)):
@@ -555,14 +555,14 @@ def test_discovery_scores_and_rule_stay_small_at_the_worst_case():
                 totals.append(int(total))
                 s.keep_as_base(h.count)
                 assert s.better_blocks(h) == 0
-    assert max(totals) == h.count * heldout.WEIGHT_CAP * heldscore.ERR_CAP   # every point capped
-    e = T(discover.ERR_MAX)
+    assert max(totals) == h.count * heldout.WEIGHT_CAP * score.ERR_CAP   # every point capped
+    e = T(search.ERR_MAX)
     assert rule.names(e, T(0), T(72), T(72)) and rule.plain_preferred(e, e)
     for blocks in range(1, rule.SIGN_BLOCKS + 2):
         for better in range(blocks + 1):
             rule.clear(T(better), T(blocks))
     for c in range(COND):
-        assert discover._range(h.cond, h.count, c) > 0
+        assert search._range(h.cond, h.count, c) > 0
     assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))
 
 

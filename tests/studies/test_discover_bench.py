@@ -7,7 +7,7 @@ steps and placements; and bench_chip turns the lines into its keys."""
 from accelcal.bridge import runtime
 from accelcal.locations import script
 from accelcal.studies import bench_chip
-from acal.discover import search as discover
+from acal.discover import search
 from acal.core import effects, profile
 from acal.core.pipeline import Pipeline
 from acal.core.fixed import C_TEMP, C_TIME
@@ -37,7 +37,7 @@ def _cpython_kinds():
     for _ in range(2):
         d.run(pipe)
         kinds.append(d.kind)
-        if not (d.adopted and discover.more(d.kinds[d.chosen])):
+        if not (d.adopted and search.more(d.kinds[d.chosen])):
             break
         pipe.plug.adopt(pipe)
     return kinds
@@ -86,9 +86,9 @@ def test_the_rounds_count_what_steps_allocate_across_collections(tmp_path):
     when its clock's garbage fills the heap: the same bytes counted; and with each step made to
     allocate a 100-byte array (dropped at the next, so collected), at least those bytes."""
     every = "LOW_FREE = 1 << 40\n"
-    control = ("from acal.discover import search as discover\nKEPT = [None]\n_step = discover.Discover.step\n"
+    control = ("from acal.discover import search\nKEPT = [None]\n_step = search.Discover.step\n"
                "def _allocating(self):\n    KEPT[0] = bytearray(100)\n    return _step(self)\n"
-               "discover.Discover.step = _allocating\n")
+               "search.Discover.step = _allocating\n")
     plain = bench_chip._kv(_run(tmp_path, "rounds(PTS)"))
     collected = bench_chip._kv(_run(tmp_path, every + "rounds(PTS)"))
     allocating = bench_chip._kv(_run(tmp_path, every + control + "rounds(PTS)"))

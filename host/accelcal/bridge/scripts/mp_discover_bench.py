@@ -15,7 +15,7 @@
 # while gc.mem_alloc() is the same after it.
 import gc
 import time
-from acal.discover import search as discover
+from acal.discover import search
 from acal.discover.heldout import HeldOut
 
 # CircuitPython has no ticks_us: monotonic_ns (as mp_paths_bench.py)
@@ -51,7 +51,7 @@ def main():
         for k in range(8):
             x, y, z = POSTURES[k]
             h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + k, 3300))
-    d = discover.Discover(72, h)
+    d = search.Discover(72, h)
     s = d.score
     for i in range(h.count):
         s.err[i] = 120      # the base model's errors, kept as base while marking
@@ -89,14 +89,14 @@ def place(lock=False):
         for k in range(8):
             x, y, z = POSTURES[k]
             h.offer(x, y, z, (30, ((2 * b + 1) * 225 + 1) // 2 + 7 * k, 3300))
-    d = discover.Discover(72, h)
+    d = search.Discover(72, h)
     for k in range(3):
         d.params[k] = 1 << 24      # unit scale (kxx kyy kzz, Q24), no offsets
     d.params[9] = d.params[10] = d.params[11] = 134218   # the step's jumps: 8 mg in Q24 g
     fitted_time = 18 * 225          # after every held-out point
     d.score.begin(d.params, (effects.STEP,), h, (30, 0, 3300), fitted_time)
     pl = d.place
-    pl.begin(d.score, h, 0, -1, fitted_time, 100000, discover.BLOCK_SCAN)
+    pl.begin(d.score, h, 0, -1, fitted_time, 100000, search.BLOCK_SCAN)
     for name in ("gap", "place"):
         ph = pl.phase
         steps = worst = 0
@@ -149,7 +149,7 @@ def rounds(pts, lock=False):
     and the longest (_round).  lock: each step under heap_lock (keys with _locked; nothing on
     CircuitPython, which has no heap_lock)."""
     import micropython
-    from acal.discover import search as discover
+    from acal.discover import search
     from acal.core import profile
     from acal.core.pipeline import Pipeline
     from acal.core.fixed import C_TEMP, C_TIME
@@ -167,7 +167,7 @@ def rounds(pts, lock=False):
     for rnd in (1, 2):
         r = "discover_round%d%s_" % (rnd, tag)
         _round(d, pipe, lock, r)
-        if not (d.adopted and discover.more(d.kinds[d.chosen])):
+        if not (d.adopted and search.more(d.kinds[d.chosen])):
             print("discover_no_second_round%s" % tag, 1)
             return
         adopt(pipe, r)

@@ -3,7 +3,7 @@
 scoring allocates nothing under the real MicroPython."""
 import numpy as np
 
-from acal.discover import heldout, score as heldscore
+from acal.discover import heldout, score
 from acal.core.bins import int32s
 
 from accelcal.bridge import runtime
@@ -30,7 +30,7 @@ def test_error_per_point_is_the_float_formula():
     for i in range(3):
         p[i] = int(round(k[i] * 2 ** 24))
         p[6 + i] = int(round(o[i] * 2 ** 24))
-    s = heldscore.HeldScore()
+    s = score.HeldScore()
     total = s.score(p, (), h)
     v = np.array(h.xyz[:3 * h.count]).reshape(-1, 3) / 65536
     want = np.abs(((k * (v + o)) ** 2).sum(1) - 1) * 65536
@@ -43,7 +43,7 @@ def test_better_blocks_counts_blocks_whose_sum_falls():
     h = heldout.HeldOut()
     for i, t in enumerate((120, 130, 400, 410, 620)):        # blocks 1, 1, 3, 3, 5
         h.offer(65536 if i % 2 else 0, 0 if i % 2 else 65536, 0, (0, t, 0))   # two postures
-    s = heldscore.HeldScore()
+    s = score.HeldScore()
     for i, v in enumerate((10, 10, 10, 10, 10)):
         s.err[i] = v
     s.keep_as_base(5)
@@ -61,7 +61,7 @@ def test_slot_by_slot_scans_count_what_whole_passes_count(rng):
         for i in range(n):
             h.offer(int(rng.integers(-70000, 70000)), int(rng.integers(-70000, 70000)),
                     int(rng.integers(-70000, 70000)), (0, int(rng.integers(0, 4000)), 0))
-        s = heldscore.HeldScore()
+        s = score.HeldScore()
         for i in range(h.count):
             s.base[i] = int(rng.integers(0, 200))
             s.err[i] = int(rng.integers(0, 200))
@@ -147,6 +147,6 @@ def test_scoring_allocates_nothing_on_the_32_bit_port(tmp_path, mp32):
 
 
 def test_scoring_storage_is_the_stated_budget():
-    s = heldscore.HeldScore()
+    s = score.HeldScore()
     stored = sum(a.itemsize * len(a) for a in (s.w, s.err, s.base, s.first))
     assert stored == 3456     # docs/model-discovery.md states it
