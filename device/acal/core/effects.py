@@ -116,6 +116,20 @@ KIND_BITS = const(4)
 KIND_MAX = const(15)
 MODEL_EFFECTS_MAX = const(4)
 X_Q = const(12)                   # the generic regressor's format
+# The table's rows as ints for the code that runs per point (regressor, correct_kinds): a kind's
+# _ROW ints from _ROWS[_ROW * kind] (an int32 array, below) - form << 6 | source << 3 | power,
+# the post shift, the source's column and shift (SOURCES), its clamp on the source's value in
+# the fit (the time reach) and in the apply (regressor).  One array, not one a field:
+# correct_kinds takes a global and a typed pointer a call (each ~2 us on the emulated Pico, up
+# to five calls a point's Jacobian row).  Defined before their first use: MicroPython folds a
+# const only below its definition.
+_ROW = const(6)
+_R_CODE = const(0)
+_R_POST = const(1)
+_R_COL = const(2)
+_R_SHIFT = const(3)
+_R_REACH = const(4)
+_R_REACH_APPLY = const(5)
 # What the rest of the package reads, derived from the table (tables(): again after a row is
 # added at run time, as a test does): the names, the bounds, and the generic offsets' shapes -
 # (source, power) of the offsets whose parameter is per unit of the Q16 regressor (rs 4: apply
@@ -193,16 +207,16 @@ def regressor(kind, d, da, ts, fit=True):
     above say (a time source to its reach in the fit, or in the apply: fit False); each power an
     exact floor (acal/core/wide.py)."""
     row = EFFECTS[kind]
-    v = d[da + _COLS[kind]]
+    t = _ROW * kind
+    v = d[da + _ROWS[t + _R_COL]]
     if row[1] == SOURCE_STEP:
         return 65536 if v >= ts else 0
-    clamp = _REACH[kind] if fit else _REACH_APPLY[kind]
+    clamp = _ROWS[t + _R_REACH] if fit else _ROWS[t + _R_REACH_APPLY]
     if v > clamp:
         v = clamp
     elif v < -clamp:
         v = -clamp
-    shift = _SHIFTS[kind]
-    base = v << shift
+    base = v << _ROWS[t + _R_SHIFT]
     x = base
     for _ in range(row[2] - 1):
         x = mul_shift(x, base, 16)        # <= 2**20
@@ -263,16 +277,9 @@ def block_terms(kind, k, m, out, at, d, ts=0, e=0):
         out[at + 1 + i] = (k[m + i] * r) >> s
 
 
-# correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py): the
-# table's rows as ints indexed by kind - form << 6 | source << 3 | power, the post shift, the
-# source's column and shift (SOURCES), its clamp (the time reach in the fit) - made by tables(),
-# with the names, bounds and shapes above.
-_CODES = bytearray(KIND_MAX + 1)
-_POSTS = bytearray(KIND_MAX + 1)
-_COLS = bytearray(KIND_MAX + 1)
-_SHIFTS = bytearray(KIND_MAX + 1)
-_REACH = array("i", bytearray(4 * (KIND_MAX + 1)))   # a kind's clamp on its source's value
-_REACH_APPLY = array("i", bytearray(4 * (KIND_MAX + 1)))   # and in the apply (regressor)
+# correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py):
+# _ROWS (above), made by tables() with the names, bounds and shapes above.
+_ROWS = array("i", bytearray(4 * _ROW * (KIND_MAX + 1)))
 
 
 def tables():
@@ -282,22 +289,23 @@ def tables():
     BOUNDS.clear()
     SHAPES.clear()
     for k in range(KIND_MAX + 1):
-        _CODES[k] = 0
+        _ROWS[_ROW * k + _R_CODE] = 0
     for k in EFFECTS:
         name, source, power, form, post, ps, rs, reach, bound = EFFECTS[k]
         NAMES[k] = name
         BOUNDS[k] = bound
         if form == FORM_OFFSET and rs == 4:
             SHAPES[k] = (source, power)
-        _CODES[k] = (form << 6) | (source << 3) | power
-        _POSTS[k] = post
+        t = _ROW * k
+        _ROWS[t + _R_CODE] = (form << 6) | (source << 3) | power
+        _ROWS[t + _R_POST] = post
         # the source's column, shift and clamp (regressor's; correct_kinds' the fit's): a clamp
         # of 0 in SOURCES is the row's reach, in the fit and in the apply
         column, shift, clamp = SOURCES[source] if source in SOURCES else (0, 0, 0)
-        _COLS[k] = column
-        _SHIFTS[k] = shift
-        _REACH[k] = clamp or (reach[0] if reach else 0)
-        _REACH_APPLY[k] = clamp or (reach[1] if reach else 0)
+        _ROWS[t + _R_COL] = column
+        _ROWS[t + _R_SHIFT] = shift
+        _ROWS[t + _R_REACH] = clamp or (reach[0] if reach else 0)
+        _ROWS[t + _R_REACH_APPLY] = clamp or (reach[1] if reach else 0)
 
 
 tables()
@@ -318,31 +326,28 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
     p = ptr32(params)
     u = ptr32(reading)
     d = ptr32(cond)
-    codes = ptr8(_CODES)
-    posts = ptr8(_POSTS)
-    cols = ptr8(_COLS)
-    shifts = ptr8(_SHIFTS)
-    reach = ptr32(_REACH)
+    rows = ptr32(_ROWS)
     w = int(SIGN_SHIFT)
     while k > k0:
         k -= 1
         kind = int(ids[k]) << w >> w
         at = j + 3 * (k - k0)
-        code = int(codes[kind])
+        t = _ROW * kind
+        code = int(rows[t + _R_CODE])
         form = code >> 6
         source = (code >> 3) & 7
         x = 0
         if source != 0:                      # a condition's column (SOURCES), relative
-            v = int(d[cj + int(cols[kind])]) << w >> w
+            v = int(d[cj + int(rows[t + _R_COL])]) << w >> w
             if source == 3:                  # SOURCE_STEP
                 x = 65536 if v >= ts else 0
             else:                            # clamped and to Q16 as regressor
-                r = int(reach[kind])
+                r = int(rows[t + _R_REACH])
                 if v > r:
                     v = r
                 elif v < 0 - r:
                     v = 0 - r
-                base = v << int(shifts[kind])
+                base = v << int(rows[t + _R_SHIFT])
                 x = base
                 bh = base >> 15
                 bl = base & 0x7FFF
@@ -353,7 +358,7 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
                     m = ah * bl + al * bh
                     x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
                     n -= 1
-                x = x << int(posts[kind])
+                x = x << int(rows[t + _R_POST])
         bh = x >> 15
         bl = x & 0x7FFF
         c = 0
