@@ -140,6 +140,43 @@ def test_micropython_gives_the_same_integers(tmp_path, mp):
     assert got.split() == host.split() and len(got.splitlines()) == 100 * len(effects.NAMES)
 
 
+
+EACH_SCRIPT = r"""
+from array import array
+from acal.core import effects
+from acal.core.bins import COND
+kinds = sorted(effects.NAMES)
+for trial in range(60):
+    m = 1 + trial % 4                              # 1..4 effects, any kinds, any order
+    ids = array("i", [kinds[rnd(len(kinds) * 8) % len(kinds)] for _ in range(m)])
+    offs = array("i", [rnd(1 << 22) for _ in range(3)])   # the offsets' rows >> 8, raw_row's
+    u = [rnd(1 << 25) for _ in range(3)]
+    d = array("i", [rnd(160), rnd(1 << 15), rnd(1500)] + [0] * (COND - 3))
+    ts = rnd(1 << 15)
+    alone = []
+    for k in range(m):                             # one call a kind (raw_row before)
+        a = array("i", u)
+        effects.correct_kinds(ids, k, k + 1, offs, 0, a, d, 0, ts, 0)
+        alone += list(a)
+    each = array("i", u + [7] * (3 * m))
+    effects.correct_kinds(ids, 0, m, offs, 0, each, d, 0, ts, -1)
+    print(list(each[:3]) == u, " ".join(map(str, alone)), " ".join(map(str, each[3:])))
+"""
+
+
+def test_each_kind_alone_in_one_call_is_one_call_a_kind(tmp_path):
+    """correct_kinds with clamp < 0 (GaussNewton raw_row's effect columns in one call): kind i's
+    result from the reading as given, with the same three parameters, lands in reading[3 + 3 i:]
+    and equals a call with that kind alone, for every kind (forms, sources, a step) in models of
+    1-4 effects; the reading's first three ints are left as they were; CPython and the real
+    MicroPython give the same integers."""
+    got, host = run_both(EACH_SCRIPT, tmp_path)
+    assert got == host and len(host.splitlines()) == 60
+    for line in host.splitlines():
+        same, rest = line.split(" ", 1)
+        ints = rest.split()
+        assert same == "True" and ints[:len(ints) // 2] == ints[len(ints) // 2:], line
+
 def test_apply_stays_small_in_every_composition_and_order():
     """The per-sample apply of a composed model (calibration.Calibration) at the worst case: every
     set of effects in every order (conftest.effect_orders) at every full scale, parameters at the

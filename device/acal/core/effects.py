@@ -318,7 +318,12 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
     # first, the reverse of the order they act in) from the reading (an int32 array of 3, Q24
     # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array), at
     # the relative conditions cond[cj:cj + bins.COND] (an int32 array, regressor's d); after
-    # each, the reading clamped to +-clamp when clamp (model.remove_effects' FIT_W_MAX).  The
+    # each, the reading clamped to +-clamp when clamp > 0 (model.remove_effects' FIT_W_MAX).
+    # clamp < 0: each kind alone instead (a Jacobian row's effect columns: GaussNewton raw_row),
+    # every one from the reading as given with the same parameters params[j:j + 3], kind_ids[i]'s
+    # result into reading[3 + 3 (i - k0):6 + 3 (i - k0)] (reading then holds 3 + 3 (k - k0)
+    # ints; its first three are left as they were): the values of k - k0 calls of one kind
+    # each, in one call (a call's fixed cost, ~23 us on the emulated Pico, once).  The
     # integers of correct_u, by the table's form (tests/device/test_effects.py checks them against
     # it), each wide.mul_shift written out: P16(a, b) = mul_shift(a, b, 16) (t = 1) and P24 (t = 9);
     # every value below 2**30 as correct_u's (tests/device/test_ranges.py).
@@ -328,10 +333,18 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
     d = ptr32(cond)
     rows = ptr32(_ROWS)
     w = int(SIGN_SHIFT)
+    each = clamp < 0
+    if each:
+        clamp = 0
+    o = 0           # where the kind's result goes (each: its own three ints)
+    at = j
     while k > k0:
         k -= 1
         kind = int(ids[k]) << w >> w
-        at = j + 3 * (k - k0)
+        if each:
+            o = 3 + 3 * (k - k0)
+        else:
+            at = j + 3 * (k - k0)
         t = _ROW * kind
         code = int(rows[t + _R_CODE])
         form = code >> 6
@@ -394,7 +407,7 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
                     r = clamp
                 elif r < 0 - clamp:
                     r = 0 - clamp
-            u[c] = r
+            u[o + c] = r
             c += 1
 
 

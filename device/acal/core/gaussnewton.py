@@ -115,7 +115,7 @@ class GaussNewton(Sliced):
         self.xshift = [0] * np_
         self.step_ = [0] * np_
         self.w = int32s(3)              # int32: effects.correct_kinds' pointers
-        self.z = int32s(3)
+        self.z = int32s(3 + 3 * len(self.kinds))   # raw_row: the point, each effect's result
         self.q = int32s(3)
         self.nk = len(self.kinds)
         self.ncond = COND               # aux's conditions a point, for normal_sums' viper rows

@@ -328,7 +328,8 @@ def raw_row(fit, params, i: int) -> int:
     # Point i's residual at params and its raw Jacobian row into fit.d (the 9 parameters'
     # from model.residual_jacobian; an effect's: dr/dtheta = dr/do . dw/dtheta, the effect's
     # correction of the reading with the offsets' rows >> (QD_BASE - QD_EFFECT) = 8 as its
-    # parameters, effects.correct_kinds with no clamp).  Viper on ports with emitters.
+    # parameters, effects.correct_kinds with no clamp: each kind alone, clamp < 0, one call for
+    # every effect).  Viper on ports with emitters.
     r0 = int(point_residual(fit, params, i))
     nk = int(fit.nk)
     if nk == 0:
@@ -349,15 +350,15 @@ def raw_row(fit, params, i: int) -> int:
     while c < 3:
         q[c] = (int(d[6 + c]) << w >> w) >> 8
         c += 1
+    z[0] = u[at]
+    z[1] = u[at + 1]
+    z[2] = u[at + 2]
+    correct_kinds(ids, 0, nk, offs, 0, moved, aux, j, ts, -1)   # each kind alone, one call
     k = 0
-    while k < nk:
-        z[0] = u[at]
-        z[1] = u[at + 1]
-        z[2] = u[at + 2]
-        correct_kinds(ids, k, k + 1, offs, 0, moved, aux, j, ts, 0)
+    while k < 3 * nk:
         c = 0
         while c < 3:
-            d[9 + 3 * k + c] = (int(z[c]) << w >> w) - (int(u[at + c]) << w >> w)
+            d[9 + k + c] = (int(z[3 + k + c]) << w >> w) - (int(u[at + c]) << w >> w)
             c += 1
-        k += 1
+        k += 3
     return r0
