@@ -116,20 +116,16 @@ KIND_BITS = const(4)
 KIND_MAX = const(15)
 MODEL_EFFECTS_MAX = const(4)
 X_Q = const(12)                   # the generic regressor's format
-# The table's rows as ints for the code that runs per point (regressor, correct_kinds): a kind's
-# _ROW ints from _ROWS[_ROW * kind] (an int32 array, below) - form << 6 | source << 3 | power,
-# the post shift, the source's column and shift (SOURCES), its clamp on the source's value in
-# the fit (the time reach) and in the apply (regressor).  One array, not one a field:
-# correct_kinds takes a global and a typed pointer a call (each ~2 us on the emulated Pico, up
-# to five calls a point's Jacobian row).  Defined before their first use: MicroPython folds a
-# const only below its definition.
-_ROW = const(6)
-_R_CODE = const(0)
-_R_POST = const(1)
-_R_COL = const(2)
-_R_SHIFT = const(3)
-_R_REACH = const(4)
-_R_REACH_APPLY = const(5)
+# The table's rows as ints for the code that runs per point (correct_kinds, regressor): a kind's
+# _ROW ints at _ROWS[_ROW * kind] (an int32 array, below) - its bytes (_R_BYTES: form << 6 |
+# source << 3 | power, then the post shift, the source's column and its shift (SOURCES), a
+# byte each from the low one) and its clamp on the source's value in the fit (_R_REACH: the
+# time reach); the apply's clamp in _REACH_APPLY (regressor).  One array, not one a field:
+# correct_kinds takes a global and a typed pointer a call (each ~2 us on the emulated Pico).
+# Defined before their first use: MicroPython folds a const only below its definition.
+_ROW = const(2)
+_R_BYTES = const(0)
+_R_REACH = const(1)
 # What the rest of the package reads, derived from the table (tables(): again after a row is
 # added at run time, as a test does): the names, the bounds, and the generic offsets' shapes -
 # (source, power) of the offsets whose parameter is per unit of the Q16 regressor (rs 4: apply
@@ -208,15 +204,16 @@ def regressor(kind, d, da, ts, fit=True):
     exact floor (acal/core/wide.py)."""
     row = EFFECTS[kind]
     t = _ROW * kind
-    v = d[da + _ROWS[t + _R_COL]]
+    b = _ROWS[t + _R_BYTES]
+    v = d[da + ((b >> 16) & 255)]
     if row[1] == SOURCE_STEP:
         return 65536 if v >= ts else 0
-    clamp = _ROWS[t + _R_REACH] if fit else _ROWS[t + _R_REACH_APPLY]
+    clamp = _ROWS[t + _R_REACH] if fit else _REACH_APPLY[kind]
     if v > clamp:
         v = clamp
     elif v < -clamp:
         v = -clamp
-    base = v << _ROWS[t + _R_SHIFT]
+    base = v << (b >> 24)
     x = base
     for _ in range(row[2] - 1):
         x = mul_shift(x, base, 16)        # <= 2**20
@@ -280,6 +277,7 @@ def block_terms(kind, k, m, out, at, d, ts=0, e=0):
 # correct_u's integers for the default fit, viper on ports with emitters (acal/core/emit.py):
 # _ROWS (above), made by tables() with the names, bounds and shapes above.
 _ROWS = array("i", bytearray(4 * _ROW * (KIND_MAX + 1)))
+_REACH_APPLY = array("i", bytearray(4 * (KIND_MAX + 1)))
 
 
 def tables():
@@ -289,7 +287,7 @@ def tables():
     BOUNDS.clear()
     SHAPES.clear()
     for k in range(KIND_MAX + 1):
-        _ROWS[_ROW * k + _R_CODE] = 0
+        _ROWS[_ROW * k + _R_BYTES] = 0
     for k in EFFECTS:
         name, source, power, form, post, ps, rs, reach, bound = EFFECTS[k]
         NAMES[k] = name
@@ -297,15 +295,13 @@ def tables():
         if form == FORM_OFFSET and rs == 4:
             SHAPES[k] = (source, power)
         t = _ROW * k
-        _ROWS[t + _R_CODE] = (form << 6) | (source << 3) | power
-        _ROWS[t + _R_POST] = post
         # the source's column, shift and clamp (regressor's; correct_kinds' the fit's): a clamp
         # of 0 in SOURCES is the row's reach, in the fit and in the apply
         column, shift, clamp = SOURCES[source] if source in SOURCES else (0, 0, 0)
-        _ROWS[t + _R_COL] = column
-        _ROWS[t + _R_SHIFT] = shift
+        _ROWS[t + _R_BYTES] = ((form << 6) | (source << 3) | power | (post << 8) | (column << 16)
+                               | (shift << 24))
         _ROWS[t + _R_REACH] = clamp or (reach[0] if reach else 0)
-        _ROWS[t + _R_REACH_APPLY] = clamp or (reach[1] if reach else 0)
+        _REACH_APPLY[k] = clamp or (reach[1] if reach else 0)
 
 
 tables()
@@ -346,12 +342,13 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
         else:
             at = j + 3 * (k - k0)
         t = _ROW * kind
-        code = int(rows[t + _R_CODE])
+        row = int(rows[t + _R_BYTES])
+        code = row & 255
         form = code >> 6
         source = (code >> 3) & 7
         x = 0
         if source != 0:                      # a condition's column (SOURCES), relative
-            v = int(d[cj + int(rows[t + _R_COL])]) << w >> w
+            v = int(d[cj + ((row >> 16) & 255)]) << w >> w
             if source == 3:                  # SOURCE_STEP
                 x = 65536 if v >= ts else 0
             else:                            # clamped and to Q16 as regressor
@@ -360,7 +357,7 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
                     v = r
                 elif v < 0 - r:
                     v = 0 - r
-                base = v << int(rows[t + _R_SHIFT])
+                base = v << (row >> 24)
                 x = base
                 bh = base >> 15
                 bl = base & 0x7FFF
@@ -371,7 +368,7 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
                     m = ah * bl + al * bh
                     x = ((ah * bh) << 14) + (m >> 1) + (((m & 1) + ((al * bl) >> 15)) >> 1)
                     n -= 1
-                x = x << int(rows[t + _R_POST])
+                x = x << ((row >> 8) & 255)
         bh = x >> 15
         bl = x & 0x7FFF
         c = 0
