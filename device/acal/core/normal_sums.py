@@ -310,7 +310,6 @@ def point_residual(fit, params, i: int) -> int:
     if nk:
         removed = fit.w
         v = ptr32(removed)
-        aux = ptr32(fit.aux)
         j = int(fit.ncond) * i    # bins.COND per point (a viper loop takes no other module's const)
         v[0] = x
         v[1] = y
