@@ -148,5 +148,5 @@ def test_scoring_allocates_nothing_on_the_32_bit_port(tmp_path, mp32):
 
 def test_scoring_storage_is_the_stated_budget():
     s = score.HeldScore()
-    stored = sum(a.itemsize * len(a) for a in (s.w, s.err, s.base, s.first))
-    assert stored == 3456     # docs/model-discovery.md states it
+    stored = sum(a.itemsize * len(a) for a in (s.w, s.err, s.base, s.first, s.kind_ids, s.rel))
+    assert stored == 1768     # docs/model-discovery.md states it

@@ -4,9 +4,12 @@
 # taken in Q16 g^2 (r >> 6), capped at ERR_CAP and times the point's weight (the rest means it
 # stands for, heldout.WEIGHT_CAP at most: `diagnose` scores a block on every rest point in it),
 # so 144 (heldout.CAPACITY) sum below 2**30; the held-out error is their sum, a block's error the
-# sum over its points.  All storage preallocated.
+# sum over its points.  All storage preallocated.  A point's effects are removed by the fit's
+# viper copy of the table's forms (effects.correct_kinds, model.remove_effects' integers and
+# clamps), one call a point.
 from acal.core import model
 from acal.core.bins import COND, int32s
+from acal.core.effects import correct_kinds, MODEL_EFFECTS_MAX
 from acal.core.fixed import POINT_TO_PARAM_SHIFT
 from acal.discover.heldout import CAPACITY
 try:
@@ -27,7 +30,9 @@ class HeldScore:
     reads): begin(), then part() until it returns True, the error in `total`; score() at once."""
 
     def __init__(self, capacity=CAPACITY):
-        self.w = int32s(3 * capacity)
+        self.w = int32s(3)              # a point's reading, its effects removed (correct_kinds)
+        self.kind_ids = int32s(MODEL_EFFECTS_MAX)   # begin()'s kinds, correct_kinds' ids
+        self.nk = 0
         self.err = int32s(capacity)
         self.base = int32s(capacity)
         self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_slot)
@@ -35,7 +40,7 @@ class HeldScore:
         self.kinds = ()
         self.h = None
         self.ref = [0] * COND   # the fit's references (begin(): copied), the points' columns
-        self.rel = [0] * COND   # a point's conditions minus ref (point())
+        self.rel = int32s(COND)   # a point's conditions minus ref (point())
         self.ts = 0
         self.pos = 0
         self.total = 0
@@ -60,6 +65,9 @@ class HeldScore:
         """Start scoring p with `kinds` on h (score's arguments)."""
         self.p = p
         self.kinds = kinds
+        self.nk = len(kinds)
+        for k in range(self.nk):
+            self.kind_ids[k] = kinds[k]
         self.h = h
         for c in range(COND):
             self.ref[c] = 0 if ref is None else ref[c]
@@ -89,20 +97,21 @@ class HeldScore:
         h = self.h
         w = self.w
         xyz = h.xyz
-        for c in range(3 * i, 3 * i + 3):
-            v = xyz[c]
+        for c in range(3):
+            v = xyz[3 * i + c]
             if v >= model.POINT_LIMIT or v < -model.POINT_LIMIT:
                 return -1
             w[c] = v << POINT_TO_PARAM_SHIFT
-        j = COND * i
-        cond = h.cond
         p = self.p
-        r = self.ref
-        d = self.rel
-        for c in range(COND):
-            d[c] = cond[j + c] - r[c]
-        model.remove_effects(p, self.kinds, w, 3 * i, d, 0, self.ts)
-        r = model.residual(p, w[3 * i], w[3 * i + 1], w[3 * i + 2]) >> ERR_SHIFT
+        if self.nk:
+            j = COND * i
+            cond = h.cond
+            r = self.ref
+            d = self.rel
+            for c in range(COND):
+                d[c] = cond[j + c] - r[c]
+            correct_kinds(self.kind_ids, 0, self.nk, p, 9, w, d, 0, self.ts, model.FIT_W_MAX)
+        r = model.residual(p, w[0], w[1], w[2]) >> ERR_SHIFT
         if r < 0:
             r = -r
         if r > ERR_CAP:
