@@ -244,6 +244,14 @@ def mp(request):
     return request.param
 
 
+def heap_locked(call, report=""):
+    """A MicroPython script's last lines: `call` run with the heap locked, then "OK" and
+    `report` (expressions printed after it), or "ALLOCATED" where the call allocated."""
+    return ("micropython.heap_lock()\ntry:\n    %s\n    micropython.heap_unlock()\n"
+            "    print(\"OK\"%s)\nexcept MemoryError:\n    micropython.heap_unlock()\n"
+            "    print(\"ALLOCATED\")\n") % (call, ", " + report if report else "")
+
+
 def run_both(script, tmp_path, micropython="micropython"):
     """Stdout of the script (MP_RANDOM prepended) under a real MicroPython (the unix port, or
     "micropython32") and under CPython."""

@@ -6,6 +6,7 @@ port (ints past 2^30 are longs there) the per-sample paths and both profiles' fi
 import numpy as np
 
 from accelcal.bridge import runtime
+from conftest import heap_locked
 
 STREAM = r'''
 import micropython
@@ -71,15 +72,8 @@ def work():
     gn.run(gpts, 72)
 
 
-micropython.heap_lock()
-try:
-    work()
-    micropython.heap_unlock()
-    print("OK", det.segments, pipe.rest_count, opt.status, wear_det.segments, gn.status, gn.iterations)
-except MemoryError:
-    micropython.heap_unlock()
-    print("ALLOCATED")
-'''
+''' + heap_locked('work()', 'det.segments, pipe.rest_count, opt.status, wear_det.segments, '
+                                      'gn.status, gn.iterations')
 
 
 def test_rest_detectors_and_optimisers_allocate_nothing(tmp_path):
@@ -147,15 +141,7 @@ def work():
             cal.apply_samples(out, 0, 200, full)
 
 
-micropython.heap_lock()
-try:
-    work()
-    micropython.heap_unlock()
-    print("OK", paper.segments, wear.segments, out[0])
-except MemoryError:
-    micropython.heap_unlock()
-    print("ALLOCATED")
-'''
+''' + heap_locked('work()', 'paper.segments, wear.segments, out[0]')
 
 
 def test_per_sample_paths_allocate_nothing_on_the_32_bit_port(tmp_path, mp32):

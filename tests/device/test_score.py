@@ -7,6 +7,7 @@ from acal.discover import heldout, score
 from acal.core.bins import int32s
 
 from accelcal.bridge import runtime
+from conftest import heap_locked
 
 
 def _held(rng, n=40):
@@ -113,15 +114,7 @@ def work(s, p, h, kinds, out):
     out[1] = s.better_blocks(h)
 
 
-micropython.heap_lock()
-try:
-    work(s, p, h, kinds, out)
-    micropython.heap_unlock()
-    print("OK", out[0], out[1])
-except MemoryError:
-    micropython.heap_unlock()
-    print("ALLOCATED")
-'''
+''' + heap_locked('work(s, p, h, kinds, out)', 'out[0], out[1]')
 
 
 def test_scoring_allocates_nothing_and_matches_cpython(tmp_path):
