@@ -47,7 +47,7 @@ from acal.core.wide import mul_shift
 # "conditions"): a board quantity's is there, its effect's row here
 from acal.core.fixed import (TEMP_DT_MAX, SOURCES, SOURCE_TEMP, SOURCE_TIME, SOURCE_STEP,
                              SOURCE_SUPPLY)
-from acal.core.emit import SIGN_SHIFT, viper, ptr8, ptr32
+from acal.core.emit import SIGN_SHIFT, viper, ptr32
 from array import array
 try:
     from micropython import const
@@ -410,8 +410,9 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
 
 # Room in this module's globals table, at the module's end: MicroPython fills a table to its last
 # slot before it grows it (73, 97 ... slots), and a name looked up there probes on to its slot or
-# an empty one.  At 69 names in 73 slots the discovery's longest fit step, whose effect code reads
-# these globals per point, took 10 % longer on the emulated Pico than at 74 in 97: the table is
+# an empty one.  At 69 names in 73 slots the discovery's longest fit step, whose effect code read
+# five of these globals per call (correct_kinds reads one now, _ROWS: not re-measured), took
+# 10 % longer on the emulated Pico than at 74 in 97: the table is
 # grown to 97 slots here whatever the names above number (docs/notes/boards-and-logs.md "Every
 # module's heap"; tests/device/test_effects.py test_the_globals_table_has_room).
 ROOM_NAMES = 74   # names that make the table 97 slots

@@ -37,7 +37,6 @@ class HeldScore:
         self.base = int32s(capacity)
         self.first = int32s(capacity)   # 1 where a slot is its block's first (mark_slot)
         self.p = None
-        self.kinds = ()
         self.h = None
         self.ref = [0] * COND   # the fit's references (begin(): copied), the points' columns
         self.rel = int32s(COND)   # a point's conditions minus ref (point())
@@ -64,7 +63,6 @@ class HeldScore:
     def begin(self, p, kinds, h, ref=None, ts=0):
         """Start scoring p with `kinds` on h (score's arguments)."""
         self.p = p
-        self.kinds = kinds
         self.nk = len(kinds)
         for k in range(self.nk):
             self.kind_ids[k] = kinds[k]

@@ -329,7 +329,6 @@ def from_limbs(f, at):
     return (((((f[at + 3] << 14) + f[at + 2]) << 14) + f[at + 1]) << 14) + f[at]
 
 
-
 def limbs_above(f, a, b):
     """True when the objective in limbs at f[a:] is larger than the one at f[b:]."""
     j = LIMBS - 1
