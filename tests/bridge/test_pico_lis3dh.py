@@ -149,16 +149,14 @@ def fifo_q10(xyz_g, index=None):
     code as the middle of its four digits (4 r + 1.5 mg) and scales, rounding onto Q10 with the
     dither of each sample's index among those the driver read (index; None: 0, 1, 2, ...: the
     app read them all), acal.core.fixed.DITHER_STEP."""
-    from types import SimpleNamespace
-    from acal.logger.lis3dh import LIS3DH
     from accelcal.fixedpoint import dither
+    from test_lis3dh import fifo_to_q10
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
-    hr = SimpleNamespace(_fifo_mid=3, _fifo_so_mg=1)
     i = np.arange(len(d10)) if index is None else np.asarray(index)
     dd = np.broadcast_to(dither(0, int(i.max()) + 1 if len(i) else 0)[i][:, None], d10.shape)
-    q = np.vectorize(lambda d, e: LIS3DH._fifo_to_q10(hr, int(d) << 6, int(e)),
+    q = np.vectorize(lambda d, e: fifo_to_q10(int(d) << 6, 3, 1, int(e)),
                      otypes=[np.int64])(d10, dd)
     # the middle, to Q10's floor with a dither in [0, 1) LSB (under 0.98 mg either way) and
     # 16777 / 16384 for 1.024 (at most 0.03 LSB low at 2 g)
