@@ -233,7 +233,7 @@ APP_SPI = APP.replace("fifo=True,", "fifo=True, bus='spi',")
 
 def test_the_app_on_pico_reads_the_stimulus_over_spi(tmp_path, pico):
     """The chip wired to SPI0 (pico.mjs --spi, boards/pico.py's pins): machine.SPI (DMA for the
-    FIFO's drains) through lis3dh.SPIRegisters reads every sample the stimulus gave at its time,
+    FIFO's drains) through lis3dh_spi.SPIRegisters reads every sample the stimulus gave at its time,
     the same samples as I2C reads, nothing lost, and the capture replays into the board's log."""
     from accelcal.bridge import boardlog
     xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)

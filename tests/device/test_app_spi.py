@@ -1,4 +1,4 @@
-"""The app with the LIS3DH on SPI (lis3dh.SPIRegisters over the virtual board's fake machine.SPI
+"""The app with the LIS3DH on SPI (lis3dh_spi.SPIRegisters over the virtual board's fake machine.SPI
 and chip-select Pin, the simulated chip's SPI front end): the same samples, log and capture as
 over I2C, and nothing allocated per sample under MicroPython (64-bit unix and the 32-bit port)."""
 import os
@@ -12,7 +12,8 @@ from test_app import HEAP_SCRIPT, board, stimulus  # noqa: F401
 
 sys.path.insert(0, str(CHIP_DIR))
 from acal.logger.app import App  # noqa: E402
-from acal.logger.lis3dh import SPIRegisters, open_bus  # noqa: E402
+from acal.logger.lis3dh import open_bus  # noqa: E402
+from acal.logger.lis3dh_spi import SPIRegisters  # noqa: E402
 
 
 class Wired:
@@ -78,7 +79,7 @@ def test_auto_falls_back_to_i2c_when_spi_has_no_chip(tmp_path, stim_path):
         App(Wired(hw, "usb"), rate_hz=25)
 
 
-SPI_BOARD = """from acal.logger.lis3dh import SPIRegisters
+SPI_BOARD = """from acal.logger.lis3dh_spi import SPIRegisters
 
 
 class SpiBoard(SimBoard):

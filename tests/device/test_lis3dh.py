@@ -13,7 +13,7 @@ from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 import adafruit_lis3dh  # noqa: E402
-from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
+from acal.logger import lis3dh, lis3dh_cp, lis3dh_spi  # noqa: E402
 from accelcal.simulate.stimulus import write_stimulus  # noqa: E402
 
 G = adafruit_lis3dh.STANDARD_GRAVITY
@@ -321,7 +321,7 @@ def test_the_driver_on_spi_reads_what_it_reads_on_i2c(tmp_path, rng):
     ci, ki, cs_, ks = _two_chips(tmp_path, rng)
     for fifo in (False, True):
         i2c = lis3dh.LIS3DH(I2C({0x18: ci}), rate_hz=400, range_g=4, fifo=fifo, fth=11)
-        spi = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
+        spi = lis3dh.LIS3DH(lis3dh_spi.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
                             fifo=fifo, fth=11)
         a, b = [0] * 96, [0] * 96
         for k in range(120):
@@ -363,7 +363,7 @@ def test_the_driver_s_spi_first_byte_is_the_datasheet_s():
     """DocID17530 6.2: RW (bit 7) 1 to read, MS (bit 6) 1 to increment, AD5:0; a write is RW = 0,
     its address, its byte, all within one CS low."""
     w = _Wire()
-    d = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
+    d = lis3dh.LIS3DH(lis3dh_spi.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
     assert w.frames[0] == [0x8F, 0]                       # WHO_AM_I: read, one byte, no MS
     assert [0x24, 0x80] in w.frames and [0x2E, 0x80 | 24] in w.frames   # BOOT; stream, FTH 24
     w.frames.clear()

@@ -15,8 +15,9 @@
 # overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
 # OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
 # Buses: LIS3DH takes a bus with machine.I2C's register calls (readfrom_mem_into, writeto_mem; the
-# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  SPIRegisters gives those calls
-# over a machine.SPI and a chip-select Pin (6.2: CS low, a first byte RW | MS | AD5:0, the data).
+# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  lis3dh_spi.SPIRegisters gives
+# those calls over a machine.SPI and a chip-select Pin (its own module: a board with the chip on
+# I2C loads none of it).
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:
@@ -87,48 +88,10 @@ class LIS3DHError(Exception):
 def spi_command(memaddr, read):
     """SPI's first byte (DocID17530 6.2) for an I2C sub-address memaddr: a read is RW | MS | AD5:0,
     MS (the address increments) where memaddr's bit 7 asks for it, as over I2C (6.1.1); a write
-    RW = 0, AD5:0.  Both SPI register classes (this one's, lis3dh_cp's) frame their bytes so."""
+    RW = 0, AD5:0.  Both SPI register classes (lis3dh_spi's, lis3dh_cp's) frame their bytes so."""
     if read:
         return _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
     return memaddr & _SPI_AD
-
-
-class SPIRegisters:
-    """machine.I2C's register calls over a 4-wire SPI (DocID17530 6.2, mode 3: CPOL = CPHA = 1,
-    SPC up to 10 MHz): spi a machine.SPI (write, readinto), cs its chip-select Pin (an output,
-    high between transactions).  A read is CS low, RW | MS | AD5:0, then the bytes clocked in,
-    CS high; a write RW = 0, AD5:0, its byte.  The I2C sub-address's bit 7 (auto-increment)
-    becomes MS; addr is ignored (the chip is chosen by cs).  No allocation per call: the first
-    bytes go out of preallocated buffers.  SPI has no acknowledge: a board without the chip
-    reads what MISO floats to, which check() refuses (WHO_AM_I)."""
-
-    def __init__(self, spi, cs):
-        self.spi = spi
-        self.cs = cs
-        self._cmd = bytearray(1)
-        self._wr = bytearray(2)
-        cs(1)
-
-    def readfrom_mem_into(self, addr, memaddr, buf):
-        self._cmd[0] = spi_command(memaddr, True)
-        self.cs(0)
-        try:
-            self.spi.write(self._cmd)
-            self.spi.readinto(buf)
-        finally:
-            self.cs(1)
-
-    def writeto_mem(self, addr, memaddr, buf):
-        if len(buf) != 1:
-            raise ValueError("single-register writes only")
-        w = self._wr
-        w[0] = spi_command(memaddr, False)
-        w[1] = buf[0]
-        self.cs(0)
-        try:
-            self.spi.write(w)
-        finally:
-            self.cs(1)
 
 
 def answers(regs, address=ADDRESS):

@@ -35,7 +35,7 @@ class BusioRegisters:
 
 
 class BusioSPIRegisters:
-    """lis3dh.SPIRegisters's calls over a busio.SPI and a chip-select digitalio pin, through
+    """lis3dh_spi.SPIRegisters's calls over a busio.SPI and a chip-select digitalio pin, through
     adafruit_bus_device's SPIDevice (it locks and configures the bus, mode 3, and drives CS
     around each transaction)."""
 
