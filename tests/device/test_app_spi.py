@@ -90,15 +90,31 @@ class SpiBoard(SimBoard):
 """
 
 
+SPI_LOADED = '\nprint("SPI_LOADED", "acal.logger.lis3dh_spi" in sys.modules)\n'
+
+
 def test_acquisition_on_spi_allocates_nothing_per_sample_under_micropython(tmp_path, stim_path):
     script = tmp_path / "heap_spi.py"
     script.write_text(HEAP_SCRIPT.replace("app = App(SimBoard(sys.argv[1]),",
-                                          SPI_BOARD + "app = App(SpiBoard(sys.argv[1]),"))
+                                          SPI_BOARD + "app = App(SpiBoard(sys.argv[1]),")
+                      + SPI_LOADED)
     for reader in ("fifo", "registers"):
         out = runtime.run_micropython_script(str(script), str(stim_path), str(tmp_path), reader,
                                              extra_path=[str(CHIP_DIR)]).split()
         assert out[0] == "OK", out
         assert 5000 <= int(out[1]) < 5032 and int(out[3]) == 0
+        assert out[-2:] == ["SPI_LOADED", "True"]
+
+
+def test_a_board_on_i2c_loads_no_spi_code_under_micropython(tmp_path, stim_path):
+    """The SPI register class is its own module (lis3dh_spi), which only a board's spi() imports:
+    the app on an I2C board runs without it ever loaded."""
+    script = tmp_path / "heap_i2c.py"
+    script.write_text(HEAP_SCRIPT + SPI_LOADED)
+    out = runtime.run_micropython_script(str(script), str(stim_path), str(tmp_path), "fifo",
+                                         extra_path=[str(CHIP_DIR)]).split()
+    assert out[0] == "OK", out
+    assert out[-2:] == ["SPI_LOADED", "False"]
 
 
 def test_acquisition_on_spi_allocates_nothing_on_the_32_bit_port(tmp_path, stim_path, mp32):
