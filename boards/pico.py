@@ -29,7 +29,7 @@ def i2c():
 def spi():
     """The LIS3DH's registers over SPI0, mode 3 (DocID17530 6.2), CS on CS_PIN."""
     from machine import SPI, Pin
-    from acal.logger.lis3dh import SPIRegisters
+    from acal.logger.lis3dh_spi import SPIRegisters
     return SPIRegisters(SPI(SPI_ID, baudrate=SPI_BAUD, polarity=1, phase=1, sck=Pin(SCK_PIN),
                             mosi=Pin(MOSI_PIN), miso=Pin(MISO_PIN)), Pin(CS_PIN, Pin.OUT, value=1))
 

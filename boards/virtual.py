@@ -28,7 +28,7 @@ if _hw.has_supply():   # a stimulus with the simulated battery: the board reads 
 
 
 def spi():
-    from acal.logger.lis3dh import SPIRegisters
+    from acal.logger.lis3dh_spi import SPIRegisters
     return SPIRegisters(_hw.spi_bus, _hw.cs)
 
 

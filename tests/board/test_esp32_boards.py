@@ -100,7 +100,9 @@ def test_the_esp32_offers_spi_on_vspis_io_mux_pins(monkeypatch, tmp_path, rng):
     (WHO_AM_I over the virtual board's fake SPI) and reads its FIFO.  BUS stays I2C; the S3 and
     the C3 offer no SPI (no sensor_bus: the app takes their LIS3DH on I2C only)."""
     import numpy as np
-    from acal.logger import lis3dh
+    # lis3dh_spi (which the board file's spi() imports) first: load() swaps sys.implementation
+    # for one without the cache_tag CPython's importer reads
+    from acal.logger import lis3dh, lis3dh_spi  # noqa: F401
     from accelcal.simulate.stimulus import write_stimulus
     from vclock import Clock
     from vlis3dh import SimLIS3DH, Stimulus

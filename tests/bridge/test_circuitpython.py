@@ -374,7 +374,7 @@ for so_mg in (1, 2, 4, 12):
         so = so_mg * 16777
         t = FifoTables(mid, so, %d)
         out = array("i", [7] * 1026)
-        nxt = t.convert(b, 1023, out, 1, 16000)
+        nxt = t.convert(b, 0, 1023, out, 1, 16000)
         print(" ".join(str(v) for v in out), nxt)
 '''
 
@@ -383,7 +383,7 @@ def test_the_fifo_tables_on_circuitpython_give_the_documented_values(rng, chip):
     """On CircuitPython (no emitters) the driver converts the FIFO through its tables (where the
     board file says FIFO_TABLES, as the Feather's does: tests/board/test_nothing_lost.py): there,
     every 10-bit code at every range, HR or not, from the dither 16000 on, gives CPython's
-    fifo_codes_q10 values (held to LIS3DH._fifo_to_q10 in tests/device/test_lis3dh.py) and the
+    fifo_codes_q10 values (held to test_lis3dh.fifo_to_q10, the documented conversion) and the
     same next dither."""
     from acal.core.fixed import SAMPLE_MAX
     from acal.logger import lis3dh
@@ -395,6 +395,6 @@ def test_the_fifo_tables_on_circuitpython_give_the_documented_values(rng, chip):
     for so_mg in (1, 2, 4, 12):
         for mid in (0, 3):
             out = [7] * 1026
-            nxt = lis3dh.fifo_codes_q10(data, 1023, out, 1, mid, so_mg * 16777, SAMPLE_MAX, 16000)
+            nxt = lis3dh.fifo_codes_q10(data, 0, 1023, out, 1, mid, so_mg * 16777, SAMPLE_MAX, 16000)
             want.append(out + [nxt])
     assert [list(map(int, line.split())) for line in lines] == want

@@ -149,16 +149,14 @@ def fifo_q10(xyz_g, index=None):
     code as the middle of its four digits (4 r + 1.5 mg) and scales, rounding onto Q10 with the
     dither of each sample's index among those the driver read (index; None: 0, 1, 2, ...: the
     app read them all), acal.core.fixed.DITHER_STEP."""
-    from types import SimpleNamespace
-    from acal.logger.lis3dh import LIS3DH
     from accelcal.fixedpoint import dither
+    from test_lis3dh import fifo_to_q10
     ug = np.rint(xyz_g * 1e6).astype(np.int64)
     d12 = np.sign(ug) * ((np.abs(ug) + 500) // 1000)
     d10 = np.clip(d12, -2048, 2047) >> 2
-    hr = SimpleNamespace(_fifo_mid=3, _fifo_so_mg=1)
     i = np.arange(len(d10)) if index is None else np.asarray(index)
     dd = np.broadcast_to(dither(0, int(i.max()) + 1 if len(i) else 0)[i][:, None], d10.shape)
-    q = np.vectorize(lambda d, e: LIS3DH._fifo_to_q10(hr, int(d) << 6, int(e)),
+    q = np.vectorize(lambda d, e: fifo_to_q10(int(d) << 6, 3, 1, int(e)),
                      otypes=[np.int64])(d10, dd)
     # the middle, to Q10's floor with a dither in [0, 1) LSB (under 0.98 mg either way) and
     # 16777 / 16384 for 1.024 (at most 0.03 LSB low at 2 g)
@@ -235,7 +233,7 @@ APP_SPI = APP.replace("fifo=True,", "fifo=True, bus='spi',")
 
 def test_the_app_on_pico_reads_the_stimulus_over_spi(tmp_path, pico):
     """The chip wired to SPI0 (pico.mjs --spi, boards/pico.py's pins): machine.SPI (DMA for the
-    FIFO's drains) through lis3dh.SPIRegisters reads every sample the stimulus gave at its time,
+    FIFO's drains) through lis3dh_spi.SPIRegisters reads every sample the stimulus gave at its time,
     the same samples as I2C reads, nothing lost, and the capture replays into the board's log."""
     from accelcal.bridge import boardlog
     xyz = calibration_dance(tmp_path / "stim.bin", RATE, TRUTH, seed=5, rounds=1, rest_s=9)

@@ -1,4 +1,4 @@
-"""The app with the LIS3DH on SPI (lis3dh.SPIRegisters over the virtual board's fake machine.SPI
+"""The app with the LIS3DH on SPI (lis3dh_spi.SPIRegisters over the virtual board's fake machine.SPI
 and chip-select Pin, the simulated chip's SPI front end): the same samples, log and capture as
 over I2C, and nothing allocated per sample under MicroPython (64-bit unix and the 32-bit port)."""
 import os
@@ -12,7 +12,8 @@ from test_app import HEAP_SCRIPT, board, stimulus  # noqa: F401
 
 sys.path.insert(0, str(CHIP_DIR))
 from acal.logger.app import App  # noqa: E402
-from acal.logger.lis3dh import SPIRegisters, open_bus  # noqa: E402
+from acal.logger.lis3dh import open_bus  # noqa: E402
+from acal.logger.lis3dh_spi import SPIRegisters  # noqa: E402
 
 
 class Wired:
@@ -78,7 +79,7 @@ def test_auto_falls_back_to_i2c_when_spi_has_no_chip(tmp_path, stim_path):
         App(Wired(hw, "usb"), rate_hz=25)
 
 
-SPI_BOARD = """from acal.logger.lis3dh import SPIRegisters
+SPI_BOARD = """from acal.logger.lis3dh_spi import SPIRegisters
 
 
 class SpiBoard(SimBoard):
@@ -89,15 +90,31 @@ class SpiBoard(SimBoard):
 """
 
 
+SPI_LOADED = '\nprint("SPI_LOADED", "acal.logger.lis3dh_spi" in sys.modules)\n'
+
+
 def test_acquisition_on_spi_allocates_nothing_per_sample_under_micropython(tmp_path, stim_path):
     script = tmp_path / "heap_spi.py"
     script.write_text(HEAP_SCRIPT.replace("app = App(SimBoard(sys.argv[1]),",
-                                          SPI_BOARD + "app = App(SpiBoard(sys.argv[1]),"))
+                                          SPI_BOARD + "app = App(SpiBoard(sys.argv[1]),")
+                      + SPI_LOADED)
     for reader in ("fifo", "registers"):
         out = runtime.run_micropython_script(str(script), str(stim_path), str(tmp_path), reader,
                                              extra_path=[str(CHIP_DIR)]).split()
         assert out[0] == "OK", out
         assert 5000 <= int(out[1]) < 5032 and int(out[3]) == 0
+        assert out[-2:] == ["SPI_LOADED", "True"]
+
+
+def test_a_board_on_i2c_loads_no_spi_code_under_micropython(tmp_path, stim_path):
+    """The SPI register class is its own module (lis3dh_spi), which only a board's spi() imports:
+    the app on an I2C board runs without it ever loaded."""
+    script = tmp_path / "heap_i2c.py"
+    script.write_text(HEAP_SCRIPT + SPI_LOADED)
+    out = runtime.run_micropython_script(str(script), str(stim_path), str(tmp_path), "fifo",
+                                         extra_path=[str(CHIP_DIR)]).split()
+    assert out[0] == "OK", out
+    assert out[-2:] == ["SPI_LOADED", "False"]
 
 
 def test_acquisition_on_spi_allocates_nothing_on_the_32_bit_port(tmp_path, stim_path, mp32):

@@ -13,7 +13,7 @@ from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
 import adafruit_lis3dh  # noqa: E402
-from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
+from acal.logger import lis3dh, lis3dh_cp, lis3dh_spi  # noqa: E402
 from accelcal.simulate.stimulus import write_stimulus  # noqa: E402
 
 G = adafruit_lis3dh.STANDARD_GRAVITY
@@ -179,9 +179,25 @@ b = bytearray(%r)
 for so_mg in (1, 2, 4, 12):
     for mid in (0, 3):
         out = array("i", [7] * (len(b) // 2 + 2))
-        nxt = lis3dh.fifo_codes_q10(b, len(b) // 2, out, 1, mid, so_mg * 16777, %d, 16000)
+        nxt = lis3dh.fifo_codes_q10(b, 0, len(b) // 2, out, 1, mid, so_mg * 16777, %d, 16000)
+        print(" ".join(str(v) for v in out), nxt)
+        # from a sample inside the read on (the app's drain across its block's end)
+        out = array("i", [7] * (len(b) // 2 + 2))
+        nxt = lis3dh.fifo_codes_q10(b, 300, len(b) // 2, out, 1, mid, so_mg * 16777, %d, 16000)
         print(" ".join(str(v) for v in out), nxt)
 '''
+
+
+def fifo_to_q10(raw, mid, so_mg, d):
+    """The documented conversion of one FIFO value, written out value by value (the reference
+    lis3dh.fifo_codes_q10 and lis3dh_cp's tables are held to): raw the left-justified 16-bit
+    value, its top 10 bits r in half 12-bit digits (8 r + mid, mid = 3 in HR mode: the middle of
+    the code's four digits), so_mg mg a 12-bit digit, d the sample's dither (2**-14 LSB): Q10 g
+    as (h * 16777 + 2 d) >> 15 (x 1.024 / 2), clamped to +-SAMPLE_MAX."""
+    from acal.core.fixed import SAMPLE_MAX
+    h = ((raw >> 6) * 8 + mid) * so_mg
+    v = (h * 16777 + (d << 1)) >> 15
+    return max(-SAMPLE_MAX, min(SAMPLE_MAX, v))
 
 
 def fifo_codes_every_value(rng):
@@ -193,32 +209,35 @@ def fifo_codes_every_value(rng):
 
 def test_fifo_conversion_is_the_documented_one_on_micropython(rng, tmp_path):
     """The viper loop read_fifo converts with, run by the MicroPython unix port as the boards'
-    emitters compile it, gives LIS3DH._fifo_to_q10 of every 10-bit code, at every range, in
+    emitters compile it, gives fifo_to_q10 of every 10-bit code, at every range, in
     HR mode (a code read as its middle) and not, clamped at SAMPLE_MAX, with the dither of each
     sample (three values) from the one given (16000: it wraps), returning the next sample's;
-    the cells around the destination are untouched."""
+    the cells around the destination are untouched; and from a value inside the read on."""
     from acal.core.fixed import SAMPLE_MAX
     from accelcal.bridge import runtime
     raw, data = fifo_codes_every_value(rng)
     f = tmp_path / "fifo.py"
-    f.write_text(FIFO_SCRIPT % (data, SAMPLE_MAX))
+    f.write_text(FIFO_SCRIPT % (data, SAMPLE_MAX, SAMPLE_MAX))
     got = [list(map(int, line.split())) for line in
            runtime.run_micropython_script(str(f)).strip().splitlines()]
     signed = [int(v) - 0x10000 if v & 0x8000 else int(v) for v in raw]
     dith = [(16000 + (j // 3) * 10127) & 16383 for j in range(len(signed))]
     nxt = (16000 + len(signed) // 3 * 10127) & 16383   # 341 whole samples of 1024 values
+    late = signed[300:]
+    nxt_late = (16000 + len(late) // 3 * 10127) & 16383
     want = []
     for so_mg in (1, 2, 4, 12):
         for mid in (0, 3):
-            d = lis3dh.LIS3DH.__new__(lis3dh.LIS3DH)
-            d._fifo_so_mg, d._fifo_mid = so_mg, mid
-            want.append([7] + [d._fifo_to_q10(v, e) for v, e in zip(signed, dith)] + [7, nxt])
+            want.append([7] + [fifo_to_q10(v, mid, so_mg, e) for v, e in zip(signed, dith)]
+                        + [7, nxt])
+            want.append([7] + [fifo_to_q10(v, mid, so_mg, e) for v, e in zip(late, dith)]
+                        + [7] * 301 + [nxt_late])
     assert got == want
     assert max(map(max, want)) == SAMPLE_MAX and min(map(min, want)) == -SAMPLE_MAX  # clamped
     # and CPython's run of the same source (the WebAssembly port and CircuitPython run it so)
     out = [7] * 1026
-    assert lis3dh.fifo_codes_q10(data, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX, 16000) == nxt
-    assert out == want[-1][:-1]
+    assert lis3dh.fifo_codes_q10(data, 0, 1024, out, 1, 3, 12 * 16777, SAMPLE_MAX, 16000) == nxt
+    assert out == want[-2][:-1]
 
 
 def test_fifo_tables_give_the_same_values_for_every_code_and_dither(rng):
@@ -240,11 +259,16 @@ def test_fifo_tables_give_the_same_values_for_every_code_and_dither(rng):
             got = np.array(v0, dtype=np.int64)[:, None] + (d2 >= np.array(carry)[:, None])
             assert np.array_equal(got, want), (so_mg, mid)
             ref = [7] * 1026
-            nxt = lis3dh.fifo_codes_q10(data, 1024, ref, 1, mid, so, SAMPLE_MAX, 16000)
+            nxt = lis3dh.fifo_codes_q10(data, 0, 1024, ref, 1, mid, so, SAMPLE_MAX, 16000)
             out = [7] * 1026
-            assert lis3dh_cp.FifoTables(mid, so, SAMPLE_MAX).convert(data, 1023, out, 1, 16000) == \
-                lis3dh.fifo_codes_q10(data, 1023, [0] * 1024, 0, mid, so, SAMPLE_MAX, 16000)
+            tables = lis3dh_cp.FifoTables(mid, so, SAMPLE_MAX)
+            assert tables.convert(data, 0, 1023, out, 1, 16000) == \
+                lis3dh.fifo_codes_q10(data, 0, 1023, [0] * 1024, 0, mid, so, SAMPLE_MAX, 16000)
             assert out[:1024] == ref[:1024] and out[1024:] == [7, 7]
+            late = [7] * 1026     # from a sample inside the read on
+            assert tables.convert(data, 300, 1023, out, 1, 16000) == \
+                lis3dh.fifo_codes_q10(data, 300, 1023, late, 1, mid, so, SAMPLE_MAX, 16000)
+            assert out[:724] == late[:724]
     assert nxt == (16000 + 341 * 10127) & 16383
 
 
@@ -297,7 +321,7 @@ def test_the_driver_on_spi_reads_what_it_reads_on_i2c(tmp_path, rng):
     ci, ki, cs_, ks = _two_chips(tmp_path, rng)
     for fifo in (False, True):
         i2c = lis3dh.LIS3DH(I2C({0x18: ci}), rate_hz=400, range_g=4, fifo=fifo, fth=11)
-        spi = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
+        spi = lis3dh.LIS3DH(lis3dh_spi.SPIRegisters(SPI(cs_), Pin(cs_)), rate_hz=400, range_g=4,
                             fifo=fifo, fth=11)
         a, b = [0] * 96, [0] * 96
         for k in range(120):
@@ -339,7 +363,7 @@ def test_the_driver_s_spi_first_byte_is_the_datasheet_s():
     """DocID17530 6.2: RW (bit 7) 1 to read, MS (bit 6) 1 to increment, AD5:0; a write is RW = 0,
     its address, its byte, all within one CS low."""
     w = _Wire()
-    d = lis3dh.LIS3DH(lis3dh.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
+    d = lis3dh.LIS3DH(lis3dh_spi.SPIRegisters(SPI(w), Pin(w)), rate_hz=100, fifo=True, fth=24)
     assert w.frames[0] == [0x8F, 0]                       # WHO_AM_I: read, one byte, no MS
     assert [0x24, 0x80] in w.frames and [0x2E, 0x80 | 24] in w.frames   # BOOT; stream, FTH 24
     w.frames.clear()

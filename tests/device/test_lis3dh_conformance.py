@@ -21,7 +21,7 @@ from vbus import BusioI2C, I2C  # noqa: E402
 from vclock import Clock  # noqa: E402
 from vlis3dh import SimLIS3DH, Stimulus  # noqa: E402
 
-from acal.logger import lis3dh, lis3dh_cp  # noqa: E402
+from acal.logger import lis3dh, lis3dh_cp, lis3dh_spi  # noqa: E402
 from lis3dh_models import js_model, python_model  # noqa: E402
 
 # lis3dh_reg.h
@@ -674,13 +674,13 @@ class Frames:
 
 
 def spi_driver(drv, **settings):
-    """The driver over SPI (lis3dh.SPIRegisters on machine.SPI, or lis3dh_cp's on busio), its
+    """The driver over SPI (lis3dh_spi.SPIRegisters on machine.SPI, or lis3dh_cp's on busio), its
     transactions logged; after a drain of 20 sets, a register sample and a temperature."""
     from vbus import BusioSPI, DigitalInOut, Pin, SPI
     clock = Clock()
     fr = Frames(SimLIS3DH(Stimulus(str(drv.stim)), clock))
     if drv.flavour == "micropython":
-        regs = lis3dh.SPIRegisters(SPI(fr), Pin(fr))
+        regs = lis3dh_spi.SPIRegisters(SPI(fr), Pin(fr))
     else:
         regs = lis3dh_cp.BusioSPIRegisters(BusioSPI(fr), DigitalInOut(fr))
     d = lis3dh.LIS3DH(regs, rate_hz=400, fifo=True, fth=24, **settings)

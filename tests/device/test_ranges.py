@@ -637,7 +637,7 @@ def test_fifo_conversion_stays_small_at_every_code(monkeypatch):
         v = (r << 6) & 0xFFFF | 63
         data += [T(v & 0xFF), T(v >> 8)]
     out = [0] * 1024
-    lis3dh.fifo_codes_q10(data, T(1024), out, T(0), T(3), T(12 * 16777), T(SAMPLE_MAX),
+    lis3dh.fifo_codes_q10(data, T(0), T(1024), out, T(0), T(3), T(12 * 16777), T(SAMPLE_MAX),
                           T(16383))   # the largest dither
     assert out[0] == -SAMPLE_MAX and out[-1] == SAMPLE_MAX
     assert tr.ops > 10000 and tr.big == 0, (tr.big, np.log2(tr.max_abs))

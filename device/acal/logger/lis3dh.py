@@ -15,8 +15,9 @@
 # overwrites the oldest), bit 5 EMPTY, bits 4:0 FSS (unread, 0..31): the level is 32 when
 # OVRN_FIFO is set, else FSS -- never WTM, which says nothing about how many.
 # Buses: LIS3DH takes a bus with machine.I2C's register calls (readfrom_mem_into, writeto_mem; the
-# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  SPIRegisters gives those calls
-# over a machine.SPI and a chip-select Pin (6.2: CS low, a first byte RW | MS | AD5:0, the data).
+# sub-address's bit 7 asks for auto-increment, DocID17530 6.1.1).  lis3dh_spi.SPIRegisters gives
+# those calls over a machine.SPI and a chip-select Pin (its own module: a board with the chip on
+# I2C loads none of it).
 # Temperature: OUT_ADC3 gives the change from an unknown chip reference, 1 digit/degC; an absolute
 # value needs one reference reading (the board file's TEMP_REF_C), else it stays relative.
 try:
@@ -87,48 +88,10 @@ class LIS3DHError(Exception):
 def spi_command(memaddr, read):
     """SPI's first byte (DocID17530 6.2) for an I2C sub-address memaddr: a read is RW | MS | AD5:0,
     MS (the address increments) where memaddr's bit 7 asks for it, as over I2C (6.1.1); a write
-    RW = 0, AD5:0.  Both SPI register classes (this one's, lis3dh_cp's) frame their bytes so."""
+    RW = 0, AD5:0.  Both SPI register classes (lis3dh_spi's, lis3dh_cp's) frame their bytes so."""
     if read:
         return _SPI_READ | (_SPI_MS if memaddr & _AUTO_INC else 0) | (memaddr & _SPI_AD)
     return memaddr & _SPI_AD
-
-
-class SPIRegisters:
-    """machine.I2C's register calls over a 4-wire SPI (DocID17530 6.2, mode 3: CPOL = CPHA = 1,
-    SPC up to 10 MHz): spi a machine.SPI (write, readinto), cs its chip-select Pin (an output,
-    high between transactions).  A read is CS low, RW | MS | AD5:0, then the bytes clocked in,
-    CS high; a write RW = 0, AD5:0, its byte.  The I2C sub-address's bit 7 (auto-increment)
-    becomes MS; addr is ignored (the chip is chosen by cs).  No allocation per call: the first
-    bytes go out of preallocated buffers.  SPI has no acknowledge: a board without the chip
-    reads what MISO floats to, which check() refuses (WHO_AM_I)."""
-
-    def __init__(self, spi, cs):
-        self.spi = spi
-        self.cs = cs
-        self._cmd = bytearray(1)
-        self._wr = bytearray(2)
-        cs(1)
-
-    def readfrom_mem_into(self, addr, memaddr, buf):
-        self._cmd[0] = spi_command(memaddr, True)
-        self.cs(0)
-        try:
-            self.spi.write(self._cmd)
-            self.spi.readinto(buf)
-        finally:
-            self.cs(1)
-
-    def writeto_mem(self, addr, memaddr, buf):
-        if len(buf) != 1:
-            raise ValueError("single-register writes only")
-        w = self._wr
-        w[0] = spi_command(memaddr, False)
-        w[1] = buf[0]
-        self.cs(0)
-        try:
-            self.spi.write(w)
-        finally:
-            self.cs(1)
 
 
 def answers(regs, address=ADDRESS):
@@ -181,10 +144,10 @@ class LIS3DH:
         self._two = bytearray(2)
         self._xyz = bytearray(6)
         self._fifo_buf = bytearray(6 * 32)
-        # Preallocated views: slicing a memoryview allocates, so take all 33 lengths once.
+        # Preallocated views: slicing a memoryview allocates, so take all 33 lengths once (the
+        # conversion reads the buffer itself from a sample's index: no views for it).
         mv = memoryview(self._fifo_buf)
         self._fifo_views = [mv[0:6 * n] for n in range(33)]
-        self._fifo_from = [mv[6 * n:] for n in range(33)]   # from sample n on (fifo_convert)
         self.x = 0
         self.y = 0
         self.z = 0
@@ -248,17 +211,6 @@ class LIS3DH:
             return -SAMPLE_MAX
         return v
 
-    def _fifo_to_q10(self, raw, d):
-        # raw: the left-justified 16-bit value; its top 10 bits, in half 12-bit digits; d: the
-        # sample's dither (2**-14 LSB)
-        h = ((raw >> 6) * 8 + self._fifo_mid) * self._fifo_so_mg
-        v = (h * _MG_Q10_MUL + (d << 1)) >> _HALF_MG_Q10_SHIFT
-        if v > SAMPLE_MAX:
-            return SAMPLE_MAX
-        if v < -SAMPLE_MAX:
-            return -SAMPLE_MAX
-        return v
-
     def data_ready(self):
         """True when the output registers hold a sample not read yet (STATUS_REG ZYXDA);
         overrun tells whether one was missed (ZYXOR)."""
@@ -304,11 +256,12 @@ class LIS3DH:
         dither)."""
         # a viper loop on ports with emitters (fifo_codes_q10): 92 us a sample as a bytecode
         # loop on the emulated Pico; CircuitPython's tables (above)
+        i = 3 * first
         if self.fifo_tables is not None:
-            self.dither = self.fifo_tables.convert(self._fifo_from[first], 3 * n, out, 3 * start,
+            self.dither = self.fifo_tables.convert(self._fifo_buf, i, i + 3 * n, out, 3 * start,
                                                    self.dither)
             return
-        self.dither = fifo_codes_q10(self._fifo_from[first], 3 * n, out, 3 * start,
+        self.dither = fifo_codes_q10(self._fifo_buf, i, i + 3 * n, out, 3 * start,
                                      self._fifo_mid, self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX,
                                      self.dither)
 
@@ -325,19 +278,22 @@ class LIS3DH:
 
 
 @viper
-def fifo_codes_q10(b, nv: int, out, at: int, mid: int, so: int, top: int, dith: int) -> int:
-    # LIS3DH._fifo_to_q10 of the nv little-endian 16-bit values in the bytearray b (x y z a
-    # sample), into the int array out from index at: a viper loop on ports with emitters.  dith:
-    # the first sample's dither; returns the next one's (each sample's three values take one).
+def fifo_codes_q10(b, i: int, end: int, out, at: int, mid: int, so: int, top: int,
+                   dith: int) -> int:
+    # The FIFO's codes in Q10 g: the little-endian 16-bit values i..end-1 of the bytearray b (x y
+    # z a sample, i a multiple of 3), their top 10 bits in half 12-bit digits (h = (8 r + mid) x
+    # mg a digit), (h * _MG_Q10_MUL + 2 d) >> 15 clamped to +-top, into the int array out from
+    # index at: a viper loop on ports with emitters.  dith (d): the first sample's dither
+    # (2**-14 LSB); returns the next one's (each sample's three values take one).
     # so = mg a 12-bit digit x _MG_Q10_MUL (<= 12 x 16777); |(8 r + 3) so| + 2 * 16383 <= 4099 x
     # 201324 + 32766 < 8.3e8 < 2**30 (r: a 10-bit code, -512..511; tests/device/test_ranges.py).
     # The sign is taken by hand and >> of a viper int is arithmetic, so a 64-bit word (the unix
     # port) gives the same values.
     p = ptr8(b)
     d = ptr32(out)
-    i = 0
+    at -= i
     k = 0
-    while i < nv:
+    while i < end:
         v = int(p[2 * i]) | (int(p[2 * i + 1]) << 8)
         if v & 0x8000:
             v -= 0x10000

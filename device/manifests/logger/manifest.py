@@ -10,6 +10,7 @@ package(
     files=[
         "logger/app.py",
         "logger/lis3dh.py",
+        "logger/lis3dh_spi.py",
         "logger/log.py",
         "logger/processor.py",
     ],
