@@ -3,6 +3,7 @@ Every cycle the run's --stats counts is in the profile (no more, no fewer), the 
 the firmware's symbols (the interpreter's loop for bytecode, RAM for viper's native code), and
 the same script twice on fresh boots gives the same profile to the cycle, so --minus cancels
 what two scripts share.  Bad input: one line, exit 2."""
+import shutil
 import subprocess
 import sys
 
@@ -48,6 +49,7 @@ def test_bad_input_is_one_line(args, says):
     assert r.stderr.count("\n") == 1 and says in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.skipif(shutil.which("nm") is None, reason="binutils' nm reads the firmware's symbols")
 def test_the_profile_holds_every_cycle_and_names_the_firmwares_functions():
     prof, cycles = chip_profile.profile(SCRIPT)
     assert sum(prof.values()) == cycles > 0

@@ -15,6 +15,7 @@ boards-and-logs.md): gc_alloc took 30 % of the Processor's per-sample cycles, it
 import argparse
 import bisect
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -77,11 +78,14 @@ def main(argv: list[str]) -> int:
     if not ELF.is_file():
         print(f"chip_profile: {ELF} is missing (the firmware's symbols)", file=sys.stderr)
         return 2
+    if shutil.which("nm") is None:
+        print("chip_profile: nm (binutils) is not installed: it reads the firmware's symbols",
+              file=sys.stderr)
+        return 2
     addrs, names = symbols()
     with tempfile.TemporaryDirectory() as tmp:
         image = None
         if a.rev:   # the older tree's package on a flash image of its own (as units_at.py)
-            import shutil
             import units_at
             try:
                 old = units_at.old_package(a.rev, Path(tmp))
