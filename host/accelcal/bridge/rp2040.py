@@ -298,10 +298,12 @@ class EmulatedRun:
 
 
 def run_script(code: str | Path, stdin: bytes = b"", fw: Firmware = MICROPYTHON,
-               timeout: float = 1800, image: Path | None = None) -> EmulatedRun:
+               timeout: float = 1800, image: Path | None = None,
+               profile: Path | None = None) -> EmulatedRun:
     """Run a script (its text or a file) on a fresh boot of the chip with the package
     installed (image: a flash_image kept aside, another tree's); stdin is streamed to the
-    script's sys.stdin."""
+    script's sys.stdin.  profile: a file for the script's cycles by instruction address
+    (rp2040.mjs --profile; tools/chip_profile.py reads it)."""
     uf2, rom = firmware_files(fw)
     image = image or flash_image(fw)
     with tempfile.TemporaryDirectory() as tmp:
@@ -313,7 +315,8 @@ def run_script(code: str | Path, stdin: bytes = b"", fw: Firmware = MICROPYTHON,
             spec += "::" + str(Path(tmp) / "stdin")
         stats = Path(tmp) / "stats.jsonl"
         p = _node(["--firmware", str(uf2), "--bootrom", str(rom), "--flavour", fw.flavour,
-                   "--flash-in", str(image), "--quiet", "--exec", spec, "--stats", str(stats)],
+                   "--flash-in", str(image), "--quiet", "--exec", spec, "--stats", str(stats),
+                   *(["--profile", str(profile)] if profile else [])],
                   timeout=timeout)
         if p.returncode != 0:
             raise InterpreterFailed(fw.name, p)

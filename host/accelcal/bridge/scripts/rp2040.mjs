@@ -7,12 +7,16 @@
 //   node rp2040.mjs --rp2040js INDEX_JS --firmware FW.uf2 --bootrom ROM.bin
 //        [--flavour micropython|circuitpython] [--flash-in IMG] [--flash-out IMG]
 //        [--put LOCAL=REMOTE ...] [--exec SCRIPT[::STDIN_FILE] ...] [--stats FILE] [--quiet]
+//        [--profile FILE]
 //
 // In this order: boot (from a saved flash image if given), enter the raw REPL, put each file on
 // the board's filesystem (folders made as needed), soft-reset (a clean heap), run each script
 // (its STDIN_FILE, if any, streamed to the script's sys.stdin while it runs) and print what it
 // prints; save the flash image.  A script that raises: its error on stderr, exit 1.
-// --stats appends one JSON line per script: cycles, emulated ms, wall ms.
+// --stats appends one JSON line per script: cycles, emulated ms, wall ms.  --profile writes the
+// scripts' cycles by the address of the instruction that took them, {"address": cycles, ...}
+// in JSON: every cycle --stats counts, nothing else (tools/chip_profile.py names the firmware's
+// functions from its ELF's symbols).
 //
 // What this adds to rp2040js, each marked below:
 //  1. Flash writes: the boot ROM's flash_range_erase ('RE') and flash_range_program ('RP') are
@@ -65,7 +69,8 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
     for (let p = romHalf(0x14); romHalf(p); p += 4) if (romHalf(p) === code) return romHalf(p + 2) & ~1;
     throw new Error(`ROM function ${name} not found`);
   };
-  const chip = { mcu, cycles: 0, wakeups: 0, flavour, flashWrites: 0, hooks: new Map(), stopAt: Infinity };
+  const chip = { mcu, cycles: 0, wakeups: 0, flavour, flashWrites: 0, hooks: new Map(), stopAt: Infinity,
+    profile: null, profiling: false };
   chip.hooks.set(romFunc('RE'), (r) => { mcu.flash.fill(0xff, r[0], r[0] + r[1]); chip.flashWrites++; });
   chip.hooks.set(romFunc('RP'), (r) => { // NOR flash only clears bits
     for (let i = 0; i < r[2]; i++) mcu.flash[r[0] + i] &= mcu.readUint8(r[1] + i);
@@ -112,6 +117,7 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
   // run up to n cycles; false when the core sleeps with nothing scheduled
   chip.step = (n) => {
     const { core, clock } = mcu;
+    const prof = chip.profiling ? chip.profile : null;   // exec() counts a script's cycles
     const end = Math.min(chip.cycles + n, chip.stopAt);
     while (chip.cycles < end) {
       if (core.waiting) { // WFE/WFI: skip to the next alarm (a wake-up when it ends the wait)
@@ -124,8 +130,10 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
         const hook = chip.hooks.get(core.PC);
         if (hook) { hook(core.registers); core.PC = core.LR & ~1; continue; } // return to the caller
       }
+      const pc = core.PC;
       const c = core.executeInstruction();
       chip.cycles += c;
+      if (prof !== null) prof.set(pc, (prof.get(pc) || 0) + c);
       // 5. WFI with an interrupt already pending does not sleep
       if (core.waiting && (core.pendingInterrupts & core.enabledInterrupts)
           && mcu.readUint16((core.PC - 2) >>> 0) === WFI) core.waiting = false;
@@ -214,7 +222,12 @@ export function exec(chip, code, { stdin = null, maxCycles = HZ * 3600 } = {}) {
   chip.send('\x04');
   if (stdin) chip.send(stdin);
   // "OK", the output, ^D, the error, ^D, ">"
-  chip.runUntil(() => chip.rx.eots >= 2 && chip.rx.endsWith('\x04>'), 'the script end', maxCycles);
+  chip.profiling = Boolean(chip.profile);
+  try {
+    chip.runUntil(() => chip.rx.eots >= 2 && chip.rx.endsWith('\x04>'), 'the script end', maxCycles);
+  } finally {
+    chip.profiling = false;
+  }
   const wallMs = performance.now() - t0;
   const text = chip.rx.take();
   if (!text.startsWith('OK')) throw new Error(`the raw REPL refused the code: ${text.slice(0, 200)}`);
@@ -263,6 +276,7 @@ function main() {
     'flash-in': { type: 'string' }, 'flash-out': { type: 'string' },
     put: { type: 'string', multiple: true, default: [] }, exec: { type: 'string', multiple: true, default: [] },
     stats: { type: 'string' }, quiet: { type: 'boolean', default: false },
+    profile: { type: 'string' },
   } });
   for (const need of ['rp2040js', 'firmware', 'bootrom']) {
     if (!values[need]) { console.error(`rp2040.mjs: --${need} is required`); process.exit(2); }
@@ -280,6 +294,7 @@ function main() {
       putFile(chip, fs.readFileSync(local), remote);
     }
     softReset(chip);
+    if (values.profile) chip.profile = new Map();
     let failed = false;
     for (const spec of values.exec) {
       const [file, input] = spec.split('::');
@@ -294,6 +309,7 @@ function main() {
       if (failed) break;
     }
     if (values['flash-out']) fs.writeFileSync(values['flash-out'], chip.flashImage());
+    if (values.profile) fs.writeFileSync(values.profile, JSON.stringify(Object.fromEntries(chip.profile)));
     process.exitCode = failed ? 1 : 0;
   });
 }
