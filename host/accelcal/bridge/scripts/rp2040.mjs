@@ -130,7 +130,7 @@ export function createChip(emu, { firmware, bootrom, flashIn = null, flavour = '
         const hook = chip.hooks.get(core.PC);
         if (hook) { hook(core.registers); core.PC = core.LR & ~1; continue; } // return to the caller
       }
-      const pc = core.PC;
+      const pc = prof !== null ? core.PC : 0;
       const c = core.executeInstruction();
       chip.cycles += c;
       if (prof !== null) prof.set(pc, (prof.get(pc) || 0) + c);
