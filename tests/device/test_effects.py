@@ -149,12 +149,12 @@ kinds = sorted(effects.NAMES)
 for trial in range(60):
     m = 1 + trial % 4                              # 1..4 effects, any kinds, any order
     ids = array("i", [kinds[rnd(len(kinds) * 8) % len(kinds)] for _ in range(m)])
-    offs = array("i", [rnd(1 << 22) for _ in range(3)])   # the offsets' rows >> 8, raw_row's
+    offs = array("i", [rnd(1 << 22) for _ in range(3)])   # the offsets' rows >> 8, point_row's
     u = [rnd(1 << 25) for _ in range(3)]
     d = array("i", [rnd(160), rnd(1 << 15), rnd(1500)] + [0] * (COND - 3))
     ts = rnd(1 << 15)
     alone = []
-    for k in range(m):                             # one call a kind (raw_row before)
+    for k in range(m):                             # one call a kind (the row before)
         a = array("i", u)
         effects.correct_kinds(ids, k, k + 1, offs, 0, a, d, 0, ts, 0)
         alone += list(a)
@@ -165,7 +165,7 @@ for trial in range(60):
 
 
 def test_each_kind_alone_in_one_call_is_one_call_a_kind(tmp_path):
-    """correct_kinds with clamp < 0 (GaussNewton raw_row's effect columns in one call): kind i's
+    """correct_kinds with clamp < 0 (normal_sums.point_row's effect columns in one call): kind i's
     result from the reading as given, with the same three parameters, lands in reading[3 + 3 i:]
     and equals a call with that kind alone, for every kind (forms, sources, a step) in models of
     1-4 effects; the reading's first three ints are left as they were; CPython and the real

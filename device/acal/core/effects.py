@@ -315,7 +315,7 @@ def correct_kinds(kind_ids, k0: int, k: int, params, j: int, reading, cond, cj: 
     # g) in place, the parameters of kind_ids[i] at params[j + 3 (i - k0)] (an int32 array), at
     # the relative conditions cond[cj:cj + bins.COND] (an int32 array, regressor's d); after
     # each, the reading clamped to +-clamp when clamp > 0 (model.remove_effects' FIT_W_MAX).
-    # clamp < 0: each kind alone instead (a Jacobian row's effect columns: GaussNewton raw_row),
+    # clamp < 0: each kind alone instead (a Jacobian row's effect columns: normal_sums.point_row),
     # every one from the reading as given with the same parameters params[j:j + 3], kind_ids[i]'s
     # result into reading[3 + 3 (i - k0):6 + 3 (i - k0)] (reading then holds 3 + 3 (k - k0)
     # ints; its first three are left as they were): the values of k - k0 calls of one kind

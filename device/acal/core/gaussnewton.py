@@ -41,7 +41,7 @@ from acal.core.status import OK, DIVERGED, TOO_FEW, OUT_OF_BOUNDS, UNDETERMINED
 from acal.core.solve import Solver
 from acal.core.status import Sliced
 from acal.core.normal_sums import (QD_BASE, QD_EFFECT, F_TAU_OFFSET, accum_points, trial_points,
-                               insert_abs, q24, above, rhs_from_limbs, point_residual)
+                               insert_abs, q24, above, rhs_from_limbs, point_row)
 
 DEFAULT_ITERATIONS = 20   # Gauss-Newton steps per fit (it stops earlier once converged)
 # residuals per step() of a trial (docs/method-and-formats.md "Sliced fit")
@@ -115,7 +115,7 @@ class GaussNewton(Sliced):
         self.xshift = [0] * np_
         self.step_ = [0] * np_
         self.w = int32s(3)              # int32: effects.correct_kinds' pointers
-        self.z = int32s(3 + 3 * len(self.kinds))   # raw_row: the point, each effect's result
+        self.z = int32s(3 + 3 * len(self.kinds))   # point_row: the point, each effect's result
         self.q = int32s(3)
         self.nk = len(self.kinds)
         self.ncond = COND               # aux's conditions a point, for normal_sums' viper rows
@@ -218,7 +218,7 @@ class GaussNewton(Sliced):
     def point(self, i, w):
         """Point i's residual at p (Q22 g^2), and its reading with the effects removed into w
         (a list of 3, Q24 g): what acal/core/changepoint.py reads."""
-        r = point_residual(self, self.p, i)
+        r = point_row(self, self.p, i, 0)
         src = self.w if self.kinds else self.u
         at = 0 if self.kinds else 3 * i
         for c in range(3):

@@ -72,7 +72,7 @@ def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
     w = int(SIGN_SHIFT)
     start = i
     while i < end:
-        r0 = int(raw_row(fit, params, i))
+        r0 = int(point_row(fit, params, i, 1))
         ar = r0 if r0 >= 0 else 0 - r0
         grows = (ar >> tau) >= 262144
         k = 0
@@ -143,11 +143,11 @@ def accum_points(fit, i: int, end: int, tau: int, f: int) -> int:
 def trial_points(fit, params, i: int, end: int, t: int, ft: int) -> int:
     # The trial objective over the points [i, end) at params: each residual into fit.rt, ft
     # plus floor(r**2 4**-t) each, saturated at F_LIMIT (2**29); a residual past 2**(13 + t)
-    # (TRIAL_MAX) makes it F_LIMIT.  Viper on ports with emitters: point_residual() is called;
+    # (TRIAL_MAX) makes it F_LIMIT.  Viper on ports with emitters: point_row() is called;
     # floor(r**2 4**-t) by wide.mul_shift.
     rt = ptr32(fit.rt)
     while i < end:
-        r = int(point_residual(fit, params, i))
+        r = int(point_row(fit, params, i, 0))
         rt[i] = r
         if ((r if r >= 0 else 0 - r) >> t) >= 8192:
             ft = 536870912
@@ -295,69 +295,61 @@ def rhs_from_limbs(high, low, rhs, n: int, w: int) -> int:
 
 
 @viper
-def point_residual(fit, params, i: int) -> int:
+def point_row(fit, params, i: int, columns: int) -> int:
     # Point i of a GaussNewton fit: its residual at params (an int32 array; Q22 g^2), a composed
     # model's effects removed first, into fit.w (effects.correct_kinds: model.remove_effects'
-    # integers, each axis clamped to +-FIT_W_MAX); the Jacobian row, a by-product, into fit.d
-    # (free whenever a residual alone is asked for).  Viper on ports with emitters.
+    # integers, each axis clamped to +-FIT_W_MAX); the 9 parameters' Jacobian row, a by-product
+    # (model.residual_jacobian), into fit.d.  columns: the effects' columns too (the raw row
+    # the sums take): dr/dtheta = dr/do . dw/dtheta, the effect's correction of the reading with
+    # the offsets' rows >> (QD_BASE - QD_EFFECT) = 8 as its parameters (effects.correct_kinds
+    # with no clamp: each kind alone, clamp < 0, one call for every effect).  One function for
+    # both, each of the fit's arrays read once a point: the sums' row as a second call re-read
+    # them and paid a call, 2.6 % of a base+temp_offset fit on the emulated Pico.  Viper on
+    # ports with emitters.
     u = ptr32(fit.u)
+    row = fit.d
     w = int(SIGN_SHIFT)
     at = 3 * i
     x = int(u[at]) << w >> w
     y = int(u[at + 1]) << w >> w
     z = int(u[at + 2]) << w >> w
     nk = int(fit.nk)
-    if nk:
-        removed = fit.w
-        v = ptr32(removed)
-        j = int(fit.ncond) * i    # bins.COND per point (a viper loop takes no other module's const)
-        v[0] = x
-        v[1] = y
-        v[2] = z
-        correct_kinds(fit.kind_ids, 0, nk, params, 9, removed, fit.aux, j, int(fit.ts),
-                      int(FIT_W_MAX))
-        x = int(v[0]) << w >> w
-        y = int(v[1]) << w >> w
-        z = int(v[2]) << w >> w
-    return int(residual_jacobian(params, x, y, z, fit.d))
-
-
-@viper
-def raw_row(fit, params, i: int) -> int:
-    # Point i's residual at params and its raw Jacobian row into fit.d (the 9 parameters'
-    # from model.residual_jacobian; an effect's: dr/dtheta = dr/do . dw/dtheta, the effect's
-    # correction of the reading with the offsets' rows >> (QD_BASE - QD_EFFECT) = 8 as its
-    # parameters, effects.correct_kinds with no clamp: each kind alone, clamp < 0, one call for
-    # every effect).  Viper on ports with emitters.
-    r0 = int(point_residual(fit, params, i))
-    nk = int(fit.nk)
     if nk == 0:
+        return int(residual_jacobian(params, x, y, z, row))
+    removed = fit.w
+    v = ptr32(removed)
+    aux = fit.aux
+    ids = fit.kind_ids
+    j = int(fit.ncond) * i    # bins.COND per point (a viper loop takes no other module's const)
+    ts = int(fit.ts)
+    v[0] = x
+    v[1] = y
+    v[2] = z
+    correct_kinds(ids, 0, nk, params, 9, removed, aux, j, ts, int(FIT_W_MAX))
+    x = int(v[0]) << w >> w
+    y = int(v[1]) << w >> w
+    z = int(v[2]) << w >> w
+    r0 = int(residual_jacobian(params, x, y, z, row))
+    if not columns:
         return r0
-    w = int(SIGN_SHIFT)
-    u = ptr32(fit.u)
-    d = ptr32(fit.d)
+    d = ptr32(row)
     offs = fit.q
     q = ptr32(offs)
     moved = fit.z
-    z = ptr32(moved)
-    aux = fit.aux
-    ids = fit.kind_ids
-    at = 3 * i
-    j = int(fit.ncond) * i
-    ts = int(fit.ts)
+    m = ptr32(moved)
     c = 0
     while c < 3:
         q[c] = (int(d[6 + c]) << w >> w) >> 8
         c += 1
-    z[0] = u[at]
-    z[1] = u[at + 1]
-    z[2] = u[at + 2]
+    m[0] = u[at]
+    m[1] = u[at + 1]
+    m[2] = u[at + 2]
     correct_kinds(ids, 0, nk, offs, 0, moved, aux, j, ts, -1)   # each kind alone, one call
     k = 0
     while k < 3 * nk:
         c = 0
         while c < 3:
-            d[9 + k + c] = (int(z[3 + k + c]) << w >> w) - (int(u[at + c]) << w >> w)
+            d[9 + k + c] = (int(m[3 + k + c]) << w >> w) - (int(u[at + c]) << w >> w)
             c += 1
         k += 3
     return r0
