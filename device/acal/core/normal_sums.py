@@ -304,8 +304,8 @@ def point_row(fit, params, i: int, columns: int) -> int:
     # the offsets' rows >> (QD_BASE - QD_EFFECT) = 8 as its parameters (effects.correct_kinds
     # with no clamp: each kind alone, clamp < 0, one call for every effect).  One function for
     # both, each of the fit's arrays read once a point: the sums' row as a second call re-read
-    # them and paid a call, 2.6 % of a base+temp_offset fit on the emulated Pico.  Viper on
-    # ports with emitters.
+    # them and paid a call, 3.6 % of a base+temp_offset fit on the emulated Pico (268.3 ->
+    # 258.7 ms).  Viper on ports with emitters.
     u = ptr32(fit.u)
     row = fit.d
     w = int(SIGN_SHIFT)
