@@ -140,7 +140,7 @@ HOT_LOOPS = {
     "acal.core.solve": ("_eliminate_rows", "_prepare_rows", "_back_substitute",
                         "_diagonal_scales", "_rhs_shift", "_run", "_scale_rhs"),
     "acal.core.wide": ("mul_shift", "div_shift"),
-    "acal.logger.lis3dh": ("fifo_codes_q10",),
+    "acal.logger.lis3dh": ("fifo_codes_q10", "LIS3DH.fifo_convert"),
     "acal.logger.log": ("pack_int16",),
     "acal.paper.objective": ("objective_limbs", "update"),
 }

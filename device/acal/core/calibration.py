@@ -49,6 +49,13 @@ class Calibration:
         self.terms_valid = False
         self.at = conditions(1)    # the conditions the terms were made at
         self.rel = conditions(1)   # and relative to the references (now - ref)
+        # what the apply's loops read of the calibration's format, in this order: the clamp (Q10
+        # g), the base model's shift, a composed model's, e, APPLY_W_MAX, the terms' count (an
+        # array: a viper loop's every load of an attribute or a module's constant is a call)
+        self.form = int32s(6)
+        for i, v in enumerate((self.in_max, APPLY_D_Q - self.e, APPLY_FROM_SAMPLE_SHIFT - self.e,
+                               self.e, APPLY_W_MAX, 4 * len(self.kinds))):
+            self.form[i] = v
         self.x = 0
         self.y = 0
         self.z = 0
@@ -84,36 +91,37 @@ class Calibration:
         w[1] = y
         w[2] = z
         self.apply_samples(w, 0, 1)
+        self.x = w[0]
+        self.y = w[1]
+        self.z = w[2]
 
     def apply_samples(self, buf, start, n, src=None):
         """Correct n interleaved samples x y z ... (Q10 g in, Q(13 - e) g out) of an int array
         in place, from sample `start` (given src, an int array: read from src at the same
-        indices, the copy and the apply in one pass).  The last sample's result is also in
-        self.x, self.y, self.z."""
+        indices, the copy and the apply in one pass)."""
+        # The block's loop reads the calibration itself: a call with its formats as arguments
+        # took a frame of over 11 words, which MicroPython takes from the heap on every call
+        # (docs/method-and-formats.md "Frames").
         if n <= 0:
             return
         if src is None:
             src = buf
-        i = 3 * start
-        end = 3 * (start + n)
-        if not self.kinds:
-            self.dither = _apply_block(src, buf, i, end, self.k, self.in_max, APPLY_D_Q - self.e,
-                                       self.dither, SIGN_SHIFT)
-        else:   # one viper loop a block: the effects' terms made once for its conditions
-            c = self.now
-            t = self.at
-            moved = not self.terms_valid
-            for j in range(COND):   # a condition changed since the terms were made
-                if c[j] != t[j]:
-                    moved = True
-            if moved:
-                self._block_terms()
-            _apply_composed(src, buf, i, end, self.k, self.terms, 4 * len(self.kinds),
-                            self.in_max, APPLY_FROM_SAMPLE_SHIFT - self.e, self.e, APPLY_W_MAX,
-                            SIGN_SHIFT)
-        self.x = buf[end - 3]
-        self.y = buf[end - 2]
-        self.z = buf[end - 1]
+        if self.kinds:   # one viper loop a block: the effects' terms made once for its conditions
+            self._terms_now()
+            _apply_composed(self, src, buf, start, n)
+        else:
+            _apply_block(self, src, buf, start, n)
+
+    def _terms_now(self):
+        # the effects' terms, remade when a condition changed since they were made
+        c = self.now
+        t = self.at
+        moved = not self.terms_valid
+        for j in range(COND):
+            if c[j] != t[j]:
+                moved = True
+        if moved:
+            self._block_terms()
 
     def _block_terms(self):
         # The effects' forms and terms (effects.block_terms) at the current conditions, last
@@ -149,17 +157,24 @@ def _base_params(p, k, e):
 
 
 @viper
-def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, r: int, w: int) -> int:
-    # The apply's one implementation (Calibration.apply_samples): the samples source[i:end]
+def _apply_block(cal, source, dest, start: int, n: int):
+    # The apply's one implementation (Calibration.apply_samples): n samples source[3 start:]
     # (flat x y z) into dest, viper on ports with emitters (acal/core/emit.py; w: emit.SIGN_SHIFT).
     # Readings clamped to +-m (Q10 g), a = ((x << s) + D x + c) >> o: s = 18 - e, D = K - I in
-    # Q(18 - e), c = K o in Q(28 - e) g (_base_params), rounded by 15 bits to Q(13 - e) g with
-    # the dither r (Q15, the phase of the first sample; fixed.py APPLY_DITHER_STEP and _MASK are
-    # the literals below), the next sample's phase returned; every value below 2**30 at every
-    # full scale (tests/device/test_ranges.py traces them).
+    # Q(18 - e), c = K o in Q(28 - e) g (_base_params, cal.k), rounded by 15 bits to Q(13 - e) g
+    # with the dither r (Q15, cal.dither: the phase of the first sample, the next block's kept;
+    # fixed.py APPLY_DITHER_STEP and _MASK are the literals below); every value below 2**30 at
+    # every full scale (tests/device/test_ranges.py traces them).
     src = ptr32(source)
     dst = ptr32(dest)
-    k = ptr32(coef)
+    k = ptr32(cal.k)
+    f = ptr32(cal.form)
+    w = int(SIGN_SHIFT)
+    m = int(f[0])
+    s = int(f[1])
+    r = int(cal.dither)
+    i = 3 * start
+    end = 3 * (start + n)
     dxx = int(k[0]) << w >> w
     dyy = int(k[1]) << w >> w
     dzz = int(k[2]) << w >> w
@@ -190,16 +205,15 @@ def _apply_block(source, dest, i: int, end: int, coef, m: int, s: int, r: int, w
         dst[i + 2] = ((z << s) + dxz * x + dyz * y + dzz * z + cz + r) >> 15
         r = (r + 13573) & 32767
         i += 3
-    return r
+    cal.dither = r
 
 
 @viper
-def _apply_composed(source, dest, i: int, end: int, coef, terms, nt: int, m: int, s: int, e: int,
-                    wm: int, w: int):
-    # A composed model's apply (Calibration.apply_samples), the samples source[i:end] (flat x y z,
+def _apply_composed(cal, source, dest, start: int, n: int):
+    # A composed model's apply (Calibration.apply_samples), n samples source[3 start:] (flat x y z,
     # Q10 g) into dest, viper on ports with emitters: each reading clamped to the full scale +-m,
     # v = x << s in Q(14 - e) g; the effects removed by their forms (effects.py "the apply's
-    # forms": terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm (APPLY_W_MAX) after
+    # forms": cal.terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm (APPLY_W_MAX) after
     # each (fixed.py: a reading's range, so the next product and K's stay below 2**30); then
     # a = K (v + o) rounded to Q(13 - e) g as _apply_block.  Bit-identical to the per-sample form
     # (tests/device/effects_per_sample.py; tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
@@ -211,8 +225,17 @@ def _apply_composed(source, dest, i: int, end: int, coef, terms, nt: int, m: int
     # hot path every board runs; the two loops stay two, tied by test_composed_app's integers.
     src = ptr32(source)
     dst = ptr32(dest)
-    k = ptr32(coef)
-    t = ptr32(terms)
+    k = ptr32(cal.k)
+    t = ptr32(cal.terms)
+    f = ptr32(cal.form)
+    w = int(SIGN_SHIFT)
+    m = int(f[0])
+    s = int(f[2])
+    e = int(f[3])
+    wm = int(f[4])
+    nt = int(f[5])
+    i = 3 * start
+    end = 3 * (start + n)
     kxx = int(k[0]) << w >> w
     kyy = int(k[1]) << w >> w
     kzz = int(k[2]) << w >> w

@@ -118,6 +118,8 @@ class RestDetector:
         self.mean_z = 0
         self.st = array("i", bytearray(4 * STATE))   # the open segment (indices below)
         self.one = array("i", bytearray(12))         # add()'s sample
+        self.st[LENGTH] = n
+        self.st[AXIS] = axis
         self.reset()
 
     def reset(self):
@@ -126,7 +128,7 @@ class RestDetector:
         for c in range(LO_X, SUM_X, 2):    # (a tuple of indices would allocate)
             st[c] = SAMPLE_ONE_G * 64    # above any sample
             st[c + 1] = -SAMPLE_ONE_G * 64
-        for c in range(SUM_X, STATE):
+        for c in range(SUM_X, LENGTH):
             st[c] = 0
 
     @property
@@ -149,11 +151,9 @@ class RestDetector:
         slices: a slice would allocate.)  On a port with emitters buf must be an int array
         (array('i')): the scan reads it through a typed pointer."""
         if self.axis == ALL_AXES:
-            i = _scan_all(buf, 3 * start, 3 * (start + n), self.st, self.length,
-                          SIGN_SHIFT)
+            i = _scan_all(buf, 3 * start, 3 * (start + n), self.st, SIGN_SHIFT)
         else:
-            i = _scan_one(buf, 3 * start, 3 * (start + n), self.st, self.length, self.axis,
-                          SIGN_SHIFT)
+            i = _scan_one(buf, 3 * start, 3 * (start + n), self.st, SIGN_SHIFT)
         if self.st[COUNT] >= self.length:
             self._close()
         return i // 3 - start
@@ -192,9 +192,12 @@ def mean_q16(total, n):
 
 
 # The open segment's state, an int32 array: min and max of x, y, z (one-axis: the chosen axis's
-# in LO_X, HI_X), the three sums, the samples so far.  The scans below are the hot loop
-# (acal/core/emit.py: viper on ports with emitters; the literal indices are these, a viper function
-# reads no module constant).  Every value is a sample (|v| <= SAMPLE_MAX), a sum of at most
+# in LO_X, HI_X), the three sums, the samples so far; then the segment's length and the judged
+# axis, which the scans read from it too: a call with them as arguments took a frame of over 11
+# words, which MicroPython takes from the heap on every call (docs/method-and-formats.md
+# "Frames").  The scans below are the hot loop (acal/core/emit.py: viper on ports with emitters;
+# the literal indices are these: a viper function reads no module constant, whose every load
+# is a call).  Every value is a sample (|v| <= SAMPLE_MAX), a sum of at most
 # SEGMENT_MAX_SAMPLES of them (< 2**30) or an index below 3 * 65535 (tests/device/test_ranges.py).
 LO_X = 0
 HI_X = 1
@@ -206,16 +209,20 @@ SUM_X = 6
 SUM_Y = 7
 SUM_Z = 8
 COUNT = 9
-STATE = 10
+LENGTH = 10    # the segment's length in samples, set once
+AXIS = 11      # the judged axis (one-axis scans)
+STATE = 12
 
 
 @viper
-def _scan_one(buf, i: int, end: int, state, length: int, axis: int, w: int) -> int:
+def _scan_one(buf, i: int, end: int, state, w: int) -> int:
     # Samples buf[i:end] (flat x y z) into the state, judging one axis; stops after the sample
     # that fills the segment.  Returns the flat index it stopped at.  w: emit.SIGN_SHIFT (a
     # 32-bit word read into a 64-bit one is sign-extended by << w >> w; 0 on a 32-bit port).
     b = ptr32(buf)
     st = ptr32(state)
+    length = int(st[10])
+    axis = int(st[11])
     lo = int(st[0]) << w >> w
     hi = int(st[1]) << w >> w
     sx = int(st[6]) << w >> w
@@ -245,10 +252,11 @@ def _scan_one(buf, i: int, end: int, state, length: int, axis: int, w: int) -> i
 
 
 @viper
-def _scan_all(buf, i: int, end: int, state, length: int, w: int) -> int:
+def _scan_all(buf, i: int, end: int, state, w: int) -> int:
     # _scan_one with every axis's min and max tracked.
     b = ptr32(buf)
     st = ptr32(state)
+    length = int(st[10])
     lx = int(st[0]) << w >> w
     hx = int(st[1]) << w >> w
     ly = int(st[2]) << w >> w

@@ -186,18 +186,30 @@ class App:
 
     def _read_conditions(self):
         # the block's conditions: the chip's temperature and the board file's columns, each
-        # clamped; a failed read (OSError) keeps the last value.  Allocates nothing.
-        now = self.now
+        # clamped; a failed read (OSError) keeps the last value.  Allocates nothing.  (A try
+        # block takes three words of a frame: each read has its own, see _step_fifo.)
+        self._read_temperature()
+        for reader in self.readers:     # (column, function, low, high)
+            if self._read_column(reader):
+                v = self.now[reader[0]]
+                if v < reader[2]:
+                    self.now[reader[0]] = reader[2]
+                elif v > reader[3]:
+                    self.now[reader[0]] = reader[3]
+
+    def _read_temperature(self):
         try:
-            now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
+            self.now[C_TEMP] = (self.sensor.temperature() + self.temp_ref) << TEMP_Q
         except OSError:
             self.bus_errors += 1
-        for column, read, lo, hi in self.readers:
-            try:
-                v = read()
-                now[column] = lo if v < lo else (hi if v > hi else v)
-            except OSError:
-                self.bus_errors += 1
+
+    def _read_column(self, reader):
+        try:
+            self.now[reader[0]] = reader[1]()
+            return True
+        except OSError:
+            self.bus_errors += 1
+            return False
 
     def _flush(self):
         if self.fill:
@@ -223,28 +235,21 @@ class App:
             self.next_counters += COUNTERS_SECONDS * self.rate_hz
         return n
 
-    # Both readers retry inline and hold no closures: a lambda here would make its captured
-    # variables heap cells, allocated on every call.
     def _step_register(self):
-        s = self.sensor
         self.clock.sleep_us(self.period_us)
-        for attempt in range(RETRIES):
-            try:
-                s.read_sample()
-                break
-            except OSError:
-                self.bus_errors += 1
-                if attempt + 1 == RETRIES:
-                    return 0  # lost; _account finds it on the next read
-                self.bus_retries += 1
+        if not self._read(0):
+            return 0  # lost; _account finds it on the next read
         self._elapsed()
         self._account(1)
+        s = self.sensor
         self._push(s.x, s.y, s.z)
         self.samples += 1
         return 1
 
     def _step_fifo(self):
-        s = self.sensor
+        # A drain in steps whose frames stay within 11 words, a try block's three included:
+        # MicroPython takes a larger call's frame from the heap on every call
+        # (docs/method-and-formats.md "Frames", tests/device/test_frames.py).
         # DRAIN samples after the last drain's clock reading, not after this drain's work: the
         # fit's slices (up to ~100 ms a block on CircuitPython) would otherwise push the next
         # read past the 32 the FIFO holds
@@ -253,59 +258,83 @@ class App:
         if wait > 0:
             self._wait(wait)
         n = self._fifo_level()
-        if n < 0:
-            return 0
-        if n < DRAIN and not (self.sensor.wtm or self.sensor.overrun):
+        if 0 <= n < DRAIN and not (self.sensor.wtm or self.sensor.overrun):
             # WTM clear: the chip has converted fewer than DRAIN (its clock and ours differ, or
             # the drain came a hair early): wait for the rest rather than drain a few
             self._wait(self.period_us * (DRAIN - n))
             n = self._fifo_level()
-            if n < 0:
-                return 0
-        if n:
-            for attempt in range(RETRIES):
-                try:
-                    s.read_fifo_raw(n)
-                    break
-                except OSError:
-                    self.bus_errors += 1
-                    if attempt + 1 == RETRIES:
-                        return 0   # left in the FIFO: the next drain reads them
-                    self.bus_retries += 1
-        if not n:
+        if n <= 0 or not self._read(n):
             return 0
-        if s.overrun:
+        self._settle(n)
+        self._account(n)
+        self._convert(n)
+        self.samples += n
+        return n
+
+    # Both readers retry inline and hold no closures: a lambda here would make its captured
+    # variables heap cells, allocated on every call.
+    def _read(self, n):
+        # The chip read, retried: n samples' codes from the FIFO, or (n = 0) one sample from
+        # the output registers.  False: the bus failed RETRIES times (the FIFO keeps its
+        # samples for the next drain; a register sample is lost, _account finds it).
+        attempt = 1
+        while not self._read_once(n):
+            if self._failed(attempt):
+                return False
+            attempt += 1
+        return True
+
+    def _read_once(self, n):
+        try:
+            if n:
+                self.sensor.read_fifo_raw(n)
+            else:
+                self.sensor.read_sample()
+        except OSError:
+            return False
+        return True
+
+    def _failed(self, attempt):
+        # a bus error at the attempt-th try: True when it was the last of RETRIES
+        self.bus_errors += 1
+        if attempt == RETRIES:
+            return True
+        self.bus_retries += 1
+        return False
+
+    def _settle(self, n):
+        # What a drain of n says of the samples lost before it.
+        if self.sensor.overrun:
             # full: a sample converted between the level's read and the FIFO's overwrites one
             # more, lost but found by the clock only at a later drain
             self._owed = 1
-        else:
-            # Not full: the FIFO held every conversion since the last drain's read, so nothing
-            # is lost but what a full drain still owes.  A clock that says more are due is off
-            # -- a millisecond clock's resolution (CircuitPython's ticks_ms: 1 of 4 008 counted
-            # lost at 200 Hz on the emulated Feather), or a chip converting slower than its
-            # nominal ODR -- and is set back.
-            ahead = self.expected - (self.samples + self.lost + n)
-            if ahead > self._owed:
-                self.expected -= ahead - self._owed
-                ahead = self._owed
-            if ahead > 0:
-                self._owed -= ahead
-        self._account(n)
-        # converted straight into the block a run at a time (a _push call a sample cost 73 us on
-        # the emulated Pico; converting into a buffer and copying from it, 0.9 ms a drain of 25
-        # on the emulated Feather, where the copy is bytecode)
+            return
+        # Not full: the FIFO held every conversion since the last drain's read, so nothing
+        # is lost but what a full drain still owes.  A clock that says more are due is off
+        # -- a millisecond clock's resolution (CircuitPython's ticks_ms: 1 of 4 008 counted
+        # lost at 200 Hz on the emulated Feather), or a chip converting slower than its
+        # nominal ODR -- and is set back.
+        ahead = self.expected - (self.samples + self.lost + n)
+        if ahead > self._owed:
+            self.expected -= ahead - self._owed
+            ahead = self._owed
+        if ahead > 0:
+            self._owed -= ahead
+
+    def _convert(self, n):
+        # The drain's n samples converted straight into the block a run at a time (a _push
+        # call a sample cost 73 us on the emulated Pico; converting into a buffer and copying
+        # from it, 0.9 ms a drain of 25 on the emulated Feather, where the copy is bytecode)
         i = 0
         while i < n:
             m = BLOCK - self.fill
             if m > n - i:
                 m = n - i
-            s.fifo_convert(self.block, self.fill, i, m)
+            self.sensor.fifo_convert(self.block, self.fill, i, m)
             self.fill += m
             i += m
             if self.fill == BLOCK:
                 self._flush()
-        self.samples += n
-        return n
 
     def _wait(self, us):
         # Between drains: rounded up to whole ms where the clock sleeps in ms (<= 1 ms late, of
@@ -321,19 +350,24 @@ class App:
         # Read after, it would count as lost the samples converted during the FIFO read (3.4 ms
         # at 400 kHz, 18 ms on CircuitPython's 100 kHz), though they wait in the FIFO
         # (docs/boards-and-logs.md "Lost samples").  An overrun is counted once a drain.
-        s = self.sensor
-        for attempt in range(RETRIES):
-            try:
-                self._elapsed()
-                n = s.fifo_level()
-                if s.overrun:
-                    self.fifo_overruns += 1
-                return n
-            except OSError:
-                self.bus_errors += 1
-                if attempt + 1 < RETRIES:
-                    self.bus_retries += 1
-        return -1
+        attempt = 1
+        n = self._level_once()
+        while n < 0:
+            if self._failed(attempt):
+                return -1
+            attempt += 1
+            n = self._level_once()
+        if self.sensor.overrun:
+            self.fifo_overruns += 1
+        return n
+
+    def _level_once(self):
+        # the clock, then the level; -1: the bus failed
+        try:
+            self._elapsed()
+            return self.sensor.fifo_level()
+        except OSError:
+            return -1
 
     def write_counters(self):
         p = self.proc

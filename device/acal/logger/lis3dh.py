@@ -222,13 +222,12 @@ class LIS3DH:
         """Read the output registers into x, y, z (Q10 g)."""
         b = self._xyz
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, b)
-        sh = self._shift
-        so = self._so_mg
         d = self.dither
         self.dither = (d + _DITHER_STEP) & _DITHER_MASK
-        self.x = self._to_q10(self._s16(b[0], b[1]), sh, so, d)
-        self.y = self._to_q10(self._s16(b[2], b[3]), sh, so, d)
-        self.z = self._to_q10(self._s16(b[4], b[5]), sh, so, d)
+        # (no locals for the shift and scale: a frame of over 11 words comes from the heap)
+        self.x = self._to_q10(self._s16(b[0], b[1]), self._shift, self._so_mg, d)
+        self.y = self._to_q10(self._s16(b[2], b[3]), self._shift, self._so_mg, d)
+        self.z = self._to_q10(self._s16(b[4], b[5]), self._shift, self._so_mg, d)
 
     def fifo_level(self):
         """Samples waiting in the FIFO (0..32), from FSS and OVRN_FIFO; overrun: the FIFO is
@@ -250,20 +249,23 @@ class LIS3DH:
         """read_fifo's bus transaction alone: n samples' codes wait for fifo_convert."""
         self.i2c.readfrom_mem_into(self.address, _OUT_X_L | _AUTO_INC, self._fifo_views[n])
 
-    def fifo_convert(self, out, start, first, n):
+    @viper
+    def fifo_convert(self, out, start: int, first: int, n: int):
         """Samples first..first+n-1 of the last read_fifo_raw into the int array out (Q10 g)
         from sample index start; samples are converted in the order read (each takes the next
         dither)."""
         # a viper loop on ports with emitters (fifo_codes_q10): 92 us a sample as a bytecode
-        # loop on the emulated Pico; CircuitPython's tables (above)
+        # loop on the emulated Pico; CircuitPython's tables (above).  Viper itself too: as
+        # bytecode, its call with nine arguments took a frame of 16 words, which MicroPython
+        # takes from the heap on every call (docs/method-and-formats.md "Frames").
         i = 3 * first
-        if self.fifo_tables is not None:
+        if self.fifo_tables:   # (viper compares no object with None)
             self.dither = self.fifo_tables.convert(self._fifo_buf, i, i + 3 * n, out, 3 * start,
                                                    self.dither)
             return
         self.dither = fifo_codes_q10(self._fifo_buf, i, i + 3 * n, out, 3 * start,
-                                     self._fifo_mid, self._fifo_so_mg * _MG_Q10_MUL, SAMPLE_MAX,
-                                     self.dither)
+                                     self._fifo_mid, int(self._fifo_so_mg) * _MG_Q10_MUL,
+                                     SAMPLE_MAX, self.dither)
 
     def use_fifo_tables(self):
         """Convert FIFO codes through two tables (lis3dh_cp.FifoTables, 4 kB) from now on: for

@@ -25,6 +25,12 @@ class SPIRegisters:
 
     def readfrom_mem_into(self, addr, memaddr, buf):
         self._cmd[0] = spi_command(memaddr, True)
+        self._read_into(buf)
+
+    def _read_into(self, buf):
+        # CS low, the command out, buf clocked in, CS high.  Apart from readfrom_mem_into: with
+        # its four arguments the try block made a frame of 13 words, which MicroPython takes
+        # from the heap on every call (docs/method-and-formats.md "Frames").
         self.cs(0)
         try:
             self.spi.write(self._cmd)

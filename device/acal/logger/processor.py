@@ -181,25 +181,31 @@ class Processor:
         if self.capture is not None and not self.capture_full:
             self._capture(buf, n)
         self.batch_start = self.index
-        pipe = self.pipe
         if self.tracks:  # the block's time (its temperature and supply: the feeder's)
             self.now[C_TIME] = self.index // self.time_unit_samples
-        pipe.add_samples(buf, 0, n)
+        self.pipe.add_samples(buf, 0, n)
         self.index += n
         if self.on_samples is not None and self.calibrations:
-            out = self.calibrated
-            self.calibration.apply_samples(out, 0, n, buf)   # copied and applied in one pass
-            self.on_samples(out, n)
+            self.calibration.apply_samples(self.calibrated, 0, n, buf)   # copied and applied in one pass
+            self.on_samples(self.calibrated, n)
+        self._fit_steps()
+
+    def _fit_steps(self):
+        pipe = self.pipe
         if self.fitting:
-            for _ in range(FIT_STEPS_PER_FEED):
+            k = FIT_STEPS_PER_FEED
+            while k:
                 if pipe.fit_step():
                     self._fitted()
                     break
+                k -= 1
         elif pipe.plug is not None and pipe.plug.running:
-            for _ in range(FIT_STEPS_PER_FEED):
+            k = FIT_STEPS_PER_FEED
+            while k:
                 if pipe.plug.step():
                     self._discovered()
                     break
+                k -= 1
         elif pipe.ready() and (self.last_cal_index < 0 or
                                self.index - self.last_cal_index >= self.recal_samples):
             pipe.begin_fit()

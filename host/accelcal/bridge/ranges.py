@@ -24,13 +24,19 @@ SHIFT_MAX = 31                  # a viper shift amount every architecture takes 
 
 
 def viper_functions(path: Path, module: str) -> dict:
-    """{code object: name} of the functions marked `@viper` in one device module's source."""
+    """{code object: name} of the functions marked `@viper` in one device module's source, its
+    classes' methods among them (module.Class.method)."""
     mod = importlib.import_module(module)
     out = {}
     for node in ast.parse(path.read_text()).body:
-        if isinstance(node, ast.FunctionDef) and any(
-                isinstance(d, ast.Name) and d.id == "viper" for d in node.decorator_list):
-            out[getattr(mod, node.name).__code__] = f"{module}.{node.name}"
+        scopes = [(mod, module, node)]
+        if isinstance(node, ast.ClassDef):
+            cls = getattr(mod, node.name)
+            scopes = [(cls, f"{module}.{node.name}", n) for n in node.body]
+        for owner, prefix, fn in scopes:
+            if isinstance(fn, ast.FunctionDef) and any(
+                    isinstance(d, ast.Name) and d.id == "viper" for d in fn.decorator_list):
+                out[getattr(owner, fn.name).__code__] = f"{prefix}.{fn.name}"
     return out
 
 
