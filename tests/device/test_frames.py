@@ -6,11 +6,12 @@ under heap_lock it goes on the C stack instead, so the heap_lock tests (test_hea
 test_app.py) cannot see it.  Each such call makes the allocator scan for room, and on the
 emulated Pico that scan was 30 % of the Processor's cycles a sample, more or less by what the
 heap held (docs/notes/boards-and-logs.md).  micropython.mem_total() counts every byte ever
-allocated, freed or not: here it must not move over a FIFO drain, a block fed to the Processor
-or a block's calibrated output (the chip on I2C and on SPI), under the real MicroPython (the unix port, the hot loops viper
-as on a board: runtime.emitted_device_dir), the 5 s rest segment never ending within them (a
-segment's end and a fit's slices are per segment or per fit, not per sample; the bins' readiness
-is computed at the first block, then kept until a segment's end changes them)."""
+allocated, freed or not: here it must not move over a FIFO drain (the chip on I2C and on SPI), a
+sample read from the output registers, a block fed to the Processor or a block's calibrated
+output, under the real MicroPython (the unix port, the hot loops viper as on a board:
+runtime.emitted_device_dir), the 5 s rest segment never ending within them (a segment's end and
+a fit's slices are per segment or per fit, not per sample; the bins' readiness is computed at
+the first block, then kept until a segment's end changes them)."""
 from accelcal.bridge import runtime
 
 FRAMES_SCRIPT = r'''
