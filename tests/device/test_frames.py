@@ -6,10 +6,12 @@ under heap_lock it goes on the C stack instead, so the heap_lock tests (test_hea
 test_app.py) cannot see it.  Each such call makes the allocator scan for room, and on the
 emulated Pico that scan was 30 % of the Processor's cycles a sample, more or less by what the
 heap held (docs/notes/boards-and-logs.md).  micropython.mem_total() counts every byte ever
-allocated, freed or not: here it must not move over a FIFO drain, a block fed to the Processor
-or a block's calibrated output (the chip on I2C and on SPI), under the real MicroPython (the unix port, the hot loops viper
-as on a board: runtime.emitted_device_dir), the 5 s rest segment never ending within them (a
-segment's end and a fit's slices are per segment or per fit, not per sample)."""
+allocated, freed or not: here it must not move over a FIFO drain (the chip on I2C and on SPI), a
+sample read from the output registers, a block fed to the Processor or a block's calibrated
+output, under the real MicroPython (the unix port, the hot loops viper as on a board:
+runtime.emitted_device_dir), the 5 s rest segment never ending within them (a segment's end and
+a fit's slices are per segment or per fit, not per sample; the bins' readiness is computed at
+the first block, then kept until a segment's end changes them)."""
 from accelcal.bridge import runtime
 
 FRAMES_SCRIPT = r'''
@@ -116,7 +118,7 @@ class SPIBoard(Board):
 
 
 # each measured at its call, bytes in a preallocated array: nothing else allocates between
-taken = array("i", [0] * 64)
+taken = array("i", [0] * 128)
 t = total()
 small(1, 2, 3)
 taken[0] = total() - t
@@ -124,13 +126,19 @@ t = total()
 large(1, 2, 3)
 taken[1] = total() - t
 print("control", taken[0], taken[1])
+n = log.SAMPLES_PER_RECORD
 
-for name, board in (("drains", Board()), ("spi", SPIBoard())):
-    app = App(board, rate_hz=100, capture_bytes=0)
-    app.step()
-    app.step()                    # the first drains: what a first call makes, made
+# the FIFO drained over I2C and over SPI, and (fifo=False) one sample a step from the output
+# registers at 25 Hz; after the first block (the bins' readiness is computed once, then kept
+# until they change: a segment's end)
+for name, board, fifo, rate, most in (("drains", Board(), True, 100, 450),
+                                      ("spi", SPIBoard(), True, 100, 450),
+                                      ("registers", Board(), False, 25, 120)):
+    app = App(board, rate_hz=rate, capture_bytes=0, fifo=fifo)
+    while app.samples <= n:       # the first steps and block: what a first call makes, made
+        app.step()
     k = 0
-    while app.samples < 450:      # within the first 5 s segment
+    while app.samples < most:     # within the first 5 s segment
         t = total()
         app.step()
         taken[k] = total() - t
@@ -138,7 +146,6 @@ for name, board in (("drains", Board()), ("spi", SPIBoard())):
     print(name, k, app.proc.pipe.rest.segments, max(taken[:k]), sum(taken[:k]))
 
 proc = Processor(log.Log("frames_log.bin", 1 << 16), 100)
-n = log.SAMPLES_PER_RECORD
 block = array("i", [0] * (3 * n))
 for i in range(3 * n):
     block[i] = (i * 37) % 11 - 5 + (1024 if i % 3 == 2 else 0)
@@ -175,9 +182,9 @@ def test_acquisition_takes_no_frame_from_the_heap(tmp_path):
              for ln in out.splitlines()}
     small, large = map(int, lines["control"])
     assert small == 0 and large >= 12 * 8, out      # the measure sees a frame of 12 words
-    for bus in ("drains", "spi"):
-        drains, segments, worst, whole = map(int, lines[bus])
-        assert drains >= 14 and segments == 0, out
+    for reader in ("drains", "spi", "registers"):
+        steps, segments, worst, whole = map(int, lines[reader])
+        assert steps >= 14 and segments == 0, out
         assert worst == 0 and whole == 0, out
     feeds, segments, worst, whole = map(int, lines["feeds"])
     assert feeds == 10 and segments == 0, out

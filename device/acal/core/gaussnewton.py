@@ -236,12 +236,13 @@ class GaussNewton(Sliced):
             self.phase = _SOLVE
 
     def _solve(self):
-        np_ = self.n_params
-        # -b from its limbs, shifted down by e so that it lies below 2**28
-        e = rhs_from_limbs(self.b, self.bl, self.rhs, np_, SIGN_SHIFT)
-        for k in range(np_):
+        # -b from its limbs, shifted down by e so that it lies below 2**28.  (No local for
+        # n_params: this and the solver's begin made a frame of 12 words, which MicroPython
+        # takes from the heap: docs/method-and-formats.md "Frames".)
+        e = rhs_from_limbs(self.b, self.bl, self.rhs, self.n_params, SIGN_SHIFT)
+        for k in range(self.n_params):
             self.xshift[k] = self.tau + 1 - self.sh[k] + self.qd[k] + e
-        if self.solver.begin(self.a, self.rhs, self.step_, np_, self.mu, self.xshift):
+        if self.solver.begin(self.a, self.rhs, self.step_, self.n_params, self.mu, self.xshift):
             self.phase = _ELIM
         else:
             self._undetermined()
@@ -277,12 +278,10 @@ class GaussNewton(Sliced):
             self.phase = _SOLVE
 
     def _trial(self):
-        pt = self.pt
-        t = self.tau + F_TAU_OFFSET
         end = self.pos + (TRIAL_POINTS_COMPOSED if self.kinds else TRIAL_POINTS)
         if end > self.n:
             end = self.n
-        self.ft = trial_points(self, pt, self.pos, end, t, self.ft)
+        self.ft = trial_points(self, self.pt, self.pos, end, self.tau + F_TAU_OFFSET, self.ft)
         self.pos = end
         if end < self.n:
             return

@@ -111,6 +111,9 @@ class Solver:
         holds the solution).  Not on acal/core/status.py: no phase, one test inline, and it
         runs inside GaussNewton's _ELIM slice, where a call more cost 5 % of the wear base
         fit on the emulated Pico (docs/notes/boards-and-logs.md "One slice machine")."""
+        # (the solution's scaling a method apart: with it here the frame passed 11 words,
+        # which MicroPython takes from the heap on every call: docs/method-and-formats.md
+        # "Frames")
         if self.prep < self.n:
             self._prepare_row()
             return False
@@ -118,14 +121,19 @@ class Solver:
         if r == _MORE:
             return False
         if r == _SOLVED:
-            # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
-            x = self.x
-            y = self.y
-            e = self.state[_E] - MUL_Q
-            for k in range(self.n):
-                x[k] = _shift_sat(y[k], e - self.s[k] + self.xshift[k])
-            self.ok = True
+            self._solved()
         return True
+
+    def _solved(self):
+        # x_k = y_k * 2**(e - MUL_Q - s_k + xshift_k)
+        x = self.x
+        y = self.y
+        e = self.state[_E] - MUL_Q
+        k = self.n
+        while k:
+            k -= 1
+            x[k] = _shift_sat(y[k], e - self.s[k] + self.xshift[k])
+        self.ok = True
 
     def _prepare_row(self):
         # Rows prep.. of the scaled (and damped) copy, up to STEP_WORK // 2 entries (at least a
