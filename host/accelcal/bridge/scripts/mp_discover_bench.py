@@ -103,6 +103,8 @@ def place(lock=False):
         while pl.phase == ph:
             if lock:
                 micropython.heap_lock()
+            else:
+                gc.collect()   # a collection is no step's (CircuitPython's clock makes garbage)
             t = ticks()
             pl.step()
             dt = us(t)
