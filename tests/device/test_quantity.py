@@ -227,7 +227,8 @@ def test_an_effect_of_a_new_quantity_is_fitted_and_applied(tmp_path):
 
 # The app on a board whose board file reads the new quantity (HUMIDITY_IN_FIXED's reader row:
 # humidity_dmrh(), 0.1 %RH, clamped to 0..1000): the simulated chip behind its bus and a reader
-# that ramps from -10 %RH past 100 %RH, every 7th read failing.  A model with the quantity's
+# that ramps from -10 %RH past 100 %RH (there past int32, which the conditions' array cannot
+# hold unclamped), every 7th read failing.  A model with the quantity's
 # effect is refused on a board file without the reader; with it, the app runs the stimulus.
 APP = r"""
 import sys
@@ -258,7 +259,8 @@ class Humid(Plain):
         self.reads += 1
         if self.reads % 7 == 0:
             raise OSError(5)
-        return (37 * self.reads) % 1200 - 100
+        v = (37 * self.reads) % 1200 - 100
+        return v if v <= 1000 else v << 32   # past 1000, past int32 too: clamped before stored
 
 
 try:

@@ -190,12 +190,13 @@ class App:
         # block takes three words of a frame: each read has its own, see _step_fifo.)
         self._read_temperature()
         for reader in self.readers:     # (column, function, low, high)
-            if self._read_column(reader):
-                v = self.now[reader[0]]
+            v = self._read_column(reader)
+            if v is not None:   # clamped before it is stored: the int array takes no wider
                 if v < reader[2]:
-                    self.now[reader[0]] = reader[2]
+                    v = reader[2]
                 elif v > reader[3]:
-                    self.now[reader[0]] = reader[3]
+                    v = reader[3]
+                self.now[reader[0]] = v
 
     def _read_temperature(self):
         try:
@@ -205,11 +206,10 @@ class App:
 
     def _read_column(self, reader):
         try:
-            self.now[reader[0]] = reader[1]()
-            return True
+            return reader[1]()
         except OSError:
             self.bus_errors += 1
-            return False
+            return None
 
     def _flush(self):
         if self.fill:
