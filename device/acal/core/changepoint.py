@@ -176,7 +176,10 @@ class ChangePoint(Sliced):
             self.phase = _DONE
 
     def _add(self, i):
-        # point i of the fit: its residual and direction, into the running sums
+        # point i of the fit: its residual and direction, into the running sums.  w is the
+        # direction, then the sums, then the residual's; and a = a + t, not a += t (two stack
+        # slots more): a frame of over 11 words comes from the heap on every call, a point
+        # (docs/method-and-formats.md "Frames")
         w = self.w
         r = self.fit.point(i, w) >> R_SHIFT
         if r > R_MAX:
@@ -186,17 +189,17 @@ class ChangePoint(Sliced):
         x = w[0] >> N_SHIFT
         y = w[1] >> N_SHIFT
         z = w[2] >> N_SHIFT
-        s = self.s
-        s[0] += x * x
-        s[1] += y * y
-        s[2] += z * z
-        s[3] += x * y
-        s[4] += x * z
-        s[5] += y * z
-        b = self.b
-        b[0] += x * r
-        b[1] += y * r
-        b[2] += z * r
+        w = self.s
+        w[0] = w[0] + x * x
+        w[1] = w[1] + y * y
+        w[2] = w[2] + z * z
+        w[3] = w[3] + x * y
+        w[4] = w[4] + x * z
+        w[5] = w[5] + y * z
+        w = self.b
+        w[0] = w[0] + x * r
+        w[1] = w[1] + y * r
+        w[2] = w[2] + z * r
 
     def _score(self, k):
         s = self.s
