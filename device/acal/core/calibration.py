@@ -213,8 +213,9 @@ def _apply_composed(cal, source, dest, start: int, n: int):
     # A composed model's apply (Calibration.apply_samples), n samples source[3 start:] (flat x y z,
     # Q10 g) into dest, viper on ports with emitters: each reading clamped to the full scale +-m,
     # v = x << s in Q(14 - e) g; the effects removed by their forms (effects.py "the apply's
-    # forms": cal.terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm (APPLY_W_MAX) after
-    # each (fixed.py: a reading's range, so the next product and K's stay below 2**30); then
+    # forms": cal.terms[0:nt], 4 ints an effect, last effect first), v clamped to +-wm
+    # (APPLY_W_MAX) after each (fixed.py: a reading's range, so the next product and K's stay
+    # below 2**30); then
     # a = K (v + o) rounded to Q(13 - e) g as _apply_block.  Bit-identical to the per-sample form
     # (tests/device/effects_per_sample.py; tests/device/test_composed_app.py under MicroPython, tests/bridge/test_rp2040.py
     # and test_rv32.py on the chips); every value below 2**30

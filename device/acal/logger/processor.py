@@ -186,26 +186,25 @@ class Processor:
         self.pipe.add_samples(buf, 0, n)
         self.index += n
         if self.on_samples is not None and self.calibrations:
-            self.calibration.apply_samples(self.calibrated, 0, n, buf)   # copied and applied in one pass
+            # copied and applied in one pass
+            self.calibration.apply_samples(self.calibrated, 0, n, buf)
             self.on_samples(self.calibrated, n)
         self._fit_steps()
 
     def _fit_steps(self):
+        # feed's fit slices, a method apart: in feed they made its frame pass 11 words, which
+        # MicroPython takes from the heap on every call (docs/method-and-formats.md "Frames")
         pipe = self.pipe
         if self.fitting:
-            k = FIT_STEPS_PER_FEED
-            while k:
+            for _ in range(FIT_STEPS_PER_FEED):
                 if pipe.fit_step():
                     self._fitted()
                     break
-                k -= 1
         elif pipe.plug is not None and pipe.plug.running:
-            k = FIT_STEPS_PER_FEED
-            while k:
+            for _ in range(FIT_STEPS_PER_FEED):
                 if pipe.plug.step():
                     self._discovered()
                     break
-                k -= 1
         elif pipe.ready() and (self.last_cal_index < 0 or
                                self.index - self.last_cal_index >= self.recal_samples):
             pipe.begin_fit()
